@@ -1,0 +1,46 @@
+"""``robocal fk``: the tool point in the robot base frame for joint readings in degrees."""
+from __future__ import annotations
+
+import json
+import math
+
+import numpy as np
+
+from calib.errors import RobocalError
+from calib.kinematics import Kinematics
+from calib.robot import load_robot
+from calib.units import DEG
+
+NAME = "fk"
+HELP = "tool point (mm, robot base frame 0) for six joint readings in degrees"
+
+
+def add_arguments(p):
+    p.add_argument("q", nargs="+", metavar="Q", help="joint readings in degrees (theta_j of the A-matrices)")
+    p.add_argument("--robot", metavar="FILE", help="robot description TOML (default: the thesis's Puma 560)")
+    p.add_argument("--json", action="store_true", help='print {"x_mm": .., "y_mm": .., "z_mm": ..}')
+
+
+def run(args) -> int:
+    robot = load_robot(args.robot)
+    if len(args.q) != robot.n:
+        raise RobocalError(f"fk: expected {robot.n} joint readings for {robot.name}, got {len(args.q)}")
+    q = []
+    for i, text in enumerate(args.q, 1):
+        try:
+            v = float(text)
+        except ValueError:
+            raise RobocalError(f"fk: joint {i} reading {text!r} is not a number (degrees)") from None
+        if not math.isfinite(v):
+            raise RobocalError(f"fk: joint {i} reading {text!r} is not finite")
+        q.append(v)
+    kin = Kinematics(robot)
+    # base frame 0: identity base transform, whatever the description's base pose in the measurement frame
+    params = kin.nominal.copy()
+    params[[kin.index[f"base.{k}"] for k in ("x_mm", "y_mm", "z_mm", "yaw_rad", "pitch_rad", "roll_rad")]] = 0.0
+    x, y, z = kin.points(np.array([q]) * DEG, params)[0]
+    if args.json:
+        print(json.dumps({"x_mm": round(float(x), 6), "y_mm": round(float(y), 6), "z_mm": round(float(z), 6)}))
+    else:
+        print(f"x_mm = {x:.3f}\ny_mm = {y:.3f}\nz_mm = {z:.3f}")
+    return 0

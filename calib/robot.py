@@ -1,0 +1,249 @@
+"""Robot description: the kinematic, drive and mass data of a serial robot, read from a documented TOML file.
+
+The format (``calib/data/puma560.toml`` is the annotated example and the default robot):
+
+``[robot]``
+    ``name`` (str), ``gravity_m_s2`` (3 numbers, gravity in base frame 0; default ``[0, 0, -9.80665]``).
+``[[joint]]`` (one table per joint, base to wrist)
+    Standard Denavit-Hartenberg link ``A_j = Rot(z, theta_j + theta_offset) Trans(z, d) Trans(x, a) Rot(x, alpha)
+    Rot(y, beta)``: ``a_mm``, ``d_mm``, ``alpha_deg`` (required), ``theta_offset_deg`` (default 0), ``beta_deg`` (the
+    Hayati rotation, default 0) and ``hayati`` (true when this link joins two nominally parallel axes: beta is then
+    identified instead of d).  A joint reading is ``theta_j``.  Drive: ``limits_deg`` ([low, high]), ``gear_ratio``
+    (motor angle = gear_ratio x joint angle, sign included), ``encoder_counts_per_rev`` (counts per motor revolution,
+    after quadrature).  Gravity: ``mass_kg`` and ``com_mm`` (centre of mass in frame j).
+``[coupling]``
+    The motor-from-joint map ``motor = diag(G) (C theta)``.  Either ``sigma45``, ``sigma46``, ``sigma56`` (wrist
+    coupling factors, C lower triangular) or a full ``matrix`` (n x n).  Default: no coupling.
+``[base]``
+    Pose of robot frame 0 in the measurement (theodolite) frame: ``xyz_mm``, ``rpy_deg`` (roll-pitch-yaw, applied as
+    Rz(yaw) Ry(pitch) Rx(roll)).  Default: identity.
+``[tool.points]``
+    Named tool points in frame 6, mm (``P = [0, 0, 150]``).  None means the origin of frame 6.  The thesis's ^6E
+    (rotation diag(-1,-1,-1), translation -(Xt, Yt, Zt)) puts its tool point at ``[-Xt, -Yt, -Zt]``.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field, replace
+from importlib import resources
+from pathlib import Path
+
+import numpy as np
+
+from .tomlspec import Checker, Field, check_each
+from .units import DEG, G0_M_S2
+
+JOINT_SPEC = {
+    "name": Field("str", default=""),
+    "a_mm": Field("number", required=True),
+    "d_mm": Field("number", required=True),
+    "alpha_deg": Field("number", required=True, min=-360, max=360),
+    "theta_offset_deg": Field("number", default=0.0, min=-360, max=360),
+    "beta_deg": Field("number", default=0.0, min=-90, max=90),
+    "hayati": Field("bool", default=False),
+    "limits_deg": Field("vector", required=True, length=2, min=-720, max=720),
+    "gear_ratio": Field("number", required=True),
+    "encoder_counts_per_rev": Field("int", required=True, positive=True),
+    "mass_kg": Field("number", default=0.0, min=0.0),
+    "com_mm": Field("vector", default=[0.0, 0.0, 0.0], length=3),
+}
+ROBOT_SPEC = {
+    "name": Field("str", default="robot"),
+    "gravity_m_s2": Field("vector", default=[0.0, 0.0, -G0_M_S2], length=3),
+}
+TOP_SPEC = {
+    "robot": Field("table", default={}),
+    "joint": Field("tables", required=True),
+    "coupling": Field("table", default={}),
+    "base": Field("table", default={}),
+    "tool": Field("table", default={}),
+}
+COUPLING_SPEC = {
+    "sigma45": Field("number", default=0.0, min=-1, max=1),
+    "sigma46": Field("number", default=0.0, min=-1, max=1),
+    "sigma56": Field("number", default=0.0, min=-1, max=1),
+    "matrix": Field("matrix"),
+}
+BASE_SPEC = {
+    "xyz_mm": Field("vector", default=[0.0, 0.0, 0.0], length=3),
+    "rpy_deg": Field("vector", default=[0.0, 0.0, 0.0], length=3, min=-360, max=360),
+}
+TOOL_SPEC = {"points": Field("table", default={})}
+
+
+@dataclass(frozen=True)
+class Robot:
+    """A serial robot with n revolute joints.  Arrays are indexed by joint (0-based inside, 1-based in names)."""
+
+    name: str
+    a_mm: np.ndarray
+    d_mm: np.ndarray
+    alpha_rad: np.ndarray
+    theta_offset_rad: np.ndarray
+    beta_rad: np.ndarray
+    hayati: np.ndarray                 # bool per link: beta identified instead of d
+    limits_rad: np.ndarray             # (n, 2)
+    gear_ratio: np.ndarray
+    counts_per_rev: np.ndarray
+    mass_kg: np.ndarray
+    com_mm: np.ndarray                 # (n, 3), in frame j
+    coupling: np.ndarray               # (n, n) C in motor = diag(G) C theta
+    gravity_m_s2: np.ndarray           # (3,) in frame 0
+    base_xyz_mm: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    base_rpy_rad: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    tool_points_mm: dict[str, np.ndarray] = field(default_factory=dict)
+    joint_names: tuple[str, ...] = ()
+    source: str = "<memory>"
+
+    @property
+    def n(self) -> int:
+        return len(self.a_mm)
+
+    # -- tool -------------------------------------------------------------------------------------------------
+    def tool_point(self, name: str | None = None) -> np.ndarray:
+        """A named tool point in frame 6 (mm); with no name the only point, or the origin of frame 6 if none."""
+        if name is None:
+            if not self.tool_points_mm:
+                return np.zeros(3)
+            if len(self.tool_points_mm) == 1:
+                return next(iter(self.tool_points_mm.values())).copy()
+            name = "P" if "P" in self.tool_points_mm else next(iter(self.tool_points_mm))
+        try:
+            return self.tool_points_mm[name].copy()
+        except KeyError:
+            known = ", ".join(self.tool_points_mm) or "none"
+            from .errors import RobocalError
+            raise RobocalError(f"{self.source}: tool point {name!r} is not defined (defined: {known})") from None
+
+    def with_tool(self, points_mm: dict[str, np.ndarray]) -> "Robot":
+        return replace(self, tool_points_mm={k: np.asarray(v, float) for k, v in points_mm.items()})
+
+    # -- encoders ---------------------------------------------------------------------------------------------
+    def motor_angles_rad(self, theta_rad: np.ndarray) -> np.ndarray:
+        """Motor shaft angles for joint angles (..., n): ``diag(G) C theta``."""
+        return (np.asarray(theta_rad) @ self.coupling.T) * self.gear_ratio
+
+    def joint_angles_from_motor(self, motor_rad: np.ndarray) -> np.ndarray:
+        """Inverse of :meth:`motor_angles_rad`."""
+        return np.linalg.solve(self.coupling, (np.asarray(motor_rad) / self.gear_ratio).T).T
+
+    def counts_from_joint(self, theta_rad: np.ndarray) -> np.ndarray:
+        """Encoder counts (float, unrounded) that joint angles produce; zero counts at zero joint angles."""
+        return self.motor_angles_rad(theta_rad) * self.counts_per_rev / (2 * np.pi)
+
+    def joint_from_counts(self, counts: np.ndarray) -> np.ndarray:
+        """Joint angles (rad) from encoder counts, undoing gear ratios and the coupling matrix."""
+        return self.joint_angles_from_motor(np.asarray(counts, float) * (2 * np.pi) / self.counts_per_rev)
+
+    def within_limits(self, theta_rad: np.ndarray) -> np.ndarray:
+        """Boolean per pose: every joint inside its limits."""
+        q = np.atleast_2d(theta_rad)
+        return np.all((q >= self.limits_rad[:, 0]) & (q <= self.limits_rad[:, 1]), axis=-1)
+
+
+def _coupling_matrix(chk: Checker, c: dict, n: int) -> np.ndarray:
+    if c["matrix"] is not None:
+        if any(c[k] != 0.0 for k in ("sigma45", "sigma46", "sigma56")):
+            chk.fail("coupling", "give either the sigma factors or the matrix, not both")
+        m = np.asarray(c["matrix"], float)
+        if m.shape != (n, n):
+            chk.fail("coupling.matrix", f"must be {n}x{n} for {n} joints, got {m.shape[0]}x{m.shape[1] if m.ndim > 1 else 0}")
+        if abs(np.linalg.det(m)) < 1e-9:
+            chk.fail("coupling.matrix", "is singular: joint angles could not be recovered from motor angles")
+        return m
+    m = np.eye(n)
+    sig = {"sigma45": (4, 3), "sigma46": (5, 3), "sigma56": (5, 4)}
+    for key, (i, j) in sig.items():
+        if c[key] != 0.0:
+            if n < 6:
+                chk.fail(f"coupling.{key}", f"needs 6 joints, the robot has {n}")
+            m[i, j] = c[key]
+    return m
+
+
+def parse_robot(text: str, source: str = "<string>") -> Robot:
+    """Parse and check a robot description given as TOML text."""
+    chk, data = Checker.parse(text, source)
+    return _build(chk, data)
+
+
+def load_robot(path: str | Path | None = None) -> Robot:
+    """Load a robot description file; ``None`` gives the shipped Puma 560 of the thesis."""
+    if path is None:
+        ref = resources.files("calib") / "data" / "puma560.toml"
+        return parse_robot(ref.read_text(encoding="utf-8"), "puma560.toml (default)")
+    chk, data = Checker.load(path)
+    return _build(chk, data)
+
+
+def _build(chk: Checker, data: dict) -> Robot:
+    top = chk.table(data, TOP_SPEC, "")
+    rob = chk.table(top["robot"], ROBOT_SPEC, "robot")
+    joints = check_each(chk, top["joint"], JOINT_SPEC, "joint", lambda j, key: (j, key))
+    if not joints:
+        chk.fail("joint", "at least one [[joint]] table is needed")
+    for j, key in joints:
+        lo, hi = j["limits_deg"]
+        if not lo < hi:
+            chk.fail(f"{key}.limits_deg", f"low limit {lo:g} must be below high limit {hi:g}")
+        if j["gear_ratio"] == 0.0:
+            chk.fail(f"{key}.gear_ratio", "must not be zero")
+    js = [j for j, _ in joints]
+    n = len(js)
+    coupling = _coupling_matrix(chk, chk.table(top["coupling"], COUPLING_SPEC, "coupling"), n)
+    base = chk.table(top["base"], BASE_SPEC, "base")
+    tool = chk.table(top["tool"], TOOL_SPEC, "tool")
+    points = {}
+    if not isinstance(tool["points"], dict):
+        chk.fail("tool.points", "must be a table of name = [x, y, z]")
+    for name, vec in tool["points"].items():
+        points[name] = np.asarray(chk.value(vec, Field("vector", length=3), f"tool.points.{name}"), float)
+
+    def arr(key, scale=1.0):
+        return np.array([j[key] for j in js], float) * scale
+
+    return Robot(
+        name=rob["name"],
+        a_mm=arr("a_mm"), d_mm=arr("d_mm"), alpha_rad=arr("alpha_deg", DEG),
+        theta_offset_rad=arr("theta_offset_deg", DEG), beta_rad=arr("beta_deg", DEG),
+        hayati=np.array([j["hayati"] for j in js], bool),
+        limits_rad=np.array([j["limits_deg"] for j in js], float) * DEG,
+        gear_ratio=arr("gear_ratio"), counts_per_rev=arr("encoder_counts_per_rev"),
+        mass_kg=arr("mass_kg"), com_mm=np.array([j["com_mm"] for j in js], float),
+        coupling=coupling, gravity_m_s2=np.asarray(rob["gravity_m_s2"], float),
+        base_xyz_mm=np.asarray(base["xyz_mm"], float), base_rpy_rad=np.asarray(base["rpy_deg"], float) * DEG,
+        tool_points_mm=points, joint_names=tuple(j["name"] or f"j{i}" for i, j in enumerate(js, 1)),
+        source=chk.source,
+    )
+
+
+def robot_to_toml(robot: Robot) -> str:
+    """Write a robot description back as TOML (used for identified robots); round-trips through :func:`parse_robot`."""
+    def num(x: float) -> str:
+        return repr(float(x))
+
+    def vec(v) -> str:
+        return "[" + ", ".join(num(x) for x in v) + "]"
+
+    lines = [f"# robot description written by robocal", "[robot]", f"name = {robot.name!r}".replace("'", '"'),
+             f"gravity_m_s2 = {vec(robot.gravity_m_s2)}", ""]
+    for i in range(robot.n):
+        lines += [
+            "[[joint]]",
+            f'name = "{robot.joint_names[i] if robot.joint_names else f"j{i + 1}"}"',
+            f"a_mm = {num(robot.a_mm[i])}",
+            f"d_mm = {num(robot.d_mm[i])}",
+            f"alpha_deg = {num(robot.alpha_rad[i] / DEG)}",
+            f"theta_offset_deg = {num(robot.theta_offset_rad[i] / DEG)}",
+            f"beta_deg = {num(robot.beta_rad[i] / DEG)}",
+            f"hayati = {'true' if robot.hayati[i] else 'false'}",
+            f"limits_deg = {vec(robot.limits_rad[i] / DEG)}",
+            f"gear_ratio = {num(robot.gear_ratio[i])}",
+            f"encoder_counts_per_rev = {int(robot.counts_per_rev[i])}",
+            f"mass_kg = {num(robot.mass_kg[i])}",
+            f"com_mm = {vec(robot.com_mm[i])}",
+            "",
+        ]
+    lines += ["[coupling]", "matrix = [" + ", ".join(vec(r) for r in robot.coupling) + "]", ""]
+    lines += ["[base]", f"xyz_mm = {vec(robot.base_xyz_mm)}", f"rpy_deg = {vec(robot.base_rpy_rad / DEG)}", ""]
+    lines += ["[tool.points]"] + [f"{k} = {vec(v)}" for k, v in robot.tool_points_mm.items()]
+    return "\n".join(lines) + "\n"

@@ -1,0 +1,256 @@
+"""Theodolite geometry: the angles a station reads for a point, and the point two or more sightings give back.
+
+Station model (one per instrument), in the measurement frame R_f of the thesis (origin at theodolite A, X along the
+baseline A -> B, Z up along A's vertical axis):
+
+* position ``xyz_mm`` of the instrument's centre (intersection of the axes);
+* ``yaw_rad``: world direction (counter-clockwise from +X) of the horizontal circle's zero;
+* levelling ``tilt_x_rad``, ``tilt_y_rad``: the vertical axis tilted about the world X and Y axes;
+* instrument errors: collimation ``collimation_rad`` (c), trunnion-axis tilt ``trunnion_rad`` (i) and vertical index
+  error ``index_rad`` (k).
+
+Readings are what a Leica instrument reports: ``Hz`` increasing clockwise seen from above, ``V`` the zenith angle
+(0 up, pi/2 horizontal).  Face I:  ``Hz = Hz0 + c / sin V + i cot V``, ``V = V0 + k``; face II:
+``Hz = Hz0 + pi - c / sin V - i cot V``, ``V = 2 pi - V0 + k``.
+
+The thesis's own parameterisation (L, gamma1, gamma2; section 4.2 and eq 4.3.1) is the special case built by
+:func:`thesis_stations`: A at the origin, B at (L, 0, 0), both levelled, with the interior angles
+``alpha = alpha' - gamma1``, ``beta = beta' - gamma2`` and A's elevation ``phi``; :func:`thesis_readings` and
+:func:`thesis_point` convert.  Targets lie on the +Y side of the baseline.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field, fields, replace
+
+import numpy as np
+
+from .errors import GeometryError
+from .units import ARCSEC
+
+TWO_PI = 2 * np.pi
+
+
+def _wrap(a):
+    """Wrap angles to (-pi, pi]."""
+    return np.angle(np.exp(1j * np.asarray(a)))
+
+
+@dataclass(frozen=True)
+class Station:
+    """One theodolite: pose, levelling and instrument errors.  Units mm and rad."""
+
+    name: str = "A"
+    x_mm: float = 0.0
+    y_mm: float = 0.0
+    z_mm: float = 0.0
+    yaw_rad: float = 0.0
+    tilt_x_rad: float = 0.0
+    tilt_y_rad: float = 0.0
+    collimation_rad: float = 0.0
+    trunnion_rad: float = 0.0
+    index_rad: float = 0.0
+    sigma_hz_rad: float = 3 * ARCSEC     #: 1-sigma reading noise, horizontal (Sokkisha TM-20C: read to 3")
+    sigma_v_rad: float = 3 * ARCSEC
+
+    PARAMS = ("x_mm", "y_mm", "z_mm", "yaw_rad", "tilt_x_rad", "tilt_y_rad", "collimation_rad", "trunnion_rad",
+              "index_rad")
+
+    @property
+    def position(self) -> np.ndarray:
+        return np.array([self.x_mm, self.y_mm, self.z_mm])
+
+    @property
+    def rotation(self) -> np.ndarray:
+        """World <- instrument rotation: Ry(tilt_y) Rx(tilt_x) Rz(yaw)."""
+        cz, sz = np.cos(self.yaw_rad), np.sin(self.yaw_rad)
+        cx, sx = np.cos(self.tilt_x_rad), np.sin(self.tilt_x_rad)
+        cy, sy = np.cos(self.tilt_y_rad), np.sin(self.tilt_y_rad)
+        Rz = np.array([[cz, -sz, 0], [sz, cz, 0], [0, 0, 1]])
+        Rx = np.array([[1, 0, 0], [0, cx, -sx], [0, sx, cx]])
+        Ry = np.array([[cy, 0, sy], [0, 1, 0], [-sy, 0, cy]])
+        return Ry @ Rx @ Rz
+
+    def params(self) -> np.ndarray:
+        return np.array([getattr(self, k) for k in self.PARAMS])
+
+    def with_params(self, values) -> "Station":
+        return replace(self, **{k: float(v) for k, v in zip(self.PARAMS, values)})
+
+    # -- forward ---------------------------------------------------------------------------------------------
+    def local(self, points_mm: np.ndarray) -> np.ndarray:
+        """Points (N, 3) in the instrument frame."""
+        return (np.asarray(points_mm, float) - self.position) @ self.rotation
+
+    def observe(self, points_mm: np.ndarray, face: int | np.ndarray = 1, with_jacobian: bool = False):
+        """Readings ``(Hz, V)`` in radians (Hz in [0, 2 pi)) of points (N, 3); optionally d(Hz, V)/d(point) (N, 2, 3).
+
+        A point at the station's centre or straight above it has no horizontal direction: GeometryError.
+        """
+        d = self.local(points_mm)
+        dx, dy, dz = d[..., 0], d[..., 1], d[..., 2]
+        rho2 = dx * dx + dy * dy
+        rho = np.sqrt(rho2)
+        if np.any(rho < 1e-9):
+            i = int(np.flatnonzero(rho < 1e-9)[0])
+            raise GeometryError(f"station {self.name}: point {i} is at the station or on its vertical axis; "
+                                f"no horizontal direction")
+        hz0 = np.arctan2(-dy, dx)
+        v0 = np.arctan2(rho, dz)
+        sv = np.sin(v0)
+        corr = self.collimation_rad / sv + self.trunnion_rad * np.cos(v0) / sv
+        face2 = np.asarray(face) == 2
+        hz = np.where(face2, hz0 + np.pi - corr, hz0 + corr)
+        v = np.where(face2, TWO_PI - v0, v0) + self.index_rad
+        hz = np.mod(hz, TWO_PI)
+        if not with_jacobian:
+            return hz, v
+        r2 = rho2 + dz * dz
+        dhz_dd = np.stack([dy / rho2, -dx / rho2, np.zeros_like(dx)], -1)
+        dv_dd = np.stack([dz * dx / (rho * r2), dz * dy / (rho * r2), -rho / r2], -1)
+        dcorr_dv = -(self.collimation_rad * np.cos(v0) + self.trunnion_rad) / (sv * sv)
+        sgn = np.where(face2, -1.0, 1.0)
+        dhz = dhz_dd + (sgn * dcorr_dv)[..., None] * dv_dd
+        dv = np.where(face2[..., None], -dv_dd, dv_dd)
+        Rt = self.rotation.T          # d(local)/d(point) = R^T
+        J = np.stack([dhz @ Rt, dv @ Rt], axis=-2)
+        return hz, v, J
+
+    def direction(self, hz_rad, v_rad, face: int | np.ndarray = 1) -> np.ndarray:
+        """World unit vectors (N, 3) of sight lines from readings, with the instrument errors removed."""
+        hz = np.asarray(hz_rad, float)
+        v = np.asarray(v_rad, float) - self.index_rad
+        face2 = np.asarray(face) == 2
+        v0 = np.where(face2, TWO_PI - v, v)
+        sv = np.sin(v0)
+        corr = self.collimation_rad / sv + self.trunnion_rad * np.cos(v0) / sv
+        hz0 = np.where(face2, hz - np.pi + corr, hz - corr)
+        d = np.stack([np.sin(v0) * np.cos(hz0), -np.sin(v0) * np.sin(hz0), np.cos(v0)], -1)
+        return d @ self.rotation.T
+
+
+@dataclass
+class Intersection:
+    """Points from sightings, with their 3x3 covariances and the geometry checks an operator needs."""
+
+    point_mm: np.ndarray          # (N, 3)
+    cov_mm2: np.ndarray           # (N, 3, 3)
+    miss_mm: np.ndarray           # (N,) shortest distance between the first two sight lines
+    angle_rad: np.ndarray         # (N,) intersection angle of the first two sight lines
+    residual_rad: np.ndarray      # (N, 2k) reading residuals at the solution
+
+    @property
+    def sigma_mm(self) -> np.ndarray:
+        return np.sqrt(np.diagonal(self.cov_mm2, axis1=-2, axis2=-1))
+
+
+def closest_point(c1, u1, c2, u2, names=("A", "B"), min_angle_rad: float = 1e-4):
+    """Midpoint of the common perpendicular of two sight lines (vectorised), its miss distance and the angle.
+
+    Raises GeometryError for (nearly) parallel sight lines or a point behind a station.
+    """
+    w = c1 - c2
+    b = np.sum(u1 * u2, -1)
+    d = np.sum(u1 * w, -1)
+    e = np.sum(u2 * w, -1)
+    denom = 1.0 - b * b
+    angle = np.arccos(np.clip(np.abs(b), 0.0, 1.0))
+    bad = angle < min_angle_rad
+    if np.any(bad):
+        i = int(np.flatnonzero(bad)[0])
+        raise GeometryError(f"sight lines from {names[0]} and {names[1]} are parallel for point {i} "
+                            f"(intersection angle {np.degrees(angle[i]):.4f} deg); the point cannot be located")
+    t1 = (b * e - d) / denom
+    t2 = (e - b * d) / denom
+    for t, nm in ((t1, names[0]), (t2, names[1])):
+        if np.any(t <= 0):
+            i = int(np.flatnonzero(t <= 0)[0])
+            raise GeometryError(f"point {i} would lie behind station {nm} (range {t[i]:.1f} mm along its sight line)")
+    p1 = c1 + t1[:, None] * u1
+    p2 = c2 + t2[:, None] * u2
+    return 0.5 * (p1 + p2), np.linalg.norm(p1 - p2, axis=-1), angle
+
+
+def intersect(stations: list[Station], readings: list[tuple], faces: list | None = None,
+              iterations: int = 8) -> Intersection:
+    """Least-squares intersection of sightings of N points from k >= 2 stations.
+
+    ``readings[s] = (hz_rad (N,), v_rad (N,))`` from station s.  Starts from the closest point of the first two sight
+    lines and refines by Gauss-Newton on the readings weighted by each station's angular noise, so the covariance
+    ``(J^T W J)^-1`` is the first-order covariance of the point from the reading noise.
+    """
+    if len(stations) < 2:
+        raise GeometryError("an intersection needs sightings from at least two stations")
+    faces = faces or [1] * len(stations)
+    hz = [np.atleast_1d(np.asarray(r[0], float)) for r in readings]
+    vv = [np.atleast_1d(np.asarray(r[1], float)) for r in readings]
+    dirs = [s.direction(h, v, f) for s, (h, v), f in zip(stations, zip(hz, vv), faces)]
+    p, miss, angle = closest_point(stations[0].position, dirs[0], stations[1].position, dirs[1],
+                                   (stations[0].name, stations[1].name))
+    w = np.concatenate([[1 / s.sigma_hz_rad ** 2, 1 / s.sigma_v_rad ** 2] for s in stations])
+    N = p.shape[0]
+    for _ in range(iterations):
+        res, J = _residuals(stations, faces, hz, vv, p)
+        JW = J * w[None, :, None]
+        A = np.einsum("nki,nkj->nij", JW, J)
+        g = np.einsum("nki,nk->ni", JW, res)
+        step = np.linalg.solve(A, g[..., None])[..., 0]
+        p = p + step
+        if np.max(np.abs(step)) < 1e-10:
+            break
+    res, J = _residuals(stations, faces, hz, vv, p)
+    A = np.einsum("nki,nkj->nij", J * w[None, :, None], J)
+    cov = np.linalg.inv(A)
+    return Intersection(point_mm=p, cov_mm2=cov, miss_mm=miss, angle_rad=angle, residual_rad=-res)
+
+
+def _residuals(stations, faces, hz, vv, p):
+    """Observed minus computed readings (N, 2k) and d(computed)/d(point) (N, 2k, 3)."""
+    rs, Js = [], []
+    for s, f, h, v in zip(stations, faces, hz, vv):
+        ch, cv, J = s.observe(p, f, with_jacobian=True)
+        rs += [_wrap(h - ch), v - cv]
+        Js.append(J)
+    return np.stack(rs, -1), np.concatenate(Js, axis=-2)
+
+
+# -- the thesis's parameterisation -----------------------------------------------------------------------------------
+def thesis_stations(L_mm: float, gamma1_rad: float, gamma2_rad: float, sigma_rad: float = 3 * ARCSEC,
+                    height_b_mm: float = 0.0) -> tuple[Station, Station]:
+    """Stations A (origin) and B (L, 0, h) whose circle zeros give the thesis's offsets gamma1, gamma2.
+
+    With clockwise circles, the thesis's interior-angle readings are ``alpha' = -Hz_A`` and ``beta' = Hz_B`` (mod 360
+    deg); that holds when A's circle zero points at yaw -gamma1 and B's at pi + gamma2.
+    """
+    a = Station("A", 0.0, 0.0, 0.0, yaw_rad=-gamma1_rad, sigma_hz_rad=sigma_rad, sigma_v_rad=sigma_rad)
+    b = Station("B", L_mm, 0.0, height_b_mm, yaw_rad=np.pi + gamma2_rad, sigma_hz_rad=sigma_rad,
+                sigma_v_rad=sigma_rad)
+    return a, b
+
+
+def thesis_readings(a: Station, b: Station, points_mm: np.ndarray):
+    """The thesis's raw readings alpha', beta' (circle readings at A, B) and phi (A's elevation), radians."""
+    hz_a, v_a = a.observe(points_mm)
+    hz_b, _ = b.observe(points_mm)
+    return _wrap(-hz_a), _wrap(hz_b), np.pi / 2 - v_a
+
+
+def thesis_point(alpha_p, beta_p, phi, L_mm, gamma1_rad, gamma2_rad) -> np.ndarray:
+    """Eq 4.3.1: X = L tan(beta)/(tan(alpha) + tan(beta)), Y = X tan(alpha), Z = sqrt(X^2 + Y^2) tan(phi).
+
+    ``alpha = alpha' - gamma1``, ``beta = beta' - gamma2``.  Raises GeometryError when the sight lines do not meet in
+    front of both stations (parallel lines, or interior angles that do not form a triangle).
+    """
+    al = np.asarray(alpha_p, float) - gamma1_rad
+    be = np.asarray(beta_p, float) - gamma2_rad
+    s = np.sin(al + be)
+    bad = (al <= 0) | (be <= 0) | (al + be >= np.pi) | (np.abs(s) < 1e-6)
+    if np.any(bad):
+        i = int(np.flatnonzero(np.atleast_1d(bad))[0])
+        a_i, b_i = np.degrees(np.atleast_1d(al)[i]), np.degrees(np.atleast_1d(be)[i])
+        raise GeometryError(f"sightings of point {i} do not intersect in front of both stations "
+                            f"(alpha {a_i:.4f} deg, beta {b_i:.4f} deg)")
+    # the sine form of eq 4.3.1: identical to L tan b / (tan a + tan b), but finite at 90 deg
+    X = L_mm * np.sin(be) * np.cos(al) / s
+    Y = L_mm * np.sin(be) * np.sin(al) / s
+    Z = np.hypot(X, Y) * np.tan(phi)
+    return np.stack([X, Y, Z], -1)

@@ -1,0 +1,144 @@
+"""A small declarative checker for robocal's TOML files (robot descriptions, twin scenarios).
+
+Why not a schema library: the files are small, and what the operator needs is one line that names the file and the
+exact key (``puma.toml: joint[3].gear_ratio: must be a finite number, got nan``).  Each table is described by a dict of
+:class:`Field`; unknown keys, missing keys, wrong types, NaN and out-of-range values are all reported that way.
+"""
+from __future__ import annotations
+
+import math
+import tomllib
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Callable
+
+from .errors import ConfigError
+
+
+@dataclass(frozen=True)
+class Field:
+    """One key of a table: its kind, whether it is required, its default and its admissible range."""
+
+    kind: str  # "number", "int", "bool", "str", "vector", "table", "tables", "matrix"
+    required: bool = False
+    default: Any = None
+    min: float | None = None       # inclusive lower bound for numbers / every vector element
+    max: float | None = None
+    positive: bool = False         # strictly > 0
+    length: int | None = None      # vector length
+    help: str = ""
+
+
+class Checker:
+    """Reads a TOML file and checks its tables against field specs, raising :class:`ConfigError` on the first fault."""
+
+    def __init__(self, source: str):
+        self.source = source
+
+    @classmethod
+    def load(cls, path: str | Path) -> tuple["Checker", dict]:
+        path = Path(path)
+        try:
+            text = path.read_text(encoding="utf-8")
+        except FileNotFoundError:
+            raise ConfigError(str(path), None, "file not found") from None
+        except OSError as exc:
+            raise ConfigError(str(path), None, f"cannot read: {exc.strerror}") from None
+        return cls.parse(text, str(path))
+
+    @classmethod
+    def parse(cls, text: str, source: str) -> tuple["Checker", dict]:
+        try:
+            data = tomllib.loads(text)
+        except tomllib.TOMLDecodeError as exc:
+            raise ConfigError(source, None, f"not valid TOML: {exc}") from None
+        return cls(source), data
+
+    def fail(self, key: str | None, problem: str) -> None:
+        raise ConfigError(self.source, key, problem)
+
+    def table(self, data: Any, spec: dict[str, Field], where: str) -> dict[str, Any]:
+        """Check one table; return a dict with every spec key (defaults filled in)."""
+        if not isinstance(data, dict):
+            self.fail(where, "must be a table")
+        unknown = sorted(set(data) - set(spec))
+        if unknown:
+            known = ", ".join(sorted(spec))
+            self.fail(self._join(where, unknown[0]), f"unknown key (known keys: {known})")
+        out: dict[str, Any] = {}
+        for name, field in spec.items():
+            key = self._join(where, name)
+            if name not in data:
+                if field.required:
+                    self.fail(key, "missing")
+                out[name] = field.default
+                continue
+            out[name] = self.value(data[name], field, key)
+        return out
+
+    def value(self, raw: Any, field: Field, key: str) -> Any:
+        kind = field.kind
+        if kind == "number":
+            return self._number(raw, field, key)
+        if kind == "int":
+            if isinstance(raw, bool) or not isinstance(raw, int):
+                self.fail(key, f"must be a whole number, got {raw!r}")
+            self._range(float(raw), field, key)
+            return raw
+        if kind == "bool":
+            if not isinstance(raw, bool):
+                self.fail(key, f"must be true or false, got {raw!r}")
+            return raw
+        if kind == "str":
+            if not isinstance(raw, str):
+                self.fail(key, f"must be a string, got {raw!r}")
+            return raw
+        if kind == "vector":
+            if not isinstance(raw, list):
+                self.fail(key, f"must be a list of numbers, got {raw!r}")
+            if field.length is not None and len(raw) != field.length:
+                self.fail(key, f"must have {field.length} numbers, got {len(raw)}")
+            return [self._number(v, field, f"{key}[{i}]") for i, v in enumerate(raw)]
+        if kind == "matrix":
+            if not isinstance(raw, list) or not all(isinstance(r, list) for r in raw):
+                self.fail(key, "must be a list of rows (lists of numbers)")
+            n = field.length
+            if n is not None and (len(raw) != n or any(len(r) != n for r in raw)):
+                self.fail(key, f"must be a {n}x{n} matrix")
+            return [[self._number(v, field, f"{key}[{i}][{j}]") for j, v in enumerate(r)] for i, r in enumerate(raw)]
+        if kind in ("table", "tables"):
+            return raw  # checked by the caller with its own spec
+        raise AssertionError(f"unknown field kind {kind}")
+
+    def _number(self, raw: Any, field: Field, key: str) -> float:
+        if isinstance(raw, bool) or not isinstance(raw, (int, float)):
+            self.fail(key, f"must be a number, got {raw!r}")
+        value = float(raw)
+        if not math.isfinite(value):
+            self.fail(key, f"must be a finite number, got {raw!r}")
+        self._range(value, field, key)
+        return value
+
+    def _range(self, value: float, field: Field, key: str) -> None:
+        if field.positive and not value > 0:
+            self.fail(key, f"must be positive, got {value:g}")
+        if field.min is not None and value < field.min:
+            self.fail(key, f"must be >= {field.min:g}, got {value:g}")
+        if field.max is not None and value > field.max:
+            self.fail(key, f"must be <= {field.max:g}, got {value:g}")
+
+    @staticmethod
+    def _join(where: str, name: str) -> str:
+        return f"{where}.{name}" if where else name
+
+
+def check_each(checker: Checker, items: Any, spec: dict[str, Field], where: str,
+               build: Callable[[dict[str, Any], str], Any]) -> list[Any]:
+    """Check an array of tables (``[[joint]]``) item by item, naming each as ``where[i]`` (1-based)."""
+    if not isinstance(items, list):
+        checker.fail(where, "must be an array of tables")
+    out = []
+    for i, item in enumerate(items, start=1):
+        key = f"{where}[{i}]"
+        out.append(build(checker.table(item, spec, key), key))
+    return out
