@@ -1,0 +1,217 @@
+"""The one forward measurement model: kinematics + non-geometric effects + instruments, vectorised over poses.
+
+``MeasurementModel(robot, effects)`` owns one parameter vector ``theta``: the geometric parameters of the chain
+(:class:`calib.kinematics.Kinematics`, base and tool included) followed by each effect's parameters.  For joint readings
+``q`` (N, n) and the pose conditions (:class:`calib.effects.PoseContext`) it predicts
+
+* the true joint angles (readings + joint-stage effects),
+* the tool point in the measurement frame and its Jacobian with respect to every entry of ``theta``,
+* the theodolite readings of that point from any set of stations, with their Jacobian (so identification can use
+  raw angles as observations).
+
+Prediction, identification, the twin, the emulators, design of experiments and diagnosis all call this class; none of
+them has its own copy of the math.
+
+Approximation stated once: loads (gravity and external torques) are evaluated in the configuration given by the joint
+readings, and their dependence on the parameters is left out of the Jacobian (a second-order term: compliance x the
+change of torque with a geometric parameter).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .effects import Effect, Loads, PoseContext
+from .kinematics import ChainPass, Kinematics
+from .robot import Robot
+from .theodolite import Station
+
+
+@dataclass
+class Evaluation:
+    """The model evaluated at N poses."""
+
+    point_mm: np.ndarray                  # (N, 3)
+    theta_rad: np.ndarray                 # (N, n) true joint angles
+    jacobian: np.ndarray | None           # (N, 3, P_total) d point / d theta
+    joint_jacobian: np.ndarray | None     # (N, 3, n) d point / d joint angle
+    loads: Loads | None
+    chain: ChainPass
+
+
+class MeasurementModel:
+    def __init__(self, robot: Robot, effects: list[Effect] | tuple = ()):
+        self.robot = robot
+        self.kin = Kinematics(robot)
+        self.effects: list[Effect] = list(effects)
+        self.names: list[str] = list(self.kin.names)
+        self.effect_slices: list[slice] = []
+        for e in self.effects:
+            start = len(self.names)
+            self.names += e.qualified_names()
+            self.effect_slices.append(slice(start, len(self.names)))
+        self.index = {n: i for i, n in enumerate(self.names)}
+        self.n_geometric = self.kin.P
+        self.length_idx = np.array([i for i, n in enumerate(self.kin.names)
+                                    if n.startswith("j") and (n.endswith(".a_mm") or n.endswith(".d_mm"))])
+        m = robot.mass_kg
+        self._has_mass = bool(np.any(m > 0))
+
+    @property
+    def P(self) -> int:
+        return len(self.names)
+
+    @property
+    def nominal(self) -> np.ndarray:
+        """The parameter vector from the robot description and the effects' current values."""
+        return np.concatenate([self.kin.nominal] + [e.values for e in self.effects])
+
+    def context(self, n_poses: int, **kw) -> PoseContext:
+        return PoseContext(n_poses, self.robot.n, **kw)
+
+    # -- loads ---------------------------------------------------------------------------------------------------
+    def loads(self, fp: ChainPass, ctx: PoseContext, derivative: bool = False) -> Loads:
+        """Torque about every joint axis (N m) and the force carried at the end of every link (N), per pose.
+
+        With ``derivative``, also d(torque)/d(geometric parameter) (N, n, P_geometric): each elementary motion of the
+        chain moves rigidly what lies beyond it (the link centres of mass, the tool point and the joint axes), while
+        gravity and the external forces keep their direction.
+        """
+        r = self.robot
+        n = r.n
+        g_world = fp.frame_R[:, 0] @ r.gravity_m_s2                                   # (N, 3)
+        com = fp.frame_t[:, 1:] + np.einsum("nkij,kj->nki", fp.frame_R[:, 1:], r.com_mm)   # (N, n, 3)
+        F_tool = ctx.payload_kg[:, None] * g_world + ctx.tool_force_n                 # (N, 3)
+        # bodies: the n links' centres of mass, then the tool point
+        pos = np.concatenate([com, fp.point[:, None, :]], axis=1) * 1e-3              # (N, n+1, 3) m
+        F = np.concatenate([r.mass_kg[None, :, None] * g_world[:, None, :], F_tool[:, None, :]], axis=1)
+        z, o = fp.joint_axis, fp.joint_origin * 1e-3                                  # (N, n, 3)
+        # moment about each joint origin of every body at or beyond it: sum_{i >= j} (pos_i - o_j) x F_i
+        mom = np.cross(pos, F)                                                        # (N, n+1, 3)
+        tail_mom = np.cumsum(mom[:, ::-1], axis=1)[:, ::-1][:, :n]                    # sum over bodies i >= j
+        tail_F = np.cumsum(F[:, ::-1], axis=1)[:, ::-1][:, :n]
+        M = tail_mom - np.cross(o, tail_F)                                            # (N, n, 3)
+        tau = np.einsum("njc,njc->nj", M, z) + ctx.joint_torque_nm
+        tip = np.concatenate([tail_F[:, 1:], F[:, -1:]], axis=1)                      # force beyond link j's end
+        loads = Loads(joint_torque_nm=tau, tip_force_n=tip)
+        if derivative:
+            loads.dtau_dgeo = self._torque_derivative(fp, pos, F, z, o, M, tail_F)
+        return loads
+
+    def _torque_derivative(self, fp, pos, F, z, o, M, tail_F):
+        kin = self.kin
+        n = self.robot.n
+        # which link each elementary motion belongs to: base 0, link k -> k, tool n + 1
+        link_of = np.zeros(kin.P, int)
+        for j, first in enumerate(kin.link_first_element):
+            link_of[first:first + 5] = j + 1
+        link_of[kin.index["tool.x_mm"]:] = n + 1
+        rot = kin.kinds >= 3
+        ax = fp.elem_axis                                                             # (N, E, 3)
+        oe = fp.elem_origin * 1e-3
+        body_link = np.arange(1, n + 2)                                               # link i's COM on frame i
+        body_link[-1] = n + 1                                                         # tool point beyond all
+        distal_b = (link_of[:, None] <= body_link[None, :]).astype(float)             # (E, n+1)
+        distal_f = (link_of[:, None] <= np.arange(n)[None, :]).astype(float)          # frame j-1 beyond e
+        def motion(p):                                                                # (N, E, K, 3) per unit motion
+            rel = p[:, None, :, :] - oe[:, :, None, :]
+            d = np.cross(ax[:, :, None, :], rel)
+            return np.where(rot[None, :, None, None], d, ax[:, :, None, :] * 1e-3)
+        dpos = motion(pos) * distal_b[None, :, :, None]                               # (N, E, n+1, 3)
+        do = motion(o) * distal_f[None, :, :, None]                                   # (N, E, n, 3)
+        dz = np.where(rot[None, :, None, None], np.cross(ax[:, :, None, :], z[:, None, :, :]), 0.0)
+        dz = dz * distal_f[None, :, :, None]
+        dmom = np.cross(dpos, F[:, None, :, :])
+        tail_dmom = np.cumsum(dmom[:, :, ::-1], axis=2)[:, :, ::-1][:, :, :n]
+        dM = tail_dmom - np.cross(do, tail_F[:, None, :, :])
+        dtau = np.einsum("nejc,njc->nje", dz, M) + np.einsum("nejc,njc->nje", dM, z)
+        dtau[:, :, link_of == 0] = 0.0      # gravity is given in frame 0: the base carries it along
+        return dtau                                                                   # (N, n, E)
+
+    # -- evaluation ----------------------------------------------------------------------------------------------
+    def evaluate(self, q_rad, ctx: PoseContext | None = None, theta: np.ndarray | None = None,
+                 jacobian: bool = False, tool_mm=None) -> Evaluation:
+        """Predict tool points for joint readings ``q_rad`` (N, n); optionally the Jacobian w.r.t. ``theta``.
+
+        ``tool_mm`` overrides the tool point: (3,) for all poses or (N, 3) per pose (targets A1/A2, ruler points).
+        """
+        q = np.atleast_2d(np.asarray(q_rad, float))
+        N, n = q.shape
+        ctx = ctx or self.context(N)
+        theta = self.nominal if theta is None else np.asarray(theta, float)
+        geo = theta[: self.n_geometric]
+        if tool_mm is not None:
+            geo = self.kin.params_with_tool(tool_mm, geo)
+        vals = [theta[s] for s in self.effect_slices]
+        geo_pose = np.broadcast_to(geo, (N, self.n_geometric)).copy()
+        geo_grads = []
+        for e, v in zip(self.effects, vals):
+            if e.stage == "geometry":
+                d, g = e.geometry_delta(geo, self.length_idx, ctx, v)
+                geo_pose += d
+                geo_grads.append(g)
+        need_loads = any(getattr(e, "needs_loads", False) for e in self.effects)
+        loads = self.loads(self.kin.forward(q, geo_pose), ctx, derivative=jacobian) if need_loads else None
+        th = q.copy()
+        joint_grads = []
+        for e, v in zip(self.effects, vals):
+            if e.stage == "joint":
+                d, g = e.joint_delta(q, ctx, loads, v)
+                th += d
+                joint_grads.append(g)
+        fp = self.kin.forward(th, geo_pose)
+        point = fp.point.copy()
+        point_grads = []
+        for e, v in zip(self.effects, vals):
+            if e.stage == "point":
+                d, g = e.point_delta(fp, fp.point, loads, v)
+                point += d
+                point_grads.append(g)
+        if not jacobian:
+            return Evaluation(point, th, None, None, loads, fp)
+        Je = self.kin.element_jacobian(fp)                      # (N, 3, Pg)
+        J = np.zeros((N, 3, self.P))
+        J[:, :, : self.n_geometric] = Je
+        Jq = Je[:, :, self.kin.joint_elements]
+        if loads is not None:
+            # joint deflections follow the torques, and the torques move with the geometry
+            gain = sum(e.torque_gain(q, ctx, loads, v) for e, v in zip(self.effects, vals)
+                       if hasattr(e, "torque_gain"))
+            if not np.isscalar(gain):
+                J[:, :, : self.n_geometric] += np.einsum("nij,nje->nie", Jq, gain[:, :, None] * loads.dtau_dgeo)
+        gi = ji = pi = 0
+        for e, s in zip(self.effects, self.effect_slices):
+            if e.stage == "joint":
+                J[:, :, s] = np.einsum("nij,njk->nik", Jq, joint_grads[ji]); ji += 1
+            elif e.stage == "geometry":
+                # lengths scale with (1 + kappa dT): chain rule on the geometric columns too
+                kappa = theta[s][0]
+                dT = ctx.temperature_c - e.reference_c
+                J[:, :, self.length_idx] *= (1.0 + kappa * dT)[:, None, None]
+                J[:, :, s] = np.einsum("nip,npk->nik", Je, geo_grads[gi]); gi += 1
+            else:
+                J[:, :, s] = point_grads[pi]; pi += 1
+        return Evaluation(point, th, J, Jq, loads, fp)
+
+    def points(self, q_rad, ctx: PoseContext | None = None, theta=None, tool_mm=None) -> np.ndarray:
+        return self.evaluate(q_rad, ctx, theta, False, tool_mm).point_mm
+
+    # -- instruments ---------------------------------------------------------------------------------------------
+    def readings(self, q_rad, stations: list[Station], ctx: PoseContext | None = None, theta=None,
+                 faces=None, jacobian: bool = False, tool_mm=None):
+        """Predicted theodolite readings (N, 2k) ordered (Hz_1, V_1, Hz_2, V_2, ...) and optionally d/d theta."""
+        ev = self.evaluate(q_rad, ctx, theta, jacobian, tool_mm)
+        faces = faces or [1] * len(stations)
+        cols, Js = [], []
+        for s, f in zip(stations, faces):
+            if jacobian:
+                hz, v, Js_ = s.observe(ev.point_mm, f, with_jacobian=True)
+                Js.append(np.einsum("nac,ncp->nap", Js_, ev.jacobian))
+            else:
+                hz, v = s.observe(ev.point_mm, f)
+            cols += [hz, v]
+        out = np.stack(cols, -1)
+        if jacobian:
+            return out, np.concatenate(Js, axis=1)
+        return out

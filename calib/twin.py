@@ -1,0 +1,288 @@
+"""The Puma 560 twin: a seeded, reproducible "truth" made from the same forward model, with every effect switchable.
+
+A scenario file (TOML; ``calib/data/twin_default.toml`` is the annotated default) says how the simulated robot differs
+from its description — geometric deviations, the tool, non-geometric effects — where the theodolites stand and how
+they err, and how the encoders read.  :class:`Twin` then answers what the instruments would show:
+
+* :meth:`Twin.measure` — for joint readings commanded to the controller: the encoder counts (integers, so quantised),
+  the joint readings the controller derives from them with the *nominal* description, the true joint angles, the true
+  tool points and both theodolites' readings (noise, instrument errors, optional gross errors);
+* :meth:`Twin.sight` — readings of arbitrary points (ruler marks, dial-gauge targets).
+
+Later work (estimators, identification, emulators, diagnosis) draws all synthetic truth from here.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from importlib import resources
+from pathlib import Path
+
+import numpy as np
+
+from .effects import (Backlash, CrossCoupling, Effect, JointCompliance, LinkCompliance, PoseContext,
+                      ThermalDrift, TransmissionError)
+from .model import MeasurementModel
+from .robot import Robot, load_robot
+from .theodolite import Station, thesis_stations
+from .tomlspec import Checker, Field, check_each
+from .units import ARCSEC, DEG
+
+# -- scenario file specs -----------------------------------------------------------------------------------------
+TOP = {
+    "twin": Field("table", default={}), "geometry": Field("table", default={}), "base": Field("table", default={}),
+    "tool": Field("table", default={}), "stations": Field("table", default={}), "noise": Field("table", default={}),
+    "effect": Field("tables", default=[]),
+}
+TWIN = {"seed": Field("int", default=0, min=0), "robot": Field("str", default=""),
+        "name": Field("str", default="twin")}
+GEOMETRY = {
+    "set": Field("table", default={}),                       # parameter name -> true value (mm / deg)
+    "random_alpha_deg": Field("number", default=0.0, min=0),  # 1-sigma seeded deviations
+    "random_theta_offset_deg": Field("number", default=0.0, min=0),
+    "random_length_mm": Field("number", default=0.0, min=0),
+    "random_beta_deg": Field("number", default=0.0, min=0),
+}
+BASE = {"xyz_mm": Field("vector", default=[474.9, 2853.0, 184.9], length=3),
+        "rpy_deg": Field("vector", default=[0.0, 0.0, 0.0], length=3, min=-360, max=360)}
+TOOL = {"xyz_mm": Field("vector", default=[0.0, 0.0, 0.0], length=3)}
+STATIONS = {
+    "L_mm": Field("number", default=1609.9, min=100, max=20000),
+    "gamma1_deg": Field("number", default=-1.489, min=-180, max=180),
+    "gamma2_deg": Field("number", default=1.358, min=-180, max=180),
+    "height_b_mm": Field("number", default=0.0),
+    "sigma_arcsec": Field("number", default=3.0, positive=True),
+    "collimation_arcsec": Field("vector", default=[0.0, 0.0], length=2),
+    "trunnion_arcsec": Field("vector", default=[0.0, 0.0], length=2),
+    "index_arcsec": Field("vector", default=[0.0, 0.0], length=2),
+    "tilt_arcsec": Field("vector", default=[0.0, 0.0, 0.0, 0.0], length=4),   # A x, A y, B x, B y
+}
+NOISE = {
+    "angles": Field("bool", default=True),
+    "gross_rate": Field("number", default=0.0, min=0, max=1),
+    "gross_arcsec": Field("number", default=60.0, positive=True),
+    "encoder_quantisation": Field("bool", default=True),
+}
+_COMMON = {"type": Field("str", required=True), "enabled": Field("bool", default=True)}
+EFFECT_SPECS: dict[str, dict[str, Field]] = {
+    "transmission_error": {"joint": Field("int", required=True, min=1), "order": Field("number", required=True,
+                                                                                       positive=True),
+                           "sin_deg": Field("vector", default=[]), "cos_deg": Field("vector", default=[])},
+    "joint_compliance": {"joint": Field("int", required=True, min=1),
+                         "stiffness_nm_per_rad": Field("number", required=True, positive=True),
+                         "stiffness2_nm_per_rad": Field("number", positive=True),
+                         "breakpoint_nm": Field("number", positive=True),
+                         "deadzone_deg": Field("number", default=0.0, min=0)},
+    "backlash": {"joint": Field("int", required=True, min=1), "width_deg": Field("number", required=True, min=0)},
+    "cross_coupling": {"joint": Field("int", required=True, min=1), "source": Field("int", required=True, min=1),
+                       "sigma": Field("number", required=True, min=-1, max=1)},
+    "thermal_drift": {"kappa_per_degc": Field("number", required=True, min=0, max=1e-3),
+                      "reference_degc": Field("number", default=20.0)},
+    "link_compliance": {"joint": Field("int", required=True, min=1), "ei_nmm2": Field("number", required=True,
+                                                                                      positive=True)},
+}
+
+
+def _build_effect(kind: str, c: dict) -> Effect:
+    """Effect from a checked scenario table: units of the file (deg, N m) converted to radians here."""
+    builders = {
+        "transmission_error": lambda: TransmissionError(c["joint"], c["order"], [v * DEG for v in c["sin_deg"]],
+                                                        [v * DEG for v in c["cos_deg"]]),
+        "joint_compliance": lambda: JointCompliance(c["joint"], c["stiffness_nm_per_rad"],
+                                                    c["stiffness2_nm_per_rad"],
+                                                    c["breakpoint_nm"] if c["breakpoint_nm"] else np.inf,
+                                                    c["deadzone_deg"] * DEG),
+        "backlash": lambda: Backlash(c["joint"], c["width_deg"] * DEG),
+        "cross_coupling": lambda: CrossCoupling(c["joint"], c["source"], c["sigma"]),
+        "thermal_drift": lambda: ThermalDrift(c["kappa_per_degc"], c["reference_degc"]),
+        "link_compliance": lambda: LinkCompliance(c["joint"], c["ei_nmm2"]),
+    }
+    return builders[kind]()
+
+
+@dataclass
+class Scenario:
+    """A checked scenario: everything the twin needs, in internal units."""
+
+    name: str
+    seed: int
+    robot: Robot                      # the nominal description (what the controller and the operator believe)
+    true_params: np.ndarray           # geometric parameter vector of the truth (Kinematics order)
+    effects: list[Effect]
+    stations: list[Station]
+    angle_noise: bool = True
+    gross_rate: float = 0.0
+    gross_rad: float = 60 * ARCSEC
+    encoder_quantisation: bool = True
+    source: str = "<memory>"
+    disabled: list[str] = field(default_factory=list)
+
+
+def load_scenario(path: str | Path | None = None) -> Scenario:
+    """Load a scenario file; ``None`` gives the default (the thesis's findings on its Puma 560)."""
+    if path is None:
+        ref = resources.files("calib") / "data" / "twin_default.toml"
+        chk, data = Checker.parse(ref.read_text(encoding="utf-8"), "twin_default.toml (default)")
+    else:
+        chk, data = Checker.load(path)
+    return _scenario(chk, data)
+
+
+def parse_scenario(text: str, source: str = "<string>") -> Scenario:
+    chk, data = Checker.parse(text, source)
+    return _scenario(chk, data)
+
+
+def _scenario(chk: Checker, data: dict) -> Scenario:
+    from .kinematics import Kinematics
+
+    top = chk.table(data, TOP, "")
+    tw = chk.table(top["twin"], TWIN, "twin")
+    robot = load_robot(tw["robot"] or None)
+    rng = np.random.default_rng(tw["seed"])
+    kin = Kinematics(robot)
+    truth = kin.nominal.copy()
+    geo = chk.table(top["geometry"], GEOMETRY, "geometry")
+    n = robot.n
+    # seeded random deviations first, explicit values override them
+    for key, scale, unit in (("random_alpha_deg", DEG, "alpha_rad"), ("random_theta_offset_deg", DEG,
+                                                                       "theta_offset_rad"),
+                             ("random_beta_deg", DEG, "beta_rad")):
+        sig = geo[key] * scale
+        for j in range(n):
+            dev = rng.normal(0.0, sig) if sig > 0 else 0.0
+            if unit == "beta_rad" and not robot.hayati[j]:
+                continue
+            truth[kin.index[f"j{j + 1}.{unit}"]] += dev
+    if geo["random_length_mm"] > 0:
+        for j in range(n):
+            for unit in ("a_mm", "d_mm"):
+                if unit == "d_mm" and robot.hayati[j]:
+                    continue
+                truth[kin.index[f"j{j + 1}.{unit}"]] += rng.normal(0.0, geo["random_length_mm"])
+    if not isinstance(geo["set"], dict):
+        chk.fail("geometry.set", "must be a table of parameter = value")
+    for name, raw in geo["set"].items():
+        key = f"geometry.set.{name}"
+        internal = name.replace("_deg", "_rad")
+        if internal not in kin.index or internal.startswith(("base.", "tool.")):
+            chk.fail(key, "unknown parameter (use j<k>.a_mm, j<k>.d_mm, j<k>.alpha_deg, j<k>.theta_offset_deg, "
+                          "j<k>.beta_deg)")
+        v = chk.value(raw, Field("number"), key)
+        truth[kin.index[internal]] = v * DEG if name.endswith("_deg") else v
+    base = chk.table(top["base"], BASE, "base")
+    truth[kin.index["base.x_mm"]:kin.index["base.z_mm"] + 1] = base["xyz_mm"]
+    roll, pitch, yaw = (np.asarray(base["rpy_deg"]) * DEG)
+    truth[kin.index["base.yaw_rad"]], truth[kin.index["base.pitch_rad"]], truth[kin.index["base.roll_rad"]] = \
+        yaw, pitch, roll
+    tool = chk.table(top["tool"], TOOL, "tool")
+    truth[kin.index["tool.x_mm"]:kin.index["tool.z_mm"] + 1] = tool["xyz_mm"]
+
+    st = chk.table(top["stations"], STATIONS, "stations")
+    sig = st["sigma_arcsec"] * ARCSEC
+    a, b = thesis_stations(st["L_mm"], st["gamma1_deg"] * DEG, st["gamma2_deg"] * DEG, sig, st["height_b_mm"])
+    tilt = np.asarray(st["tilt_arcsec"]) * ARCSEC
+    stations = []
+    for i, s in enumerate((a, b)):
+        stations.append(Station(s.name, s.x_mm, s.y_mm, s.z_mm, s.yaw_rad, tilt[2 * i], tilt[2 * i + 1],
+                                st["collimation_arcsec"][i] * ARCSEC, st["trunnion_arcsec"][i] * ARCSEC,
+                                st["index_arcsec"][i] * ARCSEC, sig, sig))
+    noise = chk.table(top["noise"], NOISE, "noise")
+
+    effects, disabled = [], []
+    if not isinstance(top["effect"], list):
+        chk.fail("effect", "must be an array of tables ([[effect]])")
+    for i, raw in enumerate(top["effect"], 1):
+        key = f"effect[{i}]"
+        if not isinstance(raw, dict) or "type" not in raw:
+            chk.fail(f"{key}.type", "missing (one of " + ", ".join(EFFECT_SPECS) + ")")
+        kind = raw["type"]
+        if kind not in EFFECT_SPECS:
+            chk.fail(f"{key}.type", f"unknown effect {kind!r} (known: {', '.join(EFFECT_SPECS)})")
+        c = chk.table(raw, {**_COMMON, **EFFECT_SPECS[kind]}, key)
+        for jkey in ("joint", "source"):
+            if jkey in c and c[jkey] is not None and not 1 <= c[jkey] <= n:
+                chk.fail(f"{key}.{jkey}", f"must be a joint number 1..{n}, got {c[jkey]}")
+        eff = _build_effect(kind, c)
+        (effects if c["enabled"] else disabled).append(eff if c["enabled"] else eff.label)
+    return Scenario(name=tw["name"], seed=tw["seed"], robot=robot, true_params=truth, effects=effects,
+                    stations=stations, angle_noise=noise["angles"], gross_rate=noise["gross_rate"],
+                    gross_rad=noise["gross_arcsec"] * ARCSEC, encoder_quantisation=noise["encoder_quantisation"],
+                    source=chk.source, disabled=disabled)
+
+
+@dataclass
+class TwinMeasurement:
+    """What the instruments show for N poses (and the truth behind it, for tests and reports)."""
+
+    q_command_rad: np.ndarray     # (N, n) what was commanded
+    counts: np.ndarray            # (N, n) int64 encoder counts (motor side)
+    q_read_rad: np.ndarray        # (N, n) joint readings from the counts with the nominal description
+    theta_true_rad: np.ndarray    # (N, n) true joint angles
+    point_true_mm: np.ndarray     # (N, 3) true tool point in the measurement frame
+    readings_rad: np.ndarray      # (N, 2k) Hz, V per station
+    gross: np.ndarray             # (N, 2k) bool: a gross error was added to this reading
+    faces: list[int]
+
+
+class Twin:
+    """The simulated robot and instruments of a :class:`Scenario`; seeded, so runs are reproducible."""
+
+    def __init__(self, scenario: Scenario | None = None, seed: int | None = None):
+        self.scenario = scenario or load_scenario()
+        self.robot = self.scenario.robot
+        self.model = MeasurementModel(self.robot, self.scenario.effects)
+        self.theta = np.concatenate([self.scenario.true_params] + [e.values for e in self.scenario.effects])
+        self.stations = self.scenario.stations
+        self.rng = np.random.default_rng(self.scenario.seed if seed is None else seed)
+
+    @property
+    def nominal_model(self) -> MeasurementModel:
+        """The model the operator starts from: the description, no effects."""
+        return MeasurementModel(self.robot)
+
+    def context(self, n_poses: int, **kw) -> PoseContext:
+        return PoseContext(n_poses, self.robot.n, **kw)
+
+    def encoder(self, q_rad: np.ndarray):
+        """Counts for joint readings and the readings the controller derives back from them (quantised)."""
+        counts_f = self.robot.counts_from_joint(q_rad)
+        counts = np.rint(counts_f).astype(np.int64) if self.scenario.encoder_quantisation else counts_f
+        return counts, self.robot.joint_from_counts(counts)
+
+    def true_points(self, q_read_rad, ctx: PoseContext | None = None, tool_mm=None):
+        ev = self.model.evaluate(q_read_rad, ctx, self.theta, tool_mm=tool_mm)
+        return ev.point_mm, ev.theta_rad
+
+    def sight(self, points_mm: np.ndarray, faces: list[int] | None = None):
+        """Noisy readings (N, 2k) of points from every station, and the gross-error mask."""
+        faces = faces or [1] * len(self.stations)
+        cols = []
+        for s, f in zip(self.stations, faces):
+            cols += list(s.observe(points_mm, f))
+        out = np.stack(cols, -1)
+        sig = np.concatenate([[s.sigma_hz_rad, s.sigma_v_rad] for s in self.stations])
+        if self.scenario.angle_noise:
+            out = out + self.rng.normal(size=out.shape) * sig
+        gross = self.rng.random(out.shape) < self.scenario.gross_rate
+        if gross.any():
+            out = out + gross * self.rng.choice([-1.0, 1.0], out.shape) * self.scenario.gross_rad
+        hz_cols = np.arange(0, out.shape[1], 2)
+        out[:, hz_cols] = np.mod(out[:, hz_cols], 2 * np.pi)
+        return out, gross
+
+    def measure(self, q_command_rad, ctx: PoseContext | None = None, faces: list[int] | None = None,
+                tool_mm=None) -> TwinMeasurement:
+        q = np.atleast_2d(np.asarray(q_command_rad, float))
+        counts, q_read = self.encoder(q)
+        pts, th = self.true_points(q_read, ctx, tool_mm)
+        rd, gross = self.sight(pts, faces)
+        return TwinMeasurement(q, counts, q_read, th, pts, rd, gross, faces or [1] * len(self.stations))
+
+    def true_parameters(self) -> dict[str, float]:
+        return dict(zip(self.model.names, self.theta))
+
+    def random_poses(self, count: int, margin_rad: float = 10 * DEG) -> np.ndarray:
+        """Uniform joint readings inside the limits less a margin (the twin's rng, so reproducible)."""
+        lim = self.robot.limits_rad
+        lo, hi = lim[:, 0] + margin_rad, lim[:, 1] - margin_rad
+        return lo + (hi - lo) * self.rng.random((count, self.robot.n))

@@ -1,0 +1,160 @@
+"""Each non-geometric effect shows its own signature, and its Jacobian matches finite differences."""
+import numpy as np
+import pytest
+
+from calib.effects import (Backlash, CrossCoupling, JointCompliance, LinkCompliance, ThermalDrift,
+                           TransmissionError, thesis_effects)
+from calib.model import MeasurementModel
+from calib.units import DEG, G0_M_S2
+
+
+def poses(rng, n=40):
+    return rng.uniform(-1.2, 1.2, (n, 6))
+
+
+def test_transmission_error_is_periodic_in_its_joint_only(puma, rng):
+    m = MeasurementModel(puma, [TransmissionError(4, 0.9, [0.050 * DEG], [])])
+    q = poses(rng)
+    d = m.evaluate(q).theta_rad - q
+    np.testing.assert_allclose(d[:, 3], 0.050 * DEG * np.sin(0.9 * q[:, 3]), atol=1e-15)
+    assert np.all(d[:, [0, 1, 2, 4, 5]] == 0)
+    shifted = q.copy()
+    shifted[:, 3] += 2 * np.pi / 0.9                       # one period later
+    shifted[:, 0] += 0.7                                   # other joints do not matter
+    np.testing.assert_allclose(m.evaluate(shifted).theta_rad[:, 3] - shifted[:, 3], d[:, 3], atol=1e-12)
+
+
+def test_backlash_flips_with_approach_direction(puma, rng):
+    b = 0.02 * DEG
+    m = MeasurementModel(puma, [Backlash(2, b)])
+    q = poses(rng)
+    up = m.evaluate(q, m.context(len(q), direction=np.ones((len(q), 6))))
+    down = m.evaluate(q, m.context(len(q), direction=-np.ones((len(q), 6))))
+    np.testing.assert_allclose(down.theta_rad[:, 1] - up.theta_rad[:, 1], b, atol=1e-15)
+    gap = np.linalg.norm(down.point_mm - up.point_mm, axis=1)
+    assert np.all(gap > 0.05)                               # 0.02 deg at > 150 mm reach
+
+
+def gravity_torque_by_virtual_work(model, q, h=1e-6):
+    """tau_j = -dU/dq_j with U the potential energy of the link masses (independent of Model.loads)."""
+    r = model.robot
+    g = r.gravity_m_s2
+
+    def U(qq):
+        fp = model.kin.forward(qq)
+        com = fp.frame_t[:, 1:] + np.einsum("nkij,kj->nki", fp.frame_R[:, 1:], r.com_mm)
+        return -np.einsum("nkc,c,k->n", com * 1e-3, g, r.mass_kg)
+
+    tau = np.empty_like(q)
+    for j in range(q.shape[1]):
+        dq = np.zeros(q.shape[1])
+        dq[j] = h
+        tau[:, j] = -(U(q + dq) - U(q - dq)) / (2 * h)
+    return tau
+
+
+def test_gravity_torques_match_virtual_work(puma, rng):
+    m = MeasurementModel(puma)
+    q = poses(rng)
+    loads = m.loads(m.kin.forward(q), m.context(len(q)))
+    np.testing.assert_allclose(loads.joint_torque_nm, gravity_torque_by_virtual_work(m, q), atol=1e-6)
+
+
+def test_joint_compliance_follows_gravity_torque(puma, rng):
+    k = 13061.24                                             # thesis K3 below 100 lb.in, in N m / rad
+    m = MeasurementModel(puma, [JointCompliance(3, k)])
+    q = poses(rng)
+    ev = m.evaluate(q)
+    tau3 = gravity_torque_by_virtual_work(m, q)[:, 2]
+    np.testing.assert_allclose(ev.theta_rad[:, 2] - q[:, 2], tau3 / k, rtol=1e-6, atol=1e-12)
+    # a payload adds its own torque: more sag
+    heavy = m.evaluate(q, m.context(len(q), payload_kg=5.0))
+    assert np.all(np.abs(heavy.theta_rad[:, 2] - q[:, 2]) >= np.abs(ev.theta_rad[:, 2] - q[:, 2]) - 1e-12)
+
+
+def test_two_slopes_and_dead_zone(puma):
+    c1, c2, tb, h = 1 / 13000.0, 1 / 11000.0, 11.3, 0.005 * DEG
+    m = MeasurementModel(puma, [JointCompliance(3, 1 / c1, 1 / c2, tb, h)])
+    q = np.zeros((4, 6))
+    tau = np.array([5.0, 20.0, 20.0, -20.0])
+    ctx = m.context(4, joint_torque_nm=np.outer(tau, [0, 0, 1, 0, 0, 0]),
+                    load_direction=np.outer([1, 1, -1, 1], np.ones(6)))
+    base = m.loads(m.kin.forward(q), m.context(4)).joint_torque_nm[:, 2]
+    d = m.evaluate(q, ctx).theta_rad[:, 2]
+    t = tau + base
+    expect = np.where(np.abs(t) <= tb, c1 * t, np.sign(t) * (c1 * tb + c2 * (np.abs(t) - tb)))
+    expect -= 0.5 * h * np.array([1, 1, -1, 1])
+    np.testing.assert_allclose(d, expect, atol=1e-15)
+    assert d[2] - d[1] == pytest.approx(h)                   # unloading lies one dead zone above loading
+
+
+def test_cross_coupling_is_linear_in_the_source_joint(puma, rng):
+    m = MeasurementModel(puma, [CrossCoupling(6, 5, 0.1802)])
+    q = poses(rng)
+    d = m.evaluate(q).theta_rad - q
+    np.testing.assert_allclose(d[:, 5], 0.1802 * q[:, 4], atol=1e-15)
+
+
+def test_thermal_growth_scales_every_length(puma, rng):
+    kappa = 23e-6
+    m = MeasurementModel(puma, [ThermalDrift(kappa, 20.0)])
+    q = poses(rng, 10)
+    hot = m.points(q, m.context(10, temperature_c=35.0))
+    scaled = m.kin.nominal.copy()
+    scaled[m.length_idx] *= 1 + kappa * 15.0
+    np.testing.assert_allclose(hot, m.kin.points(q, scaled), atol=1e-9)
+    np.testing.assert_allclose(m.points(q, m.context(10, temperature_c=20.0)), m.kin.points(q), atol=1e-12)
+
+
+def test_link_compliance_bends_down_and_grows_with_load(puma, rng):
+    ei = 2.0e11
+    m = MeasurementModel(puma.with_tool({"P": [0, 0, 100.0]}), [LinkCompliance(2, ei)])
+    rigid = MeasurementModel(puma.with_tool({"P": [0, 0, 100.0]}))
+    q = np.tile([0.0, 0.0, np.pi / 2, 0, 0, 0], (2, 1))    # upper arm horizontal
+    ctx = m.context(2, payload_kg=np.array([0.0, 10.0]))
+    d = m.points(q, ctx) - rigid.points(q)
+    assert d[0, 2] < 0 and d[1, 2] < d[0, 2]
+    # the payload's share follows F L^3 / (3 EI) at the link end plus the slope carried to the tool
+    extra = d[1] - d[0]
+    L = np.hypot(432.0, 149.1)
+    assert abs(extra[2]) > 10 * G0_M_S2 * L ** 3 / (3 * ei) * 0.5
+
+
+@pytest.mark.parametrize("with_link", [False, True])
+def test_full_jacobian_matches_finite_differences_for_every_effect(puma, rng, with_link):
+    effects = [TransmissionError(4, 0.9, [0.05 * DEG, 0.01 * DEG], [0.02 * DEG]), Backlash(2, 0.02 * DEG),
+               CrossCoupling(6, 5, 0.001), ThermalDrift(20e-6), JointCompliance(4, 2e4, 1.7e4, 5.0, 1e-4)]
+    if with_link:
+        # the bending displacement is carried at the true joint angles; only its own parameter's column is exact
+        effects = [LinkCompliance(4, 5e10)]
+    m = MeasurementModel(puma.with_tool({"P": [40.0, 10.0, 90.0]}), effects)
+    n = 30
+    q = poses(rng, n)
+    ctx = m.context(n, direction=rng.choice([-1.0, 1.0], (n, 6)), load_direction=rng.choice([-1.0, 1.0], (n, 6)),
+                    temperature_c=rng.uniform(10, 30, n), tool_force_n=rng.normal(0, 20, (n, 3)))
+    theta = m.nominal
+    J = m.evaluate(q, ctx, theta, jacobian=True).jacobian
+    for i, name in enumerate(m.names):
+        if name.startswith(("j", "base", "tool")) and not name.startswith("joint"):
+            continue                                         # geometric columns: covered in test_kinematics
+        h = max(abs(theta[i]) * 1e-4, 1e-7 if name.endswith("_rad") else 1e-12)
+        d = np.zeros(m.P)
+        d[i] = h
+        fd = (m.points(q, ctx, theta + d) - m.points(q, ctx, theta - d)) / (2 * h)
+        np.testing.assert_allclose(J[:, :, i], fd, rtol=1e-4, atol=1e-7 * np.abs(fd).max(), err_msg=name)
+
+
+def test_geometric_jacobian_includes_the_torque_change(puma, rng):
+    """Joint compliance deflects with the gravity torque, which itself moves with every geometric parameter."""
+    m = MeasurementModel(puma.with_tool({"P": [30.0, 0.0, 80.0]}), thesis_effects())
+    n = 20
+    q = poses(rng, n)
+    ctx = m.context(n, payload_kg=3.0)
+    theta = m.nominal
+    J = m.evaluate(q, ctx, theta=theta, jacobian=True).jacobian
+    for i in range(m.n_geometric):
+        h = 1e-6 if m.names[i].endswith("_rad") else 1e-4
+        d = np.zeros(m.P)
+        d[i] = h
+        fd = (m.points(q, ctx, theta + d) - m.points(q, ctx, theta - d)) / (2 * h)
+        np.testing.assert_allclose(J[:, :, i], fd, atol=2e-6 * max(1.0, np.abs(fd).max()), err_msg=m.names[i])

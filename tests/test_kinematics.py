@@ -1,0 +1,119 @@
+"""Forward kinematics and the identification Jacobian of the chain."""
+import numpy as np
+import pytest
+from hypothesis import given, settings, strategies as st
+
+from calib.kinematics import Kinematics
+from calib.robot import load_robot
+from calib.units import DEG
+
+from pathlib import Path
+
+DATA = Path(__file__).parent / "data"
+
+
+def thesis_A_matrices(q, a1, a2, d1, d2, d3):
+    """The six A-matrices of section 3.4 typed in as printed (independent of calib.kinematics)."""
+    C = np.cos(q)
+    S = np.sin(q)
+    A1 = np.array([[C[0], 0, -S[0], 0], [S[0], 0, C[0], 0], [0, -1, 0, 0], [0, 0, 0, 1]])
+    A2 = np.array([[C[1], S[1], 0, a1 * C[1]], [S[1], -C[1], 0, a1 * S[1]], [0, 0, -1, d1], [0, 0, 0, 1]])
+    A3 = np.array([[C[2], 0, S[2], a2 * C[2]], [S[2], 0, -C[2], a2 * S[2]], [0, 1, 0, 0], [0, 0, 0, 1]])
+    A4 = np.array([[C[3], 0, -S[3], 0], [S[3], 0, C[3], 0], [0, -1, 0, d2], [0, 0, 0, 1]])
+    A5 = np.array([[C[4], 0, S[4], 0], [S[4], 0, -C[4], 0], [0, 1, 0, 0], [0, 0, 0, 1]])
+    A6 = np.array([[C[5], -S[5], 0, 0], [S[5], C[5], 0, 0], [0, 0, 1, d3], [0, 0, 0, 1]])
+    return A1 @ A2 @ A3 @ A4 @ A5 @ A6
+
+
+def sixE(Xt, Yt, Zt):
+    return np.array([[-1, 0, 0, -Xt], [0, -1, 0, -Yt], [0, 0, -1, -Zt], [0, 0, 0, 1.0]])
+
+
+def test_fk_matches_section_3_4_matrices(puma, rng):
+    kin = Kinematics(puma)
+    q = rng.uniform(-np.pi, np.pi, (50, 6))
+    fp = kin.forward(q)
+    for i in range(len(q)):
+        T = thesis_A_matrices(q[i], 432.0, -20.3, 149.1, 432.0, 57.1)
+        np.testing.assert_allclose(fp.point[i], T[:3, 3], atol=1e-9)
+        np.testing.assert_allclose(fp.flange_R[i], T[:3, :3], atol=1e-12)
+
+
+def test_tool_point_follows_6E(puma, rng):
+    """With the thesis's ^6E the tool point sits at -(Xt, Yt, Zt) in frame 6."""
+    Xt, Yt, Zt = 12.0, -30.0, -150.0
+    kin = Kinematics(puma.with_tool({"P": [-Xt, -Yt, -Zt]}))
+    q = rng.uniform(-np.pi, np.pi, (20, 6))
+    pts = kin.points(q)
+    for i in range(len(q)):
+        T = thesis_A_matrices(q[i], 432.0, -20.3, 149.1, 432.0, 57.1) @ sixE(Xt, Yt, Zt)
+        np.testing.assert_allclose(pts[i], T[:3, 3], atol=1e-9)
+
+
+def test_ready_position_is_upright(puma):
+    """Fig 3.5's READY position [0, -90, 90, 0, 0, 0]: the arm stands straight up above the shoulder."""
+    p = Kinematics(puma).points(np.array([[0, -90, 90, 0, 0, 0]]) * DEG)[0]
+    assert p[2] == pytest.approx(432.0 + 432.0 + 57.1)
+    assert p[1] == pytest.approx(149.1)
+    assert abs(p[0]) == pytest.approx(20.3)
+
+
+def test_robotics_toolbox_published_pose():
+    """RTB DH.Puma560 at qn = [0, 45, 180, 0, 45, 0] deg: printed as position (0.5963, -0.1501, 0.6575) m with
+    rotation [[0, 0, 1], [0, 1, 0], [-1, 0, 0]] (RVC3-python README, rvctool example)."""
+    kin = Kinematics(load_robot(DATA / "rtb_puma560_dh.toml"))
+    fp = kin.forward(np.array([[0, np.pi / 4, np.pi, 0, np.pi / 4, 0]]))
+    np.testing.assert_allclose(fp.point[0] / 1000, [0.5963, -0.1501, 0.6575], atol=6e-5)
+    np.testing.assert_allclose(fp.flange_R[0], [[0, 0, 1], [0, 1, 0], [-1, 0, 0]], atol=1e-9)
+
+
+def _fd_jacobian(kin, q, params, h=1e-6):
+    J = np.empty((len(q), 3, kin.P))
+    for i in range(kin.P):
+        d = np.zeros(kin.P)
+        d[i] = h
+        J[:, :, i] = (kin.points(q, params + d) - kin.points(q, params - d)) / (2 * h)
+    return J
+
+
+def test_parameter_jacobian_matches_finite_differences(puma, rng):
+    kin = Kinematics(puma.with_tool({"P": [30.0, -20.0, 120.0]}))
+    q = rng.uniform(-2, 2, (25, 6))
+    params = kin.nominal + rng.normal(0, 1e-3, kin.P)       # away from the exact nominal symmetry
+    pts, J, Jq = kin.jacobians(q, params)
+    np.testing.assert_allclose(J, _fd_jacobian(kin, q, params), atol=2e-6)
+    # joint Jacobian: moving joint j equals moving its theta offset
+    for j in range(6):
+        dq = np.zeros(6)
+        dq[j] = 1e-6
+        fd = (kin.points(q + dq, params) - kin.points(q - dq, params)) / 2e-6
+        np.testing.assert_allclose(Jq[:, :, j], fd, atol=2e-6)
+
+
+def test_every_parameter_is_named_with_a_unit(puma):
+    kin = Kinematics(puma)
+    assert len(kin.names) == len(set(kin.names)) == 6 + 6 * 5 + 3
+    assert all(n.endswith(("_mm", "_rad")) for n in kin.names)
+
+
+@settings(max_examples=30, deadline=None)
+@given(st.lists(st.floats(-3.0, 3.0), min_size=6, max_size=6))
+def test_vectorised_equals_one_by_one(qs):
+    kin = Kinematics(load_robot())
+    q = np.array([qs, [0.1] * 6, qs[::-1]])
+    batch = kin.points(q)
+    single = np.vstack([kin.points(q[i:i + 1]) for i in range(3)])
+    np.testing.assert_allclose(batch, single, atol=1e-12)
+
+
+def test_base_transform_moves_points_rigidly(puma, rng):
+    kin = Kinematics(puma)
+    q = rng.uniform(-2, 2, (10, 6))
+    p0 = kin.points(q)
+    params = kin.nominal.copy()
+    params[kin.index["base.x_mm"]] = 100.0
+    params[kin.index["base.yaw_rad"]] = 0.3
+    p1 = kin.points(q, params)
+    c, s = np.cos(0.3), np.sin(0.3)
+    R = np.array([[c, -s, 0], [s, c, 0], [0, 0, 1]])
+    np.testing.assert_allclose(p1, p0 @ R.T + [100.0, 0, 0], atol=1e-9)

@@ -1,0 +1,117 @@
+"""Theodolite geometry: readings of a point, and the point back from readings."""
+import numpy as np
+import pytest
+
+from calib.errors import GeometryError
+from calib.theodolite import (Station, closest_point, intersect, thesis_point, thesis_readings,
+                              thesis_stations)
+from calib.units import ARCSEC, DEG
+
+
+def random_points(rng, n=100):
+    return np.column_stack([rng.uniform(-500, 2100, n), rng.uniform(800, 4000, n), rng.uniform(-900, 900, n)])
+
+
+def imperfect_stations():
+    a = Station("A", 0, 0, 0, yaw_rad=0.3, tilt_x_rad=4e-5, tilt_y_rad=-2e-5, collimation_rad=15 * ARCSEC,
+                trunnion_rad=8 * ARCSEC, index_rad=-12 * ARCSEC)
+    b = Station("B", 1650, 40, 25, yaw_rad=2.6, tilt_x_rad=-3e-5, collimation_rad=-9 * ARCSEC,
+                trunnion_rad=5 * ARCSEC, index_rad=20 * ARCSEC)
+    return a, b
+
+
+@pytest.mark.parametrize("faces", [(1, 1), (2, 1), (2, 2)])
+def test_intersection_round_trip_without_noise(rng, faces):
+    pts = random_points(rng)
+    a, b = imperfect_stations()
+    readings = [a.observe(pts, faces[0]), b.observe(pts, faces[1])]
+    out = intersect([a, b], readings, faces=list(faces))
+    np.testing.assert_allclose(out.point_mm, pts, atol=1e-9)
+    assert np.all(out.miss_mm < 1e-6)
+
+
+def test_thesis_closed_form_round_trip(rng):
+    L, g1, g2 = 1609.9, -1.489 * DEG, 1.358 * DEG
+    a, b = thesis_stations(L, g1, g2)
+    pts = random_points(rng)
+    al, be, ph = thesis_readings(a, b, pts)
+    np.testing.assert_allclose(thesis_point(al, be, ph, L, g1, g2), pts, atol=1e-9)
+
+
+def test_thesis_eq_4_3_1_in_tangent_form(rng):
+    """The sine form used in code equals X = L tan b / (tan a + tan b), Y = X tan a, Z = sqrt(X^2+Y^2) tan phi."""
+    al = rng.uniform(0.2, 1.3, 20)
+    be = rng.uniform(0.2, 1.3, 20)
+    ph = rng.uniform(-0.3, 0.3, 20)
+    L = 1500.0
+    X = L * np.tan(be) / (np.tan(al) + np.tan(be))
+    Y = X * np.tan(al)
+    Z = np.hypot(X, Y) * np.tan(ph)
+    np.testing.assert_allclose(thesis_point(al, be, ph, L, 0.0, 0.0), np.column_stack([X, Y, Z]), atol=1e-9)
+
+
+def test_covariance_matches_monte_carlo(rng):
+    a, b = thesis_stations(1609.9, 0.01, -0.02, sigma_rad=3 * ARCSEC)
+    p = np.array([[800.0, 2800.0, 200.0]])
+    clean = [a.observe(p), b.observe(p)]
+    n = 4000
+    draws = [(np.repeat(h, n) + rng.normal(0, 3 * ARCSEC, n), np.repeat(v, n) + rng.normal(0, 3 * ARCSEC, n))
+             for h, v in clean]
+    out = intersect([a, b], draws)
+    mc = np.cov(out.point_mm.T)
+    predicted = out.cov_mm2[0]
+    np.testing.assert_allclose(np.sqrt(np.diag(mc)), np.sqrt(np.diag(predicted)), rtol=0.08)
+
+
+def test_observe_jacobian_matches_finite_differences(rng):
+    pts = random_points(rng, 10)
+    for s in imperfect_stations():
+        for face in (1, 2):
+            _, _, J = s.observe(pts, face, with_jacobian=True)
+            for k in range(3):
+                d = np.zeros(3)
+                d[k] = 1e-4
+                hp, vp = s.observe(pts + d, face)
+                hm, vm = s.observe(pts - d, face)
+                np.testing.assert_allclose(J[:, 0, k], np.angle(np.exp(1j * (hp - hm))) / 2e-4, atol=1e-9)
+                np.testing.assert_allclose(J[:, 1, k], (vp - vm) / 2e-4, atol=1e-9)
+
+
+def test_face_two_reads_half_turn_and_complement():
+    a, _ = imperfect_stations()
+    p = np.array([[500.0, 2000.0, 300.0]])
+    a0 = Station("A", yaw_rad=0.3)
+    h1, v1 = a0.observe(p, 1)
+    h2, v2 = a0.observe(p, 2)
+    assert np.angle(np.exp(1j * (h2 - h1 - np.pi)))[0] == pytest.approx(0.0, abs=1e-12)
+    assert (v1 + v2)[0] == pytest.approx(2 * np.pi)
+    # index error: (V_I + V_II - 360) / 2 recovers it
+    k = 20 * ARCSEC
+    ak = Station("A", yaw_rad=0.3, index_rad=k)
+    assert ((ak.observe(p, 1)[1] + ak.observe(p, 2)[1] - 2 * np.pi) / 2)[0] == pytest.approx(k)
+
+
+def test_parallel_sightings_are_refused():
+    a, b = thesis_stations(1600.0, 0.0, 0.0)
+    c = a.position
+    u = np.array([[0.0, 1.0, 0.0]])
+    with pytest.raises(GeometryError, match="parallel"):
+        closest_point(c, u, b.position, u)
+
+
+def test_point_behind_a_station_is_refused():
+    a, b = thesis_stations(1600.0, 0.0, 0.0)
+    # B looks away from where A's line goes
+    with pytest.raises(GeometryError, match="behind station B"):
+        closest_point(a.position, np.array([[0.6, 0.8, 0.0]]), b.position, np.array([[0.6, -0.8, 0.0]]))
+
+
+def test_thesis_point_refuses_a_non_triangle():
+    with pytest.raises(GeometryError, match="do not intersect"):
+        thesis_point(np.array([1.6]), np.array([1.6]), np.array([0.0]), 1600.0, 0.0, 0.0)
+
+
+def test_point_on_vertical_axis_is_refused():
+    a, _ = thesis_stations(1600.0, 0.0, 0.0)
+    with pytest.raises(GeometryError, match="vertical axis"):
+        a.observe(np.array([[0.0, 0.0, 500.0]]))
