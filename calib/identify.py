@@ -1,0 +1,400 @@
+"""Whole-robot identification (Chapter 6 and its future work) with the one forward model.
+
+Observations are either tool-target positions with their covariances (:class:`PointObservations`) or the raw
+theodolite readings with their angular noise (:class:`AngleObservations`, station parameters estimated alongside).
+
+The pipeline:
+
+1. **start** — the robot base in the measurement frame by a rigid fit (Kabsch) of the nominal tool points to the
+   measured ones, then Chapter 6's linear regression (eq 6.6): with the rotations fixed the tool point is *linear* in
+   every translation of the chain (link lengths a, offsets d, base position, tool point), so one linear solve gives them;
+2. **identifiability** — the whitened Jacobian of the free parameters is analysed (:mod:`calib.identifiability`);
+   undeterminable combinations are fixed automatically and reported in words;
+3. **nonlinear least squares** — trust-region reflective with the model's analytic Jacobian and a robust loss; poses
+   whose whitened residual is implausible (chi-square, 99.99 %) are flagged as gross errors, removed and the fit is
+   repeated without the robust loss;
+4. **uncertainty** — covariance ``(J^T W J)^-1`` of the kept parameters (inflated by the reduced chi-square when that
+   exceeds 1), standard deviations and correlations, with |rho| > 0.9 flagged.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy import optimize, stats
+
+from .effects import PoseContext
+from .errors import RobocalError
+from .identifiability import Identifiability, analyse
+from .model import MeasurementModel
+from .theodolite import Station
+
+GROSS_P = 1e-4            # per-pose probability below which a residual is called a gross error
+
+
+@dataclass
+class PointObservations:
+    """Measured tool-target positions (measurement frame) for joint readings."""
+
+    q_rad: np.ndarray                     # (N, n)
+    points_mm: np.ndarray                 # (N, 3)
+    cov_mm2: np.ndarray | None = None     # (N, 3, 3); default sigma_mm isotropic
+    sigma_mm: float = 0.05
+    ctx: PoseContext | None = None
+
+    def __post_init__(self):
+        self.q_rad = np.atleast_2d(np.asarray(self.q_rad, float))
+        self.points_mm = np.atleast_2d(np.asarray(self.points_mm, float))
+        N = len(self.q_rad)
+        if self.points_mm.shape != (N, 3):
+            raise RobocalError(f"identification: {N} poses but {len(self.points_mm)} measured points")
+        for what, arr in (("joint readings", self.q_rad), ("points", self.points_mm)):
+            bad = ~np.isfinite(arr).all(axis=1)
+            if bad.any():
+                raise RobocalError(f"identification: pose {int(np.flatnonzero(bad)[0]) + 1} has a non-finite "
+                                   f"value in its {what}")
+        if self.cov_mm2 is None:
+            self.cov_mm2 = np.broadcast_to(np.eye(3) * self.sigma_mm ** 2, (N, 3, 3)).copy()
+        # whitening: W = L L^T with L from the inverse covariance
+        self._white = np.linalg.cholesky(np.linalg.inv(self.cov_mm2)).transpose(0, 2, 1)
+
+    @property
+    def n(self) -> int:
+        return len(self.q_rad)
+
+    def subset(self, idx) -> "PointObservations":
+        return PointObservations(self.q_rad[idx], self.points_mm[idx], self.cov_mm2[idx], self.sigma_mm,
+                                 self.ctx.subset(idx) if self.ctx is not None else None)
+
+
+@dataclass
+class AngleObservations:
+    """Raw theodolite readings (N, 2k) ordered (Hz_1, V_1, Hz_2, V_2, ...) of the tool target."""
+
+    q_rad: np.ndarray
+    readings_rad: np.ndarray
+    stations: list[Station]
+    faces: list[int] | None = None
+    ctx: PoseContext | None = None
+    free_station_params: list[str] = field(default_factory=lambda: ["B.x_mm", "B.z_mm", "A.yaw_rad", "B.yaw_rad"])
+
+    def __post_init__(self):
+        self.q_rad = np.atleast_2d(np.asarray(self.q_rad, float))
+        self.readings_rad = np.atleast_2d(np.asarray(self.readings_rad, float))
+        if self.readings_rad.shape != (len(self.q_rad), 2 * len(self.stations)):
+            raise RobocalError(f"identification: expected {2 * len(self.stations)} readings per pose for "
+                               f"{len(self.stations)} stations, got {self.readings_rad.shape[1]}")
+        if not np.isfinite(self.readings_rad).all() or not np.isfinite(self.q_rad).all():
+            raise RobocalError("identification: a reading or joint angle is not finite")
+        names = {s.name for s in self.stations}
+        for p in self.free_station_params:
+            st, _, par = p.partition(".")
+            if st not in names or par not in Station.PARAMS:
+                raise RobocalError(f"identification: unknown station parameter {p!r} "
+                                   f"(stations {sorted(names)}, parameters {', '.join(Station.PARAMS)})")
+        self.faces = self.faces or [1] * len(self.stations)
+
+    @property
+    def n(self) -> int:
+        return len(self.q_rad)
+
+    def subset(self, idx) -> "AngleObservations":
+        return AngleObservations(self.q_rad[idx], self.readings_rad[idx], self.stations, self.faces,
+                                 self.ctx.subset(idx) if self.ctx is not None else None,
+                                 list(self.free_station_params))
+
+
+@dataclass
+class Identification:
+    names: list[str]                  # every parameter (model + station)
+    theta: np.ndarray                 # estimate (fixed ones at their values)
+    free: list[str]                   # estimated
+    fixed: list[str]                  # held (by request or by the identifiability guard)
+    cov: np.ndarray                   # (P, P), zero rows/columns for fixed parameters
+    identifiability: Identifiability
+    residual_rms: float               # RMS of the unweighted residuals (mm or rad)
+    reduced_chi2: float
+    outliers: list[int]               # 0-based pose indices flagged as gross errors
+    n_obs: int
+    stations: list[Station] | None = None
+
+    @property
+    def sigma(self) -> np.ndarray:
+        return np.sqrt(np.clip(np.diag(self.cov), 0.0, None))
+
+    def value(self, name: str) -> float:
+        return float(self.theta[self.names.index(name)])
+
+    def std(self, name: str) -> float:
+        return float(self.sigma[self.names.index(name)])
+
+    def correlations(self, threshold: float = 0.9) -> list[tuple[str, str, float]]:
+        idx = [self.names.index(n) for n in self.free]
+        C = self.cov[np.ix_(idx, idx)]
+        d = np.sqrt(np.diag(C))
+        R = C / np.outer(d, d)
+        out = []
+        for a in range(len(idx)):
+            for b in range(a + 1, len(idx)):
+                if abs(R[a, b]) > threshold:
+                    out.append((self.free[a], self.free[b], float(R[a, b])))
+        return out
+
+
+def default_free(model: MeasurementModel, effects: bool = True) -> list[str]:
+    """The conventional parameter set: base, per link theta offset, a, alpha and d (beta instead of d for links
+    joining parallel axes), tool point; plus every effect parameter except the two-slope shape parameters."""
+    r = model.robot
+    free = [n for n in model.kin.names if n.startswith(("base.", "tool."))]
+    for j in range(r.n):
+        free += [f"j{j + 1}.theta_offset_rad", f"j{j + 1}.a_mm", f"j{j + 1}.alpha_rad"]
+        free.append(f"j{j + 1}.beta_rad" if r.hayati[j] else f"j{j + 1}.d_mm")
+    if effects:
+        for e in model.effects:
+            for q in e.qualified_names():
+                if q.endswith(("compliance2_rad_per_nm", "breakpoint_nm")):
+                    continue
+                free.append(q)
+    order = {n: i for i, n in enumerate(model.names)}
+    return sorted(free, key=order.get)
+
+
+def fix_preference(name: str) -> int:
+    """Which parameter of an undeterminable combination to hold (lower first): station parameters first (the ruler
+    pre-calibration measures them), then design values, then the nuisances (tool, base)."""
+    if name[:2] in ("A.", "B.") or name.split(".")[0].isupper():
+        return 0
+    if name.endswith(".beta_rad") or name.endswith(".d_mm") and name.startswith("j"):
+        return 1
+    if name.startswith("j"):
+        return 2
+    if name.startswith(("tool.",)):
+        return 4
+    if name.startswith("base."):
+        return 5
+    return 3
+
+
+# -- the residual function ------------------------------------------------------------------------------------
+class _Problem:
+    def __init__(self, model: MeasurementModel, obs, theta0: np.ndarray, priors: dict[str, tuple[float, float]]):
+        self.model = model
+        self.obs = obs
+        self.angles = isinstance(obs, AngleObservations)
+        self.names = list(model.names)
+        self.theta0 = np.array(theta0, float)
+        if self.angles:
+            self.station_names = [f"{s.name}.{p}" for s in obs.stations for p in Station.PARAMS]
+            self.names += self.station_names
+            self.theta0 = np.concatenate([self.theta0] + [s.params() for s in obs.stations])
+        self.priors = priors
+        for n in priors:
+            if n not in self.names:
+                raise RobocalError(f"identification: prior on unknown parameter {n!r}")
+        self.ctx = obs.ctx
+
+    def stations(self, theta):
+        if not self.angles:
+            return None
+        P = self.model.P
+        k = len(Station.PARAMS)
+        return [s.with_params(theta[P + i * k:P + (i + 1) * k]) for i, s in enumerate(self.obs.stations)]
+
+    def residuals(self, theta, jac: bool = True):
+        """Whitened residuals (m,) and their Jacobian (m, P_total) w.r.t. all parameters."""
+        P = self.model.P
+        if not self.angles:
+            ev = self.model.evaluate(self.obs.q_rad, self.ctx, theta[:P], jacobian=jac)
+            r = np.einsum("nij,nj->ni", self.obs._white, self.obs.points_mm - ev.point_mm).ravel()
+            J = -np.einsum("nij,njp->nip", self.obs._white, ev.jacobian).reshape(-1, P) if jac else None
+        else:
+            st = self.stations(theta)
+            pred = self.model.readings(self.obs.q_rad, st, self.ctx, theta[:P], self.obs.faces, jacobian=jac)
+            if jac:
+                pred, Jm = pred
+            d = self.obs.readings_rad - pred
+            d[:, 0::2] = np.angle(np.exp(1j * d[:, 0::2]))
+            sig = np.concatenate([[s.sigma_hz_rad, s.sigma_v_rad] for s in st])
+            r = (d / sig).ravel()
+            J = None
+            if jac:
+                Js = self._station_jacobian(theta, st, pred)
+                J = -np.concatenate([Jm, Js], axis=2) / sig[None, :, None]
+                J = J.reshape(-1, len(self.names))
+        if self.priors:
+            rp, Jp = [], []
+            for n, (val, sd) in self.priors.items():
+                i = self.names.index(n)
+                rp.append((val - theta[i]) / sd)
+                row = np.zeros(len(self.names))
+                row[i] = -1.0 / sd
+                Jp.append(row)
+            r = np.concatenate([r, rp])
+            if jac:
+                J = np.vstack([J, Jp])
+        return r, J
+
+    def _station_jacobian(self, theta, st, pred):
+        """d readings / d station parameters by central differences (a few cheap observe calls, no kinematics)."""
+        P = self.model.P
+        ev = self.model.evaluate(self.obs.q_rad, self.ctx, theta[:P])
+        k = len(Station.PARAMS)
+        N = self.obs.n
+        J = np.zeros((N, 2 * len(st), len(st) * k))
+        for si, s in enumerate(st):
+            base = s.params()
+            for pi in range(k):
+                h = 1e-3 if Station.PARAMS[pi].endswith("_mm") else 1e-7
+                vals = []
+                for sign in (1, -1):
+                    p = base.copy()
+                    p[pi] += sign * h
+                    hz, v = s.with_params(p).observe(ev.point_mm, self.obs.faces[si])
+                    vals.append((hz, v))
+                dh = np.angle(np.exp(1j * (vals[0][0] - vals[1][0]))) / (2 * h)
+                dv = (vals[0][1] - vals[1][1]) / (2 * h)
+                J[:, 2 * si, si * k + pi] = dh
+                J[:, 2 * si + 1, si * k + pi] = dv
+        return J
+
+
+def initial_base(model: MeasurementModel, q_rad, points_mm, ctx=None, theta=None) -> np.ndarray:
+    """Base pose (parameters of the base) by a rigid fit of nominal tool points (robot frame) to measured ones."""
+    th = np.array(model.nominal if theta is None else theta, float)
+    idx = [model.index[f"base.{k}"] for k in ("x_mm", "y_mm", "z_mm", "yaw_rad", "pitch_rad", "roll_rad")]
+    th[idx] = 0.0
+    p_robot = model.points(q_rad, ctx, th)
+    a = p_robot - p_robot.mean(0)
+    b = points_mm - points_mm.mean(0)
+    U, _, Vt = np.linalg.svd(a.T @ b)
+    D = np.diag([1.0, 1.0, np.sign(np.linalg.det(Vt.T @ U.T))])
+    R = Vt.T @ D @ U.T
+    t = points_mm.mean(0) - R @ p_robot.mean(0)
+    # R = Rz(yaw) Ry(pitch) Rx(roll)
+    pitch = -np.arcsin(np.clip(R[2, 0], -1, 1))
+    roll = np.arctan2(R[2, 1], R[2, 2])
+    yaw = np.arctan2(R[1, 0], R[0, 0])
+    th[idx] = [*t, yaw, pitch, roll]
+    return th
+
+
+def linear_translations(model: MeasurementModel, obs: PointObservations, theta: np.ndarray,
+                        names: list[str]) -> np.ndarray:
+    """Chapter 6, eq 6.6: with rotations fixed the tool point is linear in the chain's translations; solve them."""
+    th = theta.copy()
+    idx = [model.index[n] for n in names]
+    for n in names:
+        if not n.endswith("_mm"):
+            raise RobocalError(f"linear regression (eq 6.6): {n} is not a translation")
+    ev = model.evaluate(obs.q_rad, obs.ctx, th, jacobian=True)
+    A = ev.jacobian[:, :, idx]                                  # exact coefficients A_k, B_k, C_k of eq 6.6
+    rest = ev.point_mm - np.einsum("nip,p->ni", A, th[idx])
+    Aw = np.einsum("nij,njp->nip", obs._white, A).reshape(-1, len(idx))
+    bw = np.einsum("nij,nj->ni", obs._white, obs.points_mm - rest).ravel()
+    sol, *_ = np.linalg.lstsq(Aw, bw, rcond=None)
+    th[idx] = sol
+    return th
+
+
+def identify(model: MeasurementModel, obs: PointObservations | AngleObservations, free: list[str] | None = None,
+             theta0: np.ndarray | None = None, robust: bool = True,
+             priors: dict[str, tuple[float, float]] | None = None, start: bool = True,
+             max_nfev: int = 200) -> Identification:
+    """Identify the free parameters from the observations (see the module docstring for the pipeline)."""
+    priors = priors or {}
+    theta0 = np.array(model.nominal if theta0 is None else theta0, float)
+    prob = _Problem(model, obs, theta0, priors)
+    if free is None:
+        free = default_free(model)
+        if prob.angles:
+            free = free + list(obs.free_station_params)
+    unknown = [n for n in free if n not in prob.names]
+    if unknown:
+        raise RobocalError(f"identification: unknown parameter {unknown[0]!r} in the free set")
+    if start and not prob.angles:
+        prob.theta0[: model.P] = initial_base(model, obs.q_rad, obs.points_mm, obs.ctx, theta0)
+    theta = prob.theta0.copy()
+    free_idx = [prob.names.index(n) for n in free]
+    per = 3 if not prob.angles else 2 * len(obs.stations)
+    m_obs = obs.n * per
+
+    # identifiability of the requested set, with the reason where a joint barely moves
+    r, J = prob.residuals(theta)
+    ranges = np.ptp(obs.q_rad, axis=0)
+
+    def rejac(k):
+        o2 = obs.subset(np.arange(obs.n))
+        lo, hi = model.robot.limits_rad[k]
+        o2.q_rad = o2.q_rad.copy()
+        o2.q_rad[:, k] = np.linspace(lo, hi, obs.n)
+        return _Problem(model, o2, theta, priors).residuals(theta)[1][:, free_idx]
+
+    ident = analyse(J[:, free_idx], free, rejac, ranges, fix_preference)
+    if start and not prob.angles:
+        # Chapter 6's linear step for the translations that stay free (held ones keep their design values), then
+        # the analysis again at this better point: a null tool on the flange axis hides the wrist, for example
+        for _ in range(2):
+            trans = [n for n in ident.kept if n.endswith("_mm") and n in model.kin.index]
+            theta[: model.P] = linear_translations(model, obs, prob.theta0[: model.P], trans)
+            r, J = prob.residuals(theta)
+            ident = analyse(J[:, free_idx], free, rejac, ranges, fix_preference)
+            if all(n in trans for n in ident.kept if n.endswith("_mm") and n in model.kin.index):
+                break
+        held = [prob.names.index(n) for n in ident.fixed]
+        theta[held] = prob.theta0[held]
+    kept = ident.kept
+    if len(kept) > m_obs + len(priors):
+        raise RobocalError(f"identification: {m_obs} observations for {len(kept)} identifiable parameters; "
+                           f"measure at least {int(np.ceil(len(kept) / per))} poses")
+    kidx = np.array([prob.names.index(n) for n in kept], int)
+
+    def solve(problem, x0, loss):
+        def fun(x):
+            th = theta_full.copy()
+            th[kidx] = x
+            return problem.residuals(th, jac=False)[0]
+
+        def jac(x):
+            th = theta_full.copy()
+            th[kidx] = x
+            return problem.residuals(th)[1][:, kidx]
+
+        res = optimize.least_squares(fun, x0, jac=jac, method="trf", x_scale="jac", loss=loss, f_scale=3.0,
+                                     max_nfev=max_nfev)
+        return res.x
+
+    theta_full = theta.copy()
+    x = solve(prob, theta[kidx], "soft_l1" if robust else "linear")
+    theta_full[kidx] = x
+    outliers: list[int] = []
+    if robust:
+        r, _ = prob.residuals(theta_full, jac=False)
+        chi = (r[: obs.n * per].reshape(obs.n, per) ** 2).sum(1)
+        # robust scale: an incomplete model inflates every residual alike; a gross error stands out of the rest
+        scale = max(1.0, float(np.median(chi) / stats.chi2.median(per)))
+        limit = stats.chi2.isf(GROSS_P, per) * scale
+        outliers = [int(i) for i in np.flatnonzero(chi > limit)]
+        if outliers:
+            keep_poses = np.setdiff1d(np.arange(obs.n), outliers)
+            prob = _Problem(model, obs.subset(keep_poses), theta0, priors)
+            prob.theta0 = theta_full.copy()
+        x = solve(prob, theta_full[kidx], "linear")
+        theta_full[kidx] = x
+    r, J = prob.residuals(theta_full)
+    Jk = J[:, kidx]
+    dof = max(1, len(r) - len(kidx))
+    red = float(r @ r / dof)
+    cov_k = np.linalg.pinv(Jk.T @ Jk) * max(1.0, red)
+    cov = np.zeros((len(prob.names), len(prob.names)))
+    cov[np.ix_(kidx, kidx)] = cov_k
+    # unweighted residual RMS (mm for points, rad for angles)
+    if not prob.angles:
+        pred = model.points(prob.obs.q_rad, prob.obs.ctx, theta_full[: model.P])
+        rms = float(np.sqrt(np.mean(np.sum((prob.obs.points_mm - pred) ** 2, axis=1))))
+    else:
+        sig = np.concatenate([[s.sigma_hz_rad, s.sigma_v_rad] for s in prob.stations(theta_full)])
+        raw = r[: prob.obs.n * len(sig)].reshape(prob.obs.n, -1) * sig
+        rms = float(np.sqrt(np.mean(raw ** 2)))
+    fixed = [n for n in prob.names if n not in kept]
+    return Identification(prob.names, theta_full, kept, fixed, cov, ident, rms, red, outliers, len(r),
+                          prob.stations(theta_full))
