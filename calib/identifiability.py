@@ -70,13 +70,15 @@ class Combination:
 
     def words(self) -> str:
         items = sorted(self.coefficients.items(), key=lambda kv: -abs(kv[1]))
-        big = [describe(n) for n, c in items if abs(c) >= 0.25 * abs(items[0][1])]
+        big = [describe(n) for n, c in items if abs(c) >= 0.25 * abs(items[0][1])][:5]
         if len(big) == 1:
-            text = f"{big[0]} has no effect on the measurements"
-        elif len(big) == 2:
-            text = f"cannot separate {big[0]} from {big[1]}"
-        else:
-            text = "cannot separate " + ", ".join(big[:-1]) + f" and {big[-1]}"
+            text = (f"{big[0]} has no effect on the measurements" if self.ratio <= RANK_RTOL
+                    else f"{big[0]} is poorly determined")
+        verb = "cannot separate" if self.ratio <= HOLD_RTOL else "can hardly separate"
+        if len(big) == 2:
+            text = f"{verb} {big[0]} from {big[1]}"
+        elif len(big) > 2:
+            text = f"{verb} " + ", ".join(big[:-1]) + f" and {big[-1]}"
         return text + (f", because {self.because}" if self.because else "")
 
 
@@ -90,6 +92,7 @@ class Identifiability:
     weak: list[Combination] = field(default_factory=list)
     fixed: list[str] = field(default_factory=list)          # automatic treatment
     kept: list[str] = field(default_factory=list)
+    weakest: list[Combination] = field(default_factory=list)   # the three smallest directions kept
     kept_condition: float = float("nan")
 
     def report(self) -> list[str]:
@@ -120,7 +123,7 @@ def analyse(J: np.ndarray, names: list[str],
     norms = np.linalg.norm(J, axis=0)
     safe = np.where(norms > 0, norms, 1.0)
     Js = J / safe
-    _, s, Vt = np.linalg.svd(Js, full_matrices=True)
+    _, s, Vt = np.linalg.svd(Js, full_matrices=m < p)          # Vt must be p x p; U never needed in full
     smax = s[0] if s.size and s[0] > 0 else 1.0
     ratio = np.concatenate([s / smax, np.zeros(max(0, p - s.size))])
     rank = int(np.sum(ratio > RANK_RTOL))
@@ -131,7 +134,7 @@ def analyse(J: np.ndarray, names: list[str],
     keep = list(range(p))
     fixed: list[int] = []
     while keep:
-        _, s_k, Vt_k = np.linalg.svd(Js[:, keep], full_matrices=True)
+        _, s_k, Vt_k = np.linalg.svd(Js[:, keep], full_matrices=m < len(keep))
         r_k = s_k / (s_k[0] if s_k.size and s_k[0] > 0 else 1.0)
         if len(s_k) == len(keep) and r_k[-1] > HOLD_RTOL:
             out.kept_condition = float(1.0 / r_k[-1])
@@ -154,34 +157,37 @@ def analyse(J: np.ndarray, names: list[str],
             v = col / np.linalg.norm(col)
             combo = Combination(coef, float(np.linalg.norm(Js @ v) / smax))
             if rejacobian is not None and joint_ranges_rad is not None:
-                combo.because = _explain(col / np.linalg.norm(col), rejacobian, joint_ranges_rad, norms)
+                combo.because = _explain(v, combo.ratio, rejacobian, joint_ranges_rad, norms)
             out.unidentifiable.append(combo)
-    # weakly determined directions among the kept parameters
+    # the weakest directions among the kept parameters (reported as weak below WEAK_RTOL)
     if keep:
         _, s_k, Vt_k = np.linalg.svd(Js[:, keep], full_matrices=False)
-        r_k = s_k / s_k[0]
-        for i in np.flatnonzero(r_k < WEAK_RTOL):
+        r_k = s_k / smax
+        for i in np.argsort(r_k)[:3]:
             v = np.zeros(p)
             v[keep] = Vt_k[i]
             coef = {names[k]: float(v[k]) for k in np.flatnonzero(np.abs(v) > 0.05)}
             combo = Combination(coef, float(r_k[i]))
             if rejacobian is not None and joint_ranges_rad is not None:
-                combo.because = _explain(v, rejacobian, joint_ranges_rad, norms)
-            out.weak.append(combo)
+                combo.because = _explain(v, combo.ratio, rejacobian, joint_ranges_rad, norms)
+            out.weakest.append(combo)
+            if r_k[i] < WEAK_RTOL:
+                out.weak.append(combo)
     return out
 
 
-def _explain(v: np.ndarray, rejacobian, ranges: np.ndarray, norms: np.ndarray) -> str:
-    """Which joint, if spread over its range, would make the direction ``v`` determinable."""
+def _explain(v: np.ndarray, before: float, rejacobian, ranges: np.ndarray, norms: np.ndarray) -> str:
+    """Which joint, if spread over its range, would make the direction ``v`` (scaled parameters) far better determined.
+
+    Checked, not guessed: the direction's response ``|J v| / |J|`` (``before`` now) is recomputed with that joint's
+    readings spread over its limits; a tenfold gain names the joint.
+    """
     safe = np.where(norms > 0, norms, 1.0)
-    reasons = []
     for k in np.argsort(ranges):
         if ranges[k] > np.radians(30):
             break
-        J2 = rejacobian(int(k))
-        s2 = np.linalg.svd(J2 / safe, compute_uv=False)
-        gain = np.linalg.norm((J2 / safe) @ v) / (s2[0] if s2[0] > 0 else 1.0)
-        if gain > 1e-3:
-            reasons.append(f"joint {k + 1} barely moves (range {np.degrees(ranges[k]):.1f} deg over the poses)")
-            break
-    return "; ".join(reasons)
+        J2 = rejacobian(int(k)) / safe
+        s2 = np.linalg.norm(J2, 2)
+        if s2 > 0 and np.linalg.norm(J2 @ v) / s2 > 10 * before + 1e-6:
+            return f"joint {k + 1} barely moves (range {np.degrees(ranges[k]):.1f} deg over the poses)"
+    return ""

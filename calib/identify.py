@@ -21,7 +21,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy import optimize, stats
+from scipy import optimize
 
 from .effects import PoseContext
 from .errors import RobocalError
@@ -318,6 +318,19 @@ def identify(model: MeasurementModel, obs: PointObservations | AngleObservations
     per = 3 if not prob.angles else 2 * len(obs.stations)
     m_obs = obs.n * per
 
+    if m_obs < len(free):
+        # too few observations for the request? Count what a rich experiment could identify (random poses)
+        lim = model.robot.limits_rad
+        rng = np.random.default_rng(0)
+        rich_q = lim[:, 0] + (lim[:, 1] - lim[:, 0]) * rng.random((max(40, len(free)), model.robot.n))
+        rich = obs.subset(np.zeros(len(rich_q), int))
+        rich.q_rad = rich_q
+        Jr = _Problem(model, rich, theta, priors).residuals(theta)[1][:, free_idx]
+        k = analyse(Jr, free).kept
+        if m_obs + len(priors) < len(k):
+            raise RobocalError(f"identification: {m_obs} observations from {obs.n} poses for {len(k)} identifiable "
+                               f"parameters; measure at least {int(np.ceil(len(k) / per))} poses")
+
     # identifiability of the requested set, with the reason where a joint barely moves
     r, J = prob.residuals(theta)
     ranges = np.ptp(obs.q_rad, axis=0)
@@ -370,6 +383,8 @@ def identify(model: MeasurementModel, obs: PointObservations | AngleObservations
     if robust:
         r, _ = prob.residuals(theta_full, jac=False)
         chi = (r[: obs.n * per].reshape(obs.n, per) ** 2).sum(1)
+        from scipy import stats        # imported here: it is slow to import and only this step needs it
+
         # robust scale: an incomplete model inflates every residual alike; a gross error stands out of the rest
         scale = max(1.0, float(np.median(chi) / stats.chi2.median(per)))
         limit = stats.chi2.isf(GROSS_P, per) * scale

@@ -1,0 +1,119 @@
+"""``robocal plan``: design of experiments — which poses to measure, and how good a pose set is."""
+from __future__ import annotations
+
+import json
+
+import numpy as np
+
+from calib.errors import RobocalError
+from calib.model import MeasurementModel
+from calib.plan import INDICES, Design, observability, parameter_set, select_poses
+from calib.posecsv import read_pose_csv, write_pose_csv
+from calib.robot import load_robot
+from calib.units import DEG
+
+from ..progress import progress_display
+
+NAME = "plan"
+HELP = "design the experiment: choose identification poses or score a pose set"
+
+
+def add_arguments(p):
+    sub = p.add_subparsers(dest="what", metavar="WHAT", required=True)
+    poses = sub.add_parser("poses", help="choose N poses maximising an observability index, or --evaluate a set")
+    poses.add_argument("--count", type=int, metavar="N", help="number of poses to choose")
+    poses.add_argument("--evaluate", metavar="FILE.csv", help="score this pose set instead (columns q1..q6, deg)")
+    poses.add_argument("--robot", metavar="FILE", help="robot description TOML (default: the thesis's Puma 560)")
+    poses.add_argument("--out", metavar="FILE.csv", help="write the chosen poses (q1..q6 in degrees)")
+    poses.add_argument("--index", choices=INDICES, default="O1", help="observability index (default O1, D-optimal)")
+    poses.add_argument("--set", dest="pset", choices=("geometric", "full", "chapter6"), default="geometric",
+                       help="parameters to identify (default: geometric)")
+    poses.add_argument("--tool", nargs=3, type=float, metavar=("X", "Y", "Z"),
+                       help="tool target in frame 6, mm (default: the robot's tool point)")
+    poses.add_argument("--noise-mm", type=float, default=0.05, help="1-sigma point noise per coordinate (mm)")
+    poses.add_argument("--seed", type=int, default=0)
+    poses.add_argument("--json", action="store_true", help="print the result as JSON")
+
+
+def _model(args) -> MeasurementModel:
+    robot = load_robot(args.robot)
+    if args.tool is not None:
+        robot = robot.with_tool({"P": np.array(args.tool, float)})
+    return MeasurementModel(robot)
+
+
+def run(args) -> int:
+    if args.what == "poses":
+        return _poses(args)
+    raise RobocalError(f"plan: unknown subcommand {args.what!r}")
+
+
+def _poses(args) -> int:
+    model = _model(args)
+    names = parameter_set(model, args.pset)
+    if args.evaluate:
+        return _evaluate(args, model, names)
+    if args.count is None:
+        raise RobocalError("plan poses: give --count N (poses to choose) or --evaluate FILE.csv")
+    if args.count < 1:
+        raise RobocalError(f"plan poses: --count must be positive, got {args.count}")
+    with progress_display("plan poses") as update:
+        plan = select_poses(model, args.count, names, args.index, args.noise_mm, args.seed, progress=update)
+    if args.out:
+        write_pose_csv(args.out, plan.q_rad)
+    if args.json:
+        print(json.dumps({"count": len(plan.q_rad), "index": plan.index, "parameters": plan.names,
+                          "held": plan.identifiability.fixed, "indices": plan.indices,
+                          "random_indices": plan.random_indices,
+                          "predicted_position_sigma_mm": plan.predicted_sigma_mm,
+                          "random_position_sigma_mm": plan.random_sigma_mm,
+                          "poses_deg": (plan.q_rad / DEG).round(4).tolist(), "out": args.out}, indent=2))
+        return 0
+    print(f"robocal plan poses: {len(plan.q_rad)} poses chosen for {len(plan.names)} identifiable parameters "
+          f"({args.pset} set), index {plan.index}, point noise {args.noise_mm} mm")
+    if plan.identifiability.fixed:
+        print("  held (not identifiable from any pose with this tool and these observations): "
+              + ", ".join(plan.identifiability.fixed))
+    print(f"  {'index':<8}{'chosen':>12}{'random':>12}")
+    for k in INDICES:
+        print(f"  {k:<8}{plan.indices[k]:>12.4g}{plan.random_indices[k]:>12.4g}")
+    ps, rs = plan.predicted_sigma_mm, plan.random_sigma_mm
+    print(f"  predicted tool-position sigma over the test region: RMS {ps['rms']:.4f} mm, max {ps['max']:.4f} mm")
+    print(f"  random poses of the same count:                    RMS {rs['rms']:.4f} mm, max {rs['max']:.4f} mm")
+    if args.out:
+        print(f"  written: {args.out}")
+    else:
+        print("  " + "q1..q6 (deg)")
+        for row in plan.q_rad / DEG:
+            print("  " + "  ".join(f"{v:8.2f}" for v in row))
+    return 0
+
+
+def _evaluate(args, model: MeasurementModel, names: list[str]) -> int:
+    table = read_pose_csv(args.evaluate, model.robot.n)
+    outside = ~model.robot.within_limits(table.q_rad)
+    if outside.any():
+        i = int(np.flatnonzero(outside)[0])
+        raise RobocalError(f"{args.evaluate}: pose {i + 1} is outside the joint limits of {model.robot.name}")
+    design = Design(model, names, args.noise_mm)
+    ident = design.analyse(table.q_rad)
+    kept = design.restrict(ident.kept)
+    J = kept.jacobian(table.q_rad)
+    idx = observability(J / np.linalg.norm(J, axis=0))
+    out = {"poses": table.n, "parameters": len(names), "observations": 3 * table.n, "rank": ident.rank,
+           "condition": ident.condition, "held": ident.fixed, "kept_condition": ident.kept_condition,
+           "indices_scaled": idx,
+           "not_identifiable": [c.words() for c in ident.unidentifiable],
+           "weakest": [{"ratio": c.ratio, "words": c.words()} for c in ident.weakest]}
+    if args.json:
+        print(json.dumps(out, indent=2))
+        return 0
+    print(f"robocal plan poses --evaluate {args.evaluate}: {table.n} poses, {3 * table.n} observations, "
+          f"{len(names)} parameters ({args.pset} set)")
+    for line in ident.report():
+        print("  " + line)
+    print("  weakest combinations kept:")
+    for c in ident.weakest:
+        print(f"    ratio {c.ratio:.2e}: {c.words()}")
+    print("  observability (column-scaled): " + ", ".join(f"{k} {v:.3g}" for k, v in idx.items()))
+    return 0
