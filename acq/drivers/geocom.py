@@ -1,0 +1,285 @@
+"""Leica GeoCOM ASCII driver (TPS1000/1100/1200, TM/TS class): one synchronous request/reply at a time.
+
+Why it looks like this: the instrument is strictly synchronous and may lose requests if pipelined (protocols.md
+§1.2), so a call writes one request and waits for the reply with *its* transaction id, discarding stale replies of
+earlier timed-out calls.  After a timeout or a garbled reply the link is resynchronised (LF, drain) and only
+idempotent RPCs are repeated (a repeated ChangeFace would turn the telescope back).  A lost port is reopened and
+the handshake repeated.  Every failure is a :class:`~acq.errors.DeviceError` naming device, RPC and cause.
+"""
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass
+from typing import Sequence
+
+from ..errors import DeviceError, DeviceTimeout, InstrumentError, LinkLost, ProtocolError
+from ..link import SerialLink, SerialSettings
+from . import geocom_codec as gc
+from .base import AngleReading, DeviceInfo
+from .geocom_codes import ReturnCode, describe
+
+DRIVER_NAME = "geocom"
+DEFAULT_BAUD = 19200
+#: codes meaning "request refused, nothing done" (busy, request checksum bad): sending it again is safe
+_REFUSED = {13, 1293, 3101}
+
+
+@dataclass(frozen=True)
+class Result:
+    """A completed call: the return code (OK, or a warning whose values are usable) and the typed values."""
+
+    rc: ReturnCode
+    values: tuple
+    reply: gc.Reply
+    t_wall: float
+    t_mono: float
+
+    @property
+    def warnings(self) -> tuple[str, ...]:
+        return () if self.rc.code == 0 else (f"{self.rc.code} GRC_{self.rc.name}: {self.rc.text}",)
+
+
+class GeoComTheodolite:
+    """A GeoCOM instrument behind an injected link (anything with SerialLink's write/read_until/drain/reopen)."""
+
+    driver = DRIVER_NAME
+
+    def __init__(self, link: SerialLink, *, name: str | None = None, checksum: bool = False, attempts: int = 2,
+                 reconnect: bool = True, retry_delay_s: float = 0.05):
+        self.link = link
+        self.name = name or link.name
+        self.checksum = checksum
+        self.attempts = max(1, attempts)
+        self.reconnect_enabled = reconnect
+        self.retry_delay_s = retry_delay_s
+        self.precision = 15
+        self._trid = 0
+        self.stale_replies = 0            # replies discarded for a wrong TrId (diagnostics)
+        self.retries = 0
+
+    # -- opening ----------------------------------------------------------------------------------------------------
+    @classmethod
+    def open(cls, url: str, *, name: str | None = None, baudrate: int = DEFAULT_BAUD, checksum: bool = False,
+             handshake: bool = True, **options) -> "GeoComTheodolite":
+        """Open ``url`` with :func:`serial.serial_for_url` (8N1) and run the connect handshake."""
+        link = SerialLink(url, name=name, settings=SerialSettings(baudrate=baudrate))
+        dev = cls(link, name=name, checksum=checksum, **options)
+        if handshake:
+            try:
+                dev.connect()
+            except DeviceError:
+                link.close()
+                raise
+        return dev
+
+    def connect(self) -> None:
+        """Clear the receiver buffer with a bare LF, ping (COM_NullProc) and sync the double precision."""
+        self.link.write(b"\n", "connect")
+        self.link.drain(0.02)
+        self.request(0)
+        self.precision = int(self.request(108).values[0])
+
+    def reconnect(self) -> None:
+        """Reopen the port (after an unplug) and repeat the handshake."""
+        self.link.reopen()
+        self.link.write(b"\n", "reconnect")
+        self.link.drain(0.02)
+        self._call(gc.spec(0), (), None)
+
+    def close(self) -> None:
+        self.link.close()
+
+    def __enter__(self) -> "GeoComTheodolite":
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+    # -- the one request path ---------------------------------------------------------------------------------------
+    def request(self, rpc: int, params: Sequence[str] = (), *, timeout_s: float | None = None,
+                attempts: int | None = None) -> Result:
+        """Send one RPC (params pre-formatted with ``gc.fmt_*``) and return its result; raises DeviceError."""
+        sp = gc.spec(rpc)
+        tries = (attempts or self.attempts) if sp.idempotent else 1
+        last: DeviceError | None = None
+        attempt = 0
+        while attempt < tries:
+            if attempt:
+                self.retries += 1
+                time.sleep(self.retry_delay_s)
+            attempt += 1
+            try:
+                if not self.link.is_open:
+                    if not self.reconnect_enabled:
+                        raise LinkLost(self.name, _cmd(sp), "port is closed")
+                    self.reconnect()
+                return self._call(sp, params, timeout_s)
+            except InstrumentError as exc:
+                if exc.code not in _REFUSED:
+                    raise
+                last = exc                      # refused, not executed: sending it again is safe for any RPC
+                tries = max(tries, 2)
+            except (DeviceTimeout, ProtocolError) as exc:
+                last = exc
+                self._resync()
+            except LinkLost as exc:
+                last = exc
+                if not self.reconnect_enabled:
+                    raise
+        assert last is not None
+        if attempt > 1:
+            raise type(last)(*_reargs(last, f"{last.cause} (after {attempt} attempts)"))
+        raise last
+
+    def _call(self, sp: gc.RpcSpec, params: Sequence[str], timeout_s: float | None) -> Result:
+        cmd = _cmd(sp)
+        trid = self._trid
+        self._trid = (self._trid + 1) % gc.MAX_TRID
+        try:
+            frame = gc.encode_request(sp.rpc, params, trid, self.checksum)
+        except gc.CodecError as exc:
+            raise ProtocolError(self.name, cmd, f"cannot encode request: {exc}") from None
+        timeout = sp.timeout_s if timeout_s is None else timeout_s
+        deadline = time.monotonic() + timeout
+        self.link.write(frame, cmd)
+        while True:
+            remaining = deadline - time.monotonic()
+            if remaining <= 0:
+                raise DeviceTimeout(self.name, cmd, f"no reply with transaction id {trid} within {timeout:g} s")
+            line = self.link.read_until(gc.TERM, remaining, cmd)
+            t_mono, t_wall = time.monotonic(), time.time()
+            if not line.strip(b"\r\n"):
+                continue
+            try:
+                rep = gc.decode_reply(line.strip(b"\r\n"), self.checksum)
+            except gc.CodecError as exc:
+                raise ProtocolError(self.name, cmd, f"garbled reply: {exc}") from None
+            if rep.trid != trid:
+                self.stale_replies += 1
+                continue
+            break
+        if rep.rc_com != 0:
+            c = describe(rep.rc_com)
+            raise InstrumentError(self.name, cmd, f"communication error {c.code} GRC_{c.name}: {c.text}", c.code)
+        rc = describe(rep.rc)
+        if not rc.usable:
+            raise InstrumentError(self.name, cmd, f"instrument returned {rc.code} GRC_{rc.name}: {rc.text}", rc.code)
+        if rc.code != 0 and not rep.fields:
+            values: tuple = ()
+        else:
+            try:
+                values = gc.decode_values(sp, rep.fields)
+            except gc.CodecError as exc:
+                raise ProtocolError(self.name, cmd, f"garbled reply: {exc}") from None
+        return Result(rc, values, rep, t_wall, t_mono)
+
+    def _resync(self) -> None:
+        """After a timeout or garbage: LF clears the instrument's receive buffer; drop whatever is in ours."""
+        try:
+            self.link.write(b"\n", "resync")
+            self.link.drain(0.05)
+        except LinkLost:
+            pass
+
+    # -- COM / CSV ----------------------------------------------------------------------------------------------------
+    def null_proc(self) -> None:
+        self.request(0)
+
+    def set_double_precision(self, digits: int) -> None:
+        self.request(107, [gc.fmt_long(digits)])
+        self.precision = digits
+
+    def identify(self) -> DeviceInfo:
+        name = self.request(5004).values[0]
+        serial_no = self.request(5003).values[0]
+        geocom = self.request(110).values
+        firmware = self.request(5034).values
+        return DeviceInfo(DRIVER_NAME, self.link.url, name=str(name), serial=str(serial_no),
+                          firmware=".".join(map(str, firmware)), protocol_version=".".join(map(str, geocom)))
+
+    def internal_temperature_c(self) -> float:
+        return float(self.request(5011).values[0])
+
+    # -- TMC ----------------------------------------------------------------------------------------------------------
+    def angles(self, inc: gc.IncPrg = gc.IncPrg.AUTO) -> AngleReading:
+        """Hz, V (TMC_GetAngle5, RPC 2107), corrected with the inclination as ``inc`` says."""
+        r = self.request(2107, [gc.fmt_long(inc)])
+        if len(r.values) != 2:
+            raise InstrumentError(self.name, "TMC_GetAngle5 (RPC 2107)", f"{r.warnings[0]} and no angles", r.rc.code)
+        hz, v = r.values
+        return self._reading(r, "TMC_GetAngle5", hz, v)
+
+    def angles_with_inclination(self, inc: gc.IncPrg = gc.IncPrg.AUTO) -> AngleReading:
+        """Hz, V, accuracy, cross/length inclination and face (TMC_GetAngle1, RPC 2003)."""
+        r = self.request(2003, [gc.fmt_long(inc)])
+        if len(r.values) != 9:
+            raise InstrumentError(self.name, "TMC_GetAngle1 (RPC 2003)", f"{r.warnings[0]} and no angles", r.rc.code)
+        hz, v, acc, t_ms, xinc, linc, _incacc, _inct, face = r.values
+        if face not in (0, 1):
+            raise ProtocolError(self.name, "TMC_GetAngle1 (RPC 2003)", f"garbled reply: face {face} is not 0 or 1")
+        return self._reading(r, "TMC_GetAngle1", hz, v, face=face + 1, angle_accuracy_rad=acc,
+                             incline_cross_rad=xinc, incline_length_rad=linc, t_device_ms=t_ms)
+
+    def _reading(self, r: Result, command: str, hz: float, v: float, **extra) -> AngleReading:
+        for what, val in (("Hz", hz), ("V", v)):
+            if not -1e-9 <= val < math.tau + 1e-9:        # a reply rounded up to exactly 2 pi is still valid
+                raise ProtocolError(self.name, command, f"garbled reply: {what} = {val} rad is outside [0, 2 pi)")
+        extra.setdefault("face", 2 if v % math.tau > math.pi else 1)
+        return AngleReading(self.name, command, float(hz) % math.tau, float(v) % math.tau, r.t_wall, r.t_mono,
+                            warnings=r.warnings, raw=r.reply.raw, **extra)
+
+    def incline_switch(self) -> bool:
+        return bool(self.request(2007).values[0])
+
+    def set_incline_switch(self, on: bool) -> None:
+        self.request(2006, [gc.fmt_bool(on)])
+
+    def do_measure(self, prog: gc.MeasPrg = gc.MeasPrg.DEF_DIST, inc: gc.IncPrg = gc.IncPrg.AUTO) -> None:
+        self.request(2008, [gc.fmt_long(prog), gc.fmt_long(inc)])
+
+    def simple_measurement(self, wait_ms: int = 5000, inc: gc.IncPrg = gc.IncPrg.AUTO) -> AngleReading:
+        """Hz, V and slope distance (TMC_GetSimpleMea); ``slope_distance_m`` is None when only angles are valid."""
+        r = self.request(2108, [gc.fmt_long(wait_ms), gc.fmt_long(inc)], timeout_s=wait_ms / 1000 + 5)
+        if len(r.values) != 3:
+            raise InstrumentError(self.name, "TMC_GetSimpleMea (RPC 2108)", f"{r.warnings[0]} and no values",
+                                  r.rc.code)
+        hz, v, dist = r.values
+        dist_ok = r.rc.code in (0, 1283, 1284)
+        return self._reading(r, "TMC_GetSimpleMea", hz, v, slope_distance_m=float(dist) if dist_ok else None)
+
+    def face(self) -> int:
+        """1 = face I, 2 = face II."""
+        f = self.request(2026).values[0]
+        if f not in (0, 1):
+            raise ProtocolError(self.name, "TMC_GetFace (RPC 2026)", f"garbled reply: face {f} is not 0 or 1")
+        return int(f) + 1
+
+    # -- AUT / BAP (motorised instruments) ---------------------------------------------------------------------------
+    def position(self, hz_rad: float, v_rad: float, pos_mode: gc.PosMode = gc.PosMode.NORMAL,
+                 atr: gc.AtrMode = gc.AtrMode.POSITION) -> None:
+        """Turn the telescope to Hz/V (AUT_MakePositioning); with ``atr=TARGET`` it then locks onto the prism."""
+        self.request(9027, [gc.fmt_double(hz_rad), gc.fmt_double(v_rad), gc.fmt_long(pos_mode), gc.fmt_long(atr),
+                            "0"])
+
+    def change_face(self, pos_mode: gc.PosMode = gc.PosMode.NORMAL, atr: gc.AtrMode = gc.AtrMode.POSITION) -> None:
+        self.request(9028, [gc.fmt_long(pos_mode), gc.fmt_long(atr), "0"])
+
+    def measure_distance_angle(self, prog: gc.BapPrg = gc.BapPrg.DEF_DIST) -> AngleReading:
+        r = self.request(17017, [gc.fmt_long(prog)])
+        hz, v, dist, _prog = r.values
+        return self._reading(r, "BAP_MeasDistanceAngle", hz, v, slope_distance_m=float(dist))
+
+
+def _cmd(sp: gc.RpcSpec) -> str:
+    return f"{sp.name} (RPC {sp.rpc})"
+
+
+def _reargs(exc: DeviceError, cause: str) -> tuple:
+    if isinstance(exc, InstrumentError):
+        return exc.device, exc.command, cause, exc.code
+    return exc.device, exc.command, cause
+
+
+def open_driver(url: str, **options) -> GeoComTheodolite:
+    return GeoComTheodolite.open(url, **options)

@@ -1,0 +1,55 @@
+"""The emulated tap as a node on a python-can bus (normally ``virtual``): a thread sending its frames on schedule.
+
+Any bus object with ``send(msg)`` works, so tests wrap the bus to lose frames or inject errors, and a real
+``socketcan`` vcan channel works the same way when one exists.
+"""
+from __future__ import annotations
+
+import threading
+import time
+
+import can
+
+from .tap_device import TapModel, can_frames
+
+
+class CanTapNode:
+    def __init__(self, bus: can.BusABC, model: TapModel, *, own_bus: bool = False):
+        self.bus = bus
+        self.model = model
+        self.own_bus = own_bus
+        self.frames_sent = 0
+        self.send_errors = 0
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._run, name="can-tap-node", daemon=True)
+
+    def start(self) -> "CanTapNode":
+        self._thread.start()
+        return self
+
+    def stop(self) -> None:
+        self._stop.set()
+        if self._thread.is_alive():
+            self._thread.join(2.0)
+        if self.own_bus:
+            self.bus.shutdown()
+
+    def __enter__(self) -> "CanTapNode":
+        return self.start()
+
+    def __exit__(self, *exc) -> None:
+        self.stop()
+
+    def _run(self) -> None:
+        period = 1.0 / self.model.rate_hz
+        step = max(period, 0.001)
+        while not self._stop.is_set():
+            for _ in range(self.model.due()):
+                for fid, data in can_frames(self.model.latch()):
+                    try:
+                        self.bus.send(can.Message(arbitration_id=fid, data=data, is_extended_id=False))
+                        self.frames_sent += 1
+                    except can.CanError:
+                        self.send_errors += 1
+            self._stop.wait(step)
+            time.sleep(0)

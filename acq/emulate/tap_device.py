@@ -1,0 +1,150 @@
+"""Emulated encoder tap: the world's joint angles -> six latched motor-encoder counts, at a fixed rate.
+
+Packing is written here from protocols.md §6.2/§6.4 with :mod:`struct` (not with the driver's cantools codec or its
+COBS/CRC code), so the receiver is checked against an independent writer of the same documents.
+
+* CAN: TapStatus (0x103: seq u16, t_us u32, flags u8, pot_valid u8) opens a sample, then JointEnc12/34/56
+  (0x100-0x102: two int32 little-endian each).
+* Serial: ``COBS(payload ‖ CRC-16/CCITT-FALSE little-endian) ‖ 0x00`` with the 31-byte payload
+  ``ver u8 | seq u16 | t_us u32 | j1..j6 i32``.
+
+Counts are ``rint(robot.counts_from_joint(q))`` plus an optional offset (to exercise the int32 wrap), wrapped to
+signed 32 bit as a real counter register would.
+"""
+from __future__ import annotations
+
+import struct
+import time
+from dataclasses import dataclass
+from typing import Callable
+
+import numpy as np
+
+from calib.robot import Robot
+
+from .device import DeviceBase
+from .world import World
+
+STATUS_ID, DATA_IDS = 0x103, (0x100, 0x101, 0x102)
+_STATUS = struct.Struct("<HIBB")
+_PAIR = struct.Struct("<ii")
+_PAYLOAD = struct.Struct("<BHI6i")
+
+
+@dataclass(frozen=True)
+class RawSample:
+    seq: int              # u16 on the wire
+    t_us: int             # u32 on the wire
+    counts: tuple[int, ...]   # int32 (wrapped)
+    flags: int = 0
+    pot_valid: int = 0x3F
+
+
+def wrap_i32(x: int) -> int:
+    return ((int(x) + 2 ** 31) % 2 ** 32) - 2 ** 31
+
+
+class TapModel:
+    """Latches samples from the world on a schedule; the harness decides how they travel."""
+
+    def __init__(self, world: World, robot: Robot, *, rate_hz: float = 500.0,
+                 clock: Callable[[], float] = time.monotonic, count_offset: np.ndarray | int = 0, seq0: int = 0,
+                 max_backlog_s: float = 0.25):
+        self.world = world
+        self.robot = robot
+        self.rate_hz = float(rate_hz)
+        self.clock = clock
+        self.count_offset = np.broadcast_to(np.asarray(count_offset, dtype=np.int64), (robot.n,)).copy()
+        self.seq = seq0
+        self.flags = 0
+        self._t0: float | None = None
+        self._made = 0
+        self.max_backlog = max(1, int(self.rate_hz * max_backlog_s))
+        self.skipped = 0
+
+    def latch(self) -> RawSample:
+        counts = np.rint(self.robot.counts_from_joint(self.world.joint_angles_rad())).astype(np.int64)
+        counts += self.count_offset
+        s = RawSample(self.seq & 0xFFFF, int(self.clock() * 1e6) & 0xFFFFFFFF,
+                      tuple(wrap_i32(c) for c in counts), self.flags)
+        self.seq += 1
+        return s
+
+    def due(self, now: float | None = None) -> int:
+        """How many samples the schedule owes now (a stalled harness skips, like a tap overrunning its buffer)."""
+        now = self.clock() if now is None else now
+        if self._t0 is None:
+            self._t0 = now
+        owed = int((now - self._t0) * self.rate_hz) + 1 - self._made
+        if owed > self.max_backlog:
+            self.skipped += owed - self.max_backlog
+            self._made += owed - self.max_backlog
+            self.seq += owed - self.max_backlog          # the tap's counter runs on: the receiver sees the gap
+            owed = self.max_backlog
+        self._made += max(owed, 0)
+        return max(owed, 0)
+
+
+def can_frames(s: RawSample) -> list[tuple[int, bytes]]:
+    """The four CAN frames of one sample, status first."""
+    c = s.counts
+    return [(STATUS_ID, _STATUS.pack(s.seq, s.t_us, s.flags, s.pot_valid)),
+            (DATA_IDS[0], _PAIR.pack(c[0], c[1])), (DATA_IDS[1], _PAIR.pack(c[2], c[3])),
+            (DATA_IDS[2], _PAIR.pack(c[4], c[5]))]
+
+
+def crc16_ccitt_false_bitwise(data: bytes) -> int:
+    """CRC-16/CCITT-FALSE (poly 0x1021, init 0xFFFF), bit by bit; check(b"123456789") == 0x29B1."""
+    crc = 0xFFFF
+    for b in data:
+        crc ^= b << 8
+        for _ in range(8):
+            crc = ((crc << 1) ^ 0x1021) & 0xFFFF if crc & 0x8000 else (crc << 1) & 0xFFFF
+    return crc
+
+
+def cobs_encode_simple(data: bytes) -> bytes:
+    """Consistent Overhead Byte Stuffing, written straight from Cheshire & Baker (no 0x00 in the output)."""
+    out = bytearray()
+    block = bytearray()
+    for b in data:
+        if b == 0:
+            out.append(len(block) + 1)
+            out += block
+            block.clear()
+        else:
+            block.append(b)
+            if len(block) == 254:
+                out.append(255)
+                out += block
+                block.clear()
+    out.append(len(block) + 1)
+    out += block
+    return bytes(out)
+
+
+def serial_frame(s: RawSample, version: int = 1) -> bytes:
+    payload = _PAYLOAD.pack(version, s.seq, s.t_us, *s.counts)
+    crc = crc16_ccitt_false_bitwise(payload)
+    return cobs_encode_simple(payload + struct.pack("<H", crc)) + b"\x00"
+
+
+class SerialTapDevice(DeviceBase):
+    """The tap on a plain serial line: streams COBS frames; ignores input (it has no commands)."""
+
+    label = "serialtap"
+
+    def __init__(self, world: World, robot: Robot, *, rate_hz: float = 500.0,
+                 clock: Callable[[], float] = time.monotonic, **model_kw):
+        super().__init__(clock)
+        self.model = TapModel(world, robot, rate_hz=rate_hz, clock=clock, **model_kw)
+        self.tick_period_s = min(0.01, 1.0 / self.model.rate_hz)
+
+    def feed(self, data: bytes) -> None:
+        pass
+
+    def tick(self, now: float | None = None) -> None:
+        with self.lock:
+            n = self.model.due(now)
+            if n:
+                self.emit(b"".join(serial_frame(self.model.latch()) for _ in range(n)))

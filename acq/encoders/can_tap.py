@@ -1,0 +1,183 @@
+"""The encoder tap over CAN, through any python-can interface (socketcan, slcan, virtual, ...).
+
+Why a reader thread with its own loop around ``bus.recv(timeout)`` rather than ``can.Notifier``: a Notifier thread
+dies on the first bus error (python-can #907/#1039); here errors become counted events, the bus is reopened with
+backoff, and samples keep flowing.  The thread checks a stop Event, so ``stop()`` always returns promptly.
+"""
+from __future__ import annotations
+
+import queue
+import threading
+import time
+from typing import Callable
+
+import can
+
+from ..errors import BusError, DeviceTimeout
+from .assembler import SampleAssembler
+from .can_codec import STATUS_ID, TapCanCodec
+from .sample import EncoderSample, JointConverter, TapStats
+
+BusFactory = Callable[[], can.BusABC]
+
+
+class CanTap:
+    """Samples from the tap's CAN frames.  ``bus_factory`` (re)opens the bus, so a bus-off can be recovered from."""
+
+    def __init__(self, bus_factory: BusFactory, *, converter: JointConverter | None = None, name: str = "encoder tap",
+                 queue_size: int = 100_000, reconnect_delay_s: float = 0.2):
+        self.name = name
+        self._factory = bus_factory
+        self.codec = TapCanCodec()
+        self.stats = TapStats()
+        self.assembler = SampleAssembler(converter, self.stats)
+        self._queue: queue.Queue[EncoderSample] = queue.Queue(queue_size)
+        self._latest: EncoderSample | None = None
+        self._sink: Callable[[EncoderSample], None] | None = None
+        self._stop = threading.Event()
+        self._thread: threading.Thread | None = None
+        self._bus: can.BusABC | None = None
+        self.reconnect_delay_s = reconnect_delay_s
+        self.cpu_s = 0.0                                   # reader thread CPU time (benchmarks)
+        self.overflow = 0
+
+    # -- control ------------------------------------------------------------------------------------------------------
+    def start(self, sink: Callable[[EncoderSample], None] | None = None) -> "CanTap":
+        """Start the reader thread; ``sink`` (optional) is called in that thread for every sample."""
+        if self._thread is not None:
+            return self
+        self._sink = sink
+        self._open()
+        self._thread = threading.Thread(target=self._run, name=f"can-tap-{self.name}", daemon=True)
+        self._thread.start()
+        return self
+
+    def stop(self) -> None:
+        self._stop.set()
+        if self._thread is not None:
+            self._thread.join(2.0)
+            self._thread = None
+        self._close_bus()
+
+    def __enter__(self) -> "CanTap":
+        return self.start()
+
+    def __exit__(self, *exc) -> None:
+        self.stop()
+
+    def latest(self) -> EncoderSample | None:
+        return self._latest
+
+    def read(self, timeout_s: float = 1.0) -> EncoderSample:
+        """The next sample in order; DeviceTimeout naming the tap if none arrives in time."""
+        try:
+            return self._queue.get(timeout=timeout_s)
+        except queue.Empty:
+            cause = f"no complete sample within {timeout_s:g} s"
+            if self.stats.last_error:
+                cause += f" (last bus error: {self.stats.last_error})"
+            raise DeviceTimeout(self.name, "read sample", cause) from None
+
+    def check(self) -> None:
+        """Raise BusError if the reader is currently without a bus (for a Require-style precondition)."""
+        if self._bus is None and self.stats.last_error:
+            raise BusError(self.name, "receive", self.stats.last_error)
+
+    # -- thread -------------------------------------------------------------------------------------------------------
+    def _open(self) -> None:
+        try:
+            self._bus = self._factory()
+        except (can.CanError, OSError, ValueError) as exc:
+            raise BusError(self.name, "open bus", _why(exc)) from None
+
+    def _close_bus(self) -> None:
+        bus, self._bus = self._bus, None
+        if bus is not None:
+            try:
+                bus.shutdown()
+            except Exception:                               # noqa: BLE001 - best effort on a broken interface
+                pass
+
+    def _run(self) -> None:
+        t0 = time.thread_time()
+        try:
+            while not self._stop.is_set():
+                if self._bus is None:
+                    if not self._reconnect():
+                        continue
+                try:
+                    msg = self._bus.recv(0.1)
+                except (can.CanError, OSError, ValueError) as exc:
+                    self.stats.bus_errors += 1
+                    self.stats.last_error = _why(exc)
+                    self._close_bus()
+                    continue
+                if msg is not None:
+                    self._handle(msg)
+                self.cpu_s = time.thread_time() - t0
+        finally:
+            self.cpu_s = time.thread_time() - t0
+
+    def _reconnect(self) -> bool:
+        if self._stop.wait(self.reconnect_delay_s):
+            return False
+        try:
+            self._bus = self._factory()
+        except (can.CanError, OSError, ValueError) as exc:
+            self.stats.last_error = _why(exc)
+            return False
+        self.stats.reconnects += 1              # last_error stays until a good frame proves the bus healthy
+        self.assembler.reset()
+        return True
+
+    def _handle(self, msg: can.Message) -> None:
+        st = self.stats
+        if msg.is_error_frame:
+            st.error_frames += 1
+            return
+        fid = msg.arbitration_id
+        if msg.is_extended_id or msg.is_remote_frame or not self.codec.is_tap_frame(fid):
+            return
+        st.frames += 1
+        if msg.dlc != 8 or len(msg.data) != 8:
+            st.bad_frames += 1
+            return
+        data = bytes(msg.data)
+        if st.last_error:
+            st.last_error = ""
+        try:
+            if fid == STATUS_ID:
+                self.assembler.status(*self.codec.decode_status(data))
+                return
+            sample = self.assembler.data(*self.codec.decode_data(fid, data))
+        except (ValueError, KeyError) as exc:
+            st.bad_frames += 1
+            st.last_error = _why(exc)
+            return
+        if sample is not None:
+            self._deliver(sample)
+
+    def _deliver(self, sample: EncoderSample) -> None:
+        self._latest = sample
+        try:
+            self._queue.put_nowait(sample)
+        except queue.Full:
+            self.overflow += 1
+        if self._sink is not None:
+            self._sink(sample)
+
+
+def _why(exc: BaseException) -> str:
+    return " ".join(str(exc).split()) or type(exc).__name__
+
+
+def open_can_tap(interface: str, channel: str, *, robot=None, name: str | None = None, **bus_kwargs) -> CanTap:
+    """A started-on-demand CanTap on ``can.Bus(interface=..., channel=..., **bus_kwargs)``.
+
+    ``robot`` (calib.robot.Robot) enables joint angles on every sample; raw counts are kept regardless.
+    """
+    def factory() -> can.BusABC:
+        return can.Bus(interface=interface, channel=channel, **bus_kwargs)
+
+    conv = JointConverter(robot) if robot is not None else None
+    return CanTap(factory, converter=conv, name=name or f"encoder tap ({interface}:{channel})")

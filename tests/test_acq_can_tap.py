@@ -1,0 +1,197 @@
+"""The CAN encoder tap: DBC vs the emulator's own packing, python-can virtual bus, SLCAN over a pty, losses."""
+from __future__ import annotations
+
+import time
+
+import can
+import numpy as np
+import pytest
+from hypothesis import given, settings, strategies as st
+
+from acq.emulate.can_node import CanTapNode
+from acq.emulate.pty_host import PtyHost
+from acq.emulate.slcan_device import SlcanTapDevice
+from acq.emulate.tap_device import RawSample, TapModel, can_frames, wrap_i32
+from acq.encoders.assembler import SampleAssembler
+from acq.encoders.can_codec import TapCanCodec, load_dbc
+from acq.encoders.can_tap import CanTap, open_can_tap
+from acq.encoders.sample import JointConverter, Unwrapper
+from acq.errors import DeviceTimeout
+from calib.robot import load_robot
+from tests.fakes.faults import BusFaults, FaultyBus, LossySendBus
+from tests.fakes.worlds import channel, quiet_world
+
+ROBOT = load_robot()
+i32 = st.integers(-2 ** 31, 2 ** 31 - 1)
+
+
+def test_dbc_reference_frame():
+    fid, data = TapCanCodec().encode("JointEnc12", {"J1_Counts": 10000, "J2_Counts": -2500})
+    assert (fid, data.hex()) == (0x100, "102700003cf6ffff")
+    assert {m.name for m in load_dbc().messages} == {"JointEnc12", "JointEnc34", "JointEnc56", "TapStatus"}
+
+
+@settings(max_examples=100)
+@given(seq=st.integers(0, 65535), t=st.integers(0, 2 ** 32 - 1), counts=st.tuples(*[i32] * 6),
+       flags=st.integers(0, 255))
+def test_emulator_packing_agrees_with_dbc(seq, t, counts, flags):
+    codec = TapCanCodec()
+    frames = can_frames(RawSample(seq, t, counts, flags, 0x3F))
+    assert frames[0][0] == 0x103
+    assert codec.decode_status(frames[0][1]) == (seq, t, flags, 0x3F)
+    got = [codec.decode_data(fid, data) for fid, data in frames[1:]]
+    assert got == [(0, counts[0:2]), (2, counts[2:4]), (4, counts[4:6])]
+
+
+@settings(max_examples=50)
+@given(st.lists(st.floats(-2.5, 2.5), min_size=6, max_size=6))
+def test_counts_joint_round_trip(q):
+    conv = JointConverter(ROBOT)
+    counts = ROBOT.counts_from_joint(np.array(q))
+    assert np.allclose(conv.joint_rad(counts), q, atol=1e-9)
+
+
+def test_unwrapper_crosses_int32_and_u16():
+    u = Unwrapper(32, signed=True)
+    xs = [2 ** 31 - 3, 2 ** 31 - 1, wrap_i32(2 ** 31 + 2), wrap_i32(2 ** 31 + 10)]
+    assert [u(x) for x in xs] == [2 ** 31 - 3, 2 ** 31 - 1, 2 ** 31 + 2, 2 ** 31 + 10]
+    s = Unwrapper(16, signed=False)
+    assert [s(x) for x in (65534, 65535, 0, 1)] == [65534, 65535, 65536, 65537]
+
+
+def _frames(seq, counts=(1, 2, 3, 4, 5, 6)):
+    return can_frames(RawSample(seq, 1000 * seq, counts))
+
+
+def _feed(asm, codec, frames):
+    out = []
+    for fid, data in frames:
+        if fid == 0x103:
+            asm.status(*codec.decode_status(data))
+        else:
+            s = asm.data(*codec.decode_data(fid, data))
+            if s is not None:
+                out.append(s)
+    return out
+
+
+def test_assembler_counts_every_kind_of_loss():
+    codec, asm = TapCanCodec(), SampleAssembler()
+    frames = [f for seq in range(65533, 65536) for f in _frames(seq)] + [f for seq in range(0, 6) for f in _frames(seq)]
+    # seq 65535..0 wraps cleanly; then lose: a data frame of seq 1, the status of seq 3, the whole of seq 4 (idx 28-31);
+    # seq 3 (status lost) and seq 4 are seen as a gap of 2 when seq 5 arrives
+    lost_idx = {4 * 4 + 2, 6 * 4 + 0}
+    frames = [f for i, f in enumerate(frames) if i not in lost_idx and not 28 <= i < 32]
+    samples = _feed(asm, codec, frames)
+    st_ = asm.stats
+    assert [s.seq for s in samples] == [65533, 65534, 65535, 65536, 65538, 65541]
+    assert st_.incomplete_samples == 1 and st_.orphan_frames == 3 and st_.lost_samples == 2
+    assert all(s.counts == (1, 2, 3, 4, 5, 6) for s in samples)
+
+
+def test_virtual_bus_samples_match_the_world():
+    w = quiet_world()
+    ch = channel()
+    tap = open_can_tap("virtual", ch, robot=ROBOT)
+    node = CanTapNode(can.Bus(interface="virtual", channel=ch), TapModel(w, ROBOT, rate_hz=500), own_bus=True)
+    with tap, node:
+        first = tap.read(1.0)
+        w.set_joint_angles(np.radians([-20, -45, 100, 10, -30, 45]))
+        deadline = time.monotonic() + 2
+        while True:
+            s = tap.read(1.0)
+            if s.counts != first.counts or time.monotonic() > deadline:
+                break
+        time.sleep(0.1)
+    expect = np.rint(ROBOT.counts_from_joint(w.joint_angles_rad())).astype(int)
+    assert s.counts == tuple(expect) == s.counts_wire
+    quantum = 2 * np.pi / (ROBOT.counts_per_rev * np.abs(ROBOT.gear_ratio))
+    assert np.all(np.abs(s.joint_rad - w.joint_angles_rad()) < 2 * quantum.max())
+    assert tap.stats.lost_samples == 0 and tap.stats.incomplete_samples == 0 and tap.stats.samples >= 50
+    assert s.t_device_us > first.t_device_us and s.seq > first.seq
+
+
+def test_int32_wrap_is_unwrapped_and_raw_kept():
+    w = quiet_world()
+    ch = channel()
+    offset = 2 ** 31 - 1 - int(np.rint(ROBOT.counts_from_joint(w.joint_angles_rad()))[0])   # j1 sits at INT32_MAX
+    tap = open_can_tap("virtual", ch, robot=ROBOT)
+    model = TapModel(w, ROBOT, rate_hz=400, count_offset=np.array([offset, 0, 0, 0, 0, 0]))
+    with tap, CanTapNode(can.Bus(interface="virtual", channel=ch), model, own_bus=True):
+        tap.read(1.0)
+        q = w.joint_angles_rad()
+        q[0] += np.radians(1.0) * np.sign(ROBOT.gear_ratio[0])   # +174 counts on motor 1: across the wrap
+        w.set_joint_angles(q)
+        for _ in range(200):
+            s = tap.read(1.0)
+            if s.counts_wire[0] < 0:
+                break
+    assert s.counts_wire[0] < 0 and s.counts[0] > 2 ** 31 - 1
+    assert s.counts[0] - s.counts_wire[0] == 2 ** 32
+
+
+def test_lost_frames_on_the_bus_are_counted_never_emitted():
+    w = quiet_world()
+    ch = channel()
+    tap = open_can_tap("virtual", ch, robot=ROBOT)
+    sender = LossySendBus(can.Bus(interface="virtual", channel=ch), lambda i, m: i % 37 == 5)
+    with tap, CanTapNode(sender, TapModel(w, ROBOT, rate_hz=500)):
+        time.sleep(0.6)
+    sender.shutdown()
+    st_ = tap.stats
+    assert sender.lost > 5
+    assert st_.incomplete_samples + st_.orphan_frames + st_.lost_samples >= sender.lost - 1
+    assert st_.samples + st_.incomplete_samples + st_.lost_samples >= 250
+
+
+def test_bus_off_and_error_frames_then_recovery():
+    w = quiet_world()
+    ch = channel()
+    faults = BusFaults(error_frames=3)
+    tap = CanTap(lambda: FaultyBus(can.Bus(interface="virtual", channel=ch), faults), converter=JointConverter(ROBOT),
+                 name="encoder tap (test)", reconnect_delay_s=0.05)
+    with tap, CanTapNode(can.Bus(interface="virtual", channel=ch), TapModel(w, ROBOT, rate_hz=200), own_bus=True):
+        tap.read(1.0)
+        faults.bus_off = True
+        time.sleep(0.3)
+        assert tap.stats.bus_errors >= 1 and "bus-off" in tap.stats.last_error
+        while not tap._queue.empty():
+            tap._queue.get_nowait()
+        with pytest.raises(DeviceTimeout, match="encoder tap \\(test\\): read sample: .*bus-off"):
+            tap.read(0.2)
+        faults.bus_off = False
+        s = tap.read(2.0)
+    assert s.counts == tuple(np.rint(ROBOT.counts_from_joint(w.joint_angles_rad())).astype(int))
+    assert tap.stats.error_frames == 3 and tap.stats.reconnects >= 1 and faults.opens >= 2
+
+
+def test_python_can_slcan_reads_the_emulated_tap():
+    w = quiet_world()
+    dev = SlcanTapDevice(w, ROBOT, rate_hz=100)
+    with PtyHost(dev) as host:
+        bus = can.Bus(interface="slcan", channel=host.path, bitrate=1_000_000, sleep_after_open=0)
+        try:
+            msgs = []
+            deadline = time.monotonic() + 3
+            while len(msgs) < 8 and time.monotonic() < deadline:
+                m = bus.recv(0.5)
+                if m is not None:
+                    msgs.append(m)
+            assert bus.get_version(1.0) == (10, 13)        # "V1013": hardware 10, software 13
+        finally:
+            bus.shutdown()
+    assert dev.bitrate_code == "S8"
+    codec, asm = TapCanCodec(), SampleAssembler(JointConverter(ROBOT))
+    start = next(i for i, m in enumerate(msgs) if m.arbitration_id == 0x103)
+    samples = _feed(asm, codec, [(m.arbitration_id, bytes(m.data)) for m in msgs[start:]])
+    assert samples and samples[0].counts == tuple(np.rint(ROBOT.counts_from_joint(w.joint_angles_rad())).astype(int))
+
+
+def test_our_reader_over_slcan_pty():
+    w = quiet_world()
+    with PtyHost(SlcanTapDevice(w, ROBOT, rate_hz=200)) as host:
+        with open_can_tap("slcan", host.path, robot=ROBOT, bitrate=1_000_000, sleep_after_open=0) as tap:
+            s = tap.read(2.0)
+            time.sleep(0.2)
+    assert np.allclose(s.joint_rad, w.joint_angles_rad(), atol=1e-3)
+    assert tap.stats.lost_samples == 0
