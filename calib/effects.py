@@ -297,3 +297,49 @@ def thesis_effects() -> list[Effect]:
 
 __all__ = ["PoseContext", "Loads", "Effect", "EFFECTS", "TransmissionError", "JointCompliance", "Backlash",
            "CrossCoupling", "ThermalDrift", "LinkCompliance", "thesis_effects", "G0_M_S2"]
+
+
+def effect_from_text(text: str, n_joints: int = 6) -> Effect:
+    """An effect to identify, from a short spec (initial values zero or nominal):
+
+    ``transmission_error:J:ORDER[:HARMONICS]``, ``joint_compliance:J``, ``backlash:J``, ``cross_coupling:J:SOURCE``,
+    ``link_compliance:J``, ``thermal_drift``.
+    """
+    from .errors import RobocalError
+
+    parts = text.split(":")
+    kind, args = parts[0], parts[1:]
+    need = {"transmission_error": (2, 3), "joint_compliance": (1, 1), "backlash": (1, 1), "cross_coupling": (2, 2),
+            "link_compliance": (1, 1), "thermal_drift": (0, 0)}
+    if kind not in need:
+        raise RobocalError(f"effect {text!r}: unknown kind {kind!r} (known: {', '.join(need)})")
+    lo, hi = need[kind]
+    if not lo <= len(args) <= hi:
+        raise RobocalError(f"effect {text!r}: {kind} takes {lo if lo == hi else f'{lo} to {hi}'} field(s) after "
+                           f"the kind")
+    try:
+        nums = [float(a) for a in args]
+    except ValueError:
+        raise RobocalError(f"effect {text!r}: fields must be numbers") from None
+    for k, v in enumerate(nums[:1] + (nums[1:2] if kind == "cross_coupling" else [])):
+        if v != int(v) or not 1 <= v <= n_joints:
+            raise RobocalError(f"effect {text!r}: joint must be 1..{n_joints}, got {v:g}")
+    if kind == "transmission_error":
+        h = int(nums[2]) if len(nums) > 2 else 1
+        if nums[1] <= 0 or h < 1:
+            raise RobocalError(f"effect {text!r}: order and harmonics must be positive")
+        return TransmissionError(int(nums[0]), nums[1], [0.0] * h, [0.0] * h)
+    if kind == "joint_compliance":
+        return JointCompliance(int(nums[0]), 1e12)
+    if kind == "backlash":
+        return Backlash(int(nums[0]), 0.0)
+    if kind == "cross_coupling":
+        return CrossCoupling(int(nums[0]), int(nums[1]), 0.0)
+    if kind == "link_compliance":
+        return LinkCompliance(int(nums[0]), 1e18)
+    return ThermalDrift(0.0)
+
+
+#: the running errors the thesis measured, as specs for identification
+THESIS_RUNNING_ERRORS = ("transmission_error:4:0.9", "transmission_error:6:1.8", "joint_compliance:3",
+                         "joint_compliance:4", "cross_coupling:6:5")

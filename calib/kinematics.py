@@ -81,7 +81,8 @@ class Kinematics:
             vals = (robot.theta_offset_rad[j], robot.d_mm[j], robot.a_mm[j], robot.alpha_rad[j], robot.beta_rad[j])
             for (pname, kind), val in zip(LINK_PARAMS, vals):
                 kinds.append(kind)
-                joint.append(j if pname == "theta_offset_rad" else -1)
+                moving = "d_mm" if robot.prismatic[j] else "theta_offset_rad"
+                joint.append(j if pname == moving else -1)
                 names.append(f"j{j + 1}.{pname}")
                 nominal.append(val)
         tool = robot.tool_point()
@@ -93,7 +94,7 @@ class Kinematics:
         self.nominal = np.array(nominal, float)
         self.index = {name: i for i, name in enumerate(names)}
         self.n = n
-        self.joint_elements = np.flatnonzero(self.joint >= 0)     # in joint order
+        self.joint_elements = np.flatnonzero(self.joint >= 0)     # in joint order (one element per joint)
 
     @property
     def P(self) -> int:

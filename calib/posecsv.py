@@ -13,6 +13,8 @@ column                    meaning
 ``payload``               kg
 ``temperature``           deg C
 ``dir1`` .. ``dirn``      +1 / -1: the sign of each joint's last motion before the pose was reached
+``sigma_x_mm`` ..         1-sigma uncertainty of x, y, z (mm), when the instrument model is known (robocal's
+``sigma_z_mm``            extension; other readers ignore them)
 ========================  ===============================================================================
 
 Unknown columns are ignored with a warning; a malformed row is an error naming the file, the line and the column.
@@ -40,6 +42,7 @@ class PoseTable:
     payload_kg: np.ndarray | None = None
     temperature_c: np.ndarray | None = None
     direction: np.ndarray | None = None       # (N, n)
+    sigma_mm: np.ndarray | None = None        # (N, 3)
     source: str = "<memory>"
     ignored_columns: list[str] = field(default_factory=list)
 
@@ -70,7 +73,8 @@ def read_pose_csv(path: str | Path, n_joints: int = 6) -> PoseTable:
     xyz = [c in cols for c in ("x", "y", "z")]
     if any(xyz) and not all(xyz):
         raise RobocalError(f"{src}: line {header_line}: give all of x, y, z or none")
-    known = set(qcols) | {"x", "y", "z", "pose", "time", "payload", "temperature"} | \
+    known = set(qcols) | {"x", "y", "z", "pose", "time", "payload", "temperature", "sigma_x_mm", "sigma_y_mm",
+                          "sigma_z_mm"} | \
         {f"dir{j}" for j in range(1, n_joints + 1)}
     ignored = [c for c in cols if c not in known]
     if ignored:
@@ -104,6 +108,11 @@ def read_pose_csv(path: str | Path, n_joints: int = 6) -> PoseTable:
     table = PoseTable(q_rad=q, source=src, ignored_columns=ignored)
     if all(xyz):
         table.points_mm = np.array([[num(ln, v, c) for c in ("x", "y", "z")] for ln, v in rows])
+    scols = ("sigma_x_mm", "sigma_y_mm", "sigma_z_mm")
+    if any(c in idx for c in scols):
+        if not all(c in idx for c in scols) or not all(xyz):
+            raise RobocalError(f"{src}: line {header_line}: sigma_x_mm, sigma_y_mm, sigma_z_mm go together, with x, y, z")
+        table.sigma_mm = np.array([[num(ln, v, c, 1e-9, 1e6) for c in scols] for ln, v in rows])
     if "pose" in idx:
         table.pose_id = [v[idx["pose"]] for _, v in rows]
     for col, attr, lo, hi in (("time", "time_s", -math.inf, math.inf), ("payload", "payload_kg", 0, 1e4),

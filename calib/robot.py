@@ -5,6 +5,7 @@ The format (``calib/data/puma560.toml`` is the annotated example and the default
 ``[robot]``
     ``name`` (str), ``gravity_m_s2`` (3 numbers, gravity in base frame 0; default ``[0, 0, -9.80665]``).
 ``[[joint]]`` (one table per joint, base to wrist)
+    ``type`` (``revolute``, default, or ``prismatic``: the joint variable, in mm, then adds to d; limits in mm).
     Standard Denavit-Hartenberg link ``A_j = Rot(z, theta_j + theta_offset) Trans(z, d) Trans(x, a) Rot(x, alpha)
     Rot(y, beta)``: ``a_mm``, ``d_mm``, ``alpha_deg`` (required), ``theta_offset_deg`` (default 0), ``beta_deg`` (the
     Hayati rotation, default 0) and ``hayati`` (true when this link joins two nominally parallel axes: beta is then
@@ -34,13 +35,15 @@ from .units import DEG, G0_M_S2
 
 JOINT_SPEC = {
     "name": Field("str", default=""),
+    "type": Field("str", default="revolute"),
     "a_mm": Field("number", required=True),
     "d_mm": Field("number", required=True),
     "alpha_deg": Field("number", required=True, min=-360, max=360),
     "theta_offset_deg": Field("number", default=0.0, min=-360, max=360),
     "beta_deg": Field("number", default=0.0, min=-90, max=90),
     "hayati": Field("bool", default=False),
-    "limits_deg": Field("vector", required=True, length=2, min=-720, max=720),
+    "limits_deg": Field("vector", length=2, min=-720, max=720),
+    "limits_mm": Field("vector", length=2),
     "gear_ratio": Field("number", required=True),
     "encoder_counts_per_rev": Field("int", required=True, positive=True),
     "mass_kg": Field("number", default=0.0, min=0.0),
@@ -81,7 +84,7 @@ class Robot:
     theta_offset_rad: np.ndarray
     beta_rad: np.ndarray
     hayati: np.ndarray                 # bool per link: beta identified instead of d
-    limits_rad: np.ndarray             # (n, 2)
+    limits_rad: np.ndarray             # (n, 2): rad, or mm for a prismatic joint
     gear_ratio: np.ndarray
     counts_per_rev: np.ndarray
     mass_kg: np.ndarray
@@ -93,6 +96,16 @@ class Robot:
     tool_points_mm: dict[str, np.ndarray] = field(default_factory=dict)
     joint_names: tuple[str, ...] = ()
     source: str = "<memory>"
+    prismatic: np.ndarray = field(default_factory=lambda: np.zeros(0, bool))  # joint variable adds to d (mm)
+
+    def __post_init__(self):
+        if self.prismatic.size != len(self.a_mm):
+            object.__setattr__(self, "prismatic", np.zeros(len(self.a_mm), bool))
+
+    @property
+    def edge_scale(self) -> np.ndarray:
+        """Internal units per edge unit of each joint variable: rad per degree (revolute), mm per mm (prismatic)."""
+        return np.where(self.prismatic, 1.0, DEG)
 
     @property
     def n(self) -> int:
@@ -182,9 +195,17 @@ def _build(chk: Checker, data: dict) -> Robot:
     if not joints:
         chk.fail("joint", "at least one [[joint]] table is needed")
     for j, key in joints:
-        lo, hi = j["limits_deg"]
+        lkey = "limits_mm" if j["type"] == "prismatic" else "limits_deg"
+        other = "limits_deg" if lkey == "limits_mm" else "limits_mm"
+        if j[lkey] is None:
+            chk.fail(f"{key}.{lkey}", "missing")
+        if j[other] is not None:
+            chk.fail(f"{key}.{other}", f"does not apply to a {j['type']} joint (use {lkey})")
+        lo, hi = j[lkey]
         if not lo < hi:
-            chk.fail(f"{key}.limits_deg", f"low limit {lo:g} must be below high limit {hi:g}")
+            chk.fail(f"{key}.{lkey}", f"low limit {lo:g} must be below high limit {hi:g}")
+        if j["type"] not in ("revolute", "prismatic"):
+            chk.fail(f"{key}.type", f"must be revolute or prismatic, got {j['type']!r}")
         if j["gear_ratio"] == 0.0:
             chk.fail(f"{key}.gear_ratio", "must not be zero")
     js = [j for j, _ in joints]
@@ -206,13 +227,14 @@ def _build(chk: Checker, data: dict) -> Robot:
         a_mm=arr("a_mm"), d_mm=arr("d_mm"), alpha_rad=arr("alpha_deg", DEG),
         theta_offset_rad=arr("theta_offset_deg", DEG), beta_rad=arr("beta_deg", DEG),
         hayati=np.array([j["hayati"] for j in js], bool),
-        limits_rad=np.array([j["limits_deg"] for j in js], float) * DEG,
+        limits_rad=np.array([np.array(j["limits_deg"]) * DEG if j["type"] == "revolute" else j["limits_mm"]
+                             for j in js], float),
         gear_ratio=arr("gear_ratio"), counts_per_rev=arr("encoder_counts_per_rev"),
         mass_kg=arr("mass_kg"), com_mm=np.array([j["com_mm"] for j in js], float),
         coupling=coupling, gravity_m_s2=np.asarray(rob["gravity_m_s2"], float),
         base_xyz_mm=np.asarray(base["xyz_mm"], float), base_rpy_rad=np.asarray(base["rpy_deg"], float) * DEG,
         tool_points_mm=points, joint_names=tuple(j["name"] or f"j{i}" for i, j in enumerate(js, 1)),
-        source=chk.source,
+        source=chk.source, prismatic=np.array([j["type"] == "prismatic" for j in js], bool),
     )
 
 
@@ -230,13 +252,15 @@ def robot_to_toml(robot: Robot) -> str:
         lines += [
             "[[joint]]",
             f'name = "{robot.joint_names[i] if robot.joint_names else f"j{i + 1}"}"',
+            f'type = "{"prismatic" if robot.prismatic[i] else "revolute"}"',
             f"a_mm = {num(robot.a_mm[i])}",
             f"d_mm = {num(robot.d_mm[i])}",
             f"alpha_deg = {num(robot.alpha_rad[i] / DEG)}",
             f"theta_offset_deg = {num(robot.theta_offset_rad[i] / DEG)}",
             f"beta_deg = {num(robot.beta_rad[i] / DEG)}",
             f"hayati = {'true' if robot.hayati[i] else 'false'}",
-            f"limits_deg = {vec(robot.limits_rad[i] / DEG)}",
+            (f"limits_mm = {vec(robot.limits_rad[i])}" if robot.prismatic[i]
+             else f"limits_deg = {vec(robot.limits_rad[i] / DEG)}"),
             f"gear_ratio = {num(robot.gear_ratio[i])}",
             f"encoder_counts_per_rev = {int(robot.counts_per_rev[i])}",
             f"mass_kg = {num(robot.mass_kg[i])}",

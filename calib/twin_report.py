@@ -28,7 +28,7 @@ def _rms(d: np.ndarray) -> tuple[float, float]:
     return float(np.sqrt(np.mean(n ** 2))), float(np.max(n))
 
 
-def summarise(twin: Twin, n_poses: int = 200) -> dict:
+def summarise(twin: Twin, n_poses: int = 200, export: str | None = None) -> dict:
     """Everything the summary prints, as plain data (units in the keys)."""
     robot = twin.robot
     q = twin.random_poses(n_poses)
@@ -60,6 +60,11 @@ def summarise(twin: Twin, n_poses: int = 200) -> dict:
     inter = intersect(twin.stations, [(meas.readings_rad[:, 2 * i], meas.readings_rad[:, 2 * i + 1])
                                       for i in range(k)])
     err = inter.point_mm - meas.point_true_mm
+    if export:
+        from .posecsv import write_pose_csv
+        extra = {f"dir{j + 1}": ctx.direction[:, j] for j in range(robot.n)}
+        extra.update({f"sigma_{c}_mm": inter.sigma_mm[:, i] for i, c in enumerate("xyz")})
+        write_pose_csv(export, meas.q_read_rad, inter.point_mm, extra)
     sig = inter.sigma_mm
     dev = []
     names = model.kin.names

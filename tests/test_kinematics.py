@@ -117,3 +117,33 @@ def test_base_transform_moves_points_rigidly(puma, rng):
     c, s = np.cos(0.3), np.sin(0.3)
     R = np.array([[c, -s, 0], [s, c, 0], [0, 0, 1]])
     np.testing.assert_allclose(p1, p0 @ R.T + [100.0, 0, 0], atol=1e-9)
+
+
+def test_prismatic_joint_adds_to_d(tmp_path):
+    from calib.robot import parse_robot, robot_to_toml
+    text = """
+[[joint]]
+type = "prismatic"
+a_mm = 0.0
+d_mm = 100.0
+alpha_deg = 0.0
+limits_mm = [0.0, 350.0]
+gear_ratio = 1.0
+encoder_counts_per_rev = 1000
+
+[[joint]]
+a_mm = 200.0
+d_mm = 0.0
+alpha_deg = 0.0
+limits_deg = [-180.0, 180.0]
+gear_ratio = 1.0
+encoder_counts_per_rev = 1000
+"""
+    robot = parse_robot(text, "lift.toml")
+    assert robot.prismatic.tolist() == [True, False]
+    kin = Kinematics(robot)
+    p = kin.points(np.array([[50.0, np.pi / 2]]))[0]
+    np.testing.assert_allclose(p, [0.0, 200.0, 150.0], atol=1e-9)
+    again = parse_robot(robot_to_toml(robot))
+    np.testing.assert_allclose(again.limits_rad, robot.limits_rad)
+    assert again.prismatic.tolist() == [True, False]

@@ -69,6 +69,8 @@ def test_write_and_read_back(puma):
     ("hayati = true", "hayati = true\nlength_mm = 3", "joint[2].length_mm", "unknown key"),
     ("sigma56 = 0.1802", "sigma56 = 0.1802\nmatrix = [[1.0]]", "coupling", "not both"),
     ("limits_deg = [-225.0, 45.0]", "limits_deg = [45.0, -225.0]", "joint[2].limits_deg", "below"),
+    ("limits_deg = [-225.0, 45.0]", "limits_mm = [0.0, 350.0]", "joint[2].limits_deg", "missing"),
+    ("name = \"waist\"", "name = \"waist\"\ntype = \"linear\"", "joint[1].type", "revolute or prismatic"),
     ("a_mm = 432.0", 'a_mm = "long"', "joint[2].a_mm", "number"),
 ])
 def test_bad_robot_file_names_file_and_key(tmp_path, old, new, key, words):

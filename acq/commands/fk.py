@@ -16,7 +16,8 @@ HELP = "tool point (mm, robot base frame 0) for six joint readings in degrees"
 
 
 def add_arguments(p):
-    p.add_argument("q", nargs="+", metavar="Q", help="joint readings in degrees (theta_j of the A-matrices)")
+    p.add_argument("q", nargs="+", metavar="Q",
+                   help="joint readings in degrees (theta_j of the A-matrices; mm for a prismatic joint)")
     p.add_argument("--robot", metavar="FILE", help="robot description TOML (default: the thesis's Puma 560)")
     p.add_argument("--json", action="store_true", help='print {"x_mm": .., "y_mm": .., "z_mm": ..}')
 
@@ -38,7 +39,7 @@ def run(args) -> int:
     # base frame 0: identity base transform, whatever the description's base pose in the measurement frame
     params = kin.nominal.copy()
     params[[kin.index[f"base.{k}"] for k in ("x_mm", "y_mm", "z_mm", "yaw_rad", "pitch_rad", "roll_rad")]] = 0.0
-    x, y, z = kin.points(np.array([q]) * DEG, params)[0]
+    x, y, z = kin.points(np.array([q]) * robot.edge_scale, params)[0]
     if args.json:
         print(json.dumps({"x_mm": round(float(x), 6), "y_mm": round(float(y), 6), "z_mm": round(float(z), 6)}))
     else:

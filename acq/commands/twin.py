@@ -15,6 +15,8 @@ def add_arguments(p):
     p.add_argument("--poses", type=int, default=200, metavar="N", help="number of random poses (default 200)")
     p.add_argument("--seed", type=int, default=None, help="override the scenario's seed for the poses and noise")
     p.add_argument("--json", action="store_true", help="print the summary as JSON")
+    p.add_argument("--export", metavar="FILE.csv",
+                   help="also write the poses as a pose-measurement CSV (joint readings, intersected points)")
 
 
 def run(args) -> int:
@@ -22,6 +24,6 @@ def run(args) -> int:
     if args.poses < 10:
         raise RobocalError(f"twin: --poses must be at least 10, got {args.poses}")
     twin = Twin(load_scenario(args.scenario), seed=args.seed)
-    summary = summarise(twin, args.poses)
+    summary = summarise(twin, args.poses, export=args.export)
     print(json.dumps(summary, indent=2) if args.json else render(summary))
     return 0

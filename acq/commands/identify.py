@@ -1,0 +1,82 @@
+"""``robocal identify``: identify the robot from a pose-measurement CSV (joint readings + measured tool points)."""
+from __future__ import annotations
+
+import json
+
+import numpy as np
+
+from calib.errors import RobocalError
+
+NAME = "identify"
+HELP = "identify geometry (and running errors) from a pose-measurement CSV"
+
+
+def add_arguments(p):
+    p.add_argument("data", metavar="DATA.csv", help="pose CSV: q1..q6 (deg), x, y, z (mm) and optional conditions")
+    p.add_argument("--robot", metavar="FILE", help="robot description TOML (default: the thesis's Puma 560)")
+    p.add_argument("--noise-mm", type=float, default=0.05,
+                   help="1-sigma point noise per coordinate (mm), used when the file has no sigma_*_mm columns")
+    p.add_argument("--effect", action="append", default=[], metavar="SPEC",
+                   help="running error to identify, e.g. transmission_error:4:0.9, joint_compliance:3, "
+                        "backlash:2, cross_coupling:6:5, link_compliance:2, thermal_drift (repeatable)")
+    p.add_argument("--thesis-effects", action="store_true",
+                   help="identify the running errors the thesis measured (TE 4 and 6, compliance 3 and 4, "
+                        "coupling 5->6)")
+    p.add_argument("--out", metavar="MODEL.json", help="write every parameter with its uncertainty")
+    p.add_argument("--out-robot", metavar="ROBOT.toml", help="write the identified robot description")
+    p.add_argument("--json", action="store_true", help="print the model document as JSON")
+
+
+def run(args) -> int:
+    from calib.compensate import model_document, save_model, unit_of
+    from calib.effects import THESIS_RUNNING_ERRORS, effect_from_text
+    from calib.identify import PointObservations, identify
+    from calib.model import MeasurementModel
+    from calib.posecsv import read_pose_csv
+    from calib.robot import load_robot
+    from calib.units import DEG
+
+    robot = load_robot(args.robot)
+    table = read_pose_csv(args.data, robot.n)
+    if table.points_mm is None:
+        raise RobocalError(f"{args.data}: columns x, y, z (measured tool points, mm) are needed to identify")
+    if not args.noise_mm > 0:
+        raise RobocalError(f"identify: --noise-mm must be positive, got {args.noise_mm}")
+    specs = list(args.effect) + (list(THESIS_RUNNING_ERRORS) if args.thesis_effects else [])
+    effects = [effect_from_text(s, robot.n) for s in specs]
+    model = MeasurementModel(robot, effects)
+    ctx = model.context(table.n, direction=table.direction, payload_kg=table.payload_kg,
+                        temperature_c=table.temperature_c, time_s=table.time_s)
+    cov = None
+    if table.sigma_mm is not None:
+        cov = np.einsum("ni,ij->nij", table.sigma_mm ** 2, np.eye(3))
+    obs = PointObservations(table.q_rad, table.points_mm, cov, sigma_mm=args.noise_mm, ctx=ctx)
+    ident = identify(model, obs)
+    if args.out:
+        save_model(args.out, model, ident, args.out_robot)
+    elif args.out_robot:
+        from calib.compensate import robot_from_theta
+        from calib.robot import robot_to_toml
+        open(args.out_robot, "w", encoding="utf-8").write(robot_to_toml(robot_from_theta(model, ident.theta)))
+    if args.json:
+        print(json.dumps(model_document(model, ident), indent=1))
+        return 0
+    print(f"robocal identify {args.data}: {table.n} poses, {len(ident.free)} parameters estimated, "
+          f"residual RMS {ident.residual_rms:.4f} mm, reduced chi-square {ident.reduced_chi2:.2f}")
+    for line in ident.identifiability.report():
+        print("  " + line)
+    if ident.outliers:
+        print("  gross errors flagged and left out: poses " + ", ".join(str(i + 1) for i in ident.outliers))
+    print(f"  {'parameter':<44}{'value':>14}{'1 sigma':>12}  unit")
+    for name in ident.free:
+        v, s = ident.value(name), ident.std(name)
+        unit = unit_of(name)
+        if unit == "rad":
+            v, s, unit = v / DEG, s / DEG, "deg"
+        print(f"  {name:<44}{v:>14.6g}{s:>12.3g}  {unit}")
+    corr = ident.correlations(0.9)
+    if corr:
+        print("  correlations above 0.9: " + "; ".join(f"{a} ~ {b} ({r:+.3f})" for a, b, r in corr))
+    if args.out:
+        print(f"  written: {args.out}" + (f", {args.out_robot}" if args.out_robot else ""))
+    return 0

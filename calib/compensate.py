@@ -1,0 +1,224 @@
+"""The identified model as files, and its use: corrected joint readings and commands, predicted tool positions.
+
+Two files leave an identification:
+
+* a robot description (TOML, :func:`calib.robot.robot_to_toml`) with the identified geometry — what other software
+  can read;
+* a model JSON holding *every* parameter with its 1-sigma uncertainty and unit, the running-error terms (which a
+  DH table cannot carry: transmission error, compliance, backlash, coupling, thermal) and the covariance, so that
+  :func:`load_model` rebuilds the same :class:`MeasurementModel` for compensation.
+
+Compensation generalises the thesis's eq 6.1 to additive running-error terms: the true joint angle is the reading
+plus every joint-stage effect; a joint command is corrected so that the identified model reaches the point the
+nominal model would have reached (minimum-norm Newton steps on the joint angles).
+"""
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass, replace
+from pathlib import Path
+
+import numpy as np
+
+from .effects import (Backlash, CrossCoupling, Effect, JointCompliance, LinkCompliance, PoseContext, ThermalDrift,
+                      TransmissionError)
+from .errors import RobocalError
+from .identify import Identification
+from .model import MeasurementModel
+from .robot import Robot, parse_robot, robot_to_toml
+from .units import DEG
+
+FORMAT = "robocal-model/1"
+
+
+def unit_of(name: str) -> str:
+    for suffix, unit in (("_mm", "mm"), ("_rad", "rad"), ("_rad_per_nm", "rad/(N m)"), ("_nm", "N m"),
+                         ("_per_degc", "1/degC"), ("_per_nmm2", "1/(N mm^2)")):
+        if name.endswith(suffix):
+            return unit
+    return "1"
+
+
+def robot_from_theta(model: MeasurementModel, theta: np.ndarray) -> Robot:
+    """The robot description with the geometric part of ``theta`` written into it."""
+    kin = model.kin
+    r = model.robot
+    g = theta[: kin.P]
+
+    def per_joint(key):
+        return np.array([g[kin.index[f"j{j + 1}.{key}"]] for j in range(r.n)])
+
+    base = [g[kin.index[f"base.{k}"]] for k in ("x_mm", "y_mm", "z_mm")]
+    rpy = [g[kin.index["base.roll_rad"]], g[kin.index["base.pitch_rad"]], g[kin.index["base.yaw_rad"]]]
+    tool = np.array([g[kin.index[f"tool.{k}"]] for k in ("x_mm", "y_mm", "z_mm")])
+    return replace(r, a_mm=per_joint("a_mm"), d_mm=per_joint("d_mm"), alpha_rad=per_joint("alpha_rad"),
+                   theta_offset_rad=per_joint("theta_offset_rad"), beta_rad=per_joint("beta_rad"),
+                   base_xyz_mm=np.array(base), base_rpy_rad=np.array(rpy), tool_points_mm={"P": tool},
+                   name=f"{r.name} (identified)")
+
+
+def _effect_spec(e: Effect) -> dict:
+    spec = {"type": e.kind, "joint": e.joint}
+    if isinstance(e, TransmissionError):
+        spec["order"] = e.order
+        spec["harmonics"] = e.harmonics
+    if isinstance(e, CrossCoupling):
+        spec["source"] = e.source
+    if isinstance(e, ThermalDrift):
+        spec["reference_degc"] = e.reference_c
+    return spec
+
+
+def _effect_from_spec(spec: dict, values: dict[str, float], where: str) -> Effect:
+    kind = spec.get("type")
+    try:
+        if kind == "transmission_error":
+            h = int(spec["harmonics"])
+            e = TransmissionError(int(spec["joint"]), float(spec["order"]), [0.0] * h, [0.0] * h)
+        elif kind == "joint_compliance":
+            e = JointCompliance(int(spec["joint"]), 1.0)
+        elif kind == "backlash":
+            e = Backlash(int(spec["joint"]), 0.0)
+        elif kind == "cross_coupling":
+            e = CrossCoupling(int(spec["joint"]), int(spec["source"]), 0.0)
+        elif kind == "thermal_drift":
+            e = ThermalDrift(0.0, float(spec.get("reference_degc", 20.0)))
+        elif kind == "link_compliance":
+            e = LinkCompliance(int(spec["joint"]), 1.0)
+        else:
+            raise RobocalError(f"{where}: unknown effect type {kind!r}")
+    except (KeyError, TypeError, ValueError) as exc:
+        raise RobocalError(f"{where}: effect {kind!r} is missing or has a bad field ({exc})") from None
+    for i, name in enumerate(e.qualified_names()):
+        if name not in values:
+            raise RobocalError(f"{where}: parameter {name} is missing")
+        e.values[i] = values[name]
+    return e
+
+
+def model_document(model: MeasurementModel, ident: Identification, truth: dict[str, float] | None = None) -> dict:
+    """The model JSON: every parameter with value, error (1 sigma), unit and whether it was estimated."""
+    P = model.P
+    params = []
+    for i, name in enumerate(ident.names):
+        params.append({"name": name, "value": float(ident.theta[i]), "error": float(ident.sigma[i]),
+                       "unit": unit_of(name), "estimated": name in ident.free,
+                       "truth": None if truth is None or name not in truth else float(truth[name])})
+    free = [n for n in ident.free if n in model.index]
+    idx = [model.index[n] for n in free]
+    return {
+        "format": FORMAT,
+        "robot_toml": robot_to_toml(robot_from_theta(model, ident.theta[:P])),
+        "nominal_robot_toml": robot_to_toml(model.robot),
+        "parameters": params,
+        "effects": [_effect_spec(e) for e in model.effects],
+        "covariance": {"names": free, "matrix": ident.cov[np.ix_(idx, idx)].tolist()},
+        "identifiability": ident.identifiability.report(),
+        "residual_rms": ident.residual_rms,
+        "reduced_chi2": ident.reduced_chi2,
+        "outliers": ident.outliers,
+    }
+
+
+def save_model(path: str | Path, model: MeasurementModel, ident: Identification,
+               robot_toml: str | Path | None = None, truth: dict[str, float] | None = None) -> dict:
+    doc = model_document(model, ident, truth)
+    Path(path).write_text(json.dumps(doc, indent=1), encoding="utf-8")
+    if robot_toml:
+        Path(robot_toml).write_text(doc["robot_toml"], encoding="utf-8")
+    return doc
+
+
+@dataclass
+class IdentifiedModel:
+    model: MeasurementModel
+    theta: np.ndarray
+    cov: np.ndarray                 # (P, P) over the model's parameters, zeros where held
+    nominal_robot: Robot            # the description the identification started from (what the controller uses)
+
+
+def load_model(path: str | Path) -> IdentifiedModel:
+    """Rebuild the identified model from its JSON (checked: a clear error names what is missing)."""
+    src = str(path)
+    try:
+        doc = json.loads(Path(path).read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        raise RobocalError(f"{src}: file not found") from None
+    except json.JSONDecodeError as exc:
+        raise RobocalError(f"{src}: not valid JSON: line {exc.lineno}: {exc.msg}") from None
+    if not isinstance(doc, dict) or doc.get("format") != FORMAT:
+        raise RobocalError(f"{src}: not a robocal model file (format {FORMAT!r} expected)")
+    for key in ("robot_toml", "nominal_robot_toml", "parameters", "effects", "covariance"):
+        if key not in doc:
+            raise RobocalError(f"{src}: key {key!r} is missing")
+    robot = parse_robot(doc["robot_toml"], f"{src}: robot_toml")
+    nominal_robot = parse_robot(doc["nominal_robot_toml"], f"{src}: nominal_robot_toml")
+    values = {p["name"]: float(p["value"]) for p in doc["parameters"]}
+    effects = [_effect_from_spec(s, values, f"{src}: effects[{i}]") for i, s in enumerate(doc["effects"])]
+    model = MeasurementModel(robot, effects)
+    theta = model.nominal.copy()
+    for i, name in enumerate(model.names):
+        if name in values:
+            theta[i] = values[name]
+    cov = np.zeros((model.P, model.P))
+    names = doc["covariance"]["names"]
+    C = np.asarray(doc["covariance"]["matrix"], float)
+    unknown = [n for n in names if n not in model.index]
+    if unknown or C.shape != (len(names), len(names)):
+        raise RobocalError(f"{src}: covariance does not match the parameters")
+    idx = [model.index[n] for n in names]
+    cov[np.ix_(idx, idx)] = C
+    return IdentifiedModel(model, theta, cov, nominal_robot)
+
+
+def corrected_readings(im: IdentifiedModel, q_read_rad: np.ndarray, ctx: PoseContext | None = None) -> np.ndarray:
+    """True joint angles for readings: eq 6.1 generalised (reading + every running-error term)."""
+    return im.model.evaluate(q_read_rad, ctx, im.theta).theta_rad
+
+
+def predict(im: IdentifiedModel, q_read_rad: np.ndarray, ctx: PoseContext | None = None):
+    """Tool points (N, 3) and their 1-sigma uncertainty per coordinate from the parameter covariance."""
+    ev = im.model.evaluate(q_read_rad, ctx, im.theta, jacobian=True)
+    var = np.einsum("nip,pq,niq->ni", ev.jacobian, im.cov, ev.jacobian)
+    return ev.point_mm, np.sqrt(np.clip(var, 0, None))
+
+
+def compensate_command(im: IdentifiedModel, nominal: MeasurementModel, q_desired_rad: np.ndarray,
+                       ctx: PoseContext | None = None, iterations: int = 10, tol_mm: float = 1e-6):
+    """Joint commands that make the identified robot reach the points the nominal model gives for ``q_desired``.
+
+    The nominal model must share the identified model's measurement frame (base) and tool, so that only the robot's
+    own errors are compensated.  Returns the commands (N, n) and the remaining position error (N,) in mm.
+    """
+    q_des = np.atleast_2d(np.asarray(q_desired_rad, float))
+    target = nominal.points(q_des)
+    q = q_des.copy()
+    err = np.full(len(q), np.inf)
+    for _ in range(iterations):
+        ev = im.model.evaluate(q, ctx, im.theta, jacobian=True)
+        d = target - ev.point_mm
+        err = np.linalg.norm(d, axis=1)
+        if np.all(err < tol_mm):
+            break
+        Jq = ev.joint_jacobian
+        step = np.einsum("nij,nj->ni", np.linalg.pinv(Jq), d)
+        q = q + step
+    lim = im.model.robot.limits_rad
+    if np.any((q < lim[:, 0]) | (q > lim[:, 1])):
+        i = int(np.flatnonzero(np.any((q < lim[:, 0]) | (q > lim[:, 1]), axis=1))[0])
+        raise RobocalError(f"compensate: the corrected command of pose {i + 1} leaves the joint limits")
+    return q, err
+
+
+def nominal_in_same_frame(im: IdentifiedModel) -> MeasurementModel:
+    """The description's geometry placed with the identified base and tool (what an uncompensated controller
+    believes, in the measurement frame)."""
+    m = MeasurementModel(im.nominal_robot)
+    for name in m.kin.names:
+        if name.startswith(("base.", "tool.")):
+            m.kin.nominal[m.kin.index[name]] = im.theta[im.model.index[name]]
+    return m
+
+
+__all__ = ["save_model", "load_model", "model_document", "robot_from_theta", "corrected_readings", "predict",
+           "compensate_command", "nominal_in_same_frame", "IdentifiedModel", "unit_of", "DEG"]
