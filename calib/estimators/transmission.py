@@ -1,0 +1,233 @@
+"""Transmission error (thesis section 4.4, 5.4): the joint angle from two tool targets vs the encoder reading.
+
+**Joint angle** (eq 4.4.1, generalised): the line A1->A2 of an extended tool, projected on the plane perpendicular to
+the joint axis ``n`` (from :mod:`.axes`), turns with the joint; the angle turned from a reference pose is
+``atan2(n . (v0 x v), v0 . v)``.  The thesis's eq 4.4.1 is the special case of an axis along a coordinate axis of
+the compensated frame.  First order (B.7 drops the chain factors, so re-derived): with ``v_perp`` the projected
+A1->A2, ``d theta = (n x v_perp) . (dA2 - dA1) / |v_perp|^2`` (minus the same for the reference pose).
+
+**Error curve**: ``e(theta) = c + sum_k a_k sin(k w theta) + b_k cos(k w theta)`` with the fundamental ``w``
+*estimated* (a periodogram-like profile over w, then Gauss-Newton on all parameters) and the number of harmonics
+chosen by BIC.  The thesis's fits ``K_theta4 = 0.050 deg sin(0.9 theta4)`` and ``K_theta6 = 0.047 deg sin(1.8
+theta6)`` have w = 0.9 and 1.8 (dimensionless: periods of 400 and 200 deg of joint angle).  First-order errors:
+``sigma^2 (J^T J)^-1`` of the nonlinear model (sigma known, or from the residuals), amplitude
+``A_k = sqrt(a_k^2 + b_k^2)`` by the chain rule.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from ..uncertainty import EstimateSet, propagate
+from ._common import EstimationError, angles_in_range, at_least, finite
+
+PROC = "transmission error"
+
+
+# -- joint angle from two targets ------------------------------------------------------------------------------
+def joint_angle(x: np.ndarray, n: np.ndarray) -> np.ndarray:
+    """Vectorised: ``x (..., 12) = [A1_ref, A2_ref, A1, A2]`` (mm) -> ``(..., 1)`` angle (rad) turned about ``n``."""
+    x = np.asarray(x, float)
+    n = np.asarray(n, float) / np.linalg.norm(n)
+    v0 = x[..., 3:6] - x[..., 0:3]
+    v = x[..., 9:12] - x[..., 6:9]
+    return np.arctan2(np.cross(v0, v) @ n, np.sum(v0 * v, -1) - (v0 @ n) * (v @ n))[..., None]
+
+
+def joint_angle_first_order(x: np.ndarray, n: np.ndarray) -> np.ndarray:
+    """Derived first-order Jacobian (1, 12) of :func:`joint_angle`."""
+    n = np.asarray(n, float) / np.linalg.norm(n)
+    v0 = x[3:6] - x[0:3]
+    v = x[9:12] - x[6:9]
+    p0 = v0 - (v0 @ n) * n
+    p = v - (v @ n) * n
+    g = np.cross(n, p) / (p @ p)          # d theta / d v
+    g0 = -np.cross(n, p0) / (p0 @ p0)     # d theta / d v0
+    return np.concatenate([-g0, g0, -g, g])[None, :]
+
+
+def measure_joint_angle(A1_ref, A2_ref, A1, A2, axis_n, points_cov_mm2: np.ndarray, n_mc: int = 20_000,
+                        rng=0) -> EstimateSet:
+    """Angle turned by a joint between two poses of the targets A1, A2 (rad), errors three ways.
+
+    ``points_cov_mm2 (12, 12)`` covers [A1_ref, A2_ref, A1, A2] (correlations through L, gamma included if known).
+    """
+    x = np.concatenate([np.asarray(v, float).ravel() for v in (A1_ref, A2_ref, A1, A2)])
+    finite(PROC, "eq 4.4.1", targets=x, axis=axis_n)
+    n = np.asarray(axis_n, float)
+    for nm, a, b in (("reference", x[0:3], x[3:6]), ("measured", x[6:9], x[9:12])):
+        d = b - a
+        perp = d - (d @ n) * n / (n @ n)
+        if np.linalg.norm(perp) < 1e-3:
+            raise EstimationError(PROC, "eq 4.4.1", f"targets A1, A2 of the {nm} pose coincide or lie along the joint "
+                                  "axis: their line does not turn with the joint")
+    J = joint_angle_first_order(x, n)
+    U = np.asarray(points_cov_mm2, float)
+    return propagate(lambda z: joint_angle(z, n), x, U, ["theta_m_rad"], ["rad"], n_mc=n_mc, rng=rng,
+                     first_order_cov=J @ U @ J.T)
+
+
+def angle_errors(theta_measured_rad, theta_encoder_rad, theta_desired_rad=None) -> dict:
+    """Section 4.4's two errors per pose: ``E_c = measured - controller (encoder) reading`` (the transmission error
+    curve fitted below) and, when the commanded angles are given, ``E_a = measured - desired``."""
+    m, e = (np.atleast_1d(np.asarray(v, float)) for v in (theta_measured_rad, theta_encoder_rad))
+    angles_in_range(PROC, "joint angle errors", limit_rad=8 * np.pi, measured=m, encoder=e)
+    if m.shape != e.shape:
+        raise EstimationError(PROC, "joint angle errors", "one encoder reading per measured angle needed")
+    out = {"E_c_rad": m - e}
+    if theta_desired_rad is not None:
+        d = np.atleast_1d(np.asarray(theta_desired_rad, float))
+        angles_in_range(PROC, "joint angle errors", limit_rad=8 * np.pi, desired=d)
+        out["E_a_rad"] = m - d
+    return out
+
+
+# -- harmonic error curve ----------------------------------------------------------------------------------------
+def _basis(theta, w, H):
+    """[1, sin(w t), cos(w t), ..., sin(H w t), cos(H w t)] for w (...,) -> (..., n, 1 + 2H)."""
+    w = np.asarray(w, float)[..., None]
+    cols = [np.ones(np.broadcast_shapes(theta.shape, w.shape))]
+    for k in range(1, H + 1):
+        cols += [np.sin(k * w * theta), np.cos(k * w * theta)]
+    return np.stack(cols, -1)
+
+
+def _linear(theta, y, w, H):
+    X = _basis(theta, w, H)
+    XtX = np.swapaxes(X, -1, -2) @ X
+    coef = np.linalg.solve(XtX + 1e-12 * np.eye(X.shape[-1]), np.swapaxes(X, -1, -2) @ y[..., None])[..., 0]
+    r = y - np.einsum("...nk,...k->...n", X, coef)
+    return coef, np.sum(r * r, -1)
+
+
+def _model(p, theta, H):
+    return np.einsum("...nk,...k->...n", _basis(theta, p[..., 0], H), p[..., 1:])
+
+
+def _model_jac(p, theta, H):
+    w = p[..., 0][..., None]
+    X = _basis(theta, p[..., 0], H)
+    dw = np.zeros(X.shape[:-1])
+    for k in range(1, H + 1):
+        a, b = p[..., 2 * k][..., None], p[..., 2 * k + 1][..., None]
+        dw = dw + k * theta * (a * np.cos(k * w * theta) - b * np.sin(k * w * theta))
+    return np.concatenate([dw[..., None], X], -1)
+
+
+def _profile(theta, y, H, w_grid):
+    """Best w on a grid (linear LSQ for the rest) -> start parameters (2 + 2H,) [w, c, a1, b1, ...]."""
+    coef, sse = _linear(theta, y[None, :], w_grid, H)
+    k = int(np.argmin(sse))
+    return np.concatenate([[w_grid[k]], coef[k]])
+
+
+def _gn(p0, theta, y, H, iterations: int = 8):
+    """Gauss-Newton on all parameters from ``p0``, vectorised over leading dims of ``y``.
+
+    Monte Carlo draws and the GUM Jacobian's perturbations start from the estimate itself, so the estimator stays
+    on one branch of the (multi-modal) profile in w and is smooth in the data."""
+    p = np.array(np.broadcast_to(p0, y.shape[:-1] + p0.shape[-1:]), float)
+    for _ in range(iterations):
+        J = _model_jac(p, theta, H)
+        r = y - _model(p, theta, H)
+        A = np.swapaxes(J, -1, -2) @ J
+        dp = np.linalg.solve(A, (np.swapaxes(J, -1, -2) @ r[..., None]))[..., 0]
+        p = p + dp
+        if np.all(np.abs(dp) < 1e-13 * (1 + np.abs(p))):
+            break
+    neg = p[..., 0] < 0                     # sin(-w t) = -sin(w t): keep the fundamental positive
+    p[..., 0] = np.abs(p[..., 0])
+    p[..., 2::2] = np.where(neg[..., None], -p[..., 2::2], p[..., 2::2])
+    return p
+
+
+def _outputs(p, H):
+    out = [p[..., 0], 2 * np.pi / p[..., 0], p[..., 1]]
+    for k in range(1, H + 1):
+        a, b = p[..., 2 * k], p[..., 2 * k + 1]
+        out += [np.hypot(a, b), np.arctan2(b, a)]
+    return np.stack(out, -1)
+
+
+def te_names(H):
+    names = ["omega", "period_rad", "offset_rad"]
+    units = ["1", "rad", "rad"]
+    for k in range(1, H + 1):
+        names += [f"amplitude{k}_rad", f"phase{k}_rad"]
+        units += ["rad", "rad"]
+    return names, units
+
+
+def fit_transmission_error(theta_rad, error_rad, sigma_rad: float | None = None, max_harmonics: int = 3,
+                           omega_range: tuple[float, float] | None = None, n_grid: int = 300,
+                           n_mc: int = 5000, rng=0) -> EstimateSet:
+    """Harmonic fit of a transmission-error curve ``error(theta)`` with the fundamental estimated.
+
+    ``theta_rad`` the encoder (or commanded) joint angle, ``error_rad`` measured minus encoder angle; the number of
+    harmonics (0 .. ``max_harmonics``) is chosen by BIC, with ``omega`` (cycles per radian x 2 pi, i.e. the thesis's
+    0.9 in ``sin(0.9 theta)``) searched over ``omega_range`` (default: from half a cycle over the span to a quarter
+    of the sampling limit).  Output: omega, period, offset, then amplitude and phase of each harmonic
+    (``e = c + sum A_k sin(k w theta + phase_k)``).  ``extras['harmonics']`` is the chosen count.
+    """
+    step = "harmonic fit"
+    th = np.asarray(theta_rad, float).ravel()
+    y = np.asarray(error_rad, float).ravel()
+    angles_in_range(PROC, step, limit_rad=8 * np.pi, theta=th)
+    finite(PROC, step, error=y)
+    if th.size != y.size:
+        raise EstimationError(PROC, step, f"one error per joint angle needed (got {th.size} angles, {y.size} errors)")
+    at_least(PROC, step, "joint angles", th.size, 8)
+    span = np.ptp(th)
+    if span < np.radians(10):
+        raise EstimationError(PROC, step, f"the joint angles span only {np.degrees(span):.2f} deg: too short to fit "
+                              "a periodic error")
+    dth = np.median(np.diff(np.sort(th)))
+    lo, hi = omega_range if omega_range else (np.pi / span, np.pi / max(dth, 1e-9) / 4)
+    grid = np.linspace(lo, hi, n_grid)
+    n = y.size
+    # H = 1 locates the fundamental over the whole range; higher harmonic counts refine around it, so a sub-harmonic
+    # with more terms cannot masquerade as the fundamental when the sweep covers less than a period
+    p1 = _gn(_profile(th, y, 1, grid), th, y, 1)
+    best = None
+    for H in range(0, max_harmonics + 1):
+        if 2 + 2 * H >= n - 2:
+            break
+        if H == 0:
+            sse, p, k_par = float(np.sum((y - y.mean()) ** 2)), None, 1
+        else:
+            local = np.linspace(0.85 * p1[0], 1.15 * p1[0], 31)
+            p = _gn(_profile(th, y, H, local), th, y, H) if H > 1 else p1
+            sse = float(np.sum((y - _model(p, th, H)) ** 2))
+            k_par = 2 + 2 * H
+        if sigma_rad is None:
+            bic = n * np.log(max(sse / n, 1e-300)) + k_par * np.log(n)
+        else:
+            bic = sse / sigma_rad ** 2 + k_par * np.log(n)
+        if best is None or bic < best[0] - 1e-9:
+            best = (bic, H, p, sse)
+    _, H, p, sse = best
+    if H == 0:
+        raise EstimationError(PROC, step, "no periodic error is detectable above the measurement noise (BIC prefers "
+                              "a constant)")
+    s = sigma_rad if sigma_rad is not None else np.sqrt(sse / (n - (2 + 2 * H)))
+    J = _model_jac(p, th, H)
+    Cp = s ** 2 * np.linalg.inv(J.T @ J)
+    G = _jac_outputs(p, H)
+    names, units = te_names(H)
+    res = propagate(lambda z: _outputs(_gn(p, th, z, H), H), y, np.eye(n) * s ** 2, names, units, n_mc=n_mc,
+                    rng=rng, first_order_cov=G @ Cp @ G.T, value=_outputs(p, H))
+    res.extras.update(harmonics=H, sigma_rad=s, residual_rad=y - _model(p, th, H))
+    return res
+
+
+def _jac_outputs(p, H):
+    m = 2 + 2 * H
+    G = np.zeros((3 + 2 * H, m))
+    G[0, 0] = 1
+    G[1, 0] = -2 * np.pi / p[0] ** 2
+    G[2, 1] = 1
+    for k in range(1, H + 1):
+        a, b = p[2 * k], p[2 * k + 1]
+        A2 = a * a + b * b
+        G[1 + 2 * k, [2 * k, 2 * k + 1]] = [a / np.sqrt(A2), b / np.sqrt(A2)]
+        G[2 + 2 * k, [2 * k, 2 * k + 1]] = [-b / A2, a / A2]
+    return G
