@@ -33,6 +33,16 @@ def add_arguments(p):
     poses.add_argument("--noise-mm", type=float, default=0.05, help="1-sigma point noise per coordinate (mm)")
     poses.add_argument("--seed", type=int, default=0)
     poses.add_argument("--json", action="store_true", help="print the result as JSON")
+    setup = sub.add_parser("setup", help="set-up geometry of a Chapter 4 procedure for minimum estimation error")
+    setup.add_argument("procedure", choices=("ruler", "sweep", "te"),
+                       help="ruler pre-calibration, joint sweep (circle point analysis), transmission-error run")
+    setup.add_argument("--room-x", nargs=2, type=float, metavar=("MIN", "MAX"), default=(-1500.0, 3500.0),
+                       help="room extent along the baseline from theodolite A (mm)")
+    setup.add_argument("--room-y", type=float, default=4000.0, help="room depth in front of the baseline (mm)")
+    setup.add_argument("--min-focus-mm", type=float, default=900.0, help="closest sighting distance (mm)")
+    setup.add_argument("--sigma-arcsec", type=float, default=3.0, help="1-sigma reading noise (arc seconds)")
+    setup.add_argument("--seed", type=int, default=0)
+    setup.add_argument("--json", action="store_true", help="print the result as JSON")
 
 
 def _model(args) -> MeasurementModel:
@@ -45,6 +55,8 @@ def _model(args) -> MeasurementModel:
 def run(args) -> int:
     if args.what == "poses":
         return _poses(args)
+    if args.what == "setup":
+        return _setup(args)
     raise RobocalError(f"plan: unknown subcommand {args.what!r}")
 
 
@@ -116,4 +128,31 @@ def _evaluate(args, model: MeasurementModel, names: list[str]) -> int:
     for c in ident.weakest:
         print(f"    ratio {c.ratio:.2e}: {c.words()}")
     print("  observability (column-scaled): " + ", ".join(f"{k} {v:.3g}" for k, v in idx.items()))
+    return 0
+
+
+def _setup(args) -> int:
+    from calib.setup_plan import PROCEDURES, Constraints
+
+    lo, hi = args.room_x
+    if not lo < hi or args.room_y <= args.min_focus_mm or args.min_focus_mm <= 0 or args.sigma_arcsec <= 0:
+        raise RobocalError("plan setup: the room must be larger than the minimum focus distance, and the noise "
+                           "positive")
+    c = Constraints(room_x_mm=(lo, hi), room_y_mm=args.room_y, min_focus_mm=args.min_focus_mm,
+                    sigma_arcsec=args.sigma_arcsec)
+    with progress_display(f"plan setup {args.procedure}") as update:
+        plan = PROCEDURES[args.procedure](c, seed=args.seed, progress=update)
+    if args.json:
+        print(json.dumps({"procedure": plan.procedure, "variables": plan.variables, "errors": plan.errors,
+                          "objective": plan.objective, "trend": plan.trend}, indent=2, default=float))
+        return 0
+    print(f"robocal plan setup {plan.procedure}: minimising the {plan.objective}")
+    print("  set-up:  " + "  ".join(f"{k} {v:.1f}" for k, v in plan.variables.items()))
+    print("  errors (1 sigma):  " + "  ".join(f"{k} {v:.4g}" for k, v in plan.errors.items()))
+    if plan.trend:
+        keys = list(plan.trend[0])
+        print("  trend with the other variables at their best values:")
+        print("  " + "".join(f"{k:>18}" for k in keys))
+        for row in plan.trend:
+            print("  " + "".join(f"{row[k]:>18.4g}" for k in keys))
     return 0
