@@ -6,77 +6,30 @@ backoff, and samples keep flowing.  The thread checks a stop Event, so ``stop()`
 """
 from __future__ import annotations
 
-import queue
-import threading
 import time
 from typing import Callable
 
 import can
 
-from ..errors import BusError, DeviceTimeout
-from .assembler import SampleAssembler
+from ..errors import BusError
 from .can_codec import STATUS_ID, TapCanCodec
-from .sample import EncoderSample, JointConverter, TapStats
+from .sample import JointConverter
+from .tap_base import TapReader
 
 BusFactory = Callable[[], can.BusABC]
 
 
-class CanTap:
+class CanTap(TapReader):
     """Samples from the tap's CAN frames.  ``bus_factory`` (re)opens the bus, so a bus-off can be recovered from."""
+
+    thread_prefix = "can-tap"
 
     def __init__(self, bus_factory: BusFactory, *, converter: JointConverter | None = None, name: str = "encoder tap",
                  queue_size: int = 100_000, reconnect_delay_s: float = 0.2):
-        self.name = name
+        super().__init__(name, converter, queue_size, reconnect_delay_s)
         self._factory = bus_factory
         self.codec = TapCanCodec()
-        self.stats = TapStats()
-        self.assembler = SampleAssembler(converter, self.stats)
-        self._queue: queue.Queue[EncoderSample] = queue.Queue(queue_size)
-        self._latest: EncoderSample | None = None
-        self._sink: Callable[[EncoderSample], None] | None = None
-        self._stop = threading.Event()
-        self._thread: threading.Thread | None = None
         self._bus: can.BusABC | None = None
-        self.reconnect_delay_s = reconnect_delay_s
-        self.cpu_s = 0.0                                   # reader thread CPU time (benchmarks)
-        self.overflow = 0
-
-    # -- control ------------------------------------------------------------------------------------------------------
-    def start(self, sink: Callable[[EncoderSample], None] | None = None) -> "CanTap":
-        """Start the reader thread; ``sink`` (optional) is called in that thread for every sample."""
-        if self._thread is not None:
-            return self
-        self._sink = sink
-        self._open()
-        self._thread = threading.Thread(target=self._run, name=f"can-tap-{self.name}", daemon=True)
-        self._thread.start()
-        return self
-
-    def stop(self) -> None:
-        self._stop.set()
-        if self._thread is not None:
-            self._thread.join(2.0)
-            self._thread = None
-        self._close_bus()
-
-    def __enter__(self) -> "CanTap":
-        return self.start()
-
-    def __exit__(self, *exc) -> None:
-        self.stop()
-
-    def latest(self) -> EncoderSample | None:
-        return self._latest
-
-    def read(self, timeout_s: float = 1.0) -> EncoderSample:
-        """The next sample in order; DeviceTimeout naming the tap if none arrives in time."""
-        try:
-            return self._queue.get(timeout=timeout_s)
-        except queue.Empty:
-            cause = f"no complete sample within {timeout_s:g} s"
-            if self.stats.last_error:
-                cause += f" (last bus error: {self.stats.last_error})"
-            raise DeviceTimeout(self.name, "read sample", cause) from None
 
     def check(self) -> None:
         """Raise BusError if the reader is currently without a bus (for a Require-style precondition)."""
@@ -84,6 +37,12 @@ class CanTap:
             raise BusError(self.name, "receive", self.stats.last_error)
 
     # -- thread -------------------------------------------------------------------------------------------------------
+    def _prepare(self) -> None:
+        self._open()
+
+    def _shutdown(self) -> None:
+        self._close_bus()
+
     def _open(self) -> None:
         try:
             self._bus = self._factory()
@@ -156,15 +115,6 @@ class CanTap:
             return
         if sample is not None:
             self._deliver(sample)
-
-    def _deliver(self, sample: EncoderSample) -> None:
-        self._latest = sample
-        try:
-            self._queue.put_nowait(sample)
-        except queue.Full:
-            self.overflow += 1
-        if self._sink is not None:
-            self._sink(sample)
 
 
 def _why(exc: BaseException) -> str:

@@ -6,66 +6,27 @@ frame; it is skipped (counted as bad only if it is not the first).
 """
 from __future__ import annotations
 
-import queue
-import threading
 import time
-from typing import Callable
 
-from ..errors import DeviceError, DeviceTimeout, LinkLost
+from ..errors import DeviceError, LinkLost
 from ..link import SerialLink, SerialSettings
-from .assembler import SampleAssembler
 from .cobs_codec import FrameError, decode_frame
-from .sample import EncoderSample, JointConverter, TapStats
+from .sample import JointConverter
+from .tap_base import TapReader
 
 
-class SerialTap:
+class SerialTap(TapReader):
+    thread_prefix = "serial-tap"
+
     def __init__(self, link: SerialLink, *, converter: JointConverter | None = None, name: str | None = None,
                  reconnect_delay_s: float = 0.2, queue_size: int = 100_000):
+        super().__init__(name or link.name, converter, queue_size, reconnect_delay_s)
         self.link = link
-        self.name = name or link.name
-        self.stats = TapStats()
-        self.assembler = SampleAssembler(converter, self.stats)
-        self.reconnect_delay_s = reconnect_delay_s
-        self._queue: queue.Queue[EncoderSample] = queue.Queue(queue_size)
-        self._latest: EncoderSample | None = None
-        self._sink: Callable[[EncoderSample], None] | None = None
-        self._stop = threading.Event()
-        self._thread: threading.Thread | None = None
         self._buf = bytearray()
         self._synced = False
-        self.cpu_s = 0.0
 
-    def start(self, sink: Callable[[EncoderSample], None] | None = None) -> "SerialTap":
-        if self._thread is None:
-            self._sink = sink
-            self._thread = threading.Thread(target=self._run, name=f"serial-tap-{self.name}", daemon=True)
-            self._thread.start()
-        return self
-
-    def stop(self) -> None:
-        self._stop.set()
-        if self._thread is not None:
-            self._thread.join(2.0)
-            self._thread = None
+    def _shutdown(self) -> None:
         self.link.close()
-
-    def __enter__(self) -> "SerialTap":
-        return self.start()
-
-    def __exit__(self, *exc) -> None:
-        self.stop()
-
-    def latest(self) -> EncoderSample | None:
-        return self._latest
-
-    def read(self, timeout_s: float = 1.0) -> EncoderSample:
-        try:
-            return self._queue.get(timeout=timeout_s)
-        except queue.Empty:
-            cause = f"no complete sample within {timeout_s:g} s"
-            if self.stats.last_error:
-                cause += f" (last error: {self.stats.last_error})"
-            raise DeviceTimeout(self.name, "read sample", cause) from None
 
     def _run(self) -> None:
         t0 = time.thread_time()
@@ -123,14 +84,7 @@ class SerialTap:
             self._frame(f)
 
     def _frame(self, f) -> None:
-        s = self.assembler.whole(f.seq, f.t_us, f.counts)
-        self._latest = s
-        try:
-            self._queue.put_nowait(s)
-        except queue.Full:
-            pass
-        if self._sink is not None:
-            self._sink(s)
+        self._deliver(self.assembler.whole(f.seq, f.t_us, f.counts))
 
 
 def open_serial_tap(url: str, *, robot=None, name: str | None = None, baudrate: int = 921600) -> SerialTap:
