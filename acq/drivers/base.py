@@ -7,7 +7,10 @@ ordering and intervals).  Face uses the calib convention: 1 = face I, 2 = face I
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Protocol, runtime_checkable
+from typing import TYPE_CHECKING, Protocol, runtime_checkable
+
+if TYPE_CHECKING:
+    from ..link import SerialLink
 
 
 @dataclass(frozen=True)
@@ -53,3 +56,35 @@ class Theodolite(Protocol):
     def angles(self) -> AngleReading: ...
 
     def close(self) -> None: ...
+
+
+class SerialInstrument:
+    """The life cycle every driver on a :class:`acq.link.SerialLink` shares: open and handshake (closing the port
+    again if the handshake fails, so a failed open never leaks a port), close, and use as a context manager."""
+
+    link: "SerialLink"
+
+    def connect(self) -> None:
+        """The protocol's handshake; drivers override it."""
+
+    @classmethod
+    def _open_on(cls, link, handshake: bool, **options):
+        from ..errors import DeviceError
+
+        dev = cls(link, **options)
+        if handshake:
+            try:
+                dev.connect()
+            except DeviceError:
+                link.close()
+                raise
+        return dev
+
+    def close(self) -> None:
+        self.link.close()
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()

@@ -16,7 +16,7 @@ from typing import Sequence
 from ..errors import DeviceError, DeviceTimeout, InstrumentError, LinkLost, ProtocolError
 from ..link import SerialLink, SerialSettings
 from . import geocom_codec as gc
-from .base import AngleReading, DeviceInfo
+from .base import AngleReading, DeviceInfo, SerialInstrument
 from .geocom_codes import ReturnCode, describe
 
 DRIVER_NAME = "geocom"
@@ -40,7 +40,7 @@ class Result:
         return () if self.rc.code == 0 else (f"{self.rc.code} GRC_{self.rc.name}: {self.rc.text}",)
 
 
-class GeoComTheodolite:
+class GeoComTheodolite(SerialInstrument):
     """A GeoCOM instrument behind an injected link (anything with SerialLink's write/read_until/drain/reopen)."""
 
     driver = DRIVER_NAME
@@ -64,14 +64,7 @@ class GeoComTheodolite:
              handshake: bool = True, **options) -> "GeoComTheodolite":
         """Open ``url`` with :func:`serial.serial_for_url` (8N1) and run the connect handshake."""
         link = SerialLink(url, name=name, settings=SerialSettings(baudrate=baudrate))
-        dev = cls(link, name=name, checksum=checksum, **options)
-        if handshake:
-            try:
-                dev.connect()
-            except DeviceError:
-                link.close()
-                raise
-        return dev
+        return cls._open_on(link, handshake, name=name, checksum=checksum, **options)
 
     def connect(self) -> None:
         """Clear the receiver buffer with a bare LF, ping (COM_NullProc) and sync the double precision."""
@@ -86,15 +79,6 @@ class GeoComTheodolite:
         self.link.write(b"\n", "reconnect")
         self.link.drain(0.02)
         self._call(gc.spec(0), (), None)
-
-    def close(self) -> None:
-        self.link.close()
-
-    def __enter__(self) -> "GeoComTheodolite":
-        return self
-
-    def __exit__(self, *exc) -> None:
-        self.close()
 
     # -- the one request path ---------------------------------------------------------------------------------------
     def request(self, rpc: int, params: Sequence[str] = (), *, timeout_s: float | None = None,

@@ -13,14 +13,14 @@ import time
 from ..errors import DeviceError, DeviceTimeout, InstrumentError, LinkLost, ProtocolError
 from ..link import SerialLink, SerialSettings
 from . import gsi_codec as gsi
-from .base import AngleReading, DeviceInfo
+from .base import AngleReading, DeviceInfo, SerialInstrument
 
 DRIVER_NAME = "gsi"
 DEFAULT_BAUD = 19200
 TWO_PI = math.tau
 
 
-class GsiTheodolite:
+class GsiTheodolite(SerialInstrument):
     driver = DRIVER_NAME
 
     def __init__(self, link: SerialLink, *, name: str | None = None, attempts: int = 2, timeout_s: float = 5.0,
@@ -37,28 +37,12 @@ class GsiTheodolite:
              bytesize: int = 8, handshake: bool = True, **options) -> "GsiTheodolite":
         link = SerialLink(url, name=name, settings=SerialSettings(baudrate=baudrate, parity=parity,
                                                                   bytesize=bytesize))
-        dev = cls(link, name=name, **options)
-        if handshake:
-            try:
-                dev.connect()
-            except DeviceError:
-                link.close()
-                raise
-        return dev
+        return cls._open_on(link, handshake, name=name, **options)
 
     def connect(self) -> None:
         """``c`` (clear) must be answered ``?``: proves an instrument in GSI Online mode is there."""
         self.link.drain(0.02)
         self.request(b"c\r\n", "clear (c)", expect="ok")
-
-    def close(self) -> None:
-        self.link.close()
-
-    def __enter__(self) -> "GsiTheodolite":
-        return self
-
-    def __exit__(self, *exc) -> None:
-        self.close()
 
     # -- request path ---------------------------------------------------------------------------------------------
     def request(self, frame: bytes, command: str, *, expect: str = "words", timeout_s: float | None = None,
