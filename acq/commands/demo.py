@@ -1,19 +1,85 @@
-"""``robocal demo``: the main job on the embedded default.
-
-Until the emulated calibration session exists, the demo is a twin run (the thesis's Puma 560 with its measured
-effects) and its calibration-relevant summary.
+"""``robocal demo``: record a complete emulated calibration session (every Chapter 4 procedure and the Chapter 6 pose
+set) with a scripted operator, then reprocess it.  The instruments are the real drivers on emulators driven by the
+twin; see :mod:`acq.session.demo`.
 """
 from __future__ import annotations
 
-from . import twin as _twin
+import json
+import sys
+import time
+from pathlib import Path
+
+from calib.errors import RobocalError
 
 NAME = "demo"
-HELP = "run the main job on the embedded default (the emulated Puma 560 and theodolites)"
+HELP = "record an emulated calibration session of every procedure, then reprocess it"
 
 
 def add_arguments(p):
-    _twin.add_arguments(p)
+    p.add_argument("--db", default="robocal-demo.db", help="session database to write (default robocal-demo.db)")
+    p.add_argument("--seed", type=int, default=0, help="seed of the emulated instruments' noise")
+    p.add_argument("--resume", action="store_true", help="continue an interrupted demo session in --db")
+    p.add_argument("--json", metavar="OUT", help="write the estimates JSON here ('-' for stdout)")
+    p.add_argument("--report", metavar="DIR", help="write the HTML report here")
+    p.add_argument("--overwrite", action="store_true", help="replace an existing --db")
 
 
 def run(args) -> int:
-    return _twin.run(args)
+    from acq.progress import progress_display
+    from acq.session.demo import build_demo
+    from acq.session.headless import ProgressPrinter
+    from acq.session.reprocess import reprocess
+
+    db = Path(args.db)
+    if args.overwrite and not args.resume:
+        for suffix in ("", "-wal", "-shm"):
+            Path(str(db) + suffix).unlink(missing_ok=True)
+    if db.exists() and not args.resume:
+        raise RobocalError(f"{db}: exists already; use --resume to continue it, --overwrite to replace it")
+    t0 = time.perf_counter()
+    demo = build_demo(db, seed=args.seed, resume=args.resume)
+    try:
+        with progress_display("recording session", after_s=0.5) as update:
+            pp = ProgressPrinter(lambda done, total, key: update(key, done / max(total, 1)))
+            demo.runner.subscribe(pp)
+            state = demo.runner.run()
+    finally:
+        demo.close()
+    t_rec = time.perf_counter() - t0
+    print(f"session {db}: {state}, {pp.saved}/{pp.total} steps saved in {t_rec:.1f} s "
+          f"({pp.failed_checks} failed checks, repeated or noted)", file=sys.stderr)
+    if state != "finished":
+        raise RobocalError(f"session {db} ended {state}; continue it with: robocal demo --resume --db {db}")
+    with progress_display("reprocessing", after_s=0.5) as update:
+        res = reprocess(str(db), progress=update)
+    _summary(res)
+    if args.report:
+        from acq.session.report import write_report
+        print(f"report: {write_report(res, args.report)}", file=sys.stderr)
+    if args.json:
+        _write_json(res, args.json)
+    print(f"total {time.perf_counter() - t0:.1f} s", file=sys.stderr)
+    return 0
+
+
+def _write_json(res: dict, out: str) -> None:
+    doc = {k: v for k, v in res.items() if k != "figures"}
+    text = json.dumps(doc, indent=1)
+    if out == "-":
+        print(text)
+    else:
+        Path(out).write_text(text, encoding="utf-8")
+
+
+def _summary(res: dict) -> None:
+    from rich.console import Console
+    from rich.table import Table
+    t = Table(title=f"estimates from {res['session']['title']}")
+    for c in ("name", "value", "error (1 sigma)", "unit", "truth"):
+        t.add_column(c)
+    for e in res["estimates"]:
+        t.add_row(e["name"], f"{e['value']:.6g}", f"{e['error']:.2g}", e["unit"],
+                  "" if e["truth"] is None else f"{e['truth']:.6g}")
+    Console().print(t)
+    for p in res["problems"]:
+        print(f"note: {p}", file=sys.stderr)

@@ -1,0 +1,162 @@
+"""The emulated instruments' world driven by the twin: what the demo's theodolites and encoder tap observe.
+
+Why a separate World: :class:`~acq.emulate.world.KinematicWorld` is nominal kinematics with perfect joints; the demo
+must show the *twin* (:mod:`calib.twin`: true geometry, transmission errors, compliance, coupling, the scenario's
+stations and noise), so a session recorded from emulated instruments has a known truth to check estimates against.
+
+State (all set by the session's "physical" layer, i.e. what a technician does with the robot and the targets):
+
+* the robot's commanded joint readings ``q`` (the encoder tap turns them into counts with the description's gears and
+  coupling -- exactly :meth:`calib.twin.Twin.encoder`);
+* the pose context: external joint torques (hung loads) and the loading direction, last-motion directions;
+* the current target: a point on the tool (frame 6, mm: the tool target P, the extended tool's A1/A2) or a fixed point
+  in the measurement frame (ruler marks C, D, E).
+
+``sight(station, face)`` returns that station's reading of the current target with the scenario's reading noise
+(and gross errors), drawn from one seeded generator under a lock: the two theodolites and the tap run in different
+threads.  :meth:`dial_gauge_mm` emulates the dial gauges of the link-compliance procedure (cantilever theory with the
+world's flexural rigidity; no theodolite involved).
+"""
+from __future__ import annotations
+
+import threading
+from dataclasses import dataclass
+
+import numpy as np
+
+from calib.effects import PoseContext
+from calib.errors import RobocalError
+from calib.twin import Twin
+from calib.units import DEG
+
+READY_DEG = (0.0, -90.0, 90.0, 0.0, 0.0, 0.0)
+#: flexural rigidity used for the emulated dial gauges when the scenario has no enabled link-compliance effect
+DEFAULT_EI_NMM2 = 2.0e11
+
+
+@dataclass(frozen=True)
+class Target:
+    """What the theodolites aim at: a tool point (frame 6) or a fixed point (measurement frame R_f)."""
+
+    name: str
+    tool_mm: tuple[float, float, float] | None = None
+    point_mm: tuple[float, float, float] | None = None
+
+
+class TwinWorld:
+    """World protocol implementation on a :class:`calib.twin.Twin` (thread-safe)."""
+
+    def __init__(self, twin: Twin, q0_deg=READY_DEG, *, seed: int | None = None, ei_nmm2: float = DEFAULT_EI_NMM2,
+                 gauge_sigma_mm: float = 0.001):
+        self.twin = twin
+        self.robot = twin.robot
+        self.stations = {s.name: s for s in twin.stations}
+        self.ei_nmm2 = float(ei_nmm2)
+        self.gauge_sigma_mm = gauge_sigma_mm
+        self._rng = np.random.default_rng(twin.scenario.seed if seed is None else seed)
+        self._lock = threading.RLock()
+        n = self.robot.n
+        self._q = np.asarray(q0_deg, float) * DEG
+        self._direction = np.zeros(n)
+        self._torque = np.zeros(n)
+        self._load_dir = np.zeros(n)
+        self._payload = 0.0
+        tool = twin.true_parameters()
+        self._default_tool = tuple(float(tool[f"tool.{k}_mm"]) for k in "xyz")
+        self._target = Target("P", tool_mm=self._default_tool)
+        self._cache: np.ndarray | None = None
+
+    # -- what the session's physical layer sets -------------------------------------------------------------------
+    def command(self, q_rad) -> None:
+        """Move the robot to joint readings ``q_rad``; remembers the direction of each joint's last motion."""
+        q = np.asarray(q_rad, float)
+        if q.shape != (self.robot.n,) or not np.all(np.isfinite(q)):
+            raise RobocalError(f"twin world: expected {self.robot.n} finite joint angles, got {q!r}")
+        with self._lock:
+            moved = np.abs(q - self._q) > 1e-12
+            self._direction = np.where(moved, np.sign(q - self._q), self._direction)
+            self._q = q.copy()
+            self._cache = None
+
+    def set_load(self, joint_torque_nm=None, load_direction=None, payload_kg: float = 0.0) -> None:
+        """External torques on the joints (N m), +1 loading / -1 unloading per joint, payload at the tool (kg)."""
+        n = self.robot.n
+        with self._lock:
+            self._torque = np.zeros(n) if joint_torque_nm is None else np.asarray(joint_torque_nm, float).copy()
+            self._load_dir = np.zeros(n) if load_direction is None else np.asarray(load_direction, float).copy()
+            self._payload = float(payload_kg)
+            self._cache = None
+
+    def aim(self, target: Target) -> None:
+        """Make ``target`` the one the theodolites read."""
+        with self._lock:
+            self._target = target
+            self._cache = None
+
+    @property
+    def default_tool_mm(self) -> tuple[float, float, float]:
+        return self._default_tool
+
+    # -- World protocol -------------------------------------------------------------------------------------------
+    def joint_angles_rad(self) -> np.ndarray:
+        """The commanded joint readings: the tap makes counts from them exactly as :meth:`Twin.encoder` does."""
+        with self._lock:
+            return self._q.copy()
+
+    def context(self) -> PoseContext:
+        with self._lock:
+            return PoseContext(1, self.robot.n, direction=self._direction[None], load_direction=self._load_dir[None],
+                               payload_kg=np.array([self._payload]), joint_torque_nm=self._torque[None])
+
+    def target_mm(self) -> np.ndarray:
+        """The current target's true position in the measurement frame (mm)."""
+        with self._lock:
+            if self._cache is not None:
+                return self._cache.copy()
+            t = self._target
+            if t.point_mm is not None:
+                p = np.asarray(t.point_mm, float)
+            else:
+                _, q_read = self.twin.encoder(self._q[None])
+                pts, _ = self.twin.true_points(q_read, self.context(), tool_mm=np.asarray(t.tool_mm, float))
+                p = pts[0]
+            self._cache = p
+            return p.copy()
+
+    def true_sight(self, station_name: str, face: int) -> tuple[float, float]:
+        st = self._station(station_name)
+        hz, v = st.observe(self.target_mm()[None], face)
+        return float(hz[0]), float(v[0])
+
+    def sight(self, station_name: str, face: int) -> tuple[float, float]:
+        st = self._station(station_name)
+        hz, v = self.true_sight(station_name, face)
+        sc = self.twin.scenario
+        with self._lock:
+            if sc.angle_noise:
+                dh, dv = self._rng.normal(0.0, 1.0, 2)
+                hz += dh * st.sigma_hz_rad
+                v += dv * st.sigma_v_rad
+            if sc.gross_rate > 0 and self._rng.random() < sc.gross_rate:
+                hz += self._rng.choice([-1.0, 1.0]) * sc.gross_rad
+        return float(np.mod(hz, 2 * np.pi)), float(v)
+
+    def slope_distance_m(self, station_name: str) -> float:
+        st = self._station(station_name)
+        return float(np.linalg.norm(self.target_mm() - st.position) / 1000.0)
+
+    # -- dial gauges ----------------------------------------------------------------------------------------------
+    def dial_gauge_mm(self, gauge_x_mm: float, load_x_mm: float, load_n: float) -> float:
+        """Deflection a dial gauge at ``x`` reads for a load ``P`` at ``a`` on a clamped cantilever (mm), noisy."""
+        x, a = float(gauge_x_mm), float(load_x_mm)
+        shape = x * x * (3 * a - x) if x <= a else a * a * (3 * x - a)
+        y = load_n * shape / (6.0 * self.ei_nmm2)
+        with self._lock:
+            y += self._rng.normal(0.0, self.gauge_sigma_mm)
+        return round(y, 4)          # gauges read to 0.1 um at best
+
+    def _station(self, name: str):
+        try:
+            return self.stations[name]
+        except KeyError:
+            raise RobocalError(f"twin world: no station {name!r} (stations: {', '.join(self.stations)})") from None

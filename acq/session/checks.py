@@ -1,0 +1,144 @@
+"""Acceptance checks run on a step's readings before the operator decides (accept / repeat / skip / pause).
+
+Each check says what it measured, its limit and, when it fails, what the operator should do (the operator's guide has
+the long form).  Limits are defaults for 3" instruments at 2-4 m; the session plan may override them (``limits``).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from calib.errors import RobocalError
+from calib.theodolite import Station, intersect
+from calib.units import ARCSEC, DEG
+
+DEFAULT_LIMITS = {
+    "face_agreement_arcsec": 40.0,     # |2c| and |2k| from face I / face II
+    "repeat_spread_arcsec": 15.0,      # std of repeat sightings
+    "miss_distance_mm": 5.0,           # shortest distance between the sight lines of A and B
+    "encoder_ptp_counts": 2.0,         # encoder counts moving while holding
+    "encoder_pose_deg": 0.05,          # encoder reading vs commanded pose
+    "plausibility_mm": 30.0,           # sighted point vs the nominal model
+}
+
+
+@dataclass
+class Check:
+    name: str
+    passed: bool
+    value: float | None
+    limit: float | None
+    unit: str
+    message: str
+
+    def as_row(self, attempt: int) -> dict:
+        return {"attempt": attempt, "name": self.name, "passed": self.passed, "value": self.value,
+                "limit_value": self.limit, "unit": self.unit, "message": self.message}
+
+
+def _wrap(a):
+    return (np.asarray(a) + np.pi) % (2 * np.pi) - np.pi
+
+
+def face_mean(hz: np.ndarray, v: np.ndarray, face: np.ndarray) -> tuple[float, float]:
+    """Face-I-equivalent mean of readings (face II reduced: Hz - 180 deg, 360 deg - V): removes c and k."""
+    hz1 = np.where(face == 2, hz - np.pi, hz)
+    v1 = np.where(face == 2, 2 * np.pi - v, v)
+    ref = hz1[0]
+    return float(np.mod(ref + np.mean(_wrap(hz1 - ref)), 2 * np.pi)), float(np.mean(v1))
+
+
+def face_agreement(readings: list[dict], limit_arcsec: float) -> list[Check]:
+    out = []
+    for (st, tg) in sorted({(r["station"], r["target"]) for r in readings}):
+        rs = [r for r in readings if r["station"] == st and r["target"] == tg]
+        f1 = [r for r in rs if r["face"] == 1]
+        f2 = [r for r in rs if r["face"] == 2]
+        if not f1 or not f2:
+            continue
+        hz1, v1 = np.mean([r["hz_rad"] for r in f1]), np.mean([r["v_rad"] for r in f1])
+        hz2, v2 = np.mean([r["hz_rad"] for r in f2]), np.mean([r["v_rad"] for r in f2])
+        two_c = abs(float(_wrap(hz1 - (hz2 - np.pi)))) / ARCSEC
+        two_k = abs(float(v1 + v2 - 2 * np.pi)) / ARCSEC
+        worst = max(two_c, two_k)
+        ok = worst <= limit_arcsec
+        out.append(Check(f"face I/II {st} {tg}", ok, worst, limit_arcsec, "arcsec",
+                         "faces agree" if ok else f"face I and II of {st} on {tg} differ by {worst:.0f}\": re-sight "
+                         f"both faces on the target centre; if it persists, check the instrument's collimation"))
+    return out
+
+
+def repeat_spread(readings: list[dict], limit_arcsec: float) -> list[Check]:
+    out = []
+    for key in sorted({(r["station"], r["target"], r["face"]) for r in readings}):
+        rs = [r for r in readings if (r["station"], r["target"], r["face"]) == key]
+        if len(rs) < 2:
+            continue
+        hz = np.array([r["hz_rad"] for r in rs])
+        s = max(float(np.std(_wrap(hz - hz[0]), ddof=1)), float(np.std([r["v_rad"] for r in rs], ddof=1))) / ARCSEC
+        ok = s <= limit_arcsec
+        out.append(Check(f"repeat spread {key[0]} {key[1]} face {key[2]}", ok, s, limit_arcsec, "arcsec",
+                         "repeats agree" if ok else "repeat sightings scatter: the target or instrument moved; "
+                         "check the tripod and the robot brakes, then repeat"))
+    return out
+
+
+def intersect_targets(readings: list[dict], stations: dict[str, Station]) -> dict[str, tuple]:
+    """Target name -> (point_mm, cov_mm2, miss_mm) from face-averaged readings of stations A and B."""
+    out = {}
+    for tg in sorted({r["target"] for r in readings}):
+        pair = []
+        for st in ("A", "B"):
+            rs = [r for r in readings if r["station"] == st and r["target"] == tg]
+            if not rs:
+                break
+            pair.append(face_mean(np.array([r["hz_rad"] for r in rs]), np.array([r["v_rad"] for r in rs]),
+                                  np.array([r["face"] for r in rs])))
+        if len(pair) < 2:
+            continue
+        sts = [stations["A"], stations["B"]]
+        x = intersect(sts, [(np.array([h]), np.array([v])) for h, v in pair])
+        out[tg] = (x.point_mm[0], x.cov_mm2[0], float(x.miss_mm[0]))
+    return out
+
+
+def miss_and_plausibility(readings: list[dict], stations: dict[str, Station], predicted: dict[str, np.ndarray],
+                          limits: dict) -> list[Check]:
+    out = []
+    try:
+        pts = intersect_targets(readings, stations)
+    except RobocalError as exc:
+        return [Check("intersection", False, None, None, "", f"sight lines do not intersect ({exc}); check that "
+                                                              f"both theodolites are on the same target")]
+    for tg, (p, _, miss) in pts.items():
+        ok = miss <= limits["miss_distance_mm"]
+        out.append(Check(f"miss distance {tg}", ok, miss, limits["miss_distance_mm"], "mm",
+                         "sight lines meet" if ok else f"the sight lines of A and B pass {miss:.1f} mm apart: one "
+                         f"instrument is not on {tg}; re-sight"))
+        if tg in predicted:
+            d = float(np.linalg.norm(p - predicted[tg]))
+            ok = d <= limits["plausibility_mm"]
+            out.append(Check(f"plausible {tg}", ok, d, limits["plausibility_mm"], "mm",
+                             "where the model expects it" if ok else f"{tg} is {d:.0f} mm from where the robot "
+                             f"model puts it: wrong target, wrong pose or a gross sighting error"))
+    return out
+
+
+def encoders_settled(cap, pose_deg, limits: dict) -> list[Check]:
+    if cap is None:
+        return []
+    if cap.n < 3:
+        return [Check("encoders", False, float(cap.n), 3.0, "samples",
+                      "too few encoder samples: check the tap connection")]
+    ptp = float(np.max(np.ptp(cap.counts, axis=0)))
+    out = [Check("encoders settled", ptp <= limits["encoder_ptp_counts"], ptp, limits["encoder_ptp_counts"], "counts",
+                 "robot holding still" if ptp <= limits["encoder_ptp_counts"] else
+                 "encoder counts still moving: wait for the robot to settle (brakes, servo), then repeat")]
+    if pose_deg is not None and np.all(np.isfinite(cap.joint_rad)):
+        dev = float(np.max(np.abs(np.mean(cap.joint_rad, 0) / DEG - np.asarray(pose_deg))))
+        ok = dev <= limits["encoder_pose_deg"]
+        out.append(Check("pose reached", ok, dev, limits["encoder_pose_deg"], "deg",
+                         "encoders read the requested pose" if ok else
+                         f"encoders read {dev:.3f} deg away from the requested pose: move the robot there"))
+    return out

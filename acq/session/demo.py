@@ -1,0 +1,226 @@
+"""The demo session: every procedure recorded from emulated instruments driven by the twin, scripted operator.
+
+Wiring (the same a real cell uses, only the devices are emulated):
+
+* the twin (:mod:`calib.twin`, default scenario) behind a :class:`~acq.emulate.twin_world.TwinWorld`;
+* two GeoCOM theodolite emulators published in the registry and opened with the **real** driver
+  (``open_theodolite("geocom", "robocal://instance/...")``), so the stored frames are protocol bytes;
+* the encoder tap emulator as a node on a python-can ``virtual`` channel, read by the **real** CAN tap reader;
+* :class:`~acq.session.rig.EmulatedBench` plays the technician's hands (robot motion, loads, aiming), and
+  :class:`~acq.session.headless.ScriptedOperator` the technician's answers (dial gauges read from the world).
+
+Session parameters are chosen so ``robocal demo`` stays well under a minute on 2 cores: fewer positions and repeats
+than a real session, but every procedure is present.
+"""
+from __future__ import annotations
+
+import uuid
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from calib.errors import RobocalError
+from calib.kinematics import Kinematics
+from calib.model import MeasurementModel
+from calib.theodolite import thesis_stations
+from calib.twin import Twin, load_scenario
+from calib.units import ARCSEC, DEG
+
+from .headless import ScriptedOperator
+from .procedures import READY_DEG, all_steps
+from .rig import EmulatedBench, Rig
+from .runner import Runner
+from .steps import Step
+from .store import SessionStore
+
+DEMO_TITLE = "robocal demo: emulated Puma 560 (twin) and two GeoCOM theodolites"
+
+
+def demo_setup(twin: Twin) -> dict:
+    """The bench geometry a technician would write down (nominal, rounded: not the twin's truth)."""
+    tp = twin.true_parameters()
+    base = [round(tp[f"base.{k}_mm"], 0) for k in "xyz"]
+    a, b = twin.stations
+    return {
+        "robot": "",                                     # the shipped description
+        "scenario": "",                                  # the twin scenario (emulated sessions only)
+        "base_xyz_mm": base, "base_rpy_deg": [0.0, 0.0, 0.0],
+        # L from a tape, gammas from mutual sighting of the instruments (to about 0.01 deg)
+        "stations": {"L_mm": round(b.x_mm - a.x_mm, -1), "gamma1_deg": round(-a.yaw_rad / DEG, 2),
+                     "gamma2_deg": round((b.yaw_rad - np.pi) / DEG, 2),
+                     "sigma_arcsec": a.sigma_hz_rad / ARCSEC},
+        "tool_target_mm": [50.0, 0.0, 100.0],
+        "extended_tool": {"A1_mm": [0.0, 0.0, 100.0], "A2_mm": [200.0, 0.0, 300.0]},
+        "ruler": {"marks_mm": [0.0, 930.0, 1860.0],
+                  "placements": [{"where": "1.2 m in front, left", "C_mm": [-300.0, 1200.0, 0.0], "dir": [1, 0, 0]},
+                                 {"where": "1.8 m in front, turned", "C_mm": [-200.0, 1800.0, 0.0],
+                                  "dir": [1, 0.15, 0]}]},
+        "compliance": {"3": {"lever_mm": 500.0, "loads_n": [0, 10, 20, 30, 45, 60, 75], "theta_i_deg": 0.0,
+                             "pose_deg": list(READY_DEG)},
+                       "4": {"lever_mm": 500.0, "loads_n": [0, 5, 10, 15, 25, 35, 45], "theta_i_deg": 0.0,
+                             "pose_deg": list(READY_DEG)}},
+        "link": {"joint": 2, "gauges_x_mm": [150.0, 280.0, 400.0], "load_x_mm": 430.0, "loads_n": [0, 50, 100, 150],
+                 "second_moment_mm4": None, "pose_deg": list(READY_DEG)},
+    }
+
+
+def demo_plan(twin: Twin, seed: int, n_poses: int = 16, quick: bool = True) -> dict:
+    """Which procedures with which parameters; the pose set is chosen now so a resume replays the same poses."""
+    from calib.plan import select_poses
+    model = MeasurementModel(twin.robot)
+    lim = twin.robot.limits_rad
+    try:
+        plan = select_poses(model, n_poses, seed=seed, pool=300 if quick else 2000, test=100,
+                            accept=lambda q: _visible(twin, q))
+        q = np.asarray(plan.q_rad) / DEG
+    except Exception:           # planning is an aid; fall back to seeded random poses within the limits
+        rng = np.random.default_rng(seed)
+        q = (lim[:, 0] + 0.2 * np.ptp(lim, 1) + 0.6 * np.ptp(lim, 1) * rng.random((n_poses, twin.robot.n))) / DEG
+    return {
+        "procedures": ["ruler", "sweeps", "poses", "transmission", "compliance", "link_compliance", "coupling"],
+        "ruler": {"repeats": 2},
+        "sweeps": {"points": 5, "span_deg": 60.0, "joints": [1, 2, 3, 4, 5, 6]},
+        "poses": {"q_deg": np.round(q, 3).tolist()},
+        "transmission": {"joints": [4, 6], "points": 25, "repeats": 2, "range_deg": {"4": [-150.0, 150.0], "6": [-150.0, 150.0]}},
+        "compliance": {"joints": [3, 4]},
+        "coupling": {"angle_deg": 10.0, "pairs": [[5, 6], [4, 6], [4, 5]]},
+        "seed": seed,
+    }
+
+
+def _visible(twin: Twin, q_rad: np.ndarray) -> np.ndarray:
+    """Poses whose tool target is in front of both stations, above the floor and not too close."""
+    pts = MeasurementModel(twin.robot).points(q_rad, theta=_nominal_theta(twin))
+    return (pts[:, 1] > 1200) & (pts[:, 2] > -400)
+
+
+def _nominal_theta(twin: Twin, tool_mm=(50.0, 0.0, 100.0)) -> np.ndarray:
+    m = MeasurementModel(twin.robot)
+    th = m.nominal.copy()
+    tp = twin.true_parameters()
+    for k in ("x_mm", "y_mm", "z_mm"):
+        th[m.index[f"base.{k}"]] = tp[f"base.{k}"]
+    th[: m.n_geometric] = m.kin.params_with_tool(np.asarray(tool_mm, float), th[: m.n_geometric])
+    return th
+
+
+def setup_stations(setup: dict) -> dict:
+    """Approximate stations from the setup (for the acquisition checks; reprocessing uses the ruler's)."""
+    s = setup["stations"]
+    a, b = thesis_stations(s["L_mm"], s["gamma1_deg"] * DEG, s["gamma2_deg"] * DEG, s["sigma_arcsec"] * ARCSEC)
+    return {"A": a, "B": b}
+
+
+def predictor(robot, setup: dict):
+    """Where the nominal model with the setup's base puts each tool target of a step (plausibility check)."""
+    m = MeasurementModel(robot)
+    th = m.nominal.copy()
+    for k, v in zip(("x_mm", "y_mm", "z_mm"), setup["base_xyz_mm"]):
+        th[m.index[f"base.{k}"]] = v
+
+    def predict(step: Step) -> dict:
+        if step.pose_deg is None:
+            return {}
+        out = {}
+        for t in step.targets:
+            if t.tool_mm is not None:
+                out[t.name] = m.points(np.asarray(step.pose_deg)[None] * DEG, theta=th, tool_mm=np.asarray(t.tool_mm))[0]
+        return out
+    return predict
+
+
+@dataclass
+class DemoRig:
+    runner: Runner
+    world: object
+    twin: Twin
+    store: SessionStore
+    names: list
+
+    def close(self) -> None:
+        from acq.emulate import registry
+        self.runner.rig.close()
+        for n in self.names:
+            registry.withdraw(n)
+        for node in getattr(self, "_nodes", []):
+            node.stop()
+        self.store.close()
+
+
+def build_demo(db: str | Path, seed: int = 0, resume: bool = False, script: dict | None = None,
+               plan: dict | None = None, steps_filter=None, operator=None) -> DemoRig:
+    """Open (or create) the demo session in ``db`` and wire emulated devices, bench, operator and runner."""
+    import can
+
+    from acq.drivers import open_theodolite
+    from acq.emulate import registry
+    from acq.emulate.can_node import CanTapNode
+    from acq.emulate.geocom_device import GeoComDevice
+    from acq.emulate.tap_device import TapModel
+    from acq.emulate.twin_world import TwinWorld
+    from acq.encoders import open_tap
+
+    db = str(db)
+    if resume:
+        store = SessionStore.open(db)
+        meta = store.session_row()
+        import json
+        plan_d, setup = json.loads(meta["plan_json"]), json.loads(meta["setup_json"])
+        seed = plan_d.get("seed", seed)
+        # a resumed emulated session continues with a fresh noise stream (the twin's truth is the same)
+        seed_offset = 1 + len(store.done_keys())
+    else:
+        plan_d = None
+        seed_offset = 0
+    twin = Twin(load_scenario(), seed=seed)
+    if not resume:
+        setup = demo_setup(twin)
+        plan_d = plan or demo_plan(twin, seed)
+        store = SessionStore.create(db, DEMO_TITLE, plan_d, setup, operator="scripted demo operator",
+                                    metadata={"emulated": True, "scenario": "default", "seed": seed})
+    world = TwinWorld(twin, seed=seed * 1000 + seed_offset)
+    tag = uuid.uuid4().hex[:8]
+    names = []
+    drivers = {}
+    for st, serial in (("A", 1001), ("B", 1002)):
+        name = f"demo-{tag}-{st}"
+        url = registry.publish(name, GeoComDevice(world, st, serial_no=serial, seed=seed))
+        names.append(name)
+        drivers[st] = open_theodolite("geocom", url, name=f"theodolite {st}")
+    channel = f"robocal-demo-{tag}"
+    node = CanTapNode(can.Bus(interface="virtual", channel=channel), TapModel(world, twin.robot, rate_hz=500.0),
+                      own_bus=True).start()
+    tap = open_tap("can", interface="virtual", channel=channel, robot=twin.robot)
+    rig = Rig(drivers, tap)
+    rig.start()
+    known = _device_ids(store)               # a crash may have left some devices recorded and others not
+    for role, driver, url, ident in rig.identities():
+        if role in known:
+            rig.device_ids[role] = known[role]
+        else:
+            rig.device_ids[role] = store.add_device(role, driver, url, ident,
+                                                    {"emulated": True, "channel": channel} if role == "encoder tap"
+                                                    else {"emulated": True})
+    bench = EmulatedBench(world)
+    steps = all_steps(plan_d, setup)
+    if steps_filter is not None:
+        steps = [s for s in steps if steps_filter(s)]
+
+    def inputs(step: Step) -> dict:
+        return bench.read_gauges(step) if step.procedure == "link_compliance" else {}
+
+    op = operator or ScriptedOperator(script, inputs=inputs)
+    runner = Runner(store, rig, steps, op, bench=bench, stations=setup_stations(setup),
+                    predict=predictor(twin.robot, setup))
+    d = DemoRig(runner, world, twin, store, names)
+    d._nodes = [node]
+    return d
+
+
+def _has_devices(store: SessionStore) -> bool:
+    return store.conn.execute("SELECT count(*) FROM device").fetchone()[0] > 0
+
+
+def _device_ids(store: SessionStore) -> dict:
+    return {role: did for did, role in store.conn.execute("SELECT device_id, role FROM device ORDER BY device_id")}

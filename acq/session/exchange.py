@@ -1,0 +1,208 @@
+"""Import and export: raw readings (CSV/JSON) and pose measurements (the pose CSV of :mod:`calib.posecsv`).
+
+Raw-readings CSV (one row per theodolite reading; header row; ``#`` comments):
+
+=================  ===========================================================================
+column             meaning
+=================  ===========================================================================
+``step``           step key (``ruler/p0/C``, ``sweep/j2/03``, ``poses/004`` ...): groups readings
+``procedure``      ruler, sweep, poses, transmission, compliance (as in the session)
+``station``        A or B
+``target``         target name (C, D, E, P, A1, A2)
+``face``           1 or 2
+``hz_deg``         horizontal circle reading, deg (clockwise)
+``v_deg``          zenith angle, deg
+``q1_deg``..       joint readings at the step, deg (optional)
+``raw_hex``        the instrument's reply frame, hex (optional)
+=================  ===========================================================================
+
+Pose CSV: see :mod:`calib.posecsv` (``q1``..``q6`` deg, ``x``, ``y``, ``z`` mm, ``pose``, ``time``, ``payload``,
+``temperature``, ``dir1``..``dir6``).  An imported pose CSV becomes a session whose ``poses`` steps carry the
+measured positions as operator inputs ``x_mm``, ``y_mm``, ``z_mm``, so ``robocal reprocess`` identifies from it.
+"""
+from __future__ import annotations
+
+import csv
+import json
+import time
+import warnings
+from pathlib import Path
+
+import numpy as np
+
+from calib.errors import RobocalError
+from calib.units import DEG
+
+from .reprocess import load_session
+from .store import SessionStore, StepRecord, connect_readonly
+
+READING_COLUMNS = ["step", "procedure", "station", "target", "face", "hz_deg", "v_deg", "q1_deg", "q2_deg", "q3_deg",
+                   "q4_deg", "q5_deg", "q6_deg", "raw_hex"]
+
+
+def export_readings_csv(db: str, out: str) -> int:
+    conn = connect_readonly(db)
+    try:
+        rows = conn.execute(
+            "SELECT s.key, s.procedure, r.station, r.target, r.face, r.hz_rad, r.v_rad, s.spec_json, r.raw "
+            "FROM reading r JOIN step s ON r.step_id = s.step_id WHERE s.status='accepted' AND r.attempt=s.attempts "
+            "ORDER BY s.seq, r.reading_id").fetchall()
+    finally:
+        conn.close()
+    with open(out, "w", newline="", encoding="utf-8") as f:
+        w = csv.writer(f)
+        w.writerow(READING_COLUMNS)
+        for key, proc, st, tg, face, hz, v, spec, raw in rows:
+            q = json.loads(spec).get("pose_deg") or [""] * 6
+            w.writerow([key, proc, st, tg, face, f"{hz / DEG:.10f}", f"{v / DEG:.10f}", *q, raw.hex()])
+    return len(rows)
+
+
+def export_json(db: str, out: str) -> None:
+    d = load_session(db)
+    steps = []
+    for s in d.steps:
+        steps.append({"key": s["key"], "procedure": s["procedure"], "spec": s["spec"], "inputs": s["inputs"],
+                      "readings": [{**r, "hz_deg": r["hz_rad"] / DEG, "v_deg": r["v_rad"] / DEG}
+                                   for r in s["readings"]],
+                      "encoder_counts_mean": None if s["counts"] is None else np.mean(s["counts"], 0).tolist()})
+    doc = {"format": "robocal-session-json", "version": 1, "session": {k: v for k, v in d.session.items()},
+           "plan": d.plan, "setup": d.setup, "steps": steps}
+    Path(out).write_text(json.dumps(doc, indent=1, default=str), encoding="utf-8")
+
+
+def export_poses_csv(db: str, out: str) -> int:
+    """Pose-set steps as a pose CSV: encoder joint readings and the intersected tool-target positions."""
+    from calib.posecsv import write_pose_csv
+    from calib.robot import load_robot
+
+    from .checks import intersect_targets
+    from .reprocess import _Est, _encoder_q, _ruler
+    from .demo import setup_stations
+    d = load_session(db)
+    robot = load_robot(d.setup.get("robot") or None)
+    ruler = [s for s in d.steps if s["procedure"] == "ruler"]
+    sigma = d.setup["stations"].get("sigma_arcsec", 3.0) * 4.84813681109536e-06
+    stations = (_ruler(ruler, d.setup, sigma, _Est(None), None, {}) if ruler else None) or setup_stations(d.setup)
+    q, P, ids = [], [], []
+    for s in d.steps:
+        if s["procedure"] != "poses":
+            continue
+        pts = intersect_targets(s["readings"], stations) if s["readings"] else {}
+        if "P" in pts:
+            p = pts["P"][0]
+        elif all(k in s["inputs"] for k in ("x_mm", "y_mm", "z_mm")):
+            p = np.array([s["inputs"][k] for k in ("x_mm", "y_mm", "z_mm")])
+        else:
+            continue
+        qe = _encoder_q(s, robot)
+        q.append(qe if qe is not None else np.asarray(s["spec"]["pose_deg"]) * DEG)
+        P.append(p)
+        ids.append(s["key"])
+    if not q:
+        raise RobocalError(f"{db}: no pose-set steps to export")
+    write_pose_csv(out, np.array(q), np.array(P))        # (pose ids are text: write_pose_csv takes numbers)
+    return len(q)
+
+
+def _detect(path: str) -> str:
+    with open(path, encoding="utf-8") as f:
+        for line in f:
+            if line.strip() and not line.startswith("#"):
+                cols = [c.strip() for c in line.strip().split(",")]
+                if "hz_deg" in cols:
+                    return "readings"
+                if "q1" in cols:
+                    return "poses"
+                raise RobocalError(f"{path}: line 1: neither a raw-readings CSV (needs hz_deg) nor a pose CSV "
+                                   f"(needs q1)")
+    raise RobocalError(f"{path}: empty file")
+
+
+def import_file(path: str, db: str, setup_json: str | None = None) -> tuple[str, int]:
+    """A new session in ``db`` from a readings or pose CSV; returns (kind, steps)."""
+    kind = _detect(path)
+    setup = json.loads(Path(setup_json).read_text()) if setup_json else _default_setup()
+    plan = {"procedures": [], "imported_from": str(path), "kind": kind}
+    store = SessionStore.create(db, f"imported {kind} from {Path(path).name}", plan, setup,
+                                metadata={"emulated": False, "imported": True})
+    try:
+        n = _import_poses(path, store) if kind == "poses" else _import_readings(path, store)
+        store.finish("success")
+    finally:
+        store.close()
+    return kind, n
+
+
+def _default_setup() -> dict:
+    from calib.twin import Twin
+    from .demo import demo_setup
+    return demo_setup(Twin())
+
+
+def _import_poses(path: str, store: SessionStore) -> int:
+    from calib.posecsv import read_pose_csv
+    t = read_pose_csv(path)
+    if t.points_mm is None:
+        raise RobocalError(f"{path}: a pose CSV to import needs the measured x, y, z columns")
+    now = time.time()
+    for i in range(t.n):
+        pid = t.pose_id[i] if t.pose_id else f"{i:03d}"
+        q = (t.q_rad[i] / DEG).tolist()
+        spec = {"pose_deg": q, "meta": {"index": i}, "targets": [], "setup": {}}
+        inputs = [{"attempt": 1, "name": f"{k}_mm", "value": float(v), "unit": "mm", "t_wall_s": now}
+                  for k, v in zip("xyz", t.points_mm[i])]
+        store.write_step(StepRecord(f"poses/{pid}", "poses", f"imported pose {pid}", "imported", "accepted", 1,
+                                    now, now, spec, "", [], [], inputs, []))
+    return t.n
+
+
+def _import_readings(path: str, store: SessionStore) -> int:
+    did = store.add_device("imported theodolites", "csv", str(path), {})
+    steps: dict[str, dict] = {}
+    with open(path, newline="", encoding="utf-8") as f:
+        lines = (ln for ln in f if not ln.startswith("#"))
+        rd = csv.DictReader(lines)
+        unknown = set(rd.fieldnames or []) - set(READING_COLUMNS)
+        if unknown:
+            warnings.warn(f"{path}: ignoring unknown column(s) {', '.join(sorted(unknown))}")
+        for need in ("step", "procedure", "station", "target", "face", "hz_deg", "v_deg"):
+            if need not in (rd.fieldnames or []):
+                raise RobocalError(f"{path}: line 1: missing column {need!r}")
+        for lineno, row in enumerate(rd, start=2):
+            try:
+                face = int(row["face"])
+                hz, v = float(row["hz_deg"]) * DEG, float(row["v_deg"]) * DEG
+                if row["station"] not in ("A", "B") or face not in (1, 2):
+                    raise ValueError("station must be A or B and face 1 or 2")
+                q = [float(row[f"q{j}_deg"]) for j in range(1, 7)] if row.get("q1_deg") else None
+                raw = bytes.fromhex(row.get("raw_hex") or "")
+            except (ValueError, TypeError) as exc:
+                raise RobocalError(f"{path}: line {lineno}: {exc}") from None
+            s = steps.setdefault(row["step"], {"procedure": row["procedure"], "q": q, "readings": []})
+            s["readings"].append({"attempt": 1, "device_id": did, "station": row["station"], "target": row["target"],
+                                  "face": face, "repeat": 0, "hz_rad": hz, "v_rad": v, "t_wall_s": 0.0,
+                                  "t_mono_s": 0.0, "command": "imported", "raw": raw})
+    now = time.time()
+    for key, s in steps.items():
+        meta = _meta_from_key(key)
+        spec = {"pose_deg": s["q"], "meta": meta, "targets": [], "setup": {}}
+        store.write_step(StepRecord(key, s["procedure"], key, "imported", "accepted", 1, now, now, spec, "",
+                                    s["readings"], [], [], []))
+    return len(steps)
+
+
+def _meta_from_key(key: str) -> dict:
+    """Recover the procedure bookkeeping from a step key (``sweep/j2/03`` -> joint 2, index 3)."""
+    parts = key.split("/")
+    meta: dict = {}
+    try:
+        if parts[0] == "ruler":
+            meta = {"placement": int(parts[1][1:]), "mark": "CDE".index(parts[2])}
+        elif parts[0] in ("sweep", "te", "compliance"):
+            meta = {"joint": int(parts[1][1:]), "index": int(parts[2])}
+        elif parts[0] == "poses":
+            meta = {"index": int(parts[1]) if parts[1].isdigit() else 0}
+    except (IndexError, ValueError):
+        raise RobocalError(f"step key {key!r} does not follow the session's pattern (e.g. sweep/j2/03)") from None
+    return meta

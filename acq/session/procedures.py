@@ -1,0 +1,190 @@
+"""Every Chapter 4 procedure (and the Chapter 6 pose set) as a generator of :class:`~acq.session.steps.Step`.
+
+Read a procedure top to bottom to know what the operator will be asked, in order.  Procedures take the session
+``plan`` (their parameters) and ``setup`` (the geometry of the bench) and never touch a device: the runner does the
+I/O, checks and storage.  Step keys are stable (``sweep/j2/03``), so a resumed session skips what is committed.
+
+Units: poses in degrees (what the operator types into the teach pendant), lengths in mm, loads in N.
+"""
+from __future__ import annotations
+
+from typing import Callable, Iterator
+
+import numpy as np
+
+from .steps import InputSpec, Step, TargetSpec
+
+READY_DEG = (0.0, -90.0, 90.0, 0.0, 0.0, 0.0)
+MARKS = ("C", "D", "E")
+
+
+def _fmt(q) -> str:
+    return "[" + ", ".join(f"{v:.1f}" for v in q) + "] deg"
+
+
+def _pose(j: int, angle_deg: float, base=READY_DEG) -> tuple[float, ...]:
+    q = list(base)
+    q[j - 1] += angle_deg
+    return tuple(q)
+
+
+def tool_target(setup: dict) -> TargetSpec:
+    return TargetSpec("P", tool_mm=tuple(setup["tool_target_mm"]))
+
+
+def extended_targets(setup: dict) -> tuple[TargetSpec, TargetSpec]:
+    et = setup["extended_tool"]
+    return TargetSpec("A1", tool_mm=tuple(et["A1_mm"])), TargetSpec("A2", tool_mm=tuple(et["A2_mm"]))
+
+
+# -- 4.2 ruler -----------------------------------------------------------------------------------------------------
+def ruler(plan: dict, setup: dict) -> Iterator[Step]:
+    """Theodolite pre-calibration: marks C, D, E of a ruler, levelled in the stations' plane, both faces."""
+    r = setup["ruler"]
+    marks = r["marks_mm"]
+    p = plan.get("ruler", {})
+    for k, pl in enumerate(r["placements"]):
+        c = np.asarray(pl["C_mm"], float) if pl.get("C_mm") is not None else None
+        u = np.asarray(pl.get("dir", [1.0, 0.0, 0.0]), float)
+        for m, name in enumerate(MARKS):
+            point = None if c is None else tuple(float(v) for v in c + marks[m] * u / np.linalg.norm(u))
+            yield Step(
+                key=f"ruler/p{k}/{name}", procedure="ruler", title=f"Ruler placement {k + 1}: mark {name}",
+                instruction=(f"Ruler placement {k + 1} ({pl.get('where', 'as set up')}), levelled in the plane of "
+                             f"the theodolites. Sight mark {name} ({marks[m]:.1f} mm from C) with theodolite A, "
+                             f"then with B, face I then face II."),
+                targets=(TargetSpec(name, point_mm=point),), repeats=p.get("repeats", 1), encoders=False,
+                meta={"placement": k, "mark": m})
+
+
+# -- 4.3 joint sweeps ------------------------------------------------------------------------------------------------
+def sweeps(plan: dict, setup: dict) -> Iterator[Step]:
+    """Joint orientations and centres: each joint swept alone from READY, target P sighted at each position."""
+    p = plan.get("sweeps", {})
+    n, span = p.get("points", 4), p.get("span_deg", 60.0)
+    for j in p.get("joints", [1, 2, 3, 4, 5, 6]):
+        for i, a in enumerate(np.linspace(-span / 2, span / 2, n)):
+            q = _pose(j, float(a))
+            yield Step(
+                key=f"sweep/j{j}/{i:02d}", procedure="sweep", title=f"Joint {j} sweep, position {i + 1}/{n}",
+                instruction=(f"Other joints at READY. Rotate joint {j} to about {q[j - 1]:+.1f} deg (always in "
+                             f"the positive direction), sight target P with theodolite A, then with B."),
+                pose_deg=q, targets=(tool_target(setup),), repeats=p.get("repeats", 1),
+                meta={"joint": j, "index": i})
+
+
+# -- Chapter 6 pose set ----------------------------------------------------------------------------------------------
+def poses(plan: dict, setup: dict) -> Iterator[Step]:
+    """The identification pose set (from ``robocal plan poses`` or chosen at session creation)."""
+    p = plan.get("poses", {})
+    qs = p.get("q_deg", [])
+    for i, q in enumerate(qs):
+        yield Step(
+            key=f"poses/{i:03d}", procedure="poses", title=f"Pose {i + 1}/{len(qs)}",
+            instruction=f"Move the robot to {_fmt(q)}, sight target P with theodolite A, then with B.",
+            pose_deg=tuple(q), targets=(tool_target(setup),), repeats=p.get("repeats", 1), meta={"index": i})
+
+
+# -- 4.4 transmission error ------------------------------------------------------------------------------------------
+def transmission(plan: dict, setup: dict) -> Iterator[Step]:
+    """Joint angle from the extended tool's targets A1, A2 against the encoder, over a joint's range."""
+    p = plan.get("transmission", {})
+    a1, a2 = extended_targets(setup)
+    for j in p.get("joints", [4, 6]):
+        lo, hi = p.get("range_deg", {}).get(str(j), (-150.0, 150.0))
+        n = p.get("points", 9)
+        for i, a in enumerate(np.linspace(lo, hi, n)):
+            q = _pose(j, float(a))
+            yield Step(
+                key=f"te/j{j}/{i:02d}", procedure="transmission", title=f"Joint {j} transmission error {i + 1}/{n}",
+                instruction=(f"Extended tool fitted. Rotate joint {j} to {q[j - 1]:+.1f} deg (positive direction "
+                             f"only, no load), sight A1 then A2 with theodolite A, then with B."),
+                pose_deg=q, targets=(a1, a2), repeats=p.get("repeats", 1), meta={"joint": j, "index": i})
+
+
+# -- 4.5 joint compliance --------------------------------------------------------------------------------------------
+def compliance(plan: dict, setup: dict) -> Iterator[Step]:
+    """Loads hung at a lever on joint j, increasing then decreasing; A1, A2 sighted at each load."""
+    p = plan.get("compliance", {})
+    a1, a2 = extended_targets(setup)
+    for j in p.get("joints", [3, 4]):
+        cfg = setup["compliance"][str(j)]
+        loads = list(cfg["loads_n"])
+        series = [("load", v, +1) for v in loads] + [("unload", v, -1) for v in reversed(loads[:-1])]
+        q = tuple(cfg.get("pose_deg", READY_DEG))
+        for i, (phase, load, direction) in enumerate(series):
+            yield Step(
+                key=f"compliance/j{j}/{i:02d}", procedure="compliance",
+                title=f"Joint {j} {'loading' if direction > 0 else 'unloading'}: {load:g} N",
+                instruction=(f"Brakes released, robot holding {_fmt(q)}. "
+                             f"{'Hang' if direction > 0 else 'Remove weights to leave'} {load:g} N on the lever at "
+                             f"{cfg['lever_mm']:g} mm from joint {j}'s centre, wait for the arm to settle, enter the "
+                             f"load, then sight A1 and A2 with theodolite A, then with B."),
+                pose_deg=q, targets=(a1, a2), repeats=p.get("repeats", 1),
+                inputs=(InputSpec("load_n", "N", f"Load now on the lever of joint {j}", load),
+                        InputSpec("lever_mm", "mm", "Lever arm from the joint centre", cfg["lever_mm"]),
+                        InputSpec("theta_i_deg", "deg", "Lever angle from the horizontal",
+                                  cfg.get("theta_i_deg", 0.0))),
+                setup={"joint": j, "load_n": load, "lever_mm": cfg["lever_mm"],
+                       "theta_i_deg": cfg.get("theta_i_deg", 0.0), "load_direction": direction},
+                meta={"joint": j, "index": i, "phase": phase})
+
+
+# -- 4.6 link compliance ---------------------------------------------------------------------------------------------
+def link_compliance(plan: dict, setup: dict) -> Iterator[Step]:
+    """Dial gauges along a link, loads at its end; the operator enters the gauge readings."""
+    cfg = setup["link"]
+    j = cfg["joint"]
+    xs = cfg["gauges_x_mm"]
+    for i, load in enumerate(cfg["loads_n"]):
+        yield Step(
+            key=f"link/j{j}/{i:02d}", procedure="link_compliance", title=f"Link {j}: load {load:g} N",
+            instruction=(f"Dial gauges at {', '.join(f'{x:g}' for x in xs)} mm from joint {j}'s centre, zeroed "
+                         f"without load. Hang {load:g} N at {cfg['load_x_mm']:g} mm, wait 30 s, read every gauge."),
+            pose_deg=tuple(cfg.get("pose_deg", READY_DEG)), targets=(), faces=(),
+            inputs=(InputSpec("load_n", "N", "Load hung", load),
+                    *[InputSpec(f"gauge{g + 1}_mm", "mm", f"Dial gauge {g + 1} at {x:g} mm")
+                      for g, x in enumerate(xs)]),
+            setup={"joint": j, "load_n": load, "load_x_mm": cfg["load_x_mm"], "gauges_x_mm": list(xs)},
+            meta={"joint": j, "index": i})
+
+
+# -- 4.7 wrist coupling ----------------------------------------------------------------------------------------------
+def coupling(plan: dict, setup: dict) -> Iterator[Step]:
+    """Joint k alone through theta, then j and k together: the encoder of k shows sigma_jk theta_j more."""
+    p = plan.get("coupling", {})
+    th = p.get("angle_deg", 10.0)
+    for j, k in p.get("pairs", [(5, 6), (4, 6), (4, 5)]):
+        start = READY_DEG
+        alone = _pose(k, th)
+        both = _pose(j, th, alone)
+        for name, q, text in (
+                ("start", start, f"Move to READY {_fmt(start)} and hold; the encoder stream is recorded."),
+                ("alone", alone, f"Rotate joint {k} alone by {th:+g} deg, hold."),
+                ("return", start, "Return to READY, hold."),
+                ("with", both, f"Rotate joints {j} and {k} together by {th:+g} deg each, hold.")):
+            yield Step(
+                key=f"coupling/j{j}k{k}/{name}", procedure="coupling", title=f"Coupling {j}->{k}: {name}",
+                instruction=text + " No sightings.", pose_deg=q, targets=(), faces=(),
+                meta={"j": j, "k": k, "phase": name, "angle_deg": th})
+
+
+PROCEDURES: dict[str, Callable[[dict, dict], Iterator[Step]]] = {
+    "ruler": ruler, "sweeps": sweeps, "poses": poses, "transmission": transmission, "compliance": compliance,
+    "link_compliance": link_compliance, "coupling": coupling,
+}
+
+
+def all_steps(plan: dict, setup: dict) -> list[Step]:
+    """Every step of the session's plan, in order; keys are checked for uniqueness (resume depends on them)."""
+    out: list[Step] = []
+    for name in plan["procedures"]:
+        try:
+            proc = PROCEDURES[name]
+        except KeyError:
+            from calib.errors import RobocalError
+            raise RobocalError(f"session plan: unknown procedure {name!r} (known: {', '.join(PROCEDURES)})")
+        out.extend(proc(plan, setup))
+    keys = [s.key for s in out]
+    assert len(keys) == len(set(keys)), "duplicate step keys"
+    return out

@@ -1,0 +1,454 @@
+"""Offline reprocessing: the whole calibration rerun from a saved session with today's code, raw data read-only.
+
+Pipeline (thesis Chapter 4, then Chapter 6), each stage from the *stored raw readings* only:
+
+1. ruler -> L, gamma1, gamma2 (+ B's height; both faces: collimation and index) by :func:`ruler_lsq`;
+2. every sighted target -> a point: face-I/II mean per station, least-squares intersection with the ruler's stations;
+3. sweeps -> joint axes (:func:`fit_axis`) -> DH parameters (:func:`dh_estimate`);
+4. pose set -> identification of the geometric parameters (:func:`calib.identify.identify`), joint readings from the
+   recorded encoder counts;
+5. transmission error (joint angle from A1, A2 about the swept axis vs the encoder) -> harmonic fit;
+6. joint compliance (deflection vs torque, loading and unloading) -> two-slope fit;
+7. link compliance (dial gauges) -> EI;  8. coupling (encoder counts) -> sigma_jk.
+
+Output: a dict with ``estimates`` (name, value, error 1 sigma, unit, truth), per-procedure data for the report's
+figures, and the identified robot description.  ``truth`` is filled only for sessions recorded from emulated
+instruments (the twin of the session's scenario and seed).  Stages that fail say why in ``problems`` and the others
+still run.
+"""
+from __future__ import annotations
+
+import json
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from calib.errors import RobocalError
+from calib.robot import load_robot
+from calib.theodolite import Station
+from calib.units import ARCSEC, DEG
+
+from .checks import face_mean
+from .store import code_version, connect_readonly, from_npy
+
+
+@dataclass
+class SessionData:
+    path: str
+    session: dict
+    plan: dict
+    setup: dict
+    steps: list[dict]                               # accepted steps, each with readings, chunks, inputs
+    devices: list[dict] = field(default_factory=list)
+
+
+def _rows(conn, sql, args=()):
+    cur = conn.execute(sql, args)
+    cols = [d[0] for d in cur.description]
+    return [dict(zip(cols, r)) for r in cur.fetchall()]
+
+
+def load_session(path: str) -> SessionData:
+    """Every accepted step with the readings of its accepted (last) attempt; opened read-only."""
+    conn = connect_readonly(path)
+    try:
+        sess = _rows(conn, "SELECT * FROM session ORDER BY session_id LIMIT 1")
+        if not sess:
+            raise RobocalError(f"{path}: holds no session")
+        s = sess[0]
+        steps = _rows(conn, "SELECT * FROM step WHERE session_id=? AND status='accepted' ORDER BY seq",
+                      (s["session_id"],))
+        for st in steps:
+            a = st["attempts"]
+            st["spec"] = json.loads(st["spec_json"])
+            st["readings"] = _rows(conn, "SELECT station, target, face, repeat, hz_rad, v_rad FROM reading "
+                                         "WHERE step_id=? AND attempt=? ORDER BY reading_id", (st["step_id"], a))
+            st["inputs"] = {r["name"]: r["value"] for r in _rows(
+                conn, "SELECT name, value FROM operator_input WHERE step_id=? AND attempt=? ORDER BY input_id",
+                (st["step_id"], a))}
+            ch = _rows(conn, "SELECT counts FROM encoder_chunk WHERE step_id=? AND attempt=? ORDER BY chunk_id",
+                       (st["step_id"], a))
+            st["counts"] = np.concatenate([from_npy(c["counts"]) for c in ch]) if ch else None
+        devices = _rows(conn, "SELECT role, driver, url, identity_json FROM device")
+        return SessionData(path, s, json.loads(s["plan_json"]), json.loads(s["setup_json"]), steps, devices)
+    finally:
+        conn.close()
+
+
+class _Est:
+    """Collects estimates with their truths."""
+
+    def __init__(self, truth: dict | None):
+        self.truth = truth
+        self.items: list[dict] = []
+
+    def add(self, name: str, value: float, error: float, unit: str, truth_key: str | None = None,
+            truth_value: float | None = None):
+        t = None
+        if self.truth is not None:
+            if truth_value is not None:
+                t = float(truth_value)
+            elif truth_key is not None and truth_key in self.truth:
+                t = float(self.truth[truth_key])
+        self.items.append({"name": name, "value": float(value), "error": float(error), "unit": unit, "truth": t})
+
+    def add_set(self, prefix: str, es, truth_map: dict | None = None, only=None):
+        for e in es.estimates():
+            if only is not None and e.name not in only:
+                continue
+            tv = (truth_map or {}).get(e.name)
+            self.add(f"{prefix}{e.name}", e.value, e.error, e.unit, truth_value=tv)
+
+
+def _twin_for(data: SessionData):
+    meta = json.loads(data.session.get("metadata_json") or "{}")
+    if not meta.get("emulated"):
+        return None
+    from calib.twin import Twin, load_scenario
+    return Twin(load_scenario(meta.get("scenario_path") or None), seed=meta.get("seed", 0))
+
+
+def reprocess(path: str, n_mc: int = 0, progress=None) -> dict:
+    """Rerun every stage; returns the results document (see the module docstring)."""
+    t0 = time.perf_counter()
+    data = load_session(path)
+    twin = _twin_for(data)
+    truth = twin.true_parameters() if twin is not None else None
+    est = _Est(truth)
+    robot = load_robot(data.setup.get("robot") or None)
+    problems: list[str] = []
+    figs: dict = {}
+    by_proc: dict[str, list[dict]] = {}
+    for st in data.steps:
+        by_proc.setdefault(st["procedure"], []).append(st)
+    sigma = data.setup["stations"].get("sigma_arcsec", 3.0) * ARCSEC
+    step = (lambda name, f: progress(name, f)) if progress else (lambda name, f: None)
+
+    # 1. ruler ----------------------------------------------------------------------------------------------------
+    stations = None
+    try:
+        stations = _ruler(by_proc.get("ruler", []), data.setup, sigma, est, twin, figs)
+    except (RobocalError, KeyError, ValueError, IndexError) as exc:
+        problems.append(f"ruler: {exc}")
+    if stations is None:
+        from .demo import setup_stations
+        stations = setup_stations(data.setup)
+        problems.append("ruler: no estimate; points use the setup's stations")
+    step("ruler", 0.1)
+
+    def points(st):
+        from .checks import intersect_targets
+        return intersect_targets(st["readings"], stations)
+
+    # 3. sweeps -> axes -> DH ---------------------------------------------------------------------------------------
+    axes = {}
+    try:
+        axes = _sweeps(by_proc.get("sweep", []), points, robot, data.setup, est, truth, figs, n_mc)
+    except (RobocalError, KeyError, ValueError, IndexError) as exc:
+        problems.append(f"sweeps: {exc}")
+    step("sweeps", 0.3)
+    # 4. pose set ---------------------------------------------------------------------------------------------------
+    ident_doc = None
+    try:
+        ident_doc = _poses(by_proc.get("poses", []), points, robot, data.setup, est, truth, figs)
+    except (RobocalError, KeyError, ValueError, IndexError) as exc:
+        problems.append(f"poses: {exc}")
+    step("poses", 0.6)
+    # 5-8 ---------------------------------------------------------------------------------------------------------
+    for name, fn in (("transmission", _transmission), ("compliance", _compliance)):
+        try:
+            fn(by_proc.get(name, []), points, robot, axes, est, twin, figs, n_mc)
+        except (RobocalError, KeyError, ValueError, IndexError) as exc:
+            problems.append(f"{name}: {exc}")
+    try:
+        _link(by_proc.get("link_compliance", []), data.setup, est, twin, figs, n_mc)
+    except (RobocalError, KeyError, ValueError, IndexError) as exc:
+        problems.append(f"link compliance: {exc}")
+    try:
+        _coupling(by_proc.get("coupling", []), robot, est, twin, figs, n_mc)
+    except (RobocalError, KeyError, ValueError, IndexError) as exc:
+        problems.append(f"coupling: {exc}")
+    step("done", 1.0)
+    return {
+        "session": {"guid": data.session["guid"], "title": data.session["title"], "path": path,
+                    "exit_status": data.session["exit_status"], "steps_accepted": len(data.steps)},
+        "provenance": {"code_version": code_version(), "reprocessed_unix_s": time.time(), "input_session":
+                       data.session["guid"], "n_mc": n_mc, "elapsed_s": time.perf_counter() - t0},
+        "estimates": est.items,
+        "problems": problems,
+        "robot": ident_doc,
+        "figures": figs,
+    }
+
+
+# -- stages ------------------------------------------------------------------------------------------------------
+def _ruler(steps, setup, sigma, est, twin, figs):
+    from calib.estimators.ruler import RulerSightings, ruler_lsq
+    from calib.theodolite import thesis_stations
+    if not steps:
+        return None
+    rows = []
+    for st in steps:
+        m = st["spec"]["meta"]
+        for r in st["readings"]:
+            rows.append((m["placement"], m["mark"], 0 if r["station"] == "A" else 1, r["face"], r["hz_rad"],
+                         r["v_rad"]))
+    a = np.array(rows, float)
+    s = RulerSightings(a[:, 0], a[:, 1], a[:, 2], a[:, 3], a[:, 4], a[:, 5])
+    res = ruler_lsq(s, setup["ruler"]["marks_mm"], sigma)
+    tv = {}
+    if twin is not None:
+        A, B = twin.stations
+        tv = {"L_mm": B.x_mm - A.x_mm, "gamma1_rad": -A.yaw_rad, "gamma2_rad": B.yaw_rad - np.pi,
+              "hB_mm": B.z_mm - A.z_mm}
+    est.add_set("ruler.", res, tv, only=("L_mm", "gamma1_rad", "gamma2_rad", "hB_mm"))
+    L, g1, g2 = (res[n].value for n in ("L_mm", "gamma1_rad", "gamma2_rad"))
+    hb = res["hB_mm"].value if "hB_mm" in res.names else 0.0
+    A, B = thesis_stations(L, g1, g2, sigma, hb)
+    figs["ruler"] = {"L_mm": L, "gamma1_deg": g1 / DEG, "gamma2_deg": g2 / DEG,
+                     "residual_arcsec": (np.asarray(res.extras.get("residual", [])) / ARCSEC).tolist()}
+    return {"A": A, "B": B}
+
+
+def _block(covs):
+    n = len(covs)
+    U = np.zeros((3 * n, 3 * n))
+    for i, c in enumerate(covs):
+        U[3 * i:3 * i + 3, 3 * i:3 * i + 3] = c
+    return U
+
+
+def _sweeps(steps, points, robot, setup, est, truth, figs, n_mc):
+    from calib.estimators.axes import fit_axis
+    from calib.estimators.dh import dh_estimate
+    from calib.kinematics import Kinematics
+    if not steps:
+        return {}
+    by_joint: dict[int, list] = {}
+    for st in steps:
+        by_joint.setdefault(st["spec"]["meta"]["joint"], []).append(st)
+    axes = {}
+    figs["sweeps"] = {}
+    for j, sts in sorted(by_joint.items()):
+        sts.sort(key=lambda s: s["spec"]["meta"]["index"])
+        pts = [points(s)["P"] for s in sts]
+        P = np.array([p[0] for p in pts])
+        U = _block([p[1] for p in pts])
+        res = fit_axis(P, U, n_mc=n_mc, joint=f"j{j}")
+        axes[j] = res
+        v = res.value
+        figs["sweeps"][j] = {"points_mm": P.tolist(), "centre_mm": v[:3].tolist(), "normal": v[3:6].tolist(),
+                             "radius_mm": float(v[6]),
+                             "residual_mm": np.asarray(res.extras.get("residual_mm", [])).ravel().tolist()}
+    if len(axes) < robot.n:
+        return axes
+    kin = Kinematics(robot)
+    p = kin.nominal.copy()
+    for k, val in zip(("x_mm", "y_mm", "z_mm"), setup["base_xyz_mm"]):
+        p[kin.index[f"base.{k}"]] = val
+    yaw, pitch, roll = (np.asarray(setup.get("base_rpy_deg", [0, 0, 0]), float) * DEG)[::-1]
+    p[kin.index["base.yaw_rad"]], p[kin.index["base.pitch_rad"]], p[kin.index["base.roll_rad"]] = yaw, pitch, roll
+    from .procedures import READY_DEG
+    q0 = np.asarray(READY_DEG) * DEG
+    fn = kin.forward(q0[None], p)
+    vals, covs = [], []
+    for j in range(1, robot.n + 1):
+        a = axes[j]
+        vals.append(a.value[:6])
+        covs.append(a.cov[:6, :6])
+    V = np.concatenate(vals)
+    C = np.zeros((6 * robot.n, 6 * robot.n))
+    for i, c in enumerate(covs):
+        C[6 * i:6 * i + 6, 6 * i:6 * i + 6] = c
+    dh = dh_estimate(V, C, q0, fn.frame_R[0, 0], fn.frame_t[0, 0], fn.frame_R[0, 1:-1, :, 0], robot.hayati[:-1],
+                     robot.d_mm[:-1], alpha_ref=robot.alpha_rad[:-1], n_mc=n_mc)
+    tv = {n: truth[n] for n in dh.names if truth is not None and n in truth}
+    est.add_set("dh.", dh, tv)
+    nominal = dict(zip(kin.names, kin.nominal))
+    figs["dh"] = [{"name": n, "value": float(dh[n].value), "error": float(dh[n].error),
+                   "nominal": float(nominal.get(n, np.nan)), "truth": tv.get(n)} for n in dh.names]
+    return axes
+
+
+def _encoder_q(st, robot) -> np.ndarray | None:
+    c = st.get("counts")
+    if c is None or len(c) == 0:
+        return None
+    return robot.joint_from_counts(np.mean(c, 0))
+
+
+def _poses(steps, points, robot, setup, est, truth, figs):
+    from calib.identify import PointObservations, default_free, identify
+    from calib.model import MeasurementModel
+    from calib.compensate import model_document
+    if not steps:
+        return None
+    q, P, S = [], [], []
+    for st in steps:
+        pt = points(st).get("P") if st["readings"] else None
+        if pt is None and all(k in st["inputs"] for k in ("x_mm", "y_mm", "z_mm")):     # imported pose CSV
+            pt = (np.array([st["inputs"][k] for k in ("x_mm", "y_mm", "z_mm")]), np.eye(3) * 0.05 ** 2, 0.0)
+        if pt is None:
+            continue
+        qe = _encoder_q(st, robot)
+        q.append(qe if qe is not None else np.asarray(st["spec"]["pose_deg"]) * DEG)
+        P.append(pt[0])
+        S.append(pt[1])
+    if len(q) < 8:
+        raise RobocalError(f"only {len(q)} poses with both sightings; identification needs more")
+    model = MeasurementModel(robot)
+    obs = PointObservations(np.array(q), np.array(P), cov_mm2=np.array(S))
+    free = default_free(model, effects=False)
+    ident = identify(model, obs, free=free)
+    for n in ident.free:
+        i = ident.names.index(n)
+        unit = "mm" if n.endswith("_mm") else ("rad" if n.endswith("_rad") else "1")
+        est.add(f"ident.{n}", ident.theta[i], ident.sigma[i], unit, truth_key=n)
+    pred = model.points(np.array(q), theta=ident.theta[:model.P])
+    figs["poses"] = {"residual_mm": np.linalg.norm(np.array(P) - pred, axis=1).tolist(),
+                     "rms_mm": float(ident.residual_rms)}
+    return model_document(model, ident, truth)
+
+
+def _joint_angles(steps, points, axis_n):
+    """Angle turned about ``axis_n`` from the first step, per step, from A1 -> A2 (and its sigma)."""
+    from calib.estimators.transmission import joint_angle
+    ref = None
+    out, sig = [], []
+    for st in steps:
+        p = points(st)
+        if "A1" not in p or "A2" not in p:
+            out.append(np.nan)
+            sig.append(np.nan)
+            continue
+        x = np.concatenate([p["A1"][0], p["A2"][0]])
+        if ref is None:
+            ref = x
+        out.append(float(joint_angle(np.concatenate([ref, x])[None], axis_n)[0, 0]))
+        d = np.linalg.norm(x[3:] - x[:3])
+        sig.append(float(np.sqrt(np.trace(p["A1"][1]) + np.trace(p["A2"][1])) / d))
+    return np.array(out), np.array(sig)
+
+
+def _own_axis(sts, points, j, n_mc):
+    """The joint's axis from A2 over the run itself: a wide span at a large radius beats the short sweep."""
+    from calib.estimators.axes import fit_axis
+    pts = [points(s).get("A2") for s in sts]
+    pts = [p for p in pts if p is not None]
+    P = np.array([p[0] for p in pts])
+    # points more than 180 deg apart are fine for a circle fit, but keep the sweep order for the normal's sign
+    return fit_axis(P, _block([p[1] for p in pts]), n_mc=0, joint=f"j{j}").value[3:6]
+
+
+def _transmission(steps, points, robot, axes, est, twin, figs, n_mc):
+    from calib.estimators.transmission import fit_transmission_error
+    from calib.effects import TransmissionError
+    if not steps:
+        return
+    by_joint: dict[int, list] = {}
+    for st in steps:
+        by_joint.setdefault(st["spec"]["meta"]["joint"], []).append(st)
+    figs["transmission"] = {}
+    for j, sts in sorted(by_joint.items()):
+        if j not in axes:
+            raise RobocalError(f"joint {j}: no swept axis to measure the angle about")
+        sts.sort(key=lambda s: s["spec"]["meta"]["index"])
+        n = _own_axis(sts, points, j, n_mc) if len(sts) >= 4 else axes[j].value[3:6]
+        meas, sig = _joint_angles(sts, points, n)
+        enc = np.array([(_encoder_q(s, robot) if _encoder_q(s, robot) is not None
+                         else np.asarray(s["spec"]["pose_deg"]) * DEG)[j - 1] for s in sts])
+        err = np.angle(np.exp(1j * (meas - (enc - enc[0]))))      # both sides wrap differently past 180 deg
+        ok = np.isfinite(err)
+        res = fit_transmission_error(enc[ok], err[ok], float(np.nanmean(sig)), n_mc=n_mc)
+        tv = {}
+        if twin is not None:
+            for e in twin.scenario.effects:
+                if isinstance(e, TransmissionError) and e.joint == j:
+                    tv = {"omega": e.order, "amplitude1_rad": float(np.hypot(e.values[0], e.values[len(e.values) // 2]))
+                          if len(e.values) > 1 else abs(float(e.values[0]))}
+        est.add_set(f"te.j{j}.", res, tv, only=("omega", "amplitude1_rad"))
+        figs["transmission"][j] = {"encoder_deg": (enc / DEG).tolist(), "error_deg": (err / DEG).tolist(),
+                                   "sigma_deg": (sig / DEG).tolist(),
+                                   "fit": {k: float(res[k].value) for k in res.names}}
+
+
+def _compliance(steps, points, robot, axes, est, twin, figs, n_mc):
+    from calib.estimators.compliance import torque_Nm, two_slope_fit
+    from calib.effects import JointCompliance
+    if not steps:
+        return
+    by_joint: dict[int, list] = {}
+    for st in steps:
+        by_joint.setdefault(st["spec"]["meta"]["joint"], []).append(st)
+    figs["compliance"] = {}
+    for j, sts in sorted(by_joint.items()):
+        if j not in axes:
+            raise RobocalError(f"joint {j}: no swept axis to measure the deflection about")
+        sts.sort(key=lambda s: s["spec"]["meta"]["index"])
+        defl, sig = _joint_angles(sts, points, axes[j].value[3:6])
+        T = np.array([torque_Nm(s["inputs"].get("load_n", s["spec"]["setup"]["load_n"]),
+                                s["inputs"].get("lever_mm", s["spec"]["setup"]["lever_mm"]),
+                                s["inputs"].get("theta_i_deg", 0.0) * DEG) for s in sts])
+        unload = np.array([s["spec"]["meta"]["phase"] == "unload" for s in sts])
+        res = two_slope_fit(T, defl, unload, float(np.nanmean(sig)), n_mc=n_mc)
+        tv = {}
+        if twin is not None:
+            for e in twin.scenario.effects:
+                if isinstance(e, JointCompliance) and e.joint == j:
+                    c1, c2, tb, h = e.values
+                    tv = {"K1_Nm_per_rad": 1 / c1, "K2_Nm_per_rad": 1 / c2, "offset_rad": h}
+        est.add_set(f"compliance.j{j}.", res, tv, only=("K1_Nm_per_rad", "K2_Nm_per_rad", "breakpoint_Nm",
+                                                         "offset_rad"))
+        figs["compliance"][j] = {"torque_nm": T.tolist(), "deflection_deg": (defl / DEG).tolist(),
+                                 "unloading": unload.tolist(), "fit": {k: float(res[k].value) for k in res.names}}
+
+
+def _link(steps, setup, est, twin, figs, n_mc):
+    from calib.estimators.link_compliance import flexural_rigidity
+    if not steps:
+        return
+    cfg = setup["link"]
+    x, a, P, y = [], [], [], []
+    for st in steps:
+        s = st["spec"]["setup"]
+        for g, gx in enumerate(s["gauges_x_mm"]):
+            v = st["inputs"].get(f"gauge{g + 1}_mm")
+            if v is None:
+                continue
+            x.append(gx)
+            a.append(s["load_x_mm"])
+            P.append(st["inputs"].get("load_n", s["load_n"]))
+            y.append(v)
+    res = flexural_rigidity(x, a, P, y, sigma_mm=0.001, second_moment_mm4=cfg.get("second_moment_mm4"), n_mc=n_mc)
+    tv = {"EI_Nmm2": 2.0e11} if twin is not None else {}
+    est.add_set(f"link.j{cfg['joint']}.", res, tv, only=("EI_Nmm2",))
+    figs["link"] = {"x_mm": x, "load_n": P, "deflection_mm": y, "EI_Nmm2": float(res["EI_Nmm2"].value),
+                    "load_x_mm": a}
+
+
+def _coupling(steps, robot, est, twin, figs, n_mc):
+    from calib.estimators.coupling import coupling_factor, quantisation_sigma
+    if not steps:
+        return
+    runs: dict[tuple, dict] = {}
+    for st in steps:
+        m = st["spec"]["meta"]
+        if st.get("counts") is None or len(st["counts"]) == 0:
+            continue
+        runs.setdefault((m["j"], m["k"]), {})[m["phase"]] = np.mean(st["counts"], 0)
+    figs["coupling"] = {}
+    for (j, k), ph in sorted(runs.items()):
+        if not all(p in ph for p in ("start", "alone", "return", "with")):
+            continue
+        S = 2 * np.pi / (robot.counts_per_rev * robot.gear_ratio)       # joint rad per count, coupling ignored
+        enc = lambda c: c * S                                            # noqa: E731 (S_k xi_k of eq 4.7.1)
+        th_alone = enc(ph["alone"] - ph["start"])[k - 1]
+        th_with = enc(ph["with"] - ph["return"])[k - 1]
+        th_j = robot.joint_from_counts(ph["with"])[j - 1] - robot.joint_from_counts(ph["return"])[j - 1]
+        q = quantisation_sigma(abs(S[k - 1]))
+        res = coupling_factor(th_with, th_alone, th_j, q * np.sqrt(2), name=f"sigma{j}{k}", n_mc=n_mc)
+        tv = {f"sigma{j}{k}": float(robot.coupling[k - 1, j - 1])} if twin is not None else {}
+        est.add_set("coupling.", res, tv)
+        figs["coupling"][f"{j}{k}"] = {"theta_j_deg": th_j / DEG, "theta_k_alone_deg": th_alone / DEG,
+                                       "theta_k_with_deg": th_with / DEG, "sigma": float(res.value[0])}

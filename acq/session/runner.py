@@ -1,0 +1,283 @@
+"""The session runner: drives the procedures' steps against the rig, checks, asks the operator, stores.
+
+API for front ends (the headless one in :mod:`acq.session.headless`, the Textual TUI of issue 7)
+=================================================================================================
+
+Build: ``runner = Runner(store, rig, steps, operator, bench=ManualBench(), stations=..., model=..., limits=...)``
+(:func:`acq.session.demo.build_demo` shows a complete wiring).  Then either ``runner.run()`` (blocking, in the
+calling thread) or ``runner.start()`` (a worker thread; ``runner.join()``).  All device I/O happens in the runner's
+thread, never in the UI thread.
+
+**Events** (runner -> UI): ``runner.subscribe(callback)`` registers ``callback(event)``; it is called *in the runner
+thread*, so a Textual app should forward with ``app.post_message(...)`` (``call_from_thread`` is fine too).  A
+subscriber exception is logged and ignored.  For polling UIs, ``runner.events`` is a ``queue.Queue`` of the same
+objects.  Every event is an :class:`Event` with ``kind`` and ``data`` (a JSON-able dict):
+
+=====================  ==================================================================================
+kind                   data
+=====================  ==================================================================================
+``state``              ``{"old", "new"}``; states: idle, running, waiting (for the operator), paused, finished,
+                       aborted, failed
+``session``            ``{"guid", "path", "resumed", "done", "total"}`` once at start
+``step_started``       ``{"key", "procedure", "title", "instruction", "index", "total", "attempt", "pose_deg",
+                       "targets", "inputs"}``
+``step_skipped_done``  ``{"key"}``: already committed in an earlier run (resume)
+``reading``            ``{"key", "station", "target", "face", "repeat", "hz_deg", "v_deg"}``
+``encoders``           ``{"key", "n_samples", "joint_deg"}``
+``check``              ``{"key", "name", "passed", "value", "limit", "unit", "message"}``
+``step_saved``         ``{"key", "status", "attempts"}``: committed to the database (show "saved" only now)
+``log``                ``{"text"}``
+``finished``           ``{"exit_status", "error"}``
+=====================  ==================================================================================
+
+**Answers** (UI -> runner): the runner calls ``operator.ask(request) -> Answer`` in its thread and blocks until it
+returns; a UI implements ``ask`` by posting the request to the app and waiting on a ``concurrent.futures.Future`` the
+app completes (``ask`` should return ``Answer("abort")`` if the app closes).  :class:`Request` has ``kind``:
+
+* ``"setup"``: before a step's acquisition -- do what ``instruction`` says and enter ``inputs`` (loads, gauges);
+  answer ``continue`` (with ``values``), ``skip``, ``pause`` or ``abort``;
+* ``"decision"``: after the checks (``checks`` lists them) -- answer ``accept``, ``repeat``, ``skip``, ``pause``,
+  ``abort``; ``note`` is stored with the step.
+
+``pause`` leaves the step uncommitted and ends :meth:`Runner.run` with state ``paused`` (session ``exit_status``
+'paused'); calling ``run()`` again (or a new runner on the same database) resumes at the first step not committed.
+``runner.request_pause()`` (any thread) pauses at the next step boundary; ``runner.request_abort()`` aborts there.
+A crash is the same as a pause without the status: the next run resumes after the last committed step.
+"""
+from __future__ import annotations
+
+import logging
+import queue
+import threading
+import time
+import traceback
+from dataclasses import dataclass, field
+from typing import Callable, Protocol
+
+import numpy as np
+
+from calib.units import DEG
+
+from . import checks as ck
+from .rig import Bench, ManualBench, Rig
+from .steps import Step
+from .store import SessionStore, StepRecord
+
+log = logging.getLogger(__name__)
+
+ACTIONS_SETUP = ("continue", "skip", "pause", "abort")
+ACTIONS_DECISION = ("accept", "repeat", "skip", "pause", "abort")
+
+
+@dataclass
+class Event:
+    kind: str
+    data: dict
+
+
+@dataclass
+class Request:
+    kind: str                      # setup | decision
+    step: Step
+    attempt: int
+    choices: tuple[str, ...]
+    checks: list = field(default_factory=list)      # list[checks.Check] for decisions
+
+
+@dataclass
+class Answer:
+    action: str
+    values: dict = field(default_factory=dict)      # operator inputs by InputSpec.name
+    note: str = ""
+
+
+class Operator(Protocol):
+    def ask(self, request: Request) -> Answer: ...
+
+
+class Runner:
+    def __init__(self, store: SessionStore, rig: Rig, steps: list[Step], operator: Operator, *,
+                 bench: Bench | None = None, stations: dict | None = None,
+                 predict: Callable[[Step], dict] | None = None, limits: dict | None = None,
+                 capture_s: float = 0.02, settle_s: float = 0.0):
+        self.store = store
+        self.rig = rig
+        self.steps = steps
+        self.operator = operator
+        self.bench = bench or ManualBench()
+        self.stations = stations or {}
+        self.predict = predict
+        self.limits = {**ck.DEFAULT_LIMITS, **(limits or {})}
+        self.capture_s = capture_s
+        self.settle_s = settle_s
+        self.events: queue.Queue = queue.Queue()
+        self.state = "idle"
+        self._subs: list[Callable[[Event], None]] = []
+        self._pause = threading.Event()
+        self._abort = threading.Event()
+        self._thread: threading.Thread | None = None
+
+    # -- wiring ------------------------------------------------------------------------------------------------
+    def subscribe(self, cb: Callable[[Event], None]) -> None:
+        self._subs.append(cb)
+
+    def emit(self, kind: str, **data) -> None:
+        ev = Event(kind, data)
+        self.events.put(ev)
+        for cb in list(self._subs):
+            try:
+                cb(ev)
+            except Exception:          # a UI bug must not stop acquisition
+                log.exception("event subscriber failed")
+
+    def _set_state(self, new: str) -> None:
+        old, self.state = self.state, new
+        self.emit("state", old=old, new=new)
+
+    def request_pause(self) -> None:
+        self._pause.set()
+
+    def request_abort(self) -> None:
+        self._abort.set()
+
+    def start(self) -> threading.Thread:
+        self._thread = threading.Thread(target=self.run, name="session-runner", daemon=True)
+        self._thread.start()
+        return self._thread
+
+    def join(self, timeout: float | None = None) -> None:
+        if self._thread is not None:
+            self._thread.join(timeout)
+
+    # -- the loop ----------------------------------------------------------------------------------------------
+    def run(self) -> str:
+        """Run every step not yet committed; returns the final state (finished, paused, aborted, failed)."""
+        self._pause.clear()
+        done = self.store.done_keys()
+        row = self.store.session_row()
+        resumed = bool(done) or row["exit_status"] is not None
+        if row["exit_status"] is not None or done:
+            self.store.reopen()
+        self._set_state("running")
+        self.emit("session", guid=self.store.guid, path=self.store.path, resumed=resumed, done=len(done),
+                  total=len(self.steps))
+        try:
+            for i, step in enumerate(self.steps):
+                if step.key in done:
+                    self.emit("step_skipped_done", key=step.key)
+                    continue
+                if self._abort.is_set():
+                    return self._end("aborted", "abort", "aborted by request")
+                if self._pause.is_set():
+                    return self._end("paused", "paused", None)
+                outcome = self._run_step(i, step)
+                if outcome in ("pause", "abort"):
+                    return self._end("paused" if outcome == "pause" else "aborted",
+                                     "paused" if outcome == "pause" else "abort", None)
+            return self._end("finished", "success", None)
+        except Exception as exc:
+            self.emit("log", text=traceback.format_exc())
+            return self._end("failed", "fail", f"{type(exc).__name__}: {exc}")
+
+    def _end(self, state: str, exit_status: str, error: str | None) -> str:
+        self.store.finish(exit_status, error)
+        self._set_state(state)
+        self.emit("finished", exit_status=exit_status, error=error)
+        return state
+
+    def _run_step(self, index: int, step: Step) -> str:
+        started = time.time()
+        attempt = 0
+        readings: list[dict] = []
+        chunks: list[dict] = []
+        inputs: list[dict] = []
+        checks_rows: list[dict] = []
+        note = ""
+        while True:
+            attempt += 1
+            self.emit("step_started", key=step.key, procedure=step.procedure, title=step.title,
+                      instruction=step.instruction, index=index, total=len(self.steps), attempt=attempt,
+                      pose_deg=step.pose_deg, targets=[t.name for t in step.targets],
+                      inputs=[i.name for i in step.inputs])
+            self._set_state("waiting")
+            ans = self.operator.ask(Request("setup", step, attempt, ACTIONS_SETUP))
+            self._set_state("running")
+            if ans.action in ("pause", "abort"):
+                return ans.action
+            if ans.action == "skip":
+                status = "skipped"
+                note = ans.note
+                break
+            values = {i.name: float(ans.values[i.name]) for i in step.inputs if i.name in ans.values}
+            for spec in step.inputs:
+                if spec.name in values:
+                    inputs.append({"attempt": attempt, "name": spec.name, "value": values[spec.name],
+                                   "unit": spec.unit, "t_wall_s": time.time()})
+            if ans.note:
+                inputs.append({"attempt": attempt, "name": "note", "value": None, "text": ans.note,
+                               "t_wall_s": time.time()})
+            self.bench.prepare(step, values)
+            got, cap = self._acquire(step, attempt)
+            readings += got
+            if cap is not None:
+                chunks.append({"attempt": attempt, "device_id": self.rig.device_ids.get("encoder tap", 0),
+                               "phase": "settle", "seq": cap.seq, "t_device_us": cap.t_device_us,
+                               "t_mono_s": cap.t_mono_s, "counts_wire": cap.counts_wire, "counts": cap.counts})
+            results = self._check(step, got, cap)
+            checks_rows += [c.as_row(attempt) for c in results]
+            self._set_state("waiting")
+            ans = self.operator.ask(Request("decision", step, attempt, ACTIONS_DECISION, results))
+            self._set_state("running")
+            if ans.action in ("pause", "abort"):
+                return ans.action
+            if ans.action == "repeat":
+                continue
+            status = "skipped" if ans.action == "skip" else "accepted"
+            note = ans.note
+            break
+        rec = StepRecord(step.key, step.procedure, step.title, step.instruction, status, attempt, started,
+                         time.time(), step.spec(), note, readings, chunks, inputs, checks_rows)
+        self.store.write_step(rec)
+        self.emit("step_saved", key=step.key, status=status, attempts=attempt)
+        return status
+
+    def _acquire(self, step: Step, attempt: int):
+        cap = None
+        if step.encoders and self.rig.tap is not None:
+            cap = self.rig.capture(self.capture_s, self.settle_s)
+            jd = np.mean(cap.joint_rad, 0) / DEG if cap.n else []
+            self.emit("encoders", key=step.key, n_samples=cap.n, joint_deg=[float(v) for v in jd])
+        rows = []
+        for tg in step.targets:
+            self.bench.aim(tg)
+            for rep in range(step.repeats):
+                for face in step.faces:
+                    for st in ("A", "B"):
+                        self.rig.face(st, face)
+                        r = self.rig.sight(st)
+                        rows.append({"attempt": attempt, "device_id": self.rig.device_ids.get(f"theodolite {st}", 0),
+                                     "station": st, "target": tg.name, "face": face, "repeat": rep,
+                                     "hz_rad": r.hz_rad, "v_rad": r.v_rad, "t_wall_s": r.t_wall,
+                                     "t_mono_s": r.t_mono, "command": r.command, "warnings": ",".join(r.warnings),
+                                     "raw": r.raw})
+                        self.emit("reading", key=step.key, station=st, target=tg.name, face=face, repeat=rep,
+                                  hz_deg=r.hz_rad / DEG, v_deg=r.v_rad / DEG)
+        for st in ("A", "B"):
+            if st in self.rig.theodolites and step.faces:
+                self.rig.face(st, 1)
+        return rows, cap
+
+    def _check(self, step: Step, rows: list[dict], cap) -> list[ck.Check]:
+        out: list[ck.Check] = []
+        if rows:
+            out += ck.face_agreement(rows, self.limits["face_agreement_arcsec"])
+            out += ck.repeat_spread(rows, self.limits["repeat_spread_arcsec"])
+            if self.stations:
+                pred = self.predict(step) if self.predict else {}
+                out += ck.miss_and_plausibility(rows, self.stations, pred, self.limits)
+        if cap is not None:
+            out += ck.encoders_settled(cap, step.pose_deg, self.limits)
+        for c in out:
+            self.emit("check", key=step.key, name=c.name, passed=c.passed, value=c.value, limit=c.limit, unit=c.unit,
+                      message=c.message)
+        return out

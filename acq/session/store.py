@@ -1,0 +1,452 @@
+"""The session database: one SQLite file per session, fixed versioned schema, WAL, committed at every step.
+
+Why this shape (see /work/shared/reference/acquisition-style.md §7.5): long, narrow, fixed tables (no table per
+session, no dynamic columns); ``PRAGMA user_version`` is the schema version and ``MIGRATIONS[v]`` upgrades v-1 -> v
+atomically; ``PRAGMA application_id`` marks the file as robocal's, so a foreign SQLite file is refused instead of
+being "migrated".  A file newer than this code is refused (its meaning is unknown to us).
+
+Durability: ``synchronous=FULL`` + WAL.  The runner writes a whole step (its row, every raw reading of every attempt,
+the encoder stream chunks, operator inputs and check results) in **one transaction** when the operator decides
+(accept or skip), so a crash loses at most the step in progress and never leaves half a step.  Raw rows are
+insert-only: calibration results go to ``result`` with provenance and never update raw tables.
+
+Units: every column that carries a physical quantity names its unit (``hz_rad``, ``t_wall_s``, ``value`` with a
+``unit`` column beside it for operator inputs).
+"""
+from __future__ import annotations
+
+import io
+import json
+import os
+import sqlite3
+import time
+import uuid
+from contextlib import contextmanager
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Callable, Iterator
+
+import numpy as np
+
+from calib.errors import RobocalError
+
+APPLICATION_ID = 0x52424331          # "RBC1"
+SCHEMA_VERSION = 2
+
+_V1 = """
+CREATE TABLE session (
+  session_id      INTEGER PRIMARY KEY,
+  guid            TEXT NOT NULL UNIQUE,
+  title           TEXT NOT NULL,
+  operator        TEXT NOT NULL DEFAULT '',
+  app_version     TEXT NOT NULL,
+  created_unix_s  REAL NOT NULL,
+  ended_unix_s    REAL,
+  exit_status     TEXT CHECK (exit_status IN ('success', 'abort', 'fail', 'paused')),
+  error           TEXT,
+  plan_json       TEXT NOT NULL,        -- procedures and their parameters (what the steps were generated from)
+  setup_json      TEXT NOT NULL,        -- setup geometry: robot description, ruler, tool targets, gauges
+  metadata_json   TEXT NOT NULL DEFAULT '{}'
+);
+CREATE TABLE device (
+  device_id       INTEGER PRIMARY KEY,
+  session_id      INTEGER NOT NULL REFERENCES session,
+  role            TEXT NOT NULL,        -- theodolite A, theodolite B, encoder tap
+  driver          TEXT NOT NULL,
+  url             TEXT NOT NULL,
+  identity_json   TEXT NOT NULL,
+  settings_json   TEXT NOT NULL DEFAULT '{}',
+  opened_unix_s   REAL NOT NULL
+);
+CREATE TABLE step (
+  step_id         INTEGER PRIMARY KEY,
+  session_id      INTEGER NOT NULL REFERENCES session,
+  seq             INTEGER NOT NULL,
+  key             TEXT NOT NULL,        -- stable across resumes: procedure/joint/index
+  procedure       TEXT NOT NULL,
+  title           TEXT NOT NULL,
+  instruction     TEXT NOT NULL,
+  status          TEXT NOT NULL CHECK (status IN ('accepted', 'skipped')),
+  attempts        INTEGER NOT NULL,     -- attempts made (the accepted one is the last)
+  started_unix_s  REAL NOT NULL,
+  ended_unix_s    REAL NOT NULL,
+  spec_json       TEXT NOT NULL,        -- the step as generated: pose (deg), targets, loads, gauges
+  note            TEXT NOT NULL DEFAULT '',
+  UNIQUE (session_id, key), UNIQUE (session_id, seq)
+);
+CREATE TABLE reading (
+  reading_id      INTEGER PRIMARY KEY,
+  step_id         INTEGER NOT NULL REFERENCES step,
+  attempt         INTEGER NOT NULL,
+  device_id       INTEGER NOT NULL REFERENCES device,
+  station         TEXT NOT NULL,
+  target          TEXT NOT NULL,
+  face            INTEGER NOT NULL,
+  repeat          INTEGER NOT NULL,
+  hz_rad          REAL NOT NULL,
+  v_rad           REAL NOT NULL,
+  t_wall_s        REAL NOT NULL,
+  t_mono_s        REAL NOT NULL,
+  command         TEXT NOT NULL,
+  warnings        TEXT NOT NULL DEFAULT '',
+  raw             BLOB NOT NULL         -- the exact reply frame
+);
+CREATE INDEX reading_by_step ON reading(step_id, attempt);
+CREATE TABLE encoder_chunk (
+  chunk_id        INTEGER PRIMARY KEY,
+  step_id         INTEGER NOT NULL REFERENCES step,
+  attempt         INTEGER NOT NULL,
+  device_id       INTEGER NOT NULL REFERENCES device,
+  phase           TEXT NOT NULL DEFAULT 'settle',
+  n_samples       INTEGER NOT NULL,
+  t0_mono_s       REAL NOT NULL,
+  seq             BLOB NOT NULL,        -- npy int64 (n,)
+  t_device_us     BLOB NOT NULL,        -- npy int64 (n,)
+  t_mono_s        BLOB NOT NULL,        -- npy float64 (n,)
+  counts_wire     BLOB NOT NULL,        -- npy int64 (n, joints): exactly as received
+  counts          BLOB NOT NULL         -- npy int64 (n, joints): unwrapped
+);
+CREATE INDEX chunk_by_step ON encoder_chunk(step_id, attempt);
+CREATE TABLE operator_input (
+  input_id        INTEGER PRIMARY KEY,
+  step_id         INTEGER NOT NULL REFERENCES step,
+  attempt         INTEGER NOT NULL,
+  name            TEXT NOT NULL,
+  value           REAL,
+  unit            TEXT NOT NULL DEFAULT '',
+  text            TEXT NOT NULL DEFAULT '',
+  t_wall_s        REAL NOT NULL
+);
+CREATE TABLE check_result (
+  check_id        INTEGER PRIMARY KEY,
+  step_id         INTEGER NOT NULL REFERENCES step,
+  attempt         INTEGER NOT NULL,
+  name            TEXT NOT NULL,
+  passed          INTEGER NOT NULL,
+  value           REAL,
+  limit_value     REAL,
+  unit            TEXT NOT NULL DEFAULT '',
+  message         TEXT NOT NULL
+);
+CREATE TABLE result (
+  result_id       INTEGER PRIMARY KEY,
+  guid            TEXT NOT NULL UNIQUE,
+  session_guid    TEXT NOT NULL,
+  created_unix_s  REAL NOT NULL,
+  code_version    TEXT NOT NULL,
+  algorithm       TEXT NOT NULL,
+  params_json     TEXT NOT NULL,
+  result_json     TEXT NOT NULL
+);
+"""
+
+_V2 = """
+CREATE TABLE event_log (
+  event_id        INTEGER PRIMARY KEY,
+  session_id      INTEGER NOT NULL REFERENCES session,
+  t_wall_s        REAL NOT NULL,
+  kind            TEXT NOT NULL,        -- started, resumed, paused, finished, aborted
+  detail          TEXT NOT NULL DEFAULT ''
+);
+CREATE INDEX step_by_procedure ON step(session_id, procedure);
+"""
+
+
+def _script(sql: str) -> Callable[[sqlite3.Connection], None]:
+    def up(conn: sqlite3.Connection) -> None:
+        buf = ""
+        for line in sql.splitlines(keepends=True):
+            buf += line
+            if sqlite3.complete_statement(buf):
+                conn.execute(buf)
+                buf = ""
+        if buf.strip():
+            raise StoreError(f"migration script ends with an incomplete statement: {buf[:60]!r}")
+    return up
+
+
+#: version -> upgrade from version - 1 (run inside one transaction each)
+MIGRATIONS: dict[int, Callable[[sqlite3.Connection], None]] = {1: _script(_V1), 2: _script(_V2)}
+
+
+class StoreError(RobocalError):
+    """The file is not a robocal session database this code can open."""
+
+
+def code_version() -> str:
+    try:
+        from importlib.metadata import version
+        return version("robocal")
+    except Exception:          # pragma: no cover - running from a source tree without metadata
+        return "0+unknown"
+
+
+# -- npy blobs ---------------------------------------------------------------------------------------------------
+def to_npy(a: np.ndarray) -> bytes:
+    buf = io.BytesIO()
+    np.save(buf, np.asarray(a), allow_pickle=False)
+    return buf.getvalue()
+
+
+def from_npy(b: bytes) -> np.ndarray:
+    return np.load(io.BytesIO(b), allow_pickle=False)
+
+
+# -- opening -----------------------------------------------------------------------------------------------------
+def _probe(conn: sqlite3.Connection, path: str) -> tuple[int, int]:
+    try:
+        app = conn.execute("PRAGMA application_id").fetchone()[0]
+        ver = conn.execute("PRAGMA user_version").fetchone()[0]
+        tables = conn.execute("SELECT count(*) FROM sqlite_master").fetchone()[0]
+    except sqlite3.DatabaseError as exc:
+        raise StoreError(f"{path}: not a robocal session database ({exc})") from None
+    if app != APPLICATION_ID and (tables or ver):
+        raise StoreError(f"{path}: not a robocal session database (SQLite file of another application)")
+    if ver > SCHEMA_VERSION:
+        raise StoreError(f"{path}: made by a newer robocal (schema version {ver}; this one reads up to "
+                         f"{SCHEMA_VERSION}); upgrade robocal to open it")
+    return app, ver
+
+
+def migrate(conn: sqlite3.Connection, target: int = SCHEMA_VERSION) -> int:
+    """Upgrade the schema to ``target`` one version at a time, each in its own transaction; returns the version."""
+    ver = conn.execute("PRAGMA user_version").fetchone()[0]
+    while ver < target:
+        nxt = ver + 1
+        conn.execute("BEGIN IMMEDIATE")
+        try:
+            MIGRATIONS[nxt](conn)
+            conn.execute(f"PRAGMA application_id = {APPLICATION_ID}")
+            conn.execute(f"PRAGMA user_version = {nxt}")
+            conn.execute("COMMIT")
+        except BaseException:
+            conn.execute("ROLLBACK")
+            raise
+        ver = nxt
+    return ver
+
+
+def connect(path: str | Path, *, create: bool = False, target_version: int = SCHEMA_VERSION) -> sqlite3.Connection:
+    """A read-write connection (WAL, foreign keys, synchronous FULL), migrated to ``target_version``."""
+    p = str(path)
+    if not create and not os.path.exists(p):
+        raise StoreError(f"{p}: no such session database")
+    conn = sqlite3.connect(p, isolation_level=None, timeout=10.0, check_same_thread=False)
+    try:
+        _probe(conn, p)
+        conn.execute("PRAGMA journal_mode=WAL")
+        conn.execute("PRAGMA synchronous=FULL")
+        conn.execute("PRAGMA foreign_keys=ON")
+        conn.execute("PRAGMA busy_timeout=10000")
+        migrate(conn, target_version)
+        ok = conn.execute("PRAGMA quick_check").fetchone()[0]
+        if ok != "ok":
+            raise StoreError(f"{p}: database is damaged ({ok})")
+    except sqlite3.DatabaseError as exc:
+        conn.close()
+        raise StoreError(f"{p}: not a robocal session database ({exc})") from None
+    except BaseException:
+        conn.close()
+        raise
+    return conn
+
+
+def connect_readonly(path: str | Path) -> sqlite3.Connection:
+    """Read-only connection (``mode=ro`` URI): reprocessing can never modify raw data."""
+    p = str(path)
+    if not os.path.exists(p):
+        raise StoreError(f"{p}: no such session database")
+    uri = Path(p).resolve().as_uri() + "?mode=ro"
+    try:
+        conn = sqlite3.connect(uri, uri=True, isolation_level=None, check_same_thread=False)
+        _, ver = _probe(conn, p)
+        if ver < SCHEMA_VERSION:
+            conn.close()
+            raise StoreError(f"{p}: schema version {ver} is older than {SCHEMA_VERSION}; open it once with "
+                             f"'robocal demo --resume --db {p}' or any read-write command to upgrade it")
+        ok = conn.execute("PRAGMA quick_check").fetchone()[0]
+    except sqlite3.DatabaseError as exc:
+        raise StoreError(f"{p}: not a robocal session database ({exc})") from None
+    if ok != "ok":
+        conn.close()
+        raise StoreError(f"{p}: database is damaged ({ok})")
+    return conn
+
+
+@contextmanager
+def atomic(conn: sqlite3.Connection) -> Iterator[sqlite3.Connection]:
+    """One write transaction (BEGIN IMMEDIATE so busy_timeout applies); rolled back on any exception."""
+    conn.execute("BEGIN IMMEDIATE")
+    try:
+        yield conn
+    except BaseException:
+        conn.execute("ROLLBACK")
+        raise
+    conn.execute("COMMIT")
+
+
+# -- the writer ------------------------------------------------------------------------------------------------
+@dataclass
+class StepRecord:
+    """Everything one step produced, written in one transaction."""
+
+    key: str
+    procedure: str
+    title: str
+    instruction: str
+    status: str                                  # accepted | skipped
+    attempts: int
+    started_unix_s: float
+    ended_unix_s: float
+    spec: dict
+    note: str = ""
+    readings: list[dict] | None = None           # keys: attempt, device_id, station, target, face, repeat, hz_rad...
+    chunks: list[dict] | None = None             # keys: attempt, device_id, phase, arrays
+    inputs: list[dict] | None = None             # keys: attempt, name, value, unit, text, t_wall_s
+    checks: list[dict] | None = None             # keys: attempt, name, passed, value, limit_value, unit, message
+
+
+class SessionStore:
+    """Read-write access to one session database (the runner's single writer)."""
+
+    def __init__(self, conn: sqlite3.Connection, path: str):
+        self.conn = conn
+        self.path = path
+        row = conn.execute("SELECT session_id, guid FROM session ORDER BY session_id LIMIT 1").fetchone()
+        self.session_id: int | None = row[0] if row else None
+        self.guid: str | None = row[1] if row else None
+
+    @classmethod
+    def create(cls, path: str | Path, title: str, plan: dict, setup: dict, operator: str = "",
+               metadata: dict | None = None) -> "SessionStore":
+        p = str(path)
+        conn = connect(p, create=True)
+        st = cls(conn, p)
+        if st.session_id is not None:           # (a file left by a crash during creation holds no session: reuse)
+            conn.close()
+            raise StoreError(f"{p}: exists already; use --resume to continue it or choose another --db")
+        with atomic(conn):
+            cur = conn.execute(
+                "INSERT INTO session (guid, title, operator, app_version, created_unix_s, plan_json, setup_json, "
+                "metadata_json) VALUES (?, ?, ?, ?, ?, ?, ?, ?)",
+                (str(uuid.uuid4()), title, operator, code_version(), time.time(), json.dumps(plan),
+                 json.dumps(setup), json.dumps(metadata or {})))
+            st.session_id = cur.lastrowid
+            conn.execute("INSERT INTO event_log (session_id, t_wall_s, kind) VALUES (?, ?, 'started')",
+                         (st.session_id, time.time()))
+        st.guid = conn.execute("SELECT guid FROM session WHERE session_id=?", (st.session_id,)).fetchone()[0]
+        return st
+
+    @classmethod
+    def open(cls, path: str | Path) -> "SessionStore":
+        p = str(path)
+        conn = connect(p)
+        st = cls(conn, p)
+        if st.session_id is None:
+            conn.close()
+            raise StoreError(f"{p}: holds no session")
+        return st
+
+    def close(self) -> None:
+        self.conn.close()
+
+    # -- reads used by the runner ----------------------------------------------------------------------------------
+    def session_row(self) -> dict:
+        cur = self.conn.execute("SELECT * FROM session WHERE session_id=?", (self.session_id,))
+        return dict(zip([d[0] for d in cur.description], cur.fetchone()))
+
+    def done_keys(self) -> set[str]:
+        return {r[0] for r in self.conn.execute("SELECT key FROM step WHERE session_id=?", (self.session_id,))}
+
+    def next_seq(self) -> int:
+        return self.conn.execute("SELECT coalesce(max(seq), 0) + 1 FROM step WHERE session_id=?",
+                                 (self.session_id,)).fetchone()[0]
+
+    # -- writes ------------------------------------------------------------------------------------------------
+    def log(self, kind: str, detail: str = "") -> None:
+        with atomic(self.conn):
+            self.conn.execute("INSERT INTO event_log (session_id, t_wall_s, kind, detail) VALUES (?, ?, ?, ?)",
+                              (self.session_id, time.time(), kind, detail))
+
+    def add_device(self, role: str, driver: str, url: str, identity: dict, settings: dict | None = None) -> int:
+        with atomic(self.conn):
+            cur = self.conn.execute(
+                "INSERT INTO device (session_id, role, driver, url, identity_json, settings_json, opened_unix_s) "
+                "VALUES (?, ?, ?, ?, ?, ?, ?)",
+                (self.session_id, role, driver, url, json.dumps(identity), json.dumps(settings or {}), time.time()))
+            return cur.lastrowid
+
+    def write_step(self, rec: StepRecord) -> int:
+        """The step and everything it produced, atomically (the runner's commit point)."""
+        c = self.conn
+        with atomic(c):
+            seq = self.next_seq()
+            cur = c.execute(
+                "INSERT INTO step (session_id, seq, key, procedure, title, instruction, status, attempts, "
+                "started_unix_s, ended_unix_s, spec_json, note) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)",
+                (self.session_id, seq, rec.key, rec.procedure, rec.title, rec.instruction, rec.status, rec.attempts,
+                 rec.started_unix_s, rec.ended_unix_s, json.dumps(rec.spec), rec.note))
+            sid = cur.lastrowid
+            if rec.readings:
+                c.executemany(
+                    "INSERT INTO reading (step_id, attempt, device_id, station, target, face, repeat, hz_rad, v_rad,"
+                    " t_wall_s, t_mono_s, command, warnings, raw) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)",
+                    [(sid, r["attempt"], r["device_id"], r["station"], r["target"], r["face"], r["repeat"],
+                      r["hz_rad"], r["v_rad"], r["t_wall_s"], r["t_mono_s"], r["command"], r.get("warnings", ""),
+                      r["raw"]) for r in rec.readings])
+            for ch in rec.chunks or ():
+                self._chunk(sid, ch)
+            if rec.inputs:
+                c.executemany(
+                    "INSERT INTO operator_input (step_id, attempt, name, value, unit, text, t_wall_s) "
+                    "VALUES (?, ?, ?, ?, ?, ?, ?)",
+                    [(sid, i["attempt"], i["name"], i.get("value"), i.get("unit", ""), i.get("text", ""),
+                      i.get("t_wall_s", time.time())) for i in rec.inputs])
+            if rec.checks:
+                c.executemany(
+                    "INSERT INTO check_result (step_id, attempt, name, passed, value, limit_value, unit, message) "
+                    "VALUES (?, ?, ?, ?, ?, ?, ?, ?)",
+                    [(sid, k["attempt"], k["name"], int(bool(k["passed"])), k.get("value"), k.get("limit_value"),
+                      k.get("unit", ""), k["message"]) for k in rec.checks])
+        return sid
+
+    def _chunk(self, step_id: int, ch: dict) -> None:
+        n = int(len(ch["seq"]))
+        self.conn.execute(
+            "INSERT INTO encoder_chunk (step_id, attempt, device_id, phase, n_samples, t0_mono_s, seq, t_device_us, "
+            "t_mono_s, counts_wire, counts) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)",
+            (step_id, ch["attempt"], ch["device_id"], ch.get("phase", "settle"), n,
+             float(ch["t_mono_s"][0]) if n else 0.0,
+             to_npy(np.asarray(ch["seq"], np.int64)), to_npy(np.asarray(ch["t_device_us"], np.int64)),
+             to_npy(np.asarray(ch["t_mono_s"], float)), to_npy(np.asarray(ch["counts_wire"], np.int64)),
+             to_npy(np.asarray(ch["counts"], np.int64))))
+
+    def finish(self, exit_status: str, error: str | None = None) -> None:
+        with atomic(self.conn):
+            self.conn.execute("UPDATE session SET exit_status=?, error=?, ended_unix_s=? WHERE session_id=?",
+                              (exit_status, error, time.time(), self.session_id))
+            self.conn.execute("INSERT INTO event_log (session_id, t_wall_s, kind, detail) VALUES (?, ?, ?, ?)",
+                              (self.session_id, time.time(), exit_status, error or ""))
+
+    def reopen(self) -> None:
+        """Mark a paused or crashed session as running again (exit_status NULL)."""
+        with atomic(self.conn):
+            self.conn.execute("UPDATE session SET exit_status=NULL, error=NULL, ended_unix_s=NULL WHERE session_id=?",
+                              (self.session_id,))
+            self.conn.execute("INSERT INTO event_log (session_id, t_wall_s, kind) VALUES (?, ?, 'resumed')",
+                              (self.session_id, time.time()))
+
+
+def save_result(path: str | Path, session_guid: str, algorithm: str, params: dict, result: dict) -> str:
+    """Append a calibration result with provenance (a separate write; raw tables are not touched)."""
+    conn = connect(path)
+    try:
+        g = str(uuid.uuid4())
+        with atomic(conn):
+            conn.execute("INSERT INTO result (guid, session_guid, created_unix_s, code_version, algorithm, "
+                         "params_json, result_json) VALUES (?, ?, ?, ?, ?, ?, ?)",
+                         (g, session_guid, time.time(), code_version(), algorithm, json.dumps(params),
+                          json.dumps(result)))
+        return g
+    finally:
+        conn.close()
