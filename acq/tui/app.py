@@ -1,0 +1,454 @@
+"""The Textual TUI that guides the operator through a calibration session.
+
+A second front end of the one session runner (the headless one is :mod:`acq.session.headless`): the runner thread
+does all device I/O and storage; this app shows the plan, the current step's instructions and set-up diagram, the
+live readings, the checks, per-step results and a plot, and answers the runner's prompts from the keyboard.
+See :mod:`acq.tui.bridge` for how the two threads meet.
+"""
+from __future__ import annotations
+
+import threading
+import time
+from dataclasses import dataclass
+from typing import Callable
+
+import numpy as np
+from textual import on
+from textual.app import App, ComposeResult
+from textual.binding import Binding
+from textual.containers import Horizontal, Vertical, VerticalScroll
+from textual.screen import ModalScreen
+from textual.widgets import DataTable, Footer, Header, Input, Markdown, RichLog, Static, Tree
+from textual_plotext import PlotextPlot
+
+from acq.session.runner import Answer, Event, Runner
+
+from .bridge import LiveValues, OperatorPrompt, RunnerEvent, TuiOperator
+from .views import DIAGRAMS, StepData, plot_series
+
+HELP = """\
+# robocal session — keys
+
+| key | what it does |
+|---|---|
+| **c** | continue: the set-up of this step is done (enter the requested values first) |
+| **a** | accept the readings of this step (they are saved only then) |
+| **r** | repeat the step |
+| **s** | skip the step |
+| **p** | pause: the session stops after this step and resumes where it stopped |
+| **x** | abort the session (everything saved so far stays) |
+| **?** | this help |
+| **q** | quit (a step in progress is not saved; the session resumes later) |
+
+Checks: *face I / face II* — the two faces of a theodolite must agree; *spread* — repeat sightings must agree;
+*miss distance* — the sight lines from A and B must nearly meet; *encoders settled* — the robot must be still;
+*plausibility* — the point must be near where the robot model puts it.  A failed check: look at the message,
+repeat the step, or accept it anyway if you know why.
+"""
+
+
+class HelpScreen(ModalScreen[None]):
+    BINDINGS = [Binding("escape,question_mark,q", "dismiss", "close")]
+
+    def compose(self) -> ComposeResult:
+        yield VerticalScroll(Markdown(HELP), id="help")
+
+
+@dataclass
+class SessionHandle:
+    """What a builder returns: the runner, how to close the devices, and a title."""
+
+    runner: Runner
+    close: Callable[[], None]
+    title: str
+    db_path: str = ""
+    identities: list = None        # (role, driver, url, identity) read once by the builder, before the runner starts
+
+
+Builder = Callable[[TuiOperator], SessionHandle]
+
+STATUS_MARK = {"done": "✔", "accepted": "✔", "skipped": "↷", "current": "▶", "failed": "✗", "": "·"}
+
+
+class RobocalApp(App):
+    """``RobocalApp(builder)``: ``builder(operator)`` wires devices and the runner (emulated or real)."""
+
+    TITLE = "robocal session"
+    CSS = """
+    #body { height: 1fr; }
+    #plan { width: 34; border: round $primary; }
+    #middle { width: 1fr; }
+    #right { width: 44; }
+    #step { height: auto; min-height: 7; border: round $accent; padding: 0 1; }
+    #diagram { height: auto; color: $text-muted; padding: 0 1; }
+    #prompt { height: auto; padding: 0 1; background: $boost; }
+    #inputs { height: auto; }
+    #checks { height: 9; border: round $primary; }
+    #plot { height: 1fr; min-height: 10; border: round $primary; }
+    #live { height: auto; border: round $success; padding: 0 1; }
+    #devices { height: auto; border: round $primary; padding: 0 1; }
+    #log { height: 1fr; border: round $primary; }
+    #help { width: 80; height: 80%; border: thick $accent; background: $surface; }
+    HelpScreen { align: center middle; }
+    """
+    BINDINGS = [
+        Binding("c", "answer('continue')", "continue"),
+        Binding("a", "answer('accept')", "accept"),
+        Binding("r", "answer('repeat')", "repeat"),
+        Binding("s", "answer('skip')", "skip"),
+        Binding("p", "answer('pause')", "pause"),
+        Binding("x", "answer('abort')", "abort"),
+        Binding("question_mark", "help", "help"),
+        Binding("q", "quit", "quit"),
+    ]
+
+    def __init__(self, builder: Builder, live_hz: float = 10.0, clock: bool = True):
+        super().__init__()
+        self.clock = clock
+        self.builder = builder
+        self.live_hz = live_hz
+        self.operator = TuiOperator()
+        self.live = LiveValues()
+        self.handle: SessionHandle | None = None
+        self.pending: OperatorPrompt | None = None
+        self.steps_by_key: dict = {}
+        self.nodes: dict = {}
+        self.data: dict[str, StepData] = {}
+        self.current_key: str | None = None
+        self.finished: dict | None = None
+        self.state = "idle"
+        self.results: list[str] = []
+
+    # -- layout -------------------------------------------------------------------------------------------------
+    def compose(self) -> ComposeResult:
+        yield Header(show_clock=self.clock)
+        with Horizontal(id="body"):
+            yield Tree("plan", id="plan")
+            with Vertical(id="middle"):
+                yield Static("starting…", id="step")
+                yield Static("", id="diagram")
+                yield Static("", id="prompt")
+                yield Vertical(id="inputs")
+                yield DataTable(id="checks", cursor_type="row")
+                yield PlotextPlot(id="plot")
+            with Vertical(id="right"):
+                yield Static("no readings yet", id="live")
+                yield Static("", id="devices")
+                yield RichLog(id="log", wrap=True, markup=False)
+        yield Footer()
+
+    def on_mount(self) -> None:
+        table = self.query_one("#checks", DataTable)
+        table.add_columns("check", "result", "value", "limit", "reason")
+        self.operator.app = self
+        self.query_one("#step", Static).update("Connecting to the instruments…")
+        # opening devices does I/O: never in the UI thread
+        threading.Thread(target=self._connect, name="robocal-connect", daemon=True).start()
+
+    def _connect(self) -> None:
+        try:
+            handle = self.builder(self.operator)
+        except Exception as exc:                          # noqa: BLE001 - shown to the operator
+            self.call_from_thread(self._cannot_start, exc)
+            return
+        self.call_from_thread(self._session_ready, handle)
+
+    def _cannot_start(self, exc: Exception) -> None:
+        self.log_line(f"cannot start the session: {exc}")
+        self.query_one("#step", Static).update(
+            f"[b red]Cannot start the session[/]\n{exc}\n\nCheck that the instruments are connected and powered, "
+            f"and the URLs/ports. Press q to quit.")
+        self.finished = {"exit_status": "failed", "error": str(exc)}
+
+    def _session_ready(self, handle: "SessionHandle") -> None:
+        if self.operator.closed.is_set():                   # the app was closed while connecting
+            handle.close()
+            return
+        self.handle = handle
+        runner = handle.runner
+        self.sub_title = handle.title
+        self._build_plan(runner)
+        runner.subscribe(self._from_runner)                # called in the runner thread
+        runner.start()
+        self.set_interval(1.0 / self.live_hz, self._refresh_live)
+        self._refresh_devices()
+        self.set_interval(1.0, self._refresh_devices)
+
+    def _build_plan(self, runner: Runner) -> None:
+        tree = self.query_one("#plan", Tree)
+        tree.root.expand()
+        groups: dict[str, object] = {}
+        for step in runner.steps:
+            self.steps_by_key[step.key] = step
+            if step.procedure not in groups:
+                groups[step.procedure] = tree.root.add(step.procedure, expand=False)
+            self.nodes[step.key] = groups[step.procedure].add_leaf(f"· {step.title}", data=step.key)
+
+    # -- runner thread -> app -------------------------------------------------------------------------------------
+    def _from_runner(self, ev: Event) -> None:
+        if ev.kind == "reading":
+            self.live.put(f"theodolite {ev.data.get('station')}", ev.data)
+        elif ev.kind == "encoders":
+            self.live.put("encoders", ev.data)
+        self.post_message(RunnerEvent(ev))
+
+    @on(RunnerEvent)
+    def _on_event(self, message: RunnerEvent) -> None:
+        ev = message.event
+        d = ev.data
+        handler = getattr(self, f"_ev_{ev.kind}", None)
+        if handler is not None:
+            handler(d)
+
+    def _ev_state(self, d: dict) -> None:
+        self.state = d.get("new", "")
+        self.log_line(f"state: {d.get('old')} -> {d.get('new')}")
+
+    def _ev_session(self, d: dict) -> None:
+        resumed = " (resumed)" if d.get("resumed") else ""
+        self.log_line(f"session {d.get('guid', '')[:8]}{resumed}: {d.get('done')} of {d.get('total')} steps saved"
+                      f" — {d.get('path')}")
+
+    def _ev_step_skipped_done(self, d: dict) -> None:
+        self._mark(d["key"], "done")
+
+    def _ev_step_started(self, d: dict) -> None:
+        key = d["key"]
+        if self.current_key and self.current_key != key and self._status(self.current_key) == "current":
+            self._mark(self.current_key, "")
+        self.current_key = key
+        step = self.steps_by_key.get(key)
+        self.data[key] = StepData(key, d.get("procedure", ""), dict(step.meta) if step else {})
+        self._mark(key, "current")
+        node = self.nodes.get(key)
+        if node is not None:
+            node.parent.expand()
+            self.query_one("#plan", Tree).move_cursor(node)
+        pose = d.get("pose_deg")
+        pose_txt = ("\nrobot pose (deg): " + "  ".join(f"{v:.1f}" for v in pose)) if pose else ""
+        attempt = f"  (attempt {d.get('attempt')})" if d.get("attempt", 1) > 1 else ""
+        self.query_one("#step", Static).update(
+            f"[b]{d.get('title', key)}[/b]{attempt}   step {d.get('index', 0) + 1} of {d.get('total', '?')}\n"
+            f"{d.get('instruction', '')}{pose_txt}")
+        self.query_one("#diagram", Static).update(DIAGRAMS.get(d.get("procedure", ""), ""))
+        self.query_one("#checks", DataTable).clear()
+
+    def _ev_reading(self, d: dict) -> None:
+        sd = self.data.get(d.get("key"))
+        if sd is not None:
+            sd.readings.append((d.get("station"), d.get("target"), d.get("face"), np.radians(d["hz_deg"]),
+                                np.radians(d["v_deg"])))
+
+    def _ev_encoders(self, d: dict) -> None:
+        sd = self.data.get(d.get("key"))
+        if sd is not None and d.get("joint_deg") is not None:
+            sd.joint_deg = list(d["joint_deg"])
+
+    def _ev_check(self, d: dict) -> None:
+        sd = self.data.get(d.get("key"))
+        if sd is not None:
+            sd.checks.append(d)
+        ok = d.get("passed")
+        val = d.get("value")
+        lim = d.get("limit")
+        unit = d.get("unit") or ""
+        self.query_one("#checks", DataTable).add_row(
+            d.get("name", ""), "[green]pass[/]" if ok else "[b red]FAIL[/]",
+            "" if val is None else f"{val:.4g} {unit}", "" if lim is None else f"{lim:.4g} {unit}",
+            d.get("message", ""))
+
+    def _ev_step_saved(self, d: dict) -> None:
+        key = d["key"]
+        status = d.get("status", "accepted")
+        self._mark(key, "skipped" if status == "skipped" else "accepted")
+        sd = self.data.get(key)
+        if sd is not None:
+            sd.status = status
+            self._update_results(sd)
+            self._update_plot(sd.procedure)
+        self.log_line(f"saved {key}: {status}")
+
+    def _ev_log(self, d: dict) -> None:
+        self.log_line(d.get("text", ""))
+
+    def _ev_finished(self, d: dict) -> None:
+        self.finished = d
+        err = d.get("error")
+        status = d.get("exit_status")
+        where = self.handle.db_path if self.handle else ""
+        if err:
+            msg = (f"[b red]The session stopped: {err}[/]\nEverything saved so far is in {where}; fix the cause "
+                   f"(device connected? powered?) and start again to resume.")
+        elif status == "paused":
+            msg = f"[b]Paused.[/] Saved so far in {where}; start the session again to resume."
+        else:
+            msg = (f"[b green]Session {status}.[/] Data: {where}\n"
+                   f"Reprocess and report: robocal reprocess {where} --report report/ --json results.json")
+        self.query_one("#step", Static).update(msg + "\n\nPress q to quit.")
+        self.query_one("#prompt", Static).update("")
+
+    # -- prompts ------------------------------------------------------------------------------------------------------
+    @on(OperatorPrompt)
+    def _on_prompt(self, message: OperatorPrompt) -> None:
+        self.pending = message
+        req = message.request
+        keys = {"continue": "c", "accept": "a", "repeat": "r", "skip": "s", "pause": "p", "abort": "x"}
+        choices = "   ".join(f"[b]{keys[c]}[/] {c}" for c in req.choices if c in keys)
+        if req.kind == "decision":
+            failed = [c for c in req.checks if not getattr(c, "passed", True)]
+            head = (f"[b red]{len(failed)} check(s) failed[/] — repeat, or accept if you know why"
+                    if failed else "[green]all checks passed[/]")
+        else:
+            head = "Do what the step says, then continue"
+        self.query_one("#prompt", Static).update(f"{head}\n{choices}")
+        box = self.query_one("#inputs", Vertical)
+        box.remove_children()
+        if req.kind == "setup":
+            for spec in req.step.inputs:
+                value = "" if spec.suggested is None else f"{spec.suggested:g}"
+                box.mount(Static(f"{spec.prompt} ({spec.unit})"))
+                box.mount(Input(value=value, id=f"in-{spec.name}", placeholder=spec.unit))
+
+    def action_answer(self, action: str) -> None:
+        msg = self.pending
+        if msg is None or msg.future.done():
+            self.bell()
+            return
+        if action not in msg.request.choices:
+            self.notify(f"'{action}' is not possible now (choose: {', '.join(msg.request.choices)})", severity="warning")
+            return
+        values = {}
+        if action == "continue":
+            for spec in msg.request.step.inputs:
+                text = self.query_one(f"#in-{spec.name}", Input).value.strip()
+                try:
+                    values[spec.name] = float(text)
+                except ValueError:
+                    self.notify(f"{spec.prompt}: '{text}' is not a number ({spec.unit})", severity="error")
+                    return
+                if not np.isfinite(values[spec.name]):
+                    self.notify(f"{spec.prompt}: must be finite", severity="error")
+                    return
+            sd = self.data.get(msg.request.step.key)
+            if sd is not None:
+                sd.inputs.update(values)
+        self.pending = None
+        self.query_one("#prompt", Static).update(f"[dim]{action}…[/]")
+        self.query_one("#inputs", Vertical).remove_children()
+        msg.future.set_result(Answer(action, values))
+
+    def action_help(self) -> None:
+        self.push_screen(HelpScreen())
+
+    async def action_quit(self) -> None:
+        self._stop_session()
+        self.exit()
+
+    def _stop_session(self) -> None:
+        self.operator.closed.set()
+        if self.pending is not None and not self.pending.future.done():
+            self.pending.future.set_result(Answer("abort"))
+        h = self.handle
+        if h is not None:
+            h.runner.request_abort()
+            h.runner.join(5.0) if hasattr(h.runner, "join") else None
+            try:
+                h.close()
+            except Exception:                              # noqa: BLE001 - closing on exit is best effort
+                pass
+            self.handle = None
+
+    def on_unmount(self) -> None:
+        self._stop_session()
+
+    # -- views ---------------------------------------------------------------------------------------------------
+    def _status(self, key: str) -> str:
+        node = self.nodes.get(key)
+        return getattr(node, "_robocal_status", "") if node is not None else ""
+
+    def _mark(self, key: str, status: str) -> None:
+        node = self.nodes.get(key)
+        if node is None:
+            return
+        node._robocal_status = status
+        step = self.steps_by_key[key]
+        node.set_label(f"{STATUS_MARK.get(status, '·')} {step.title}")
+
+    def log_line(self, text: str) -> None:
+        stamp = f"{time.strftime('%H:%M:%S')} " if self.clock else ""
+        self.query_one("#log", RichLog).write(f"{stamp}{text}")
+
+    def _refresh_live(self) -> None:
+        snap = self.live.snapshot()
+        lines = []
+        for st in ("A", "B"):
+            r = snap.get(f"theodolite {st}")
+            if r:
+                lines.append(f"theodolite {st}: Hz {r['hz_deg']:10.5f}°  V {r['v_deg']:9.5f}°  face {r.get('face')}"
+                             f"  [{r.get('target')}]")
+        sd = self.data.get(self.current_key) if self.current_key else None
+        if sd is not None and self.handle is not None:
+            pts = sd.points(self.handle.runner.stations)
+            for name, p in pts.items():
+                lines.append(f"point {name}: x {p[0]:.3f}  y {p[1]:.3f}  z {p[2]:.3f} mm")
+            miss = [c for c in sd.checks if c.get("name", "").startswith("miss")]
+            if miss and miss[-1].get("value") is not None:
+                lines.append(f"miss distance {miss[-1]['value']:.3f} mm")
+        tap = getattr(self.handle.runner.rig, "tap", None) if self.handle else None
+        sample = tap.latest() if tap is not None else None
+        if sample is not None:
+            lines.append("counts  " + " ".join(f"{c:>8d}" for c in sample.counts))
+            if sample.joint_rad is not None:
+                lines.append("joints° " + " ".join(f"{np.degrees(v):8.3f}" for v in sample.joint_rad))
+        self.query_one("#live", Static).update("\n".join(lines) or "no readings yet")
+
+    def _refresh_devices(self) -> None:
+        if self.handle is None:
+            return
+        rig = self.handle.runner.rig
+        lines = []
+        # identities were read by the builder; the UI thread never talks to a device (the runner thread owns them)
+        for role, driver, url, ident in self.handle.identities or []:
+            who = ident.get("serial") or ident.get("name") or ""
+            lines.append(f"{role}: {driver} {who} {url}".rstrip())
+        tap = getattr(rig, "tap", None)
+        if tap is not None:
+            s = tap.stats
+            health = "[green]ok[/]" if not s.last_error else f"[red]{s.last_error}[/] — check the cable / bus"
+            lines.append(f"tap: {s.frames} frames, {s.bad_frames} bad, {getattr(s, 'lost_samples', 0)} lost, "
+                         f"{s.reconnects} reconnects — {health}")
+        lines.append(f"state: {self.state}")
+        self.query_one("#devices", Static).update("\n".join(lines))
+
+    def _update_results(self, sd: StepData) -> None:
+        if self.handle is None:
+            return
+        pts = sd.points(self.handle.runner.stations)
+        if pts:
+            txt = "; ".join(f"{k} ({p[0]:.2f}, {p[1]:.2f}, {p[2]:.2f}) mm" for k, p in pts.items())
+            self.log_line(f"result {sd.key}: {txt}")
+
+    def _update_plot(self, procedure: str) -> None:
+        if self.handle is None:
+            return
+        steps = [s for s in self.data.values() if s.procedure == procedure and s.status not in ("skipped", "")]
+        same_joint = [s for s in steps if s.meta.get("joint") == self.data[self.current_key].meta.get("joint")] \
+            if self.current_key in self.data else steps
+        try:
+            series = plot_series(procedure, same_joint or steps, self.handle.runner.stations)
+        except Exception as exc:                            # noqa: BLE001 - a plot never stops the session
+            self.log_line(f"plot: {exc}")
+            return
+        if series is None:
+            return
+        title, xlabel, ylabel, lines = series
+        plot = self.query_one("#plot", PlotextPlot)
+        plt = plot.plt
+        plt.clear_data()
+        plt.clear_figure()
+        for label, xs, ys in lines:
+            plt.plot(xs, ys, label=label, marker="dot")
+        plt.title(title)
+        plt.xlabel(xlabel)
+        plt.ylabel(ylabel)
+        plot.refresh()

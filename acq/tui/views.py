@@ -1,0 +1,142 @@
+"""What the TUI derives from the recorded events, without touching a device: intersected points per step, the
+series each procedure's plot shows, and small set-up diagrams.  Pure functions and plain data, testable alone."""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from calib.errors import RobocalError
+from calib.theodolite import Station, intersect
+from calib.units import DEG
+
+DIAGRAMS = {
+    "ruler": """\
+  C ─────── D ─────────────── E    ruler, marks level with the
+   ╲       │               ╱       theodolites' optical centres
+    ╲      │             ╱
+     A ═══════ L ══════ B          sight C, D, E from A, then B""",
+    "sweep": """\
+        ╭──── P ────╮              target P on link j
+       │     ·      │  R_j         turn joint j only
+        ╰─── axis ──╯              sight P from A and B
+     A ═══════ L ══════ B          at every position""",
+    "transmission": """\
+     A1 ●━━━━━━━━━━● A2            extended tool, targets R_dj apart
+            │ axis j               turn joint j slowly, one way
+     A ═══════ L ══════ B          sight A1 and A2 at every stop""",
+    "compliance": """\
+     joint j ●━━━━━━━━┓  L_j       hang the load N_j at L_j
+                      ▼ N          load up, then unload
+     A ═══════ L ══════ B          sight the target after each load""",
+    "link_compliance": """\
+     ┣━━━━━━━━━━━━━━━━━┓           link j as a cantilever
+       ▲g1   ▲g2   ▲g3 ▼ N         read every dial gauge
+                                   after each load""",
+    "coupling": """\
+     joint j ↻   joint k ↻          move j alone, then j with k
+     tap encoders of j and k        the tap records both""",
+    "poses": """\
+        ╭─╮ robot pose q           move to the pose
+        │ ● tool target            sight the tool target
+     A ═══════ L ══════ B          from A and B""",
+}
+
+
+@dataclass
+class StepData:
+    """Everything recorded for one step attempt, from the events."""
+
+    key: str
+    procedure: str
+    meta: dict = field(default_factory=dict)
+    readings: list = field(default_factory=list)       # (station, target, face, hz_rad, v_rad)
+    joint_deg: list | None = None
+    inputs: dict = field(default_factory=dict)
+    checks: list = field(default_factory=list)
+    status: str = ""
+
+    def points(self, stations: dict[str, Station]) -> dict[str, np.ndarray]:
+        """Intersected point per target (mean of faces and repeats per station, face II reduced to face I)."""
+        out = {}
+        for target in sorted({r[1] for r in self.readings}):
+            rd = []
+            for name in ("A", "B"):
+                rows = [r for r in self.readings if r[0] == name and r[1] == target]
+                if not rows or name not in stations:
+                    break
+                hz = [r[3] if r[2] != 2 else r[3] - np.pi for r in rows]
+                v = [r[4] if r[2] != 2 else 2 * np.pi - r[4] for r in rows]
+                hz_mean = float(np.angle(np.mean(np.exp(1j * np.asarray(hz)))))
+                rd.append((np.array([hz_mean % (2 * np.pi)]), np.array([float(np.mean(v))])))
+            if len(rd) == 2:
+                try:
+                    out[target] = intersect([stations["A"], stations["B"]], rd).point_mm[0]
+                except RobocalError:
+                    continue
+        return out
+
+
+def plot_series(procedure: str, steps: list[StepData], stations: dict[str, Station]):
+    """(title, x label, y label, [(label, xs, ys)]) for the current procedure's plot, or None if too little data."""
+    if procedure == "sweep":
+        P = [next(iter(s.points(stations).values())) for s in steps if s.points(stations)]
+        if len(P) < 4:
+            return None
+        from calib.estimators.axes import fit_circle
+        P = np.array(P)
+        th = fit_circle(P)
+        c, n, r = th[:3], th[3:6], th[6]
+        d = P - c
+        radial = np.linalg.norm(d - np.outer(d @ n, n), axis=1) - r
+        return ("circle fit residuals", "position", "mm",
+                [("radial", list(range(1, len(P) + 1)), radial.tolist()),
+                 ("out of plane", list(range(1, len(P) + 1)), (d @ n).tolist())])
+    if procedure == "transmission":
+        pairs = [(s.points(stations), s.joint_deg, s.meta.get("joint")) for s in steps]
+        pairs = [(p, q, j) for p, q, j in pairs if len(p) >= 2 and q is not None and j]
+        if len(pairs) < 4:
+            return None
+        names = sorted(pairs[0][0])
+        A1 = np.array([p[names[0]] for p, _, _ in pairs])
+        A2 = np.array([p[names[1]] for p, _, _ in pairs])
+        centre = A1.mean(0)
+        n = np.linalg.svd(A1 - centre)[2][-1]
+        v = A2 - A1
+        v = v - np.outer(v @ n, n)
+        ang = np.unwrap(np.arctan2(np.cross(v[0], v) @ n, v @ v[0]))
+        j = int(pairs[0][2]) - 1
+        enc = np.array([q[j] for _, q, _ in pairs]) * DEG
+        sgn = np.sign(np.polyfit(enc - enc[0], ang, 1)[0]) or 1.0
+        err = sgn * ang - (enc - enc[0])
+        return ("transmission error", f"joint {j + 1} encoder (deg)", "deg",
+                [("measured - encoder", (enc / DEG).tolist(), ((err - err.mean()) / DEG).tolist())])
+    if procedure == "compliance":
+        rows = []
+        first = None
+        for s in steps:
+            p = s.points(stations)
+            if not p:
+                continue
+            pt = next(iter(p.values()))
+            first = pt if first is None else first
+            load = next((v for k, v in s.inputs.items() if k.startswith("load")), s.meta.get("load_n"))
+            if load is None:
+                continue
+            rows.append((float(load), float(np.linalg.norm(pt - first)), s.meta.get("phase", "")))
+        if len(rows) < 3:
+            return None
+        series = []
+        for phase in ("loading", "unloading"):
+            sel = [r for r in rows if r[2] == phase] or ([] if phase == "unloading" else rows)
+            if sel:
+                series.append((phase, [r[0] for r in sel], [r[1] for r in sel]))
+        return ("deflection under load", "load (N)", "mm", series)
+    miss = []
+    for s in steps:
+        for c in s.checks:
+            if c.get("name", "").startswith("miss") and c.get("value") is not None:
+                miss.append(float(c["value"]))
+    if len(miss) < 2:
+        return None
+    return ("miss distance of the sight lines", "sighting", "mm", [("miss", list(range(1, len(miss) + 1)), miss)])

@@ -1,0 +1,200 @@
+"""The Textual TUI, driven as an operator would: Pilot flows on the emulated instruments, snapshots, and a real
+terminal under tmux."""
+import asyncio
+import os
+import shutil
+import subprocess
+import sys
+import time
+
+import pytest
+
+from acq.commands.session import emulated_builder
+from acq.session.store import SessionStore
+from acq.tui.app import HelpScreen, RobocalApp
+
+
+def answer_all(app, pilot, until, press_first=2, timeout=90.0):
+    """Answer the runner's prompts: the first ``press_first`` by real key presses, the rest by the same actions."""
+    async def go():
+        t0 = time.monotonic()
+        n = 0
+        while time.monotonic() - t0 < timeout:
+            await pilot.pause(0.05)
+            if until(app):
+                return n
+            p = app.pending
+            if p is not None and not p.future.done():
+                key = "c" if p.request.kind == "setup" else "a"
+                if n < press_first:
+                    await pilot.press(key)
+                else:
+                    app.action_answer({"c": "continue", "a": "accept"}[key])
+                n += 1
+        raise AssertionError(f"timed out in state {app.state}")
+    return go()
+
+
+def run(coro):
+    return asyncio.run(coro)
+
+
+def test_ruler_and_one_joint_sweep_end_to_end(tmp_path):
+    db = tmp_path / "s.db"
+
+    async def main():
+        app = RobocalApp(emulated_builder(str(db), 0, ["ruler", "sweep/j2/"]), clock=False)
+        async with app.run_test(size=(180, 50)) as pilot:
+            n = await answer_all(app, pilot, lambda a: a.finished is not None)
+            assert app.finished["exit_status"] == "success", app.finished
+            saved = [k for k, d in app.data.items() if d.status == "accepted"]
+            assert len(saved) == 11 and n >= 22
+            # the plan shows every step done, the sweep's plot has data, the live panel shows angles and counts
+            assert all(str(app.nodes[k].label).startswith("✔") for k in saved)
+            live = str(app.query_one("#live").render())
+            assert "theodolite A" in live and "counts" in live
+            assert app.query_one("#plot").plt is not None
+            step = str(app.query_one("#step").render())
+            assert "robocal reprocess" in step
+            await pilot.press("q")
+
+    run(main())
+    store = SessionStore.open(str(db), read_only=True) if "read_only" in SessionStore.open.__code__.co_varnames \
+        else SessionStore.open(str(db))
+    keys = store.done_keys()
+    assert {k for k in keys if k.startswith("ruler")} and {k for k in keys if k.startswith("sweep/j2/")}
+    store.close()
+
+
+def test_repeat_skip_and_pause_then_resume(tmp_path):
+    db = tmp_path / "p.db"
+
+    async def first():
+        app = RobocalApp(emulated_builder(str(db), 1, ["ruler"]), clock=False)
+        async with app.run_test(size=(180, 50)) as pilot:
+            await answer_all(app, pilot, lambda a: a.pending is not None and a.pending.request.kind == "decision",
+                             press_first=0)
+            await pilot.press("r")                                   # repeat the first step
+            await answer_all(app, pilot, lambda a: a.pending is not None and a.pending.request.kind == "decision"
+                             and a.pending.request.attempt == 2, press_first=0)
+            app.action_answer("accept")
+            await answer_all(app, pilot, lambda a: a.pending is not None and a.pending.request.kind == "setup",
+                             press_first=0)
+            await pilot.press("s")                                   # skip the second step
+            await answer_all(app, pilot, lambda a: a.pending is not None and a.pending.request.kind == "setup",
+                             press_first=0)
+            await pilot.press("p")                                   # pause at the third
+            await answer_all(app, pilot, lambda a: a.finished is not None, press_first=0)
+            assert app.finished["exit_status"] == "paused"
+            statuses = {k: d.status for k, d in app.data.items() if d.status}
+            assert list(statuses.values())[:2] == ["accepted", "skipped"]
+            await pilot.press("q")
+            return statuses
+
+    done_first = run(first())
+
+    async def second():
+        app = RobocalApp(emulated_builder(str(db), 1, ["ruler"]), clock=False)
+        async with app.run_test(size=(180, 50)) as pilot:
+            await answer_all(app, pilot, lambda a: a.finished is not None, press_first=0)
+            assert app.finished["exit_status"] == "success"
+            # the two saved steps were not asked again
+            assert not (set(done_first) & {k for k, d in app.data.items() if d.status})
+            await pilot.press("q")
+
+    run(second())
+
+
+def test_operator_input_must_be_a_number(tmp_path):
+    db = tmp_path / "c.db"
+
+    async def main():
+        app = RobocalApp(emulated_builder(str(db), 0, ["compliance/j3/00"]), clock=False)
+        async with app.run_test(size=(180, 50)) as pilot:
+            await answer_all(app, pilot, lambda a: a.pending is not None and a.pending.request.kind == "setup"
+                             and a.pending.request.step.inputs, press_first=0)
+            spec = app.pending.request.step.inputs[0]
+            box = app.query_one(f"#in-{spec.name}")
+            box.value = "ten"
+            app.action_answer("continue")
+            assert app.pending is not None and not app.pending.future.done()     # refused, still waiting
+            box.value = "44.5"
+            app.action_answer("continue")
+            await answer_all(app, pilot, lambda a: a.finished is not None, press_first=0)
+            assert app.data[app.current_key].inputs[spec.name] == 44.5
+            await pilot.press("q")
+
+    run(main())
+
+
+def test_a_device_that_cannot_be_opened_is_a_message_not_a_traceback():
+    def broken(operator):
+        raise ConnectionError("theodolite A: /dev/ttyUSB0: no such device")
+
+    async def main():
+        app = RobocalApp(broken, clock=False)
+        async with app.run_test(size=(120, 40)) as pilot:
+            await pilot.pause(0.3)
+            text = str(app.query_one("#step").render())
+            assert "Cannot start the session" in text and "ttyUSB0" in text
+            await pilot.press("q")
+
+    run(main())
+
+
+def test_snapshot_help_screen(snap_compare):
+    def never(operator):
+        raise ConnectionError("not connected in this snapshot")
+
+    async def run_before(pilot):
+        await pilot.pause(0.3)
+        await pilot.press("question_mark")
+        await pilot.pause(0.2)
+
+    assert snap_compare(RobocalApp(never, clock=False), run_before=run_before, terminal_size=(120, 40))
+
+
+def test_snapshot_cannot_start(snap_compare):
+    def never(operator):
+        raise ConnectionError("encoder tap: can0: network is down")
+
+    async def run_before(pilot):
+        await pilot.pause(0.3)
+
+    assert snap_compare(RobocalApp(never, clock=False), run_before=run_before, terminal_size=(120, 40))
+
+
+@pytest.mark.skipif(shutil.which("tmux") is None and not os.environ.get("CI"), reason="tmux not installed")
+def test_real_terminal_under_tmux(tmp_path):
+    assert shutil.which("tmux"), "tmux is needed (the CI script installs it)"
+    name = f"robocal-test-{os.getpid()}"
+    db = tmp_path / "t.db"
+    cmd = f"{sys.executable} -m acq.cli session --emulate --db {db} --only ruler/p0"
+    # Textual sizes itself from COLUMNS/LINES when set (pytest sets them): let the pane decide
+    env_cmd = f"cd {os.getcwd()} && env -u COLUMNS -u LINES TERM=xterm-256color {cmd}"
+    subprocess.run(["tmux", "new-session", "-d", "-s", name, "-x", "200", "-y", "50", env_cmd], check=True)
+
+    def screen():
+        return subprocess.run(["tmux", "capture-pane", "-p", "-t", name], capture_output=True, text=True).stdout
+
+    try:
+        t0 = time.monotonic()
+        seen_step = False
+        while time.monotonic() - t0 < 60:
+            time.sleep(0.5)
+            s = screen()
+            seen_step |= "Ruler placement" in s
+            if "Press q to quit" in s:
+                break
+            if "Do what the step says" in s:
+                subprocess.run(["tmux", "send-keys", "-t", name, "c"])
+            elif "checks passed" in s or "check(s) failed" in s:
+                subprocess.run(["tmux", "send-keys", "-t", name, "a"])
+        s = screen()
+        assert seen_step, s
+        assert "Press q to quit" in s and "success" in s, s
+        subprocess.run(["tmux", "send-keys", "-t", name, "q"])
+        time.sleep(1.0)
+    finally:
+        subprocess.run(["tmux", "kill-session", "-t", name], capture_output=True)
+    assert db.exists()
