@@ -235,3 +235,58 @@ def test_interface_stays_responsive_under_a_flood_and_keeps_every_record():
             await pilot.press("q")
 
     run(main())
+
+
+def test_devices_by_url_through_the_same_drivers(tmp_path):
+    """The non-emulated path: theodolites and tap named by URL (here emulator URLs and a virtual CAN bus), a set-up
+    file from the template, and the ruler steps recorded through the TUI."""
+    import can
+
+    from acq.commands.session import real_builder, setup_template
+    from acq.emulate.can_node import CanTapNode
+    from acq.emulate.tap_device import TapModel
+    from acq.emulate.world import demo_world
+    from calib.robot import load_robot
+    import json as _json
+
+    setup = tmp_path / "setup.json"
+    setup.write_text(_json.dumps(setup_template()))
+    channel = f"tui-url-{os.getpid()}"
+    world = demo_world(seed=3)
+    node = CanTapNode(can.Bus(interface="virtual", channel=channel), TapModel(world, load_robot(), rate_hz=200.0),
+                      own_bus=True).start()
+    db = tmp_path / "u.db"
+    build = real_builder(str(db), ["A=geocom:robocal://geocom?seed=3&station=A",
+                                   "B=gsi:robocal://gsi?seed=3&station=B"], f"can:virtual:{channel}", str(setup),
+                         None, None, ["ruler/p0"])
+
+    async def main():
+        app = RobocalApp(build, clock=False)
+        async with app.run_test(size=(180, 50)) as pilot:
+            await answer_all(app, pilot, lambda a: a.finished is not None, press_first=0)
+            assert app.finished["exit_status"] == "success", app.finished
+            devices = str(app.query_one("#devices").render())
+            assert "geocom" in devices and "gsi" in devices and "encoder tap" in devices
+            await pilot.press("q")
+
+    try:
+        run(main())
+    finally:
+        node.stop()
+    from acq.session.store import SessionStore
+    store = SessionStore.open(str(db))
+    assert len([k for k in store.done_keys() if k.startswith("ruler/p0")]) == 3
+    store.close()
+
+
+@pytest.mark.parametrize("args,words", [
+    (["session"], "give --emulate, or the devices"),
+    (["session", "--theodolite", "A:geocom", "--theodolite", "B=geocom:x"], "expected NAME=KIND:URL"),
+    (["session", "--theodolite", "A=geocom:x", "--theodolite", "B=geocom:y", "--tap", "can:vcan0"],
+     "expected can:INTERFACE:CHANNEL"),
+    (["session", "--theodolite", "A=geocom:x", "--theodolite", "B=geocom:y"], "needs --setup"),
+])
+def test_session_command_bad_device_arguments(tmp_path, args, words):
+    r = subprocess.run([sys.executable, "-m", "acq.cli", *args, "--db", str(tmp_path / "n.db")],
+                       capture_output=True, text=True, timeout=60)
+    assert r.returncode == 2 and words in r.stderr and "Traceback" not in r.stderr

@@ -1,6 +1,18 @@
-"""``robocal session``: the Textual TUI that guides the operator through a calibration session."""
+"""``robocal session``: the Textual TUI that guides the operator through a calibration session.
+
+Devices: ``--emulate`` wires the emulated instruments driven by the twin (the demo's wiring); otherwise each device
+is named by URL, and the same drivers open it whatever it is (a serial port, ``socket://``, a pty, ``robocal://``):
+
+    robocal session --db cell.db --setup setup.json \\
+        --theodolite A=geocom:/dev/ttyUSB0 --theodolite B=geocom:/dev/ttyUSB1 --tap can:socketcan:can0
+
+``--setup`` is the bench geometry (stations, ruler, tool targets, loads); ``robocal session --write-setup FILE``
+writes an annotated template to start from.  ``--poses`` adds the Chapter 6 pose set (a CSV from
+``robocal plan poses``).  An existing ``--db`` is resumed with the plan and set-up it was created with.
+"""
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
 from calib.errors import RobocalError
@@ -17,6 +29,19 @@ def add_arguments(p):
     p.add_argument("--seed", type=int, default=0, help="seed of the emulated instruments")
     p.add_argument("--only", metavar="PREFIX", action="append", default=[],
                    help="run only the steps whose key starts with PREFIX (e.g. ruler, sweep/j2); repeatable")
+    p.add_argument("--theodolite", metavar="NAME=KIND:URL", action="append", default=[],
+                   help="a theodolite: station name (A, B), driver (geocom, gsi) and port URL; repeatable")
+    p.add_argument("--tap", metavar="can:INTERFACE:CHANNEL | serial:URL",
+                   help="the encoder tap (python-can interface and channel, or a serial URL)")
+    p.add_argument("--setup", metavar="SETUP.json", help="bench geometry (see --write-setup)")
+    p.add_argument("--poses", metavar="POSES.csv", help="Chapter 6 pose set (q1..q6, deg)")
+    p.add_argument("--robot", metavar="FILE", help="robot description TOML (default: the thesis's Puma 560)")
+    p.add_argument("--write-setup", metavar="FILE", help="write a set-up template (JSON) and exit")
+
+
+def _only(prefixes):
+    prefixes = tuple(prefixes)
+    return (lambda step: step.key.startswith(prefixes)) if prefixes else None
 
 
 def emulated_builder(db: str, seed: int, only: list[str] | tuple = ()):
@@ -24,8 +49,7 @@ def emulated_builder(db: str, seed: int, only: list[str] | tuple = ()):
     from acq.session.demo import build_demo
     from acq.tui.app import SessionHandle
 
-    prefixes = tuple(only)
-    keep = (lambda step: step.key.startswith(prefixes)) if prefixes else None
+    keep = _only(only)
 
     def build(operator):
         resume = Path(db).exists() and Path(db).stat().st_size > 0
@@ -36,13 +60,152 @@ def emulated_builder(db: str, seed: int, only: list[str] | tuple = ()):
     return build
 
 
+def parse_theodolite(text: str) -> tuple[str, str, str]:
+    """``A=geocom:/dev/ttyUSB0`` -> (station, kind, url)."""
+    name, eq, rest = text.partition("=")
+    kind, colon, url = rest.partition(":")
+    if not eq or not colon or not name or not kind or not url:
+        raise RobocalError(f"session: --theodolite {text!r}: expected NAME=KIND:URL, e.g. A=geocom:/dev/ttyUSB0")
+    return name.strip(), kind.strip(), url.strip()
+
+
+def parse_tap(text: str) -> tuple[str, dict]:
+    kind, _, rest = text.partition(":")
+    if kind == "can":
+        iface, colon, channel = rest.partition(":")
+        if not colon or not iface or not channel:
+            raise RobocalError(f"session: --tap {text!r}: expected can:INTERFACE:CHANNEL, e.g. can:socketcan:can0")
+        return "can", {"interface": iface, "channel": channel}
+    if kind == "serial" and rest:
+        return "serial", {"url": rest}
+    raise RobocalError(f"session: --tap {text!r}: expected can:INTERFACE:CHANNEL or serial:URL")
+
+
+def default_plan(poses_deg=None) -> dict:
+    """The standard plan for a real cell (the demo's, with the operator's pose set when given)."""
+    plan = {
+        "procedures": ["ruler", "sweeps", "transmission", "compliance", "link_compliance", "coupling"],
+        "ruler": {"repeats": 2},
+        "sweeps": {"points": 8, "span_deg": 90.0, "joints": [1, 2, 3, 4, 5, 6]},
+        "transmission": {"joints": [4, 6], "points": 25, "repeats": 2,
+                         "range_deg": {"4": [-150.0, 150.0], "6": [-150.0, 150.0]}},
+        "compliance": {"joints": [3, 4]},
+        "coupling": {"angle_deg": 10.0, "pairs": [[5, 6], [4, 6], [4, 5]]},
+        "seed": 0,
+    }
+    if poses_deg is not None:
+        plan["procedures"].insert(2, "poses")
+        plan["poses"] = {"q_deg": [[round(float(v), 4) for v in row] for row in poses_deg]}
+    return plan
+
+
+def setup_template() -> dict:
+    from acq.session.demo import demo_setup
+    from calib.twin import Twin
+
+    setup = demo_setup(Twin())
+    setup["_comment"] = ("Bench geometry for robocal session. Lengths in mm, angles in degrees. stations: baseline L "
+                         "and the circle offsets gamma1, gamma2 as first measured (the ruler procedure refines them);"
+                         " base_xyz_mm: robot frame 0 in the theodolite frame, roughly; tool_target_mm: the target "
+                         "on the flange (frame 6); extended_tool: targets A1, A2 for transmission errors; ruler: "
+                         "mark positions along the ruler and where it is placed; compliance/link: levers, loads.")
+    return setup
+
+
+def real_builder(db: str, theodolites: list[str], tap: str | None, setup_path: str | None, poses: str | None,
+                 robot_path: str | None, only: list[str] | tuple = ()):
+    """A TUI builder on real devices (or any device URL): opens them, creates or resumes the session."""
+    from acq.drivers import open_theodolite
+    from acq.encoders import open_tap
+    from acq.session.demo import predictor, setup_stations
+    from acq.session.procedures import all_steps
+    from acq.session.rig import ManualBench, Rig
+    from acq.session.runner import Runner
+    from acq.session.store import SessionStore
+    from acq.tui.app import SessionHandle
+    from calib.posecsv import read_pose_csv
+    from calib.robot import load_robot
+    from calib.units import DEG
+
+    specs = [parse_theodolite(t) for t in theodolites]
+    names = [s[0] for s in specs]
+    if sorted(names) != ["A", "B"]:
+        raise RobocalError("session: give two theodolites, stations A and B (--theodolite A=... --theodolite B=...)")
+    tap_spec = parse_tap(tap) if tap else None
+    robot = load_robot(robot_path)
+    resume = Path(db).exists() and Path(db).stat().st_size > 0
+    if not resume:
+        if not setup_path:
+            raise RobocalError("session: a new session needs --setup SETUP.json (robocal session --write-setup FILE "
+                               "writes a template)")
+        try:
+            setup = json.loads(Path(setup_path).read_text(encoding="utf-8"))
+        except FileNotFoundError:
+            raise RobocalError(f"{setup_path}: file not found") from None
+        except json.JSONDecodeError as exc:
+            raise RobocalError(f"{setup_path}: not valid JSON: line {exc.lineno}: {exc.msg}") from None
+        for key in ("stations", "base_xyz_mm", "tool_target_mm", "ruler"):
+            if key not in setup:
+                raise RobocalError(f"{setup_path}: key {key!r} is missing")
+        q = read_pose_csv(poses, robot.n).q_rad / DEG if poses else None
+        plan = default_plan(q)
+    keep = _only(only)
+
+    def build(operator):
+        drivers = {}
+        tap_dev = None
+        try:
+            for st, kind, url in specs:
+                drivers[st] = open_theodolite(kind, url, name=f"theodolite {st}")
+            if tap_spec is not None:
+                tap_dev = open_tap(tap_spec[0], robot=robot, **tap_spec[1])
+        except Exception:
+            for d in drivers.values():
+                d.close()
+            raise
+        rig = Rig(drivers, tap_dev)
+        rig.start()
+        if resume:
+            store = SessionStore.open(db)
+            row = store.session_row()
+            plan_d, setup_d = json.loads(row["plan_json"]), json.loads(row["setup_json"])
+        else:
+            plan_d, setup_d = plan, setup
+            store = SessionStore.create(db, "robocal session", plan_d, setup_d, operator="operator",
+                                        metadata={"emulated": False})
+        identities = rig.identities()
+        for role, driver, url, ident in identities:
+            rig.device_ids[role] = store.add_device(role, driver, url, ident, {})
+        steps = all_steps(plan_d, setup_d)
+        if keep is not None:
+            steps = [s for s in steps if keep(s)]
+        runner = Runner(store, rig, steps, operator, bench=ManualBench(), stations=setup_stations(setup_d),
+                        predict=predictor(robot, setup_d))
+
+        def close():
+            rig.close()
+            store.close()
+
+        return SessionHandle(runner, close, f"{db}", db, identities=identities)
+
+    return build
+
+
 def run(args) -> int:
-    if not args.emulate:
-        raise RobocalError("session: connecting real instruments from the TUI is not available yet; use --emulate "
-                           "(real devices: robocal emulate shows the URLs the drivers open)")
+    if args.write_setup:
+        Path(args.write_setup).write_text(json.dumps(setup_template(), indent=2), encoding="utf-8")
+        print(f"robocal session: set-up template written to {args.write_setup}")
+        return 0
+    if args.emulate:
+        builder = emulated_builder(args.db, args.seed, args.only)
+    elif args.theodolite:
+        builder = real_builder(args.db, args.theodolite, args.tap, args.setup, args.poses, args.robot, args.only)
+    else:
+        raise RobocalError("session: give --emulate, or the devices (--theodolite A=KIND:URL --theodolite "
+                           "B=KIND:URL [--tap ...]) and --setup")
     from acq.tui.app import RobocalApp
 
-    app = RobocalApp(emulated_builder(args.db, args.seed, args.only))
+    app = RobocalApp(builder)
     app.run()
     if app.finished and app.finished.get("error"):
         print(f"robocal session: stopped: {app.finished['error']} — the session resumes with the same --db")
