@@ -50,12 +50,21 @@ def test_ruler_and_one_joint_sweep_end_to_end(tmp_path):
             saved = [k for k, d in app.data.items() if d.status == "accepted"]
             assert len(saved) == 11 and n >= 22
             # the plan shows every step done, the sweep's plot has data, the live panel shows angles and counts
-            assert all(str(app.nodes[k].label).startswith("✔") for k in saved)
+            assert all(str(app.nodes[k].label)[0] in "✔⚠" for k in saved)     # accepted (⚠: a check failed)
             live = str(app.query_one("#live").render())
             assert "theodolite A" in live and "counts" in live
             assert app.query_one("#plot").plt is not None
+            # at the end: the session is reprocessed, the report written and the estimates listed with errors
+            t0 = time.monotonic()
+            while app.results_dir is None and time.monotonic() - t0 < 60:
+                await pilot.pause(0.2)
+            assert app.results_dir is not None
+            assert (tmp_path / "s_report" / "report.html").exists()
             step = str(app.query_one("#step").render())
-            assert "robocal reprocess" in step
+            assert "report.html" in step
+            table = app.query_one("#checks")
+            names = [str(table.get_row_at(i)[0]) for i in range(table.row_count)]
+            assert any("L_mm" in n for n in names), names
             await pilot.press("q")
 
     run(main())

@@ -10,6 +10,7 @@ from __future__ import annotations
 import threading
 import time
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Callable
 
 import numpy as np
@@ -67,7 +68,8 @@ class SessionHandle:
 
 Builder = Callable[[TuiOperator], SessionHandle]
 
-STATUS_MARK = {"done": "✔", "accepted": "✔", "skipped": "↷", "current": "▶", "failed": "✗", "": "·"}
+STATUS_MARK = {"done": "✔", "accepted": "✔", "warned": "⚠", "skipped": "↷", "current": "▶", "failed": "✗",
+               "": "·"}
 
 
 class RobocalApp(App):
@@ -102,9 +104,11 @@ class RobocalApp(App):
         Binding("q", "quit", "quit"),
     ]
 
-    def __init__(self, builder: Builder, live_hz: float = 10.0, clock: bool = True):
+    def __init__(self, builder: Builder, live_hz: float = 10.0, clock: bool = True, final_results: bool = True):
         super().__init__()
         self.clock = clock
+        self.final_results = final_results
+        self.results_dir: str | None = None
         self.builder = builder
         self.live_hz = live_hz
         self.operator = TuiOperator()
@@ -260,8 +264,9 @@ class RobocalApp(App):
     def _ev_step_saved(self, d: dict) -> None:
         key = d["key"]
         status = d.get("status", "accepted")
-        self._mark(key, "skipped" if status == "skipped" else "accepted")
         sd = self.data.get(key)
+        failed = sd is not None and any(not c.get("passed", True) for c in sd.checks)
+        self._mark(key, "skipped" if status == "skipped" else ("warned" if failed else "accepted"))
         if sd is not None:
             sd.status = status
             self._update_results(sd)
@@ -284,8 +289,40 @@ class RobocalApp(App):
         else:
             msg = (f"[b green]Session {status}.[/] Data: {where}\n"
                    f"Reprocess and report: robocal reprocess {where} --report report/ --json results.json")
+            if status == "success" and where and self.final_results:
+                msg += "\nComputing the results…"
+                threading.Thread(target=self._final_results, args=(where,), daemon=True).start()
         self.query_one("#step", Static).update(msg + "\n\nPress q to quit.")
         self.query_one("#prompt", Static).update("")
+
+    def _final_results(self, db: str) -> None:
+        """Reprocess the finished session (read-only) and write its report, off the UI thread."""
+        try:
+            from acq.session.report import write_report
+            from acq.session.reprocess import reprocess
+
+            res = reprocess(db)
+            out = str(Path(db).with_suffix("")) + "_report"
+            write_report(res, out)
+        except Exception as exc:                            # noqa: BLE001 - results are a convenience here
+            self.call_from_thread(self.log_line, f"results not computed: {exc}")
+            return
+        self.call_from_thread(self._show_results, res, out)
+
+    def _show_results(self, res: dict, out: str) -> None:
+        table = self.query_one("#checks", DataTable)
+        table.clear(columns=True)
+        table.add_columns("estimate", "value", "1 sigma", "unit", "truth")
+        for e in res.get("estimates", []):
+            truth = e.get("truth")
+            table.add_row(e["name"], f"{e['value']:.6g}", f"{e['error']:.2g}", e.get("unit", ""),
+                          "" if truth is None else f"{truth:.6g}")
+        self.results_dir = out
+        where = self.handle.db_path if self.handle else ""
+        self.query_one("#step", Static).update(
+            f"[b green]Session success.[/] Data: {where}\nReport: {out}/report.html  "
+            f"({len(res.get('estimates', []))} estimates with their errors below)\n\nPress q to quit.")
+        self.log_line(f"report written to {out}")
 
     # -- prompts ------------------------------------------------------------------------------------------------------
     @on(OperatorPrompt)
