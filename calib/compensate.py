@@ -24,6 +24,7 @@ from .effects import (Backlash, CrossCoupling, Effect, JointCompliance, LinkComp
                       TransmissionError)
 from .errors import RobocalError
 from .identify import Identification
+from .jsonfile import read_json
 from .model import MeasurementModel
 from .robot import Robot, parse_robot, robot_to_toml
 from .units import DEG
@@ -140,17 +141,10 @@ class IdentifiedModel:
 def load_model(path: str | Path) -> IdentifiedModel:
     """Rebuild the identified model from its JSON (checked: a clear error names what is missing)."""
     src = str(path)
-    try:
-        doc = json.loads(Path(path).read_text(encoding="utf-8"))
-    except FileNotFoundError:
-        raise RobocalError(f"{src}: file not found") from None
-    except json.JSONDecodeError as exc:
-        raise RobocalError(f"{src}: not valid JSON: line {exc.lineno}: {exc.msg}") from None
+    doc = read_json(path)
     if not isinstance(doc, dict) or doc.get("format") != FORMAT:
         raise RobocalError(f"{src}: not a robocal model file (format {FORMAT!r} expected)")
-    for key in ("robot_toml", "nominal_robot_toml", "parameters", "effects", "covariance"):
-        if key not in doc:
-            raise RobocalError(f"{src}: key {key!r} is missing")
+    doc = read_json(path, ("robot_toml", "nominal_robot_toml", "parameters", "effects", "covariance"))
     robot = parse_robot(doc["robot_toml"], f"{src}: robot_toml")
     nominal_robot = parse_robot(doc["nominal_robot_toml"], f"{src}: nominal_robot_toml")
     values = {p["name"]: float(p["value"]) for p in doc["parameters"]}

@@ -138,15 +138,8 @@ def real_builder(db: str, theodolites: list[str], tap: str | None, setup_path: s
         if not setup_path:
             raise RobocalError("session: a new session needs --setup SETUP.json (robocal session --write-setup FILE "
                                "writes a template)")
-        try:
-            setup = json.loads(Path(setup_path).read_text(encoding="utf-8"))
-        except FileNotFoundError:
-            raise RobocalError(f"{setup_path}: file not found") from None
-        except json.JSONDecodeError as exc:
-            raise RobocalError(f"{setup_path}: not valid JSON: line {exc.lineno}: {exc.msg}") from None
-        for key in ("stations", "base_xyz_mm", "tool_target_mm", "ruler"):
-            if key not in setup:
-                raise RobocalError(f"{setup_path}: key {key!r} is missing")
+        from calib.jsonfile import read_json
+        setup = read_json(setup_path, ("stations", "base_xyz_mm", "tool_target_mm", "ruler"))
         q = read_pose_csv(poses, robot.n).q_rad / DEG if poses else None
         plan = default_plan(q)
     keep = _only(only)
