@@ -16,7 +16,8 @@ HELP = "record an emulated calibration session of every procedure, then reproces
 
 
 def add_arguments(p):
-    p.add_argument("--db", default="robocal-demo.db", help="session database to write (default robocal-demo.db)")
+    p.add_argument("--db", default=None,
+                   help="session database to write (default robocal-demo.db, or the next free robocal-demo-N.db)")
     p.add_argument("--seed", type=int, default=0, help="seed of the emulated instruments' noise")
     p.add_argument("--resume", action="store_true", help="continue an interrupted demo session in --db")
     p.add_argument("--json", metavar="OUT", help="write the estimates JSON here ('-' for stdout)")
@@ -30,7 +31,15 @@ def run(args) -> int:
     from acq.session.headless import ProgressPrinter
     from acq.session.reprocess import reprocess
 
-    db = Path(args.db)
+    if args.db is None:
+        # the main job must run again on the same machine: never touch an earlier demo, take the next free name
+        db = Path("robocal-demo.db")
+        n = 2
+        while not args.resume and db.exists():
+            db = Path(f"robocal-demo-{n}.db")
+            n += 1
+    else:
+        db = Path(args.db)
     if args.overwrite and not args.resume:
         for suffix in ("", "-wal", "-shm"):
             Path(str(db) + suffix).unlink(missing_ok=True)
