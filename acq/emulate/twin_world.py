@@ -13,9 +13,13 @@ State (all set by the session's "physical" layer, i.e. what a technician does wi
   in the measurement frame (ruler marks C, D, E).
 
 ``sight(station, face)`` returns that station's reading of the current target with the scenario's reading noise
-(and gross errors), drawn from one seeded generator under a lock: the two theodolites and the tap run in different
+and gross errors (each of Hz and V gets one with probability ``gross_rate``, as in :meth:`calib.twin.Twin.sight`),
+drawn from one seeded generator under a lock: the two theodolites and the tap run in different
 threads.  :meth:`dial_gauge_mm` emulates the dial gauges of the link-compliance procedure (cantilever theory with the
 world's flexural rigidity; no theodolite involved).
+
+Fault hook: :meth:`inject_sighting_error` adds a given error to a station's next readings -- the operator sighting
+the wrong spot -- so tests can show which acceptance check catches it.
 """
 from __future__ import annotations
 
@@ -65,6 +69,7 @@ class TwinWorld:
         self._default_tool = tuple(float(tool[f"tool.{k}_mm"]) for k in "xyz")
         self._target = Target("P", tool_mm=self._default_tool)
         self._cache: np.ndarray | None = None
+        self._faults: dict[str, list] = {}          # station -> [hz_rad, v_rad, readings left]
 
     # -- what the session's physical layer sets -------------------------------------------------------------------
     def command(self, q_rad) -> None:
@@ -137,9 +142,28 @@ class TwinWorld:
                 dh, dv = self._rng.normal(0.0, 1.0, 2)
                 hz += dh * st.sigma_hz_rad
                 v += dv * st.sigma_v_rad
-            if sc.gross_rate > 0 and self._rng.random() < sc.gross_rate:
-                hz += self._rng.choice([-1.0, 1.0]) * sc.gross_rad
+            if sc.gross_rate > 0:
+                if self._rng.random() < sc.gross_rate:
+                    hz += self._rng.choice([-1.0, 1.0]) * sc.gross_rad
+                if self._rng.random() < sc.gross_rate:
+                    v += self._rng.choice([-1.0, 1.0]) * sc.gross_rad
+            f = self._faults.get(station_name)
+            if f is not None and f[2] > 0:
+                # a pointing error: face II reads the zenith angle as 360 deg - V, so it flips the sign there
+                hz, v = hz + f[0], v + (f[1] if face == 1 else -f[1])
+                f[2] -= 1
         return float(np.mod(hz, 2 * np.pi)), float(v)
+
+    def inject_sighting_error(self, station_name: str, hz_rad: float = 0.0, v_rad: float = 0.0,
+                              readings: int = 1) -> None:
+        """Fault hook: the next ``readings`` readings of ``station_name`` point (hz_rad, v_rad) off the target (right,
+        down): a mis-sighting that face I and face II share, so the face mean keeps it (unlike an index error)."""
+        self._station(station_name)
+        if readings < 0 or not np.isfinite(hz_rad) or not np.isfinite(v_rad):
+            raise RobocalError(f"twin world: sighting error needs finite angles and readings >= 0, got "
+                               f"{hz_rad!r}, {v_rad!r}, {readings!r}")
+        with self._lock:
+            self._faults[station_name] = [float(hz_rad), float(v_rad), int(readings)]
 
     def slope_distance_m(self, station_name: str) -> float:
         st = self._station(station_name)

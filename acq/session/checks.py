@@ -1,7 +1,21 @@
 """Acceptance checks run on a step's readings before the operator decides (accept / repeat / skip / pause).
 
-Each check says what it measured, its limit and, when it fails, what the operator should do (the operator's guide has
-the long form).  Limits are defaults for 3" instruments at 2-4 m; the session plan may override them (``limits``).
+Each check says what it measured, its limit and, when it fails, what the operator should do (the operator's guide,
+docs/operator-guide.md, has the long form).  Limits are defaults for 3" instruments at 2-4 m; the session plan may
+override them (``limits``).
+
+Two checks depend on how well the session knows its geometry, so their limits follow it instead of being constants:
+
+* **miss distance** (the sight lines of A and B should meet at the target).  With the stations the technician wrote
+  down (tape and mutual sighting: a few mm) only gross mistakes can be told from station error, so the limit is the
+  coarse ``miss_distance_mm``.  Once the ruler steps are saved the runner refits the stations (:mod:`.stations`) and
+  the limit becomes ``miss_distance_sigmas`` times the miss the reading noise explains (station sigma x distance to
+  the target, averaged over the readings), but not below ``miss_distance_floor_mm``: a vertical sighting error of
+  a few tens of arc seconds then fails.
+* **plausibility** (the sighted point against the robot description).  An uncalibrated description is wrong by
+  tens of mm (a Puma's a3 can be 10 mm off, the base is placed with a tape), so the predictor gives each point the
+  spread its tolerances imply and the limit is ``plausibility_sigmas`` times that, at least ``plausibility_mm``: it
+  catches the wrong target, the wrong pose or a gross blunder, not calibration-sized differences.
 """
 from __future__ import annotations
 
@@ -16,10 +30,13 @@ from calib.units import ARCSEC, DEG
 DEFAULT_LIMITS = {
     "face_agreement_arcsec": 40.0,     # |2c| and |2k| from face I / face II
     "repeat_spread_arcsec": 15.0,      # std of repeat sightings
-    "miss_distance_mm": 5.0,           # shortest distance between the sight lines of A and B
+    "miss_distance_mm": 5.0,           # shortest distance between the sight lines of A and B (setup stations)
+    "miss_distance_sigmas": 6.0,       # ... with ruler-fitted stations: this many noise sigmas of the miss
+    "miss_distance_floor_mm": 0.1,     # ... but never tighter than this
     "encoder_ptp_counts": 2.0,         # encoder counts moving while holding
     "encoder_pose_deg": 0.05,          # encoder reading vs commanded pose
-    "plausibility_mm": 30.0,           # sighted point vs the nominal model
+    "plausibility_mm": 30.0,           # sighted point vs the nominal model: at least this
+    "plausibility_sigmas": 3.0,        # ... or this many sigmas of the description's tolerances at that point
 }
 
 
@@ -103,8 +120,23 @@ def intersect_targets(readings: list[dict], stations: dict[str, Station]) -> dic
     return out
 
 
-def miss_and_plausibility(readings: list[dict], stations: dict[str, Station], predicted: dict[str, np.ndarray],
-                          limits: dict) -> list[Check]:
+def miss_sigma_mm(readings: list[dict], stations: dict[str, Station], point_mm: np.ndarray, target: str) -> float:
+    """1-sigma miss distance the reading noise explains at ``point_mm``: each station's vertical sigma times its
+    distance to the point, over the square root of the readings averaged (faces and repeats)."""
+    var = 0.0
+    for name in ("A", "B"):
+        st = stations[name]
+        n = max(1, sum(1 for r in readings if r["station"] == name and r["target"] == target))
+        d = float(np.linalg.norm(np.asarray(point_mm) - st.position))
+        var += (st.sigma_v_rad * d) ** 2 / n
+    return float(np.sqrt(var))
+
+
+def miss_and_plausibility(readings: list[dict], stations: dict[str, Station], predicted: dict, limits: dict,
+                          fitted: bool = False) -> list[Check]:
+    """Miss distance of the sight lines per target and, where ``predicted`` has the target, its distance from the
+    model's point.  ``predicted`` maps target -> point (mm) or (point, sigma_mm); ``fitted``: the stations come from
+    the ruler fit, so the miss limit follows the reading noise (module docstring)."""
     out = []
     try:
         pts = intersect_targets(readings, stations)
@@ -112,14 +144,23 @@ def miss_and_plausibility(readings: list[dict], stations: dict[str, Station], pr
         return [Check("intersection", False, None, None, "", f"sight lines do not intersect ({exc}); check that "
                                                               f"both theodolites are on the same target")]
     for tg, (p, _, miss) in pts.items():
-        ok = miss <= limits["miss_distance_mm"]
-        out.append(Check(f"miss distance {tg}", ok, miss, limits["miss_distance_mm"], "mm",
-                         "sight lines meet" if ok else f"the sight lines of A and B pass {miss:.1f} mm apart: one "
-                         f"instrument is not on {tg}; re-sight"))
+        if fitted:
+            lim = max(limits["miss_distance_floor_mm"],
+                      limits["miss_distance_sigmas"] * miss_sigma_mm(readings, stations, p, tg))
+        else:
+            lim = limits["miss_distance_mm"]
+        ok = miss <= lim
+        out.append(Check(f"miss distance {tg}", ok, miss, lim, "mm",
+                         "sight lines meet" if ok else f"the sight lines of A and B pass {miss:.2f} mm apart: one "
+                         f"instrument is not on the centre of {tg} (most often a vertical pointing error); re-sight "
+                         f"both"))
         if tg in predicted:
-            d = float(np.linalg.norm(p - predicted[tg]))
-            ok = d <= limits["plausibility_mm"]
-            out.append(Check(f"plausible {tg}", ok, d, limits["plausibility_mm"], "mm",
+            pr = predicted[tg]
+            point, sig = (pr if isinstance(pr, tuple) else (pr, 0.0))
+            d = float(np.linalg.norm(p - np.asarray(point)))
+            lim = max(limits["plausibility_mm"], limits["plausibility_sigmas"] * float(sig))
+            ok = d <= lim
+            out.append(Check(f"plausible {tg}", ok, d, lim, "mm",
                              "where the model expects it" if ok else f"{tg} is {d:.0f} mm from where the robot "
                              f"model puts it: wrong target, wrong pose or a gross sighting error"))
     return out

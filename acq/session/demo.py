@@ -35,6 +35,11 @@ from .steps import Step
 from .store import SessionStore
 
 DEMO_TITLE = "robocal demo: emulated Puma 560 (twin) and two GeoCOM theodolites"
+#: poses in the demo's Chapter 6 set: enough to identify the geometry with the running errors (about 30 free
+#: parameters) at a few sigma of the truth, still a ~15 s recording
+DEMO_POSES = 48
+#: wait after each move before recording encoders (the tap's frames in flight carry the previous pose)
+DEMO_SETTLE_S = 0.02
 
 
 def demo_setup(twin: Twin) -> dict:
@@ -65,7 +70,7 @@ def demo_setup(twin: Twin) -> dict:
     }
 
 
-def demo_plan(twin: Twin, seed: int, n_poses: int = 16, quick: bool = True) -> dict:
+def demo_plan(twin: Twin, seed: int, n_poses: int = DEMO_POSES, quick: bool = True) -> dict:
     """Which procedures with which parameters; the pose set is chosen now so a resume replays the same poses."""
     from calib.plan import select_poses
     model = MeasurementModel(twin.robot)
@@ -112,12 +117,36 @@ def setup_stations(setup: dict) -> dict:
     return {"A": a, "B": b}
 
 
-def predictor(robot, setup: dict):
-    """Where the nominal model with the setup's base puts each tool target of a step (plausibility check)."""
+#: 1-sigma gap between a robot description and the real robot, before calibration: link lengths (a Puma's a3 can be
+#: 10 mm off its drawing), twists and zero offsets (the thesis found misalignments up to 1.2 deg), the base placed
+#: with a tape and a level, the tool target from its drawing.
+DESCRIPTION_TOLERANCES = {"length_mm": 5.0, "angle_deg": 0.3, "base_mm": 10.0, "base_angle_deg": 0.3,
+                          "tool_mm": 2.0}
+
+
+def _prior_sigmas(names: list[str], tol: dict) -> np.ndarray:
+    out = []
+    for n in names:
+        if n.startswith("base."):
+            out.append(tol["base_mm"] if n.endswith("_mm") else tol["base_angle_deg"] * DEG)
+        elif n.startswith("tool."):
+            out.append(tol["tool_mm"])
+        else:
+            out.append(tol["length_mm"] if n.endswith("_mm") else tol["angle_deg"] * DEG)
+    return np.asarray(out)
+
+
+def predictor(robot, setup: dict, tolerances: dict | None = None):
+    """Where the nominal model with the setup's base puts each tool target of a step, and how far off an
+    uncalibrated description can be there: target -> (point_mm, sigma_mm) for the plausibility check.
+
+    sigma is the root of the trace of J S J^T, J the point's Jacobian in the geometric parameters and S the
+    description's tolerances (:data:`DESCRIPTION_TOLERANCES`): a point far from the base gets a wider limit."""
     m = MeasurementModel(robot)
     th = m.nominal.copy()
     for k, v in zip(("x_mm", "y_mm", "z_mm"), setup["base_xyz_mm"]):
         th[m.index[f"base.{k}"]] = v
+    sd = _prior_sigmas(list(m.kin.names), {**DESCRIPTION_TOLERANCES, **(tolerances or {})})
 
     def predict(step: Step) -> dict:
         if step.pose_deg is None:
@@ -125,7 +154,10 @@ def predictor(robot, setup: dict):
         out = {}
         for t in step.targets:
             if t.tool_mm is not None:
-                out[t.name] = m.points(np.asarray(step.pose_deg)[None] * DEG, theta=th, tool_mm=np.asarray(t.tool_mm))[0]
+                ev = m.evaluate(np.asarray(step.pose_deg)[None] * DEG, theta=th, jacobian=True,
+                                tool_mm=np.asarray(t.tool_mm))
+                J = ev.jacobian[0][:, : m.n_geometric] * sd[None, :]
+                out[t.name] = (ev.point_mm[0], float(np.sqrt(np.sum(J * J))))
         return out
     return predict
 
@@ -211,8 +243,11 @@ def build_demo(db: str | Path, seed: int = 0, resume: bool = False, script: dict
         return bench.read_gauges(step) if step.procedure == "link_compliance" else {}
 
     op = operator or ScriptedOperator(script, inputs=inputs)
+    from .stations import stations_from_store
+    # settle_s: frames already on the bus when the robot "moves" carry the old counts; real cells wait for the servo
     runner = Runner(store, rig, steps, op, bench=bench, stations=setup_stations(setup),
-                    predict=predictor(twin.robot, setup))
+                    predict=predictor(twin.robot, setup), settle_s=DEMO_SETTLE_S,
+                    refit_stations=lambda st: stations_from_store(st, setup))
     d = DemoRig(runner, world, twin, store, names)
     d._nodes = [node]
     return d

@@ -97,7 +97,7 @@ def _figures(f: dict) -> list[tuple[str, str]]:
 
 def _estimation_errors(est: list[dict]):
     import matplotlib.pyplot as plt
-    rows = [e for e in est if e["truth"] is not None and e["error"] > 0]
+    rows = [e for e in est if e["truth"] is not None and e["error"] > 0 and not e.get("held")]
     if not rows:
         return None
     z = [(e["value"] - e["truth"]) / e["error"] for e in rows]
@@ -118,11 +118,19 @@ def write_report(result: dict, out_dir: str | Path) -> Path:
     if ee:
         figs.append(ee)
     def _truth(e):
-        return "" if e["truth"] is None else f"{e['truth']:.6g}"
+        t = "" if e["truth"] is None else f"{e['truth']:.6g}"
+        if e.get("truth_raw") is not None:
+            t += f" (gauge; raw {e['truth_raw']:.6g})"
+        return t
+
+    def _err(e):
+        # a held parameter was not estimated: no error to print, and value - truth is not an estimation error
+        return "held" if e.get("held") else f"{e['error']:.3g}"
 
     rows = "".join(
-        f"<tr><td>{html.escape(e['name'])}</td><td>{e['value']:.6g}</td><td>{e['error']:.3g}</td>"
-        f"<td>{html.escape(e['unit'])}</td><td>{_truth(e)}</td></tr>" for e in result["estimates"])
+        f"<tr><td>{html.escape(e['name'])}</td><td>{e['value']:.6g}</td><td>{_err(e)}</td>"
+        f"<td>{html.escape(e['unit'])}</td><td>{_truth(e)}</td><td>{html.escape(e.get('note', ''))}</td></tr>"
+        for e in result["estimates"])
     s = result["session"]
     prov = result["provenance"]
     probs = "".join(f"<li>{html.escape(p)}</li>" for p in result.get("problems", [])) or "<li>none</li>"
@@ -130,7 +138,9 @@ def write_report(result: dict, out_dir: str | Path) -> Path:
             f"{s['steps_accepted']} accepted steps, status {s['exit_status']}. Reprocessed with robocal "
             f"{prov['code_version']} in {prov['elapsed_s']:.1f} s.</p><h2>Problems</h2><ul>{probs}</ul>",
             "<h2>Estimates</h2><table border=1 cellspacing=0><tr><th>name</th><th>value</th><th>error (1 sigma)</th>"
-            f"<th>unit</th><th>truth</th></tr>{rows}</table>"]
+            f"<th>unit</th><th>truth</th><th>note</th></tr>{rows}</table><p>'held': not estimated, kept at the design "
+            "value because the data cannot determine it (the estimated parameters absorb its deviation, which is why "
+            "their truth is given in the gauge of the held ones).</p>"]
     for title, img in figs:
         body.append(f"<h2>{html.escape(title)}</h2>{img}")
     path = out / "report.html"

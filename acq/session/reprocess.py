@@ -84,14 +84,17 @@ class _Est:
         self.items: list[dict] = []
 
     def add(self, name: str, value: float, error: float, unit: str, truth_key: str | None = None,
-            truth_value: float | None = None):
+            truth_value: float | None = None, held: bool = False, **extra):
+        """One estimate.  ``held``: not estimated -- kept at its design value because the data cannot determine it
+        (its ``truth`` is shown for information; comparing it with ``value`` says nothing about the estimation)."""
         t = None
         if self.truth is not None:
             if truth_value is not None:
                 t = float(truth_value)
             elif truth_key is not None and truth_key in self.truth:
                 t = float(self.truth[truth_key])
-        self.items.append({"name": name, "value": float(value), "error": float(error), "unit": unit, "truth": t})
+        self.items.append({"name": name, "value": float(value), "error": float(error), "unit": unit, "truth": t,
+                           "held": bool(held), **extra})
 
     def add_set(self, prefix: str, es, truth_map: dict | None = None, only=None):
         for e in es.estimates():
@@ -148,19 +151,22 @@ def reprocess(path: str, n_mc: int = 0, progress=None) -> dict:
     except (RobocalError, KeyError, ValueError, IndexError) as exc:
         problems.append(f"sweeps: {exc}")
     step("sweeps", 0.3)
+    # 5-6 before the pose set: their running errors enter its model (priors on the effects) -------------------------
+    running: dict = {}
+    for name, fn in (("transmission", _transmission), ("compliance", _compliance)):
+        try:
+            running[name] = fn(by_proc.get(name, []), points, robot, axes, est, twin, figs, n_mc)
+        except (RobocalError, KeyError, ValueError, IndexError) as exc:
+            problems.append(f"{name}: {exc}")
+    step("running errors", 0.45)
     # 4. pose set ---------------------------------------------------------------------------------------------------
     ident_doc = None
     try:
-        ident_doc = _poses(by_proc.get("poses", []), points, robot, data.setup, est, truth, figs)
+        ident_doc = _poses(by_proc.get("poses", []), points, robot, data.setup, est, twin, figs, running, problems)
     except (RobocalError, KeyError, ValueError, IndexError) as exc:
         problems.append(f"poses: {exc}")
-    step("poses", 0.6)
-    # 5-8 ---------------------------------------------------------------------------------------------------------
-    for name, fn in (("transmission", _transmission), ("compliance", _compliance)):
-        try:
-            fn(by_proc.get(name, []), points, robot, axes, est, twin, figs, n_mc)
-        except (RobocalError, KeyError, ValueError, IndexError) as exc:
-            problems.append(f"{name}: {exc}")
+    step("poses", 0.8)
+    # 7-8 ---------------------------------------------------------------------------------------------------------
     try:
         _link(by_proc.get("link_compliance", []), data.setup, est, twin, figs, n_mc)
     except (RobocalError, KeyError, ValueError, IndexError) as exc:
@@ -278,12 +284,55 @@ def _encoder_q(st, robot) -> np.ndarray | None:
     return robot.joint_from_counts(np.mean(c, 0))
 
 
-def _poses(steps, points, robot, setup, est, truth, figs):
-    from calib.identify import PointObservations, default_free, identify
+def _pose_model(robot, running: dict, problems: list[str]):
+    """The pose set's model: geometry plus the thesis's running errors (:data:`calib.effects.THESIS_RUNNING_ERRORS`),
+    and priors on the effects from the session's own transmission-error and compliance runs.
+
+    Why: the pose set is measured with the gears' transmission error, gravity bending joints 3 and 4 and the
+    uncompensated wrist coupling all present; a geometry-only fit folds them into the geometry and misses the true
+    parameters by tens of sigma.  The effects' structure is the thesis's (harmonic orders 0.9 and 1.8, single-slope
+    stiffness, coupling 5 -> 6); their values are identified with the geometry, held near what the dedicated
+    procedures measured (priors with those procedures' errors), so a poorly measured stiffness cannot bias the fit.
+    """
+    from calib.effects import THESIS_RUNNING_ERRORS, effect_from_text
     from calib.model import MeasurementModel
+    effects = [effect_from_text(t, robot.n) for t in THESIS_RUNNING_ERRORS]
+    model = MeasurementModel(robot, effects)
+    theta0 = model.nominal.copy()
+    priors: dict[str, tuple[float, float]] = {}
+    for e in effects:
+        lab = e.label
+        if e.kind == "transmission_error" and e.joint in (running.get("transmission") or {}):
+            res = running["transmission"][e.joint]
+            w, sw = res["omega"].value, res["omega"].error
+            if abs(w - e.order) > 3 * sw + 0.05 * e.order:
+                problems.append(f"poses: joint {e.joint} transmission error measured at order {w:.3g} +- {sw:.2g}, "
+                                f"the model uses {e.order:g}: no prior from the transmission-error run")
+                continue
+            A, phi, sA = res["amplitude1_rad"].value, res["phase1_rad"].value, res["amplitude1_rad"].error
+            # err = A sin(w q + phi) = A cos(phi) sin(w q) + A sin(phi) cos(w q)
+            for k, v in (("s1_rad", A * np.cos(phi)), ("c1_rad", A * np.sin(phi))):
+                name = f"{lab}.{k}"
+                theta0[model.index[name]] = v
+                priors[name] = (float(v), float(max(sA, 1e-6)))
+        elif e.kind == "joint_compliance" and e.joint in (running.get("compliance") or {}):
+            res = running["compliance"][e.joint]
+            K, sK = res["K1_Nm_per_rad"].value, res["K1_Nm_per_rad"].error
+            if K > 0 and np.isfinite(sK):
+                name = f"{lab}.compliance1_rad_per_nm"
+                c = 1.0 / K
+                theta0[model.index[name]] = c
+                theta0[model.index[f"{lab}.compliance2_rad_per_nm"]] = c
+                priors[name] = (c, float(max(sK / K ** 2, 0.05 * c)))
+    return model, theta0, priors
+
+
+def _poses(steps, points, robot, setup, est, twin, figs, running=None, problems=None):
     from calib.compensate import model_document
+    from calib.identify import PointObservations, default_free, identify
     if not steps:
         return None
+    problems = [] if problems is None else problems
     q, P, S = [], [], []
     for st in steps:
         pt = points(st).get("P") if st["readings"] else None
@@ -297,18 +346,61 @@ def _poses(steps, points, robot, setup, est, truth, figs):
         S.append(pt[1])
     if len(q) < 8:
         raise RobocalError(f"only {len(q)} poses with both sightings; identification needs more")
-    model = MeasurementModel(robot)
-    obs = PointObservations(np.array(q), np.array(P), cov_mm2=np.array(S))
-    free = default_free(model, effects=False)
-    ident = identify(model, obs, free=free)
+    model, theta0, priors = _pose_model(robot, running or {}, problems)
+    q, P = np.array(q), np.array(P)
+    obs = PointObservations(q, P, cov_mm2=np.array(S))
+    # the dead zone needs loading and unloading, which a pose set has not: it stays out
+    wanted = [n for n in default_free(model, effects=True) if not n.endswith("deadzone_rad")]
+    ident = identify(model, obs, free=wanted, theta0=theta0, priors=priors)
+    truth = twin.true_parameters() if twin is not None else None
+    gauge = _gauge_truth(twin, model, ident, q) if twin is not None else {}
     for n in ident.free:
         i = ident.names.index(n)
-        unit = "mm" if n.endswith("_mm") else ("rad" if n.endswith("_rad") else "1")
-        est.add(f"ident.{n}", ident.theta[i], ident.sigma[i], unit, truth_key=n)
-    pred = model.points(np.array(q), theta=ident.theta[:model.P])
-    figs["poses"] = {"residual_mm": np.linalg.norm(np.array(P) - pred, axis=1).tolist(),
-                     "rms_mm": float(ident.residual_rms)}
+        raw = None if truth is None else truth.get(n)
+        extra = {}
+        tv = gauge.get(n, raw)
+        if raw is not None and tv is not None and abs(tv - raw) > 0.1 * ident.sigma[i]:
+            extra = {"truth_raw": float(raw), "note": "truth in the gauge of the held parameters (what perfect data "
+                                                      "would give with them at their design values)"}
+        est.add(f"ident.{n}", ident.theta[i], ident.sigma[i], _unit(n), truth_value=tv, **extra)
+    for n in wanted:
+        if n in ident.free:
+            continue
+        why = [c.words() for c in ident.identifiability.unidentifiable + ident.identifiability.weak
+               if n in c.coefficients][:1]
+        est.add(f"ident.{n}", ident.value(n), 0.0, _unit(n), truth_key=n, held=True,
+                note="held at its design value, not estimated" + (f": {why[0]}" if why else "")
+                     + "; its truth is not comparable with the value")
+    pred = model.points(q, theta=ident.theta[:model.P])
+    figs["poses"] = {"residual_mm": np.linalg.norm(P - pred, axis=1).tolist(),
+                     "rms_mm": float(ident.residual_rms), "held": [n for n in wanted if n not in ident.free]}
     return model_document(model, ident, truth)
+
+
+def _unit(name: str) -> str:
+    return "mm" if name.endswith("_mm") else ("rad" if name.endswith("_rad") else
+                                               ("rad/N m" if name.endswith("_per_nm") else "1"))
+
+
+def _gauge_truth(twin, model, ident, q) -> dict[str, float]:
+    """The twin's geometry expressed in the identification's gauge: parameters the pose set cannot determine are held
+    at their design values, and the free ones absorb their true deviations (the base yaw takes joint 1's zero
+    offset, d3 takes d2 of the parallel pair ...).  Fitting the twin's own model, effects at their true values, to
+    its noise-free points at the session's joint readings, with the same parameters held, gives the values a perfect
+    estimator would return: the honest truth to compare the estimates with."""
+    from calib.identify import PointObservations, identify
+    tm = twin.model
+    th = np.array(twin.theta, float)
+    geo_free = [n for n in ident.free if n in tm.kin.index]
+    for n in tm.kin.names:
+        if n not in geo_free and n in model.kin.index:
+            th[tm.index[n]] = ident.value(n)
+    pts, _ = twin.true_points(q)
+    try:
+        g = identify(tm, PointObservations(q, pts, sigma_mm=0.01), free=geo_free, theta0=th, robust=False)
+    except RobocalError:
+        return {}
+    return {n: g.value(n) for n in g.free}
 
 
 def _joint_angles(steps, points, axis_n):
@@ -350,6 +442,7 @@ def _transmission(steps, points, robot, axes, est, twin, figs, n_mc):
     for st in steps:
         by_joint.setdefault(st["spec"]["meta"]["joint"], []).append(st)
     figs["transmission"] = {}
+    fits = {}
     for j, sts in sorted(by_joint.items()):
         if j not in axes:
             raise RobocalError(f"joint {j}: no swept axis to measure the angle about")
@@ -368,9 +461,11 @@ def _transmission(steps, points, robot, axes, est, twin, figs, n_mc):
                     tv = {"omega": e.order, "amplitude1_rad": float(np.hypot(e.values[0], e.values[len(e.values) // 2]))
                           if len(e.values) > 1 else abs(float(e.values[0]))}
         est.add_set(f"te.j{j}.", res, tv, only=("omega", "amplitude1_rad"))
+        fits[j] = res
         figs["transmission"][j] = {"encoder_deg": (enc / DEG).tolist(), "error_deg": (err / DEG).tolist(),
                                    "sigma_deg": (sig / DEG).tolist(),
                                    "fit": {k: float(res[k].value) for k in res.names}}
+    return fits
 
 
 def _compliance(steps, points, robot, axes, est, twin, figs, n_mc):
@@ -382,6 +477,7 @@ def _compliance(steps, points, robot, axes, est, twin, figs, n_mc):
     for st in steps:
         by_joint.setdefault(st["spec"]["meta"]["joint"], []).append(st)
     figs["compliance"] = {}
+    fits = {}
     for j, sts in sorted(by_joint.items()):
         if j not in axes:
             raise RobocalError(f"joint {j}: no swept axis to measure the deflection about")
@@ -400,8 +496,10 @@ def _compliance(steps, points, robot, axes, est, twin, figs, n_mc):
                     tv = {"K1_Nm_per_rad": 1 / c1, "K2_Nm_per_rad": 1 / c2, "offset_rad": h}
         est.add_set(f"compliance.j{j}.", res, tv, only=("K1_Nm_per_rad", "K2_Nm_per_rad", "breakpoint_Nm",
                                                          "offset_rad"))
+        fits[j] = res
         figs["compliance"][j] = {"torque_nm": T.tolist(), "deflection_deg": (defl / DEG).tolist(),
                                  "unloading": unload.tolist(), "fit": {k: float(res[k].value) for k in res.names}}
+    return fits
 
 
 def _link(steps, setup, est, twin, figs, n_mc):

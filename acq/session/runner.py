@@ -3,8 +3,11 @@
 API for front ends (the headless one in :mod:`acq.session.headless`, the Textual TUI of issue 7)
 =================================================================================================
 
-Build: ``runner = Runner(store, rig, steps, operator, bench=ManualBench(), stations=..., model=..., limits=...)``
-(:func:`acq.session.demo.build_demo` shows a complete wiring).  Then either ``runner.run()`` (blocking, in the
+Build: ``runner = Runner(store, rig, steps, operator, bench=ManualBench(), stations=..., predict=..., limits=...,
+refit_stations=...)`` (:func:`acq.session.demo.build_demo` shows a complete wiring).  ``refit_stations(store)`` (e.g.
+:func:`acq.session.stations.stations_from_store` with the setup bound) is called at start and after every saved
+ruler step; once it returns stations, later miss-distance checks use them with the noise-based limit (see
+:mod:`acq.session.checks`).  Then either ``runner.run()`` (blocking, in the
 calling thread) or ``runner.start()`` (a worker thread; ``runner.join()``).  All device I/O happens in the runner's
 thread, never in the UI thread.
 
@@ -99,7 +102,8 @@ class Runner:
     def __init__(self, store: SessionStore, rig: Rig, steps: list[Step], operator: Operator, *,
                  bench: Bench | None = None, stations: dict | None = None,
                  predict: Callable[[Step], dict] | None = None, limits: dict | None = None,
-                 capture_s: float = 0.02, settle_s: float = 0.0):
+                 capture_s: float = 0.02, settle_s: float = 0.0,
+                 refit_stations: Callable[[SessionStore], dict | None] | None = None):
         self.store = store
         self.rig = rig
         self.steps = steps
@@ -110,6 +114,8 @@ class Runner:
         self.limits = {**ck.DEFAULT_LIMITS, **(limits or {})}
         self.capture_s = capture_s
         self.settle_s = settle_s
+        self.refit_stations = refit_stations
+        self.stations_fitted = False        # True once the stations come from the session's own ruler sightings
         self.events: queue.Queue = queue.Queue()
         self.state = "idle"
         self._subs: list[Callable[[Event], None]] = []
@@ -162,6 +168,7 @@ class Runner:
         self.emit("session", guid=self.store.guid, path=self.store.path, resumed=resumed, done=len(done),
                   total=len(self.steps))
         try:
+            self._refit()               # a resumed session already has its ruler steps
             for i, step in enumerate(self.steps):
                 if step.key in done:
                     self.emit("step_skipped_done", key=step.key)
@@ -239,7 +246,21 @@ class Runner:
                          time.time(), step.spec(), note, readings, chunks, inputs, checks_rows)
         self.store.write_step(rec)
         self.emit("step_saved", key=step.key, status=status, attempts=attempt)
+        if step.procedure == "ruler" and status == "accepted":
+            self._refit()
         return status
+
+    def _refit(self) -> None:
+        """Stations from the ruler steps saved so far (when the hook can fit them): tighter miss-distance checks."""
+        if self.refit_stations is None:
+            return
+        st = self.refit_stations(self.store)
+        if st is not None:
+            first = not self.stations_fitted
+            self.stations, self.stations_fitted = st, True
+            if first:
+                self.emit("log", text="stations refitted from the ruler sightings: miss-distance checks now use "
+                                      "the reading-noise limit")
 
     def _acquire(self, step: Step, attempt: int):
         cap = None
@@ -274,7 +295,7 @@ class Runner:
             out += ck.repeat_spread(rows, self.limits["repeat_spread_arcsec"])
             if self.stations:
                 pred = self.predict(step) if self.predict else {}
-                out += ck.miss_and_plausibility(rows, self.stations, pred, self.limits)
+                out += ck.miss_and_plausibility(rows, self.stations, pred, self.limits, fitted=self.stations_fitted)
         if cap is not None:
             out += ck.encoders_settled(cap, step.pose_deg, self.limits)
         for c in out:

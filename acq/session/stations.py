@@ -1,0 +1,66 @@
+"""The theodolite stations from the session's ruler sightings (section 4.2), shared by acquisition and reprocessing.
+
+Why here: the acquisition checks start with the stations the technician wrote down (L from a tape, gammas from
+mutual sighting, B's height assumed equal to A's).  Those are good to a few mm, which is all a "did both instruments
+sight the same target?" check can ask of them.  As soon as the ruler steps are saved, the same least-squares fit the
+reprocessing uses (:func:`calib.estimators.ruler.ruler_lsq`) gives stations good to hundredths of a mm, and the
+miss-distance check can then be held to what the reading noise explains (see :mod:`acq.session.checks`).
+"""
+from __future__ import annotations
+
+import json
+
+import numpy as np
+
+from calib.errors import RobocalError
+from calib.theodolite import Station, thesis_stations
+from calib.units import ARCSEC
+
+
+def ruler_rows(steps: list[dict]) -> np.ndarray:
+    """(placement, mark, station 0/1, face, hz, v) per reading of accepted ruler steps (``spec`` and ``readings``)."""
+    rows = []
+    for st in steps:
+        m = st["spec"]["meta"]
+        for r in st["readings"]:
+            rows.append((m["placement"], m["mark"], 0 if r["station"] == "A" else 1, r["face"], r["hz_rad"],
+                         r["v_rad"]))
+    return np.array(rows, float).reshape(-1, 6)
+
+
+def fit_ruler(rows: np.ndarray, setup: dict):
+    """The ruler fit (:class:`EstimateSet`) and the stations it gives; raises RobocalError when underdetermined."""
+    from calib.estimators.ruler import RulerSightings, ruler_lsq
+    if len(rows) == 0:
+        raise RobocalError("ruler: no sightings")
+    sigma = setup["stations"].get("sigma_arcsec", 3.0) * ARCSEC
+    a = np.asarray(rows, float)
+    s = RulerSightings(a[:, 0], a[:, 1], a[:, 2], a[:, 3], a[:, 4], a[:, 5])
+    res = ruler_lsq(s, setup["ruler"]["marks_mm"], sigma)
+    L, g1, g2 = (res[n].value for n in ("L_mm", "gamma1_rad", "gamma2_rad"))
+    hb = res["hB_mm"].value if "hB_mm" in res.names else 0.0
+    A, B = thesis_stations(L, g1, g2, sigma, hb)
+    return res, {"A": A, "B": B}
+
+
+def stations_from_store(store, setup: dict, min_marks: int = 6) -> dict[str, Station] | None:
+    """Stations refitted from the ruler steps committed so far, or None while they cannot determine them.
+
+    ``min_marks``: accepted ruler steps needed before a fit is tried (two placements of three marks): one placement
+    leaves the ruler's position and the base length L in one combination.
+    """
+    conn = store.conn
+    steps = []
+    for step_id, spec, attempts in conn.execute(
+            "SELECT step_id, spec_json, attempts FROM step WHERE procedure='ruler' AND status='accepted' "
+            "ORDER BY seq"):
+        readings = [{"station": s, "face": f, "hz_rad": h, "v_rad": v} for s, f, h, v in conn.execute(
+            "SELECT station, face, hz_rad, v_rad FROM reading WHERE step_id=? AND attempt=? ORDER BY reading_id",
+            (step_id, attempts))]
+        steps.append({"spec": json.loads(spec), "readings": readings})
+    if len(steps) < min_marks:
+        return None
+    try:
+        return fit_ruler(ruler_rows(steps), setup)[1]
+    except (RobocalError, KeyError, ValueError, np.linalg.LinAlgError):
+        return None
