@@ -87,8 +87,8 @@ def _summary(res: dict) -> None:
     for c in ("name", "value", "error (1 sigma)", "unit", "truth"):
         t.add_column(c)
     for e in res["estimates"]:
-        t.add_row(e["name"], f"{e['value']:.6g}", f"{e['error']:.2g}", e["unit"],
-                  "" if e["truth"] is None else f"{e['truth']:.6g}")
+        err = "held" if e.get("held") else f"{e['error']:.2g}"
+        t.add_row(e["name"], f"{e['value']:.6g}", err, e["unit"], "" if e["truth"] is None else f"{e['truth']:.6g}")
     Console().print(t)
     for p in res["problems"]:
         print(f"note: {p}", file=sys.stderr)

@@ -190,19 +190,12 @@ def reprocess(path: str, n_mc: int = 0, progress=None) -> dict:
 
 # -- stages ------------------------------------------------------------------------------------------------------
 def _ruler(steps, setup, sigma, est, twin, figs):
-    from calib.estimators.ruler import RulerSightings, ruler_lsq
-    from calib.theodolite import thesis_stations
+    """The same ruler fit the runner uses live (:mod:`acq.session.stations`), recorded with its estimates."""
+    from .stations import fit_ruler, ruler_rows
     if not steps:
         return None
-    rows = []
-    for st in steps:
-        m = st["spec"]["meta"]
-        for r in st["readings"]:
-            rows.append((m["placement"], m["mark"], 0 if r["station"] == "A" else 1, r["face"], r["hz_rad"],
-                         r["v_rad"]))
-    a = np.array(rows, float)
-    s = RulerSightings(a[:, 0], a[:, 1], a[:, 2], a[:, 3], a[:, 4], a[:, 5])
-    res = ruler_lsq(s, setup["ruler"]["marks_mm"], sigma)
+    res, stations = fit_ruler(ruler_rows(steps), {**setup, "stations": {**setup["stations"],
+                                                                          "sigma_arcsec": sigma / ARCSEC}})
     tv = {}
     if twin is not None:
         A, B = twin.stations
@@ -210,11 +203,9 @@ def _ruler(steps, setup, sigma, est, twin, figs):
               "hB_mm": B.z_mm - A.z_mm}
     est.add_set("ruler.", res, tv, only=("L_mm", "gamma1_rad", "gamma2_rad", "hB_mm"))
     L, g1, g2 = (res[n].value for n in ("L_mm", "gamma1_rad", "gamma2_rad"))
-    hb = res["hB_mm"].value if "hB_mm" in res.names else 0.0
-    A, B = thesis_stations(L, g1, g2, sigma, hb)
     figs["ruler"] = {"L_mm": L, "gamma1_deg": g1 / DEG, "gamma2_deg": g2 / DEG,
                      "residual_arcsec": (np.asarray(res.extras.get("residual", [])) / ARCSEC).tolist()}
-    return {"A": A, "B": B}
+    return stations
 
 
 def _block(covs):
