@@ -30,7 +30,7 @@ Sign conventions (documented once, used everywhere):
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import ClassVar
 
 import numpy as np

@@ -246,7 +246,7 @@ def robot_to_toml(robot: Robot) -> str:
     def vec(v) -> str:
         return "[" + ", ".join(num(x) for x in v) + "]"
 
-    lines = [f"# robot description written by robocal", "[robot]", f"name = {robot.name!r}".replace("'", '"'),
+    lines = ["# robot description written by robocal", "[robot]", f"name = {robot.name!r}".replace("'", '"'),
              f"gravity_m_s2 = {vec(robot.gravity_m_s2)}", ""]
     for i in range(robot.n):
         lines += [

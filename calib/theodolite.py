@@ -20,7 +20,7 @@ The thesis's own parameterisation (L, gamma1, gamma2; section 4.2 and eq 4.3.1) 
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field, fields, replace
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -187,7 +187,6 @@ def intersect(stations: list[Station], readings: list[tuple], faces: list | None
     p, miss, angle = closest_point(stations[0].position, dirs[0], stations[1].position, dirs[1],
                                    (stations[0].name, stations[1].name))
     w = np.concatenate([[1 / s.sigma_hz_rad ** 2, 1 / s.sigma_v_rad ** 2] for s in stations])
-    N = p.shape[0]
     for _ in range(iterations):
         res, J = _residuals(stations, faces, hz, vv, p)
         JW = J * w[None, :, None]

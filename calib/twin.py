@@ -24,7 +24,7 @@ from .effects import (Backlash, CrossCoupling, Effect, JointCompliance, LinkComp
 from .model import MeasurementModel
 from .robot import Robot, load_robot
 from .theodolite import Station, thesis_stations
-from .tomlspec import Checker, Field, check_each
+from .tomlspec import Checker, Field
 from .units import ARCSEC, DEG
 
 # -- scenario file specs -----------------------------------------------------------------------------------------

@@ -9,7 +9,7 @@ import pytest
 from calib.errors import RobocalError
 from calib.identify import AngleObservations, PointObservations, identify
 from calib.model import MeasurementModel
-from calib.plan import Design, parameter_set, position_sigma, select_poses
+from calib.plan import Design, select_poses
 from calib.theodolite import intersect
 from calib.twin import Twin, load_scenario
 

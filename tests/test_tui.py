@@ -11,7 +11,7 @@ import pytest
 
 from acq.commands.session import emulated_builder
 from acq.session.store import SessionStore
-from acq.tui.app import HelpScreen, RobocalApp
+from acq.tui.app import RobocalApp
 
 
 def answer_all(app, pilot, until, press_first=2, timeout=90.0):

@@ -9,7 +9,6 @@ import numpy as np
 from calib.errors import RobocalError
 from calib.kinematics import Kinematics
 from calib.robot import load_robot
-from calib.units import DEG
 
 NAME = "fk"
 HELP = "tool point (mm, robot base frame 0) for six joint readings in degrees"

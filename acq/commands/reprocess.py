@@ -5,8 +5,6 @@ the session's ``result`` table: raw data is never rewritten).
 """
 from __future__ import annotations
 
-from pathlib import Path
-
 NAME = "reprocess"
 HELP = "rerun the calibration from a saved session (read-only), write JSON estimates and an HTML report"
 

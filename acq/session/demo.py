@@ -20,8 +20,6 @@ from pathlib import Path
 
 import numpy as np
 
-from calib.errors import RobocalError
-from calib.kinematics import Kinematics
 from calib.model import MeasurementModel
 from calib.theodolite import thesis_stations
 from calib.twin import Twin, load_scenario

@@ -26,10 +26,8 @@ import numpy as np
 
 from calib.errors import RobocalError
 from calib.robot import load_robot
-from calib.theodolite import Station
 from calib.units import ARCSEC, DEG
 
-from .checks import face_mean
 from .store import code_version, connect_readonly, from_npy
 
 
