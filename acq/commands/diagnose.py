@@ -1,0 +1,104 @@
+"""``robocal diagnose``: explain the sim-to-real gap of a robot from pose measurements (issue 8).
+
+DATA is a pose-measurement CSV, a session database (once the session store exports observations), or the FIGAROH
+TIAGo mocap CSV (recognised by its header; the shipped TIAGo description is then the default robot).
+"""
+from __future__ import annotations
+
+import json
+
+from calib.errors import RobocalError
+
+NAME = "diagnose"
+HELP = "diagnose the sim-to-real gap: held-out residual, where it lies, which unmodelled effect, how far it shrinks"
+
+
+def add_arguments(p):
+    p.add_argument("data", metavar="DATA", nargs="?",
+                   help="pose CSV (q1..qn deg, x y z mm, optional dir*, payload, temperature, time, sigma_*_mm), "
+                        "a session database, or the TIAGo mocap CSV")
+    p.add_argument("--robot", metavar="FILE", help="robot description TOML (default: the thesis's Puma 560; "
+                                                   "the shipped TIAGo arm for the TIAGo mocap file)")
+    p.add_argument("--noise-mm", type=float, default=None, metavar="S",
+                   help="1-sigma point noise per coordinate (mm) when DATA carries no per-point uncertainty")
+    p.add_argument("--json", action="store_true", help="print the result as one JSON object")
+    p.add_argument("--report", metavar="DIR", help="write an HTML report with PNG figures into DIR")
+    p.add_argument("--geometry", choices=("auto", "full", "offsets"), default="auto",
+                   help="geometric parameter set of the baseline (auto: full unless the poses are too few)")
+    p.add_argument("--folds", type=int, default=None, metavar="K",
+                   help="k-fold held-out test (default 5; leave-one-out up to 40 poses)")
+    p.add_argument("--alpha", type=float, default=0.01,
+                   help="family-wise significance level of the nested F-test (default 0.01)")
+    p.add_argument("--max-effects", type=int, default=6, metavar="N", help="stop after N accepted effects")
+    p.add_argument("--validate", action="store_true",
+                   help="run the withheld-effect validation on twin data instead of diagnosing DATA")
+    p.add_argument("--seeds", type=int, default=3, metavar="N", help="seeds per case for --validate (default 3)")
+    p.add_argument("--levels", default="2,4", metavar="L1,L2",
+                   help="--validate: effect sizes as multiples of the noise floor (tool-point displacement RMS; "
+                        "default 2,4)")
+    p.add_argument("--clean", type=int, default=4, metavar="N", help="--validate: clean cases per seed (default 4)")
+    p.add_argument("--workers", type=int, default=None, metavar="N", help="processes for --validate (default: CPUs)")
+
+
+def _validate(args) -> int:
+    from calib.diagnose.validate import cases, run_validation
+
+    from ..progress import progress_display
+
+    if args.seeds < 1:
+        raise RobocalError(f"--seeds must be at least 1, got {args.seeds}")
+    try:
+        levels = tuple(float(x) for x in args.levels.split(","))
+    except ValueError:
+        raise RobocalError(f"--levels must be numbers separated by commas, got {args.levels!r}") from None
+    if not levels or min(levels) <= 0:
+        raise RobocalError(f"--levels must be positive, got {args.levels!r}")
+    if args.clean < 0:
+        raise RobocalError(f"--clean must not be negative, got {args.clean}")
+    with progress_display("robocal diagnose --validate") as update:
+        v = run_validation(cases(seeds=args.seeds, levels=levels, clean_per_seed=args.clean), workers=args.workers,
+                           progress=update)
+    if args.report:
+        from calib.diagnose.report import write_validation_report
+        write_validation_report(v, args.report)
+    if args.json:
+        print(json.dumps(v.to_json(), indent=1))
+    else:
+        print(v.render())
+        if args.report:
+            print(f"\nreport: {args.report}/validation.html")
+    return 0
+
+
+def run(args) -> int:
+    if args.validate:
+        return _validate(args)
+    if not args.data:
+        raise RobocalError("diagnose: give DATA (a pose CSV or a session database), or --validate")
+    if args.noise_mm is not None and not args.noise_mm > 0:
+        raise RobocalError(f"diagnose: --noise-mm must be positive, got {args.noise_mm}")
+    if args.folds is not None and args.folds < 2:
+        raise RobocalError(f"diagnose: --folds must be at least 2, got {args.folds}")
+    if not 0 < args.alpha < 1:
+        raise RobocalError(f"diagnose: --alpha must be between 0 and 1, got {args.alpha}")
+    from calib.diagnose import diagnose, load_data
+    from calib.diagnose.render import render
+    from calib.robot import load_robot
+
+    from ..progress import progress_display
+
+    robot = load_robot(args.robot) if args.robot else None
+    data = load_data(args.data, robot, args.noise_mm)
+    with progress_display("robocal diagnose") as update:
+        diag = diagnose(data, level=args.geometry, n_folds=args.folds, alpha=args.alpha,
+                        max_effects=args.max_effects, progress=update)
+    if args.report:
+        from calib.diagnose.report import write_report
+        write_report(diag, args.report)
+    if args.json:
+        print(json.dumps(diag.to_json(), indent=1, default=float))
+    else:
+        print(render(diag))
+        if args.report:
+            print(f"\nreport: {args.report}/index.html")
+    return 0

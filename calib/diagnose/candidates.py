@@ -1,0 +1,169 @@
+"""The library of candidate unmodelled effects, instantiated per joint where the data can show them.
+
+Each candidate is one of the model's own effects (:mod:`calib.effects`) with zero (or negligible) initial values and
+the list of its parameters to estimate, so scoring, refitting and reporting all go through the one forward model.
+
+A candidate is only offered when its driver was measured (see :class:`calib.diagnose.data.DiagnosisData.has`):
+backlash needs approach directions, thermal drift a temperature that varies, compliance a gravity or payload torque
+(masses in the robot description or a varying payload).  Anything skipped is listed with the reason, so "no finding"
+is never confused with "not tested".
+
+Transmission error has an unknown order (cycles per radian of joint angle): it is offered on a grid of orders per
+joint, each grid point one candidate; the selection's multiple-test correction counts every grid point.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from calib.effects import (Backlash, CrossCoupling, Effect, JointCompliance, LinkCompliance, ThermalDrift,
+                           TransmissionError)
+from calib.units import DEG
+
+from .data import DiagnosisData
+
+#: the effect names the diagnosis reports (the registry keys of calib.effects.EFFECTS)
+EFFECT_NAMES = ("transmission_error", "joint_compliance", "backlash", "cross_coupling", "link_compliance",
+                "thermal_drift")
+#: transmission-error orders tried (cycles per radian of joint angle); the thesis found 0.9 and 1.8
+TE_ORDERS = tuple(np.round(np.arange(0.5, 4.01, 0.1), 2))
+#: a joint that moves less than this over the poses cannot show a joint-angle signature
+MIN_RANGE_RAD = 10 * DEG
+
+
+@dataclass
+class Candidate:
+    kind: str                         # one of EFFECT_NAMES
+    joint: int | None                 # the joint whose motion the effect disturbs (1-based), None for thermal drift
+    source: int | None = None         # cross coupling: the joint whose reading leaks into ``joint``
+    order: float | None = None        # transmission error: cycles per radian
+    reference_c: float = 20.0         # thermal drift reference temperature
+    free: tuple[str, ...] = ()        # parameters to estimate (unqualified names)
+
+    @property
+    def group(self) -> tuple:
+        """Candidates of one group exclude each other (one transmission error per joint, whatever the order)."""
+        return (self.kind, self.joint, self.source)
+
+    @property
+    def label(self) -> str:
+        if self.kind == "transmission_error":
+            return f"transmission_error j{self.joint} (order {self.order:g}/rad)"
+        if self.kind == "cross_coupling":
+            return f"cross_coupling j{self.source}->j{self.joint}"
+        if self.kind == "thermal_drift":
+            return "thermal_drift"
+        return f"{self.kind} j{self.joint}"
+
+    def make(self) -> Effect:
+        """A fresh effect instance at (nearly) zero magnitude: the model's own code gives its Jacobian."""
+        if self.kind == "transmission_error":
+            return TransmissionError(self.joint, self.order, [0.0], [0.0])
+        if self.kind == "joint_compliance":
+            return JointCompliance(self.joint, 1e12)
+        if self.kind == "backlash":
+            return Backlash(self.joint, 0.0)
+        if self.kind == "cross_coupling":
+            return CrossCoupling(self.joint, self.source, 0.0)
+        if self.kind == "link_compliance":
+            return LinkCompliance(self.joint, 1e18)
+        if self.kind == "thermal_drift":
+            return ThermalDrift(0.0, self.reference_c)
+        raise ValueError(self.kind)
+
+    def parameters(self, values: dict[str, float], sigmas: dict[str, float]) -> dict[str, float]:
+        """The estimated parameters in edge units (degrees, N m), with their 1-sigma, for reports and JSON."""
+        out: dict[str, float] = {}
+        if self.kind == "transmission_error":
+            s, c = values["s1_rad"], values["c1_rad"]
+            out = {"order_per_rad": float(self.order), "sin_deg": s / DEG, "cos_deg": c / DEG,
+                   "amplitude_deg": float(np.hypot(s, c)) / DEG,
+                   "sin_sigma_deg": sigmas["s1_rad"] / DEG, "cos_sigma_deg": sigmas["c1_rad"] / DEG}
+        elif self.kind == "joint_compliance":
+            c = values["compliance1_rad_per_nm"]
+            out = {"compliance_deg_per_nm": c / DEG, "compliance_sigma_deg_per_nm":
+                   sigmas["compliance1_rad_per_nm"] / DEG,
+                   "stiffness_nm_per_rad": (1.0 / c) if c > 0 else None}
+        elif self.kind == "backlash":
+            out = {"width_deg": values["width_rad"] / DEG, "width_sigma_deg": sigmas["width_rad"] / DEG}
+        elif self.kind == "cross_coupling":
+            out = {"source_joint": self.source, "sigma": values["sigma"], "sigma_sigma": sigmas["sigma"]}
+        elif self.kind == "link_compliance":
+            c = values["compliance_per_nmm2"]
+            out = {"compliance_per_nmm2": c, "compliance_sigma_per_nmm2": sigmas["compliance_per_nmm2"],
+                   "ei_nmm2": (1.0 / c) if c > 0 else None}
+        elif self.kind == "thermal_drift":
+            out = {"kappa_per_degc": values["kappa_per_degc"], "kappa_sigma_per_degc": sigmas["kappa_per_degc"],
+                   "reference_degc": self.reference_c}
+        return out
+
+
+@dataclass
+class Library:
+    candidates: list[Candidate]
+    skipped: list[str] = field(default_factory=list)      # "effect: why it was not tested"
+
+
+def build_library(data: DiagnosisData, kinds: tuple[str, ...] = EFFECT_NAMES,
+                  te_orders: tuple[float, ...] = TE_ORDERS) -> Library:
+    """Every candidate the data can test, per joint where it applies; the rest listed with the reason."""
+    robot = data.robot
+    n = robot.n
+    rev = [j for j in range(1, n + 1) if not robot.prismatic[j - 1]]
+    rng = np.ptp(data.q_rad, axis=0)
+    moving = [j for j in rev if rng[j - 1] >= MIN_RANGE_RAD]
+    still = [j for j in rev if rng[j - 1] < MIN_RANGE_RAD]
+    loads = bool(np.any(robot.mass_kg > 0)) or data.has.get("payload", False)
+    out = Library([])
+    skip = out.skipped.append
+    if still:
+        skip(f"joints {', '.join(map(str, still))}: move less than {MIN_RANGE_RAD / DEG:.0f} deg over the poses, "
+             f"no joint-angle signature can be tested on them")
+    if any(robot.prismatic):
+        skip("prismatic joints " + ", ".join(str(j + 1) for j in np.flatnonzero(robot.prismatic)) +
+             ": only backlash is tested on them (the other effects are defined for revolute joints)")
+    if "transmission_error" in kinds:
+        for j in moving:
+            for o in te_orders:
+                out.candidates.append(Candidate("transmission_error", j, order=float(o), free=("s1_rad", "c1_rad")))
+    if "joint_compliance" in kinds:
+        if loads:
+            for j in rev:
+                out.candidates.append(Candidate("joint_compliance", j, free=("compliance1_rad_per_nm",)))
+        else:
+            skip("joint_compliance: the robot description has no masses and the payload does not vary")
+    if "backlash" in kinds:
+        if data.has.get("direction"):
+            d = data.ctx.direction
+            for j in range(1, n + 1):
+                if np.ptp(d[:, j - 1]) > 0:
+                    out.candidates.append(Candidate("backlash", j, free=("width_rad",)))
+                else:
+                    skip(f"backlash j{j}: every pose approached from the same side (dir{j} constant)")
+        else:
+            skip("backlash: the data carries no approach directions (dir1..dir%d columns)" % n)
+    if "cross_coupling" in kinds:
+        for j in rev:
+            for k in moving:
+                if k != j:
+                    out.candidates.append(Candidate("cross_coupling", j, source=k, free=("sigma",)))
+    if "link_compliance" in kinds:
+        if loads:
+            for j in range(1, n + 1):
+                if np.hypot(robot.a_mm[j - 1], robot.d_mm[j - 1]) > 10.0 and not robot.prismatic[j - 1]:
+                    out.candidates.append(Candidate("link_compliance", j, free=("compliance_per_nmm2",)))
+        else:
+            skip("link_compliance: the robot description has no masses and the payload does not vary")
+    if "thermal_drift" in kinds:
+        if data.has.get("temperature"):
+            ref = float(np.round(np.mean(data.ctx.temperature_c), 1))
+            out.candidates.append(Candidate("thermal_drift", None, reference_c=ref, free=("kappa_per_degc",)))
+        else:
+            skip("thermal_drift: the temperature does not vary over the poses (or is not recorded)")
+    if data.raw_angles:
+        skip("instrument errors: raw theodolite angles are present, but the point-based diagnosis does not refit "
+             "them (run robocal identify on the angles)")
+    else:
+        skip("instrument errors: the data holds intersected points, not raw theodolite angles")
+    return out

@@ -1,0 +1,154 @@
+"""What the diagnosis reads: joint readings, measured points with their uncertainty, and the pose conditions.
+
+Every source (a pose-measurement CSV, a session database, a foreign data set such as the TIAGo mocap file) is turned
+into one :class:`DiagnosisData`, so the gap, breakdown and selection code never looks at file formats.
+
+Why the context flags matter: a candidate effect can only be tested when the data carries what drives it (approach
+directions for backlash, temperature for thermal drift, varied load for compliance).  :attr:`DiagnosisData.has`
+records which drivers were *measured* (a column present and not constant), so the candidate library can skip the
+rest with a note instead of fitting a column of zeros.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from calib.effects import PoseContext
+from calib.errors import RobocalError
+from calib.identify import PointObservations
+from calib.robot import Robot
+
+SQLITE_MAGIC = b"SQLite format 3\x00"
+
+
+@dataclass
+class DiagnosisData:
+    """Observations for diagnosis, in internal units (mm, rad; mm for a prismatic joint)."""
+
+    robot: Robot
+    q_rad: np.ndarray                      # (N, n) joint readings
+    points_mm: np.ndarray                  # (N, 3) measured tool-target positions
+    cov_mm2: np.ndarray                    # (N, 3, 3) their covariance (from the instruments or --noise-mm)
+    ctx: PoseContext
+    source: str = "<memory>"
+    noise_from: str = "data"               # "data" (per-point covariance) or "--noise-mm"
+    has: dict[str, bool] = field(default_factory=dict)       # direction, temperature, time, payload
+    labels: dict[str, list[str]] = field(default_factory=dict)    # categorical per pose (sessions: procedure)
+    numeric: dict[str, np.ndarray] = field(default_factory=dict)  # extra per-pose numbers (sighting angle, deg)
+    raw_angles: bool = False               # theodolite readings available (instrument-error candidates)
+    pose_id: list[str] = field(default_factory=list)
+    notes: list[str] = field(default_factory=list)
+
+    @property
+    def n(self) -> int:
+        return len(self.q_rad)
+
+    def observations(self, idx=None) -> PointObservations:
+        """The points as :class:`calib.identify.PointObservations` (all poses or a subset)."""
+        obs = PointObservations(self.q_rad, self.points_mm, self.cov_mm2, ctx=self.ctx)
+        return obs if idx is None else obs.subset(np.asarray(idx))
+
+    @property
+    def whitening(self) -> np.ndarray:
+        """(N, 3, 3) W with W^T W = cov^-1: whitened residual = W r."""
+        return np.linalg.cholesky(np.linalg.inv(self.cov_mm2)).transpose(0, 2, 1)
+
+
+def _varies(a: np.ndarray | None) -> bool:
+    return a is not None and np.size(a) > 0 and bool(np.ptp(np.asarray(a, float), axis=0).max() > 0)
+
+
+def from_arrays(robot: Robot, q_rad, points_mm, cov_mm2=None, noise_mm: float | None = None, *, direction=None,
+                payload_kg=None, temperature_c=None, time_s=None, source: str = "<memory>",
+                pose_id=None) -> DiagnosisData:
+    """Build :class:`DiagnosisData`; the covariance comes from ``cov_mm2`` or, failing that, ``noise_mm``."""
+    q = np.atleast_2d(np.asarray(q_rad, float))
+    p = np.atleast_2d(np.asarray(points_mm, float))
+    N = len(q)
+    if q.shape[1] != robot.n:
+        raise RobocalError(f"{source}: {q.shape[1]} joint columns but the robot {robot.name!r} has {robot.n} joints")
+    if p.shape != (N, 3):
+        raise RobocalError(f"{source}: {N} poses but {len(p)} measured points")
+    noise_from = "data"
+    if cov_mm2 is None:
+        if noise_mm is None:
+            raise RobocalError(f"{source}: the data carries no per-point uncertainty (no sigma_x_mm.. columns); "
+                               f"give the 1-sigma noise per coordinate with --noise-mm")
+        if not noise_mm > 0:
+            raise RobocalError(f"--noise-mm must be positive, got {noise_mm}")
+        cov_mm2 = np.broadcast_to(np.eye(3) * noise_mm ** 2, (N, 3, 3)).copy()
+        noise_from = "--noise-mm"
+    cov_mm2 = np.asarray(cov_mm2, float)
+    if N < 8:
+        raise RobocalError(f"{source}: {N} poses are too few to diagnose (need at least 8 for a held-out test)")
+    ctx = PoseContext(N, robot.n, direction=direction, payload_kg=payload_kg, temperature_c=temperature_c,
+                      time_s=time_s)
+    has = {"direction": direction is not None and bool(np.any(np.asarray(direction) != 0)),
+           "temperature": _varies(temperature_c), "time": _varies(time_s), "payload": _varies(payload_kg)}
+    return DiagnosisData(robot, q, p, cov_mm2, ctx, source, noise_from, has,
+                         pose_id=list(pose_id) if pose_id is not None else [])
+
+
+def is_session_db(path: str | Path) -> bool:
+    try:
+        with open(path, "rb") as fh:
+            return fh.read(16) == SQLITE_MAGIC
+    except OSError:
+        return False
+
+
+def session_observations(path: str | Path, robot: Robot) -> DiagnosisData:
+    """The hook for session databases: turn a session into the same observation arrays as a pose CSV.
+
+    The session store (``acq.session``) is being written in parallel.  The contract this hook expects from it is a
+    function ``acq.session.export.diagnosis_arrays(path) -> dict`` with keys ``q_rad`` (N, n), ``points_mm`` (N, 3),
+    ``cov_mm2`` (N, 3, 3), optional ``direction``, ``payload_kg``, ``temperature_c``, ``time_s``, ``procedure``
+    (list of N step procedure names), ``sighting_angle_deg`` (N,) (intersection angle of the two sight lines) and
+    ``raw_angles`` (bool).  Until that exists, a session file is refused with one clear line.
+    """
+    try:
+        from acq.session import export                     # type: ignore[attr-defined]
+        arrays = export.diagnosis_arrays(path)
+    except (ImportError, AttributeError):
+        raise RobocalError(f"{path}: session databases are not supported yet (give a pose-measurement CSV)") from None
+    d = from_arrays(robot, arrays["q_rad"], arrays["points_mm"], arrays.get("cov_mm2"), None,
+                    direction=arrays.get("direction"), payload_kg=arrays.get("payload_kg"),
+                    temperature_c=arrays.get("temperature_c"), time_s=arrays.get("time_s"), source=str(path))
+    if arrays.get("procedure") is not None:
+        d.labels["procedure"] = [str(s) for s in arrays["procedure"]]
+    if arrays.get("sighting_angle_deg") is not None:
+        d.numeric["sighting angle (deg)"] = np.asarray(arrays["sighting_angle_deg"], float)
+    d.raw_angles = bool(arrays.get("raw_angles", False))
+    return d
+
+
+def load_data(path: str | Path, robot: Robot | None = None, noise_mm: float | None = None) -> DiagnosisData:
+    """Read DATA: a session database, the TIAGo mocap CSV (recognised by its header) or a pose-measurement CSV."""
+    from calib.posecsv import read_pose_csv
+    from calib.robot import load_robot
+
+    path = Path(path)
+    if not path.exists():
+        raise RobocalError(f"{path}: file not found")
+    if is_session_db(path):
+        return session_observations(path, robot or load_robot())
+    from .tiago import is_tiago_mocap, load_tiago_mocap
+    if is_tiago_mocap(path):
+        return load_tiago_mocap(path, robot, noise_mm)
+    robot = robot or load_robot()
+    import warnings
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        table = read_pose_csv(path, robot.n)
+    if table.points_mm is None:
+        raise RobocalError(f"{path}: columns x, y, z (measured tool points, mm) are needed to diagnose")
+    cov = None
+    if table.sigma_mm is not None:
+        cov = np.einsum("ni,ij->nij", table.sigma_mm ** 2, np.eye(3))
+    d = from_arrays(robot, table.q_rad * (robot.edge_scale / np.radians(1.0)), table.points_mm, cov, noise_mm,
+                    direction=table.direction, payload_kg=table.payload_kg, temperature_c=table.temperature_c,
+                    time_s=table.time_s, source=str(path), pose_id=table.pose_id or None)
+    d.notes += [str(w.message) for w in caught]
+    return d

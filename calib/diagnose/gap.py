@@ -1,0 +1,128 @@
+"""The gap: the geometric model fitted and scored on poses it was not fitted to.
+
+Why held-out: a fit always explains its own poses better than the robot deserves (p parameters soak up p directions
+of noise and unmodelled motion).  Scoring every pose by a fit that never saw it (k-fold, or leave-one-out for small
+sets) measures what a calibrated model will do in use, and is what candidate effects are scored by.
+
+Noise floor: the RMS 3-D error the instruments alone would give, ``sqrt(mean_i trace(cov_i))``, from each point's
+covariance (theodolite intersection, ``sigma_*_mm`` columns) or ``--noise-mm``.  A held-out fit can not reach it
+exactly: the parameters carry estimation noise too; :func:`heldout_floor_mm` gives that expected held-out floor.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from calib.identify import Identification, default_free, identify
+from calib.model import MeasurementModel
+
+from .data import DiagnosisData
+
+#: below this many poses the held-out test is leave-one-out, above it k-fold
+LOO_MAX_POSES = 40
+
+
+def make_folds(n: int, k: int | None = None, seed: int = 0) -> list[tuple[np.ndarray, np.ndarray]]:
+    """(train, test) index pairs; every pose is tested exactly once.  ``k=None``: 5-fold, or leave-one-out up to
+    :data:`LOO_MAX_POSES` poses."""
+    if k is None:
+        k = n if n <= LOO_MAX_POSES else 5
+    k = int(min(max(k, 2), n))
+    perm = np.random.default_rng(seed).permutation(n)
+    parts = np.array_split(perm, k)
+    return [(np.sort(np.concatenate(parts[:i] + parts[i + 1:])), np.sort(parts[i])) for i in range(k)]
+
+
+def geometric_free(model: MeasurementModel, level: str = "full") -> list[str]:
+    """The geometric parameters to fit: ``full`` (identify's conventional set) or ``offsets`` (base, tool and the
+    joint zero offsets only: for small data sets, as FIGAROH's ``joint_offset`` level)."""
+    if level == "full":
+        return default_free(model, effects=False)
+    names = [n for n in model.kin.names if n.startswith(("base.", "tool."))]
+    for j in range(model.robot.n):
+        names.append(f"j{j + 1}.d_mm" if model.robot.prismatic[j] else f"j{j + 1}.theta_offset_rad")
+    order = {n: i for i, n in enumerate(model.names)}
+    return sorted(names, key=order.get)
+
+
+def auto_level(model: MeasurementModel, n_poses: int, n_folds: int) -> str:
+    """``full`` unless a training fold has fewer than three observations per full-set parameter."""
+    n_train = n_poses - int(np.ceil(n_poses / n_folds))
+    return "full" if 3 * n_train >= 3 * len(geometric_free(model, "full")) else "offsets"
+
+
+@dataclass
+class FoldFit:
+    train: np.ndarray
+    test: np.ndarray
+    theta: np.ndarray          # the model's parameter vector fitted on ``train``
+    free: list[str]            # what the fit estimated (after the identifiability guard)
+
+
+@dataclass
+class CVResult:
+    model: MeasurementModel
+    folds: list[FoldFit]
+    residual_mm: np.ndarray    # (N, 3) measured - predicted, each pose by the fold that did not see it
+    chi2: float                # whitened held-out sum of squares
+    all_fit: Identification    # the same model fitted on every pose (parameters, Jacobian point)
+
+    @property
+    def rms_mm(self) -> float:
+        return rms_mm(self.residual_mm)
+
+    @property
+    def max_mm(self) -> float:
+        return float(np.max(np.linalg.norm(self.residual_mm, axis=1)))
+
+
+def rms_mm(res: np.ndarray) -> float:
+    """RMS of the 3-D residual length."""
+    return float(np.sqrt(np.mean(np.sum(np.asarray(res) ** 2, axis=-1))))
+
+
+def noise_floor_mm(data: DiagnosisData) -> float:
+    return float(np.sqrt(np.mean(np.trace(data.cov_mm2, axis1=1, axis2=2))))
+
+
+def whitened_chi2(data: DiagnosisData, res: np.ndarray, idx=None) -> float:
+    W = data.whitening if idx is None else data.whitening[idx]
+    return float(np.sum(np.einsum("nij,nj->ni", W, res) ** 2))
+
+
+def cv_fit(model: MeasurementModel, data: DiagnosisData, free: list[str], folds, theta0: list[np.ndarray] | None = None,
+           theta0_all: np.ndarray | None = None, start: bool = True) -> CVResult:
+    """Fit ``model`` on each fold's training poses with :func:`calib.identify.identify` and predict its test poses.
+
+    ``theta0`` (one per fold) warm-starts refits after an effect was added; ``start`` runs identify's own start
+    (rigid base fit and the linear step of Chapter 6) for the first, geometric fit.
+    """
+    res = np.zeros_like(data.points_mm)
+    fits = []
+    for i, (tr, te) in enumerate(folds):
+        obs = data.observations(tr)
+        idn = identify(model, obs, free=free, theta0=None if theta0 is None else theta0[i], robust=False,
+                       start=start)
+        th = idn.theta[: model.P]
+        res[te] = data.points_mm[te] - model.points(data.q_rad[te], data.ctx.subset(te), th)
+        fits.append(FoldFit(tr, te, th, list(idn.free)))
+    all_fit = identify(model, data.observations(), free=free, theta0=theta0_all, robust=False, start=start)
+    return CVResult(model, fits, res, whitened_chi2(data, res), all_fit)
+
+
+def heldout_floor_mm(cv: CVResult, data: DiagnosisData) -> float:
+    """The held-out RMS a perfect model would show: instrument noise plus the prediction noise of the fitted
+    parameters, ``sqrt(mean_i [trace(cov_i) + trace(J_i C J_i^T)])`` with C the fold fit's covariance from the
+    instrument weights alone (not inflated by the misfit)."""
+    model = cv.model
+    ev = model.evaluate(data.q_rad, data.ctx, cv.all_fit.theta[: model.P], jacobian=True)
+    W = data.whitening
+    tot = np.trace(data.cov_mm2, axis1=1, axis2=2).copy()
+    for f in cv.folds:
+        idx = [model.index[n] for n in f.free]
+        Jt = np.einsum("nij,njp->nip", W[f.train], ev.jacobian[f.train][:, :, idx]).reshape(-1, len(idx))
+        C = np.linalg.pinv(Jt.T @ Jt)
+        Jte = ev.jacobian[f.test][:, :, idx]
+        tot[f.test] += np.einsum("nip,pq,niq->n", Jte, C, Jte)
+    return float(np.sqrt(np.mean(tot)))

@@ -1,0 +1,68 @@
+"""The diagnosis as text tables for the terminal (what the operator reads first)."""
+from __future__ import annotations
+
+from .engine import Diagnosis
+
+
+def _p(p: float) -> str:
+    return f"{p:.2g}" if p == p else "-"
+
+
+def render(d: Diagnosis, max_factor_rows: int = 40) -> str:
+    j = d.to_json()
+    out = [f"robocal diagnose {j['source']}: {j['poses']} poses, robot {j['robot']}",
+           f"held-out test: {j['heldout']}; geometric parameter set: {j['geometry_level']}; point noise from "
+           f"{j['noise_from']}", ""]
+    out += ["1. The gap (geometric model, poses it was not fitted to)",
+            f"   held-out RMS {j['baseline_rms_mm']:.4f} mm, max {j['baseline_max_mm']:.4f} mm",
+            f"   noise floor of the instruments {j['noise_floor_mm']:.4f} mm "
+            f"(held-out floor with parameter noise {j['heldout_floor_mm']:.4f} mm)",
+            f"   excess over the floor: {j['baseline_rms_mm'] - j['noise_floor_mm']:+.4f} mm", ""]
+    out.append("2. Where it lies (held-out residual RMS in mm by condition; p: Kruskal-Wallis over the groups, "
+               "small = the gap depends on it)")
+    rows = 0
+    for f in sorted(d.factors, key=lambda f: f.p_value if f.p_value == f.p_value else 1.0):
+        if rows >= max_factor_rows:
+            out.append("   ... (see --json or --report for every factor)")
+            break
+        out.append(f"   {f.name}  (p = {_p(f.p_value)}, strongest in the {f.statistic})")
+        out.append(f"     {'group':<28}{'n':>5}{'geometric':>12}{'final':>10}{'max':>10}")
+        for g in f.groups:
+            out.append(f"     {g.label:<28}{g.n:>5}{g.rms_before_mm:>12.4f}{g.rms_after_mm:>10.4f}"
+                       f"{g.max_before_mm:>10.4f}")
+            rows += 1
+    out.append("")
+    out.append("3. Which effect (greedy forward selection; score: held-out gap; test: nested F, Bonferroni)")
+    if not j["findings"]:
+        out.append("   no unmodelled effect found")
+    for i, f in enumerate(j["findings"], 1):
+        pars = ", ".join(f"{k} {v:.4g}" for k, v in f["parameters"].items()
+                         if isinstance(v, (int, float)) and "sigma_" not in k and not k.endswith("_sigma"))
+        out.append(f"   {i}. {f['label']}: held-out RMS -> {f['rms_after_mm']:.4f} mm, p = {_p(f['p_value'])}; "
+                   f"{pars}")
+    out.append(f"   stopped: {j['stop_reason']}")
+    if j["not_tested"]:
+        out.append("   not tested:")
+        out += [f"     - {s}" for s in j["not_tested"]]
+    if j["guard_notes"]:
+        out.append("   held back by the guard:")
+        out += [f"     - {s}" for s in j["guard_notes"][:12]]
+        if len(j["guard_notes"]) > 12:
+            out.append(f"     - ... {len(j['guard_notes']) - 12} more")
+    out.append("")
+    out.append("4. How far it shrinks")
+    out.append(f"   geometric {j['baseline_rms_mm']:.4f} mm" + "".join(
+        f" -> +{f['label']} {f['rms_after_mm']:.4f} mm" for f in j["findings"]))
+    shrink = j["excess_gap_shrink"]
+    out.append(f"   final held-out RMS {j['final_rms_mm']:.4f} mm (max {j['final_max_mm']:.4f}) against the floor "
+               f"{j['noise_floor_mm']:.4f} mm" + (f"; {100 * shrink:.0f} % of the excess gap removed"
+                                                  if shrink == shrink else ""))
+    if j["final_rms_mm"] > 1.2 * j["heldout_floor_mm"]:
+        out.append("   the remaining gap is above the floor: something none of the candidates describes is left "
+                   "(or the noise model is optimistic)")
+    if j["gross_errors_flagged"]:
+        out.append(f"   note: identify flags poses {', '.join(map(str, j['gross_errors_flagged']))} as gross errors "
+                   f"(kept in the diagnosis)")
+    for n in j["notes"]:
+        out.append(f"   note: {n}")
+    return "\n".join(out)
