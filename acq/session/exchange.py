@@ -71,9 +71,9 @@ def export_json(db: str, out: str) -> None:
     Path(out).write_text(json.dumps(doc, indent=1, default=str), encoding="utf-8")
 
 
-def export_poses_csv(db: str, out: str) -> int:
-    """Pose-set steps as a pose CSV: encoder joint readings and the intersected tool-target positions."""
-    from calib.posecsv import write_pose_csv
+def pose_arrays(db: str) -> dict:
+    """The pose-set steps of a session as arrays: encoder joint readings, intersected tool-target positions (with the
+    stations the session's own ruler steps give) and their covariances, step keys and sighting geometry."""
     from calib.robot import load_robot
 
     from .checks import intersect_targets
@@ -84,25 +84,39 @@ def export_poses_csv(db: str, out: str) -> int:
     ruler = [s for s in d.steps if s["procedure"] == "ruler"]
     sigma = d.setup["stations"].get("sigma_arcsec", 3.0) * 4.84813681109536e-06
     stations = (_ruler(ruler, d.setup, sigma, _Est(None), None, {}) if ruler else None) or setup_stations(d.setup)
-    q, P, ids = [], [], []
+    q, P, C, keys, angle = [], [], [], [], []
     for s in d.steps:
         if s["procedure"] != "poses":
             continue
         pts = intersect_targets(s["readings"], stations) if s["readings"] else {}
         if "P" in pts:
-            p = pts["P"][0]
+            p, cov = pts["P"][0], pts["P"][1]
         elif all(k in s["inputs"] for k in ("x_mm", "y_mm", "z_mm")):
             p = np.array([s["inputs"][k] for k in ("x_mm", "y_mm", "z_mm")])
+            cov = np.eye(3) * s["inputs"].get("sigma_mm", 0.05) ** 2
         else:
             continue
         qe = _encoder_q(s, robot)
         q.append(qe if qe is not None else np.asarray(s["spec"]["pose_deg"]) * DEG)
         P.append(p)
-        ids.append(s["key"])
+        C.append(cov)
+        keys.append(s["key"])
+        ua, ub = p - stations["A"].position, p - stations["B"].position
+        angle.append(np.degrees(np.arccos(np.clip(ua @ ub / (np.linalg.norm(ua) * np.linalg.norm(ub)), -1, 1))))
     if not q:
-        raise RobocalError(f"{db}: no pose-set steps to export")
-    write_pose_csv(out, np.array(q), np.array(P))        # (pose ids are text: write_pose_csv takes numbers)
-    return len(q)
+        raise RobocalError(f"{db}: no pose-set steps")
+    return {"q_rad": np.array(q), "points_mm": np.array(P), "cov_mm2": np.array(C), "keys": keys,
+            "procedure": ["poses"] * len(q), "sighting_angle_deg": np.array(angle), "raw_angles": False}
+
+
+def export_poses_csv(db: str, out: str) -> int:
+    """Pose-set steps as a pose CSV: encoder joint readings and the intersected tool-target positions."""
+    from calib.posecsv import write_pose_csv
+
+    a = pose_arrays(db)
+    sig = np.sqrt(np.diagonal(a["cov_mm2"], axis1=1, axis2=2))
+    write_pose_csv(out, a["q_rad"], a["points_mm"], {f"sigma_{c}_mm": sig[:, i] for i, c in enumerate("xyz")})
+    return len(a["q_rad"])
 
 
 def _detect(path: str) -> str:
