@@ -47,9 +47,13 @@ class MeasurementModel:
         self.effects: list[Effect] = list(effects)
         self.names: list[str] = list(self.kin.names)
         self.effect_slices: list[slice] = []
+        seen: dict[str, int] = {}
         for e in self.effects:
             start = len(self.names)
-            self.names += e.qualified_names()
+            # a second effect of the same kind on the same joint (candidate orders in the diagnosis) gets "@2", ...
+            k = seen[e.label] = seen.get(e.label, 0) + 1
+            label = e.label if k == 1 else f"{e.label}@{k}"
+            self.names += [f"{label}.{p}" for p in e.param_names]
             self.effect_slices.append(slice(start, len(self.names)))
         self.index = {n: i for i, n in enumerate(self.names)}
         self.n_geometric = self.kin.P

@@ -51,8 +51,10 @@ class PoseTable:
         return len(self.q_rad)
 
 
-def read_pose_csv(path: str | Path, n_joints: int = 6) -> PoseTable:
-    """Read a pose CSV; raise RobocalError naming file, line and column for anything malformed."""
+def read_pose_csv(path: str | Path, n_joints: int = 6, prismatic=None) -> PoseTable:
+    """Read a pose CSV; raise RobocalError naming file, line and column for anything malformed.
+
+    ``prismatic`` (bool per joint, e.g. ``robot.prismatic``): those joints are given in mm, not degrees."""
     path = Path(path)
     src = str(path)
     try:
@@ -104,7 +106,10 @@ def read_pose_csv(path: str | Path, n_joints: int = 6) -> PoseTable:
             raise RobocalError(f"{src}: line {lineno}: column {col}: {v:g} is out of range [{lo:g}, {hi:g}]")
         return v
 
-    q = np.array([[num(ln, v, c, -720, 720) for c in qcols] for ln, v in rows]) * DEG
+    pris = np.zeros(n_joints, bool) if prismatic is None else np.asarray(prismatic, bool)
+    lim = [(-1e6, 1e6) if p else (-720, 720) for p in pris]
+    q = np.array([[num(ln, v, c, *lim[j]) for j, c in enumerate(qcols)] for ln, v in rows])
+    q = q * np.where(pris, 1.0, DEG)
     table = PoseTable(q_rad=q, source=src, ignored_columns=ignored)
     if all(xyz):
         table.points_mm = np.array([[num(ln, v, c) for c in ("x", "y", "z")] for ln, v in rows])
@@ -134,9 +139,12 @@ def read_pose_csv(path: str | Path, n_joints: int = 6) -> PoseTable:
 
 
 def write_pose_csv(path: str | Path, q_rad: np.ndarray, points_mm: np.ndarray | None = None,
-                   extra: dict[str, np.ndarray] | None = None) -> None:
-    """Write poses (and optionally points and extra columns) in the pose CSV format, angles in degrees."""
+                   extra: dict[str, np.ndarray] | None = None, prismatic=None) -> None:
+    """Write poses (and optionally points and extra columns) in the pose CSV format, angles in degrees (prismatic
+    joints in mm)."""
     q = np.atleast_2d(q_rad)
+    if prismatic is not None:
+        q = q / np.where(np.asarray(prismatic, bool), 1.0, DEG) * DEG
     n = q.shape[1]
     cols = [f"q{j}" for j in range(1, n + 1)]
     data = [q / DEG]

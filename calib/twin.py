@@ -284,5 +284,6 @@ class Twin:
     def random_poses(self, count: int, margin_rad: float = 10 * DEG) -> np.ndarray:
         """Uniform joint readings inside the limits less a margin (the twin's rng, so reproducible)."""
         lim = self.robot.limits_rad
-        lo, hi = lim[:, 0] + margin_rad, lim[:, 1] - margin_rad
+        margin = np.where(self.robot.prismatic, 0.05 * np.ptp(lim, axis=1), margin_rad)   # mm for prismatic joints
+        lo, hi = lim[:, 0] + margin, lim[:, 1] - margin
         return lo + (hi - lo) * self.rng.random((count, self.robot.n))

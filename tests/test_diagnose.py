@@ -122,7 +122,7 @@ def test_session_database_hook_refuses_cleanly(tmp_path, capsys):
     db = tmp_path / "s.robocal"
     sqlite3.connect(db).execute("create table t (x)").connection.close()
     assert main(["diagnose", str(db)]) == 2
-    assert "session databases are not supported yet" in capsys.readouterr().err
+    assert "not a robocal session database" in capsys.readouterr().err
 
 
 def test_bad_pose_row_names_file_line_and_column(tmp_path):

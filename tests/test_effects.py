@@ -158,3 +158,10 @@ def test_geometric_jacobian_includes_the_torque_change(puma, rng):
         d[i] = h
         fd = (m.points(q, ctx, theta + d) - m.points(q, ctx, theta - d)) / (2 * h)
         np.testing.assert_allclose(J[:, :, i], fd, atol=2e-6 * max(1.0, np.abs(fd).max()), err_msg=m.names[i])
+
+
+def test_two_effects_of_one_kind_on_one_joint_get_distinct_names(puma):
+    m = MeasurementModel(puma, [TransmissionError(4, 0.9, [0.01], [0.0]), TransmissionError(4, 1.8, [0.02], [0.0])])
+    assert len(set(m.names)) == len(m.names)
+    assert m.nominal[m.index["transmission_error.j4.s1_rad"]] == 0.01
+    assert m.nominal[m.index["transmission_error.j4@2.s1_rad"]] == 0.02

@@ -147,3 +147,13 @@ encoder_counts_per_rev = 1000
     again = parse_robot(robot_to_toml(robot))
     np.testing.assert_allclose(again.limits_rad, robot.limits_rad)
     assert again.prismatic.tolist() == [True, False]
+
+
+def test_pose_csv_reads_prismatic_joints_in_mm(tmp_path):
+    from calib.posecsv import read_pose_csv, write_pose_csv
+    f = tmp_path / "p.csv"
+    f.write_text("q1,q2\n250.0,90.0\n")
+    t = read_pose_csv(f, 2, prismatic=[True, False])
+    np.testing.assert_allclose(t.q_rad, [[250.0, np.pi / 2]])
+    write_pose_csv(tmp_path / "o.csv", t.q_rad, prismatic=[True, False])
+    np.testing.assert_allclose(read_pose_csv(tmp_path / "o.csv", 2, prismatic=[True, False]).q_rad, t.q_rad)

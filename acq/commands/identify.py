@@ -37,7 +37,7 @@ def run(args) -> int:
     from calib.units import DEG
 
     robot = load_robot(args.robot)
-    table = read_pose_csv(args.data, robot.n)
+    table = read_pose_csv(args.data, robot.n, robot.prismatic)
     if table.points_mm is None:
         raise RobocalError(f"{args.data}: columns x, y, z (measured tool points, mm) are needed to identify")
     if not args.noise_mm > 0:

@@ -102,7 +102,7 @@ def _poses(args) -> int:
 
 
 def _evaluate(args, model: MeasurementModel, names: list[str]) -> int:
-    table = read_pose_csv(args.evaluate, model.robot.n)
+    table = read_pose_csv(args.evaluate, model.robot.n, model.robot.prismatic)
     outside = ~model.robot.within_limits(table.q_rad)
     if outside.any():
         i = int(np.flatnonzero(outside)[0])

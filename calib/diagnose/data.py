@@ -141,13 +141,13 @@ def load_data(path: str | Path, robot: Robot | None = None, noise_mm: float | No
     import warnings
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        table = read_pose_csv(path, robot.n)
+        table = read_pose_csv(path, robot.n, robot.prismatic)
     if table.points_mm is None:
         raise RobocalError(f"{path}: columns x, y, z (measured tool points, mm) are needed to diagnose")
     cov = None
     if table.sigma_mm is not None:
         cov = np.einsum("ni,ij->nij", table.sigma_mm ** 2, np.eye(3))
-    d = from_arrays(robot, table.q_rad * (robot.edge_scale / np.radians(1.0)), table.points_mm, cov, noise_mm,
+    d = from_arrays(robot, table.q_rad, table.points_mm, cov, noise_mm,
                     direction=table.direction, payload_kg=table.payload_kg, temperature_c=table.temperature_c,
                     time_s=table.time_s, source=str(path), pose_id=table.pose_id or None)
     d.notes += [str(w.message) for w in caught]
