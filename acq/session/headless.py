@@ -55,6 +55,8 @@ class ScriptedOperator:
             act = "repeat"
         else:
             act = "accept"
+        if act == "accept" and "accept" not in req.choices:     # a device fault: nothing to accept
+            act = "repeat" if req.attempt <= self.max_repeats else "skip"
         note = ""
         failed = [c.name for c in req.checks if not c.passed]
         if act == "accept" and failed:

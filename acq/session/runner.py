@@ -61,6 +61,8 @@ import numpy as np
 
 from calib.units import DEG
 
+from ..errors import DeviceError
+
 from . import checks as ck
 from .rig import Bench, ManualBench, Rig
 from .steps import Step
@@ -224,7 +226,27 @@ class Runner:
                 inputs.append({"attempt": attempt, "name": "note", "value": None, "text": ans.note,
                                "t_wall_s": time.time()})
             self.bench.prepare(step, values)
-            got, cap = self._acquire(step, attempt)
+            try:
+                got, cap = self._acquire(step, attempt)
+            except DeviceError as exc:
+                # an unplugged or silent device fails this attempt, not the session: the operator fixes the cause
+                # and repeats (the drivers reconnect), or skips, or pauses; nothing of this attempt is recorded
+                fault = ck.Check("device", False, None, None, "",
+                                 f"{exc} — check the cable and power of that device, then repeat (r)")
+                self.emit("log", text=f"device fault at {step.key}: {exc}")
+                self.emit("check", key=step.key, name=fault.name, passed=False, value=None, limit=None, unit="",
+                          message=fault.message)
+                checks_rows.append(fault.as_row(attempt))
+                self._set_state("waiting")
+                ans = self.operator.ask(Request("decision", step, attempt, ("repeat", "skip", "pause", "abort"),
+                                                [fault]))
+                self._set_state("running")
+                if ans.action in ("pause", "abort"):
+                    return ans.action
+                if ans.action == "repeat":
+                    continue
+                status, note = "skipped", ans.note
+                break
             readings += got
             if cap is not None:
                 chunks.append({"attempt": attempt, "device_id": self.rig.device_ids.get("encoder tap", 0),
