@@ -209,7 +209,8 @@ class _Problem:
             J = -np.einsum("nij,njp->nip", self.obs._white, ev.jacobian).reshape(-1, P) if jac else None
         else:
             st = self.stations(theta)
-            pred = self.model.readings(self.obs.q_rad, st, self.ctx, theta[:P], self.obs.faces, jacobian=jac)
+            ev = self.model.evaluate(self.obs.q_rad, self.ctx, theta[:P], jacobian=jac)
+            pred = self.model.readings_of(ev, st, self.obs.faces, jacobian=jac)
             if jac:
                 pred, Jm = pred
             d = self.obs.readings_rad - pred
@@ -218,7 +219,7 @@ class _Problem:
             r = (d / sig).ravel()
             J = None
             if jac:
-                Js = self._station_jacobian(theta, st, pred)
+                Js = self._station_jacobian(st, ev.point_mm)
                 J = -np.concatenate([Jm, Js], axis=2) / sig[None, :, None]
                 J = J.reshape(-1, len(self.names))
         if self.priors:
@@ -234,10 +235,8 @@ class _Problem:
                 J = np.vstack([J, Jp])
         return r, J
 
-    def _station_jacobian(self, theta, st, pred):
+    def _station_jacobian(self, st, points_mm):
         """d readings / d station parameters by central differences (a few cheap observe calls, no kinematics)."""
-        P = self.model.P
-        ev = self.model.evaluate(self.obs.q_rad, self.ctx, theta[:P])
         k = len(Station.PARAMS)
         N = self.obs.n
         J = np.zeros((N, 2 * len(st), len(st) * k))
@@ -249,7 +248,7 @@ class _Problem:
                 for sign in (1, -1):
                     p = base.copy()
                     p[pi] += sign * h
-                    hz, v = s.with_params(p).observe(ev.point_mm, self.obs.faces[si])
+                    hz, v = s.with_params(p).observe(points_mm, self.obs.faces[si])
                     vals.append((hz, v))
                 dh = np.angle(np.exp(1j * (vals[0][0] - vals[1][0]))) / (2 * h)
                 dv = (vals[0][1] - vals[1][1]) / (2 * h)

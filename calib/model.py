@@ -156,7 +156,9 @@ class MeasurementModel:
                 geo_pose += d
                 geo_grads.append(g)
         need_loads = any(getattr(e, "needs_loads", False) for e in self.effects)
-        loads = self.loads(self.kin.forward(q, geo_pose), ctx, derivative=jacobian) if need_loads else None
+        torque_driven = any(hasattr(e, "torque_gain") for e in self.effects)
+        loads = (self.loads(self.kin.forward(q, geo_pose), ctx, derivative=jacobian and torque_driven)
+                 if need_loads else None)
         th = q.copy()
         joint_grads = []
         for e, v in zip(self.effects, vals):
@@ -178,12 +180,11 @@ class MeasurementModel:
         J = np.zeros((N, 3, self.P))
         J[:, :, : self.n_geometric] = Je
         Jq = Je[:, :, self.kin.joint_elements]
-        if loads is not None:
+        if loads is not None and torque_driven:
             # joint deflections follow the torques, and the torques move with the geometry
             gain = sum(e.torque_gain(q, ctx, loads, v) for e, v in zip(self.effects, vals)
                        if hasattr(e, "torque_gain"))
-            if not np.isscalar(gain):
-                J[:, :, : self.n_geometric] += np.einsum("nij,nje->nie", Jq, gain[:, :, None] * loads.dtau_dgeo)
+            J[:, :, : self.n_geometric] += np.einsum("nij,nje->nie", Jq, gain[:, :, None] * loads.dtau_dgeo)
         gi = ji = pi = 0
         for e, s in zip(self.effects, self.effect_slices):
             if e.stage == "joint":
@@ -205,7 +206,11 @@ class MeasurementModel:
     def readings(self, q_rad, stations: list[Station], ctx: PoseContext | None = None, theta=None,
                  faces=None, jacobian: bool = False, tool_mm=None):
         """Predicted theodolite readings (N, 2k) ordered (Hz_1, V_1, Hz_2, V_2, ...) and optionally d/d theta."""
-        ev = self.evaluate(q_rad, ctx, theta, jacobian, tool_mm)
+        return self.readings_of(self.evaluate(q_rad, ctx, theta, jacobian, tool_mm), stations, faces, jacobian)
+
+    @staticmethod
+    def readings_of(ev: Evaluation, stations: list[Station], faces=None, jacobian: bool = False):
+        """The readings of an evaluation's tool points (and their Jacobian through ``ev.jacobian``)."""
         faces = faces or [1] * len(stations)
         cols, Js = [], []
         for s, f in zip(stations, faces):
