@@ -53,7 +53,7 @@ def test_ruler_and_one_joint_sweep_end_to_end(tmp_path):
             assert all(str(app.nodes[k].label)[0] in "✔⚠" for k in saved)     # accepted (⚠: a check failed)
             live = str(app.query_one("#live").render())
             assert "theodolite A" in live and "counts" in live
-            assert app.query_one("#plot").plt is not None
+            assert app.plotted is not None and app.plotted[0] == "circle fit residuals" and app.plotted[1] >= 8
             # at the end: the session is reprocessed, the report written and the estimates listed with errors
             t0 = time.monotonic()
             while app.results_dir is None and time.monotonic() - t0 < 60:

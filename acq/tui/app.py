@@ -109,6 +109,7 @@ class RobocalApp(App):
         self.clock = clock
         self.final_results = final_results
         self.results_dir: str | None = None
+        self.plotted: tuple[str, int] | None = None       # what the plot shows now: (title, points)
         self.builder = builder
         self.live_hz = live_hz
         self.operator = TuiOperator()
@@ -388,7 +389,7 @@ class RobocalApp(App):
         h = self.handle
         if h is not None:
             h.runner.request_abort()
-            h.runner.join(5.0) if hasattr(h.runner, "join") else None
+            h.runner.join(5.0)
             try:
                 h.close()
             except Exception:                              # noqa: BLE001 - closing on exit is best effort
@@ -479,6 +480,7 @@ class RobocalApp(App):
         if series is None:
             return
         title, xlabel, ylabel, lines = series
+        self.plotted = (title, sum(len(xs) for _, xs, _ in lines))
         plot = self.query_one("#plot", PlotextPlot)
         plt = plot.plt
         plt.clear_data()

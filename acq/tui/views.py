@@ -6,8 +6,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from acq.session.checks import intersect_targets
 from calib.errors import RobocalError
-from calib.theodolite import Station, intersect
+from calib.estimators.transmission import joint_angle
+from calib.theodolite import Station
 from calib.units import DEG
 
 DIAGRAMS = {
@@ -55,26 +57,21 @@ class StepData:
     inputs: dict = field(default_factory=dict)
     checks: list = field(default_factory=list)
     status: str = ""
+    _cache: tuple = field(default=(None, {}), repr=False)
 
     def points(self, stations: dict[str, Station]) -> dict[str, np.ndarray]:
-        """Intersected point per target (mean of faces and repeats per station, face II reduced to face I)."""
-        out = {}
-        for target in sorted({r[1] for r in self.readings}):
-            rd = []
-            for name in ("A", "B"):
-                rows = [r for r in self.readings if r[0] == name and r[1] == target]
-                if not rows or name not in stations:
-                    break
-                hz = [r[3] if r[2] != 2 else r[3] - np.pi for r in rows]
-                v = [r[4] if r[2] != 2 else 2 * np.pi - r[4] for r in rows]
-                hz_mean = float(np.angle(np.mean(np.exp(1j * np.asarray(hz)))))
-                rd.append((np.array([hz_mean % (2 * np.pi)]), np.array([float(np.mean(v))])))
-            if len(rd) == 2:
-                try:
-                    out[target] = intersect([stations["A"], stations["B"]], rd).point_mm[0]
-                except RobocalError:
-                    continue
-        return out
+        """Intersected point per target, as the session's checks compute it (face mean, then intersection); cached
+        until a new reading arrives, because the live panel asks ten times a second."""
+        key = (len(self.readings), id(stations))
+        if self._cache[0] != key:
+            rows = [{"station": st, "target": tg, "face": f, "hz_rad": h, "v_rad": v}
+                    for st, tg, f, h, v in self.readings]
+            try:
+                pts = {k: v[0] for k, v in intersect_targets(rows, stations).items()} if "A" in stations else {}
+            except RobocalError:
+                pts = {}
+            self._cache = (key, pts)
+        return self._cache[1]
 
 
 def plot_series(procedure: str, steps: list[StepData], stations: dict[str, Station]):
@@ -100,11 +97,9 @@ def plot_series(procedure: str, steps: list[StepData], stations: dict[str, Stati
         names = sorted(pairs[0][0])
         A1 = np.array([p[names[0]] for p, _, _ in pairs])
         A2 = np.array([p[names[1]] for p, _, _ in pairs])
-        centre = A1.mean(0)
-        n = np.linalg.svd(A1 - centre)[2][-1]
-        v = A2 - A1
-        v = v - np.outer(v @ n, n)
-        ang = np.unwrap(np.arctan2(np.cross(v[0], v) @ n, v @ v[0]))
+        n = np.linalg.svd(A1 - A1.mean(0))[2][-1]                 # axis: normal of the plane A1 sweeps
+        x = np.concatenate([np.broadcast_to(A1[0], A1.shape), np.broadcast_to(A2[0], A2.shape), A1, A2], axis=1)
+        ang = np.unwrap(joint_angle(x, n)[:, 0])                  # eq 4.4.1, the estimator's own function
         j = int(pairs[0][2]) - 1
         enc = np.array([q[j] for _, q, _ in pairs]) * DEG
         sgn = np.sign(np.polyfit(enc - enc[0], ang, 1)[0]) or 1.0
