@@ -79,3 +79,11 @@ def test_emulate_bad_combination_is_one_line_error(capsys):
     assert main(["emulate", "tap", "--pty"]) == 2
     err = capsys.readouterr().err
     assert err.startswith("robocal: error: emulate tap:") and err.count("\n") == 1
+
+
+def test_emulate_bad_tcp_port_is_one_line():
+    import subprocess
+    import sys
+    r = subprocess.run([sys.executable, "-m", "acq.cli", "emulate", "geocom", "--tcp", "99999"], capture_output=True,
+                       text=True, timeout=60)
+    assert r.returncode == 2 and "a TCP port is 0..65535" in r.stderr and "Traceback" not in r.stderr

@@ -44,6 +44,8 @@ def _world(args):
 
 
 def run(args) -> int:
+    if args.tcp is not None and not 0 <= args.tcp <= 65535:
+        raise RobocalError(f"emulate {args.device}: --tcp {args.tcp}: a TCP port is 0..65535")
     world = _world(args)
     hosts = []
     try:
