@@ -35,7 +35,7 @@ from typing import ClassVar
 
 import numpy as np
 
-from .units import DEG, G0_M_S2
+from .units import DEG
 
 
 @dataclass
@@ -296,7 +296,7 @@ def thesis_effects() -> list[Effect]:
 
 
 __all__ = ["PoseContext", "Loads", "Effect", "EFFECTS", "TransmissionError", "JointCompliance", "Backlash",
-           "CrossCoupling", "ThermalDrift", "LinkCompliance", "thesis_effects", "G0_M_S2"]
+           "CrossCoupling", "ThermalDrift", "LinkCompliance", "thesis_effects"]
 
 
 def effect_from_text(text: str, n_joints: int = 6) -> Effect:

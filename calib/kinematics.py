@@ -170,8 +170,3 @@ class Kinematics:
         fp = self.forward(q_rad, params)
         J = self.element_jacobian(fp)
         return fp.point, J, J[:, :, self.joint_elements]
-
-    def frame_jacobian_rotation(self, fp: ChainPass) -> np.ndarray:
-        """(N, 3, E) angular velocity of the flange per elementary motion (rotation axis, or zero for translations)."""
-        W = np.where((self.kinds >= RX)[None, :, None], fp.elem_axis, 0.0)
-        return W.transpose(0, 2, 1)

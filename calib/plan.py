@@ -65,7 +65,6 @@ class Design:
         self.names = list(names)
         self.idx = [model.index[n] for n in names]
         self.noise_mm = noise_mm
-        self.scale = None
 
     def rows(self, q_rad: np.ndarray) -> np.ndarray:
         """(N, 3, p) whitened Jacobian blocks per pose."""

@@ -10,12 +10,3 @@ LBIN_PER_NM = 1.0 / 0.1129848    #: lb·in per N·m (1 lb·in = 0.1129848 N·m)
 NM_PER_LBIN = 0.1129848          #: N·m per lb·in
 G0_M_S2 = 9.80665                #: standard gravity
 
-
-def deg(x):
-    """Degrees -> radians (works on floats and numpy arrays)."""
-    return x * DEG
-
-
-def to_deg(x):
-    """Radians -> degrees (works on floats and numpy arrays)."""
-    return x / DEG

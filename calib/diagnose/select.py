@@ -33,7 +33,7 @@ from calib.model import MeasurementModel
 
 from .candidates import Candidate
 from .data import DiagnosisData
-from .gap import CVResult, cv_fit, rms_mm
+from .gap import CVResult, cv_fit
 
 #: a candidate must keep at least this share of its whitened signature once the current model's columns are
 #: projected out (else the geometry absorbs it: the guard of §9, "O1/O4 not collapsing")
