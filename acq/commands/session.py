@@ -117,7 +117,7 @@ def real_builder(db: str, theodolites: list[str], tap: str | None, setup_path: s
     """A TUI builder on real devices (or any device URL): opens them, creates or resumes the session."""
     from acq.drivers import open_theodolite
     from acq.encoders import open_tap
-    from acq.session.demo import predictor, setup_stations
+    from acq.session.setup import predictor, setup_stations
     from acq.session.procedures import all_steps
     from acq.session.rig import ManualBench, Rig
     from acq.session.runner import Runner

@@ -78,7 +78,7 @@ def pose_arrays(db: str) -> dict:
 
     from .checks import intersect_targets
     from .reprocess import _Est, _encoder_q, _ruler
-    from .demo import setup_stations
+    from .setup import setup_stations
     d = load_session(db)
     robot = load_robot(d.setup.get("robot") or None)
     ruler = [s for s in d.steps if s["procedure"] == "ruler"]

@@ -133,7 +133,7 @@ def reprocess(path: str, n_mc: int = 0, progress=None) -> dict:
     except (RobocalError, KeyError, ValueError, IndexError) as exc:
         problems.append(f"ruler: {exc}")
     if stations is None:
-        from .demo import setup_stations
+        from .setup import setup_stations
         stations = setup_stations(data.setup)
         problems.append("ruler: no estimate; points use the setup's stations")
     step("ruler", 0.1)
