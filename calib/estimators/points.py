@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..theodolite import thesis_xyz
 from ..uncertainty import EstimateSet, propagate
 from ._common import EstimationError, angles_in_range, at_least, finite
 
@@ -24,12 +25,7 @@ def point_xyz(x: np.ndarray) -> np.ndarray:
     """Vectorised eq 4.3.1: ``x (..., 6) = [alpha', beta', phi, L, gamma1, gamma2]`` -> ``(..., 3)`` mm."""
     x = np.asarray(x, float)
     ap, bp, ph, L, g1, g2 = np.moveaxis(x, -1, 0)
-    a, b = ap - g1, bp - g2
-    s = np.sin(a + b)
-    X = L * np.sin(b) * np.cos(a) / s
-    Y = L * np.sin(b) * np.sin(a) / s
-    Z = np.hypot(X, Y) * np.tan(ph)
-    return np.stack([X, Y, Z], -1)
+    return thesis_xyz(ap - g1, bp - g2, ph, L)
 
 
 def point_first_order(x: np.ndarray) -> np.ndarray:
