@@ -154,6 +154,15 @@ class Station:
         return d @ self.rotation.T
 
 
+def face_mean(hz: np.ndarray, v: np.ndarray, face: np.ndarray) -> tuple[float, float]:
+    """Face-I-equivalent mean of readings (face II reduced: Hz - 180 deg, 360 deg - V): removes c, i and k."""
+    hz, v, face = (np.asarray(a, float) for a in (hz, v, face))
+    hz1 = np.where(face == 2, hz - np.pi, hz)
+    v1 = np.where(face == 2, 2 * np.pi - v, v)
+    ref = hz1[0]
+    return float(np.mod(ref + np.mean(_wrap(hz1 - ref)), 2 * np.pi)), float(np.mean(v1))
+
+
 @dataclass
 class Intersection:
     """Points from sightings, with their 3x3 covariances and the geometry checks an operator needs."""

@@ -133,14 +133,25 @@ def reprocess(path: str, n_mc: int = 0, progress=None) -> dict:
     except (RobocalError, KeyError, ValueError, IndexError) as exc:
         problems.append(f"ruler: {exc}")
     if stations is None:
+        from calib.estimators.points import StationFit
         from .setup import setup_stations
-        stations = setup_stations(data.setup)
+        stations = StationFit.exact(setup_stations(data.setup))
         problems.append("ruler: no estimate; points use the setup's stations")
     step("ruler", 0.1)
+    located: dict[int, dict] = {}
 
     def points(st):
-        from .checks import intersect_targets
-        return intersect_targets(st["readings"], stations)
+        """Targets of a step with covariances that carry the ruler fit's uncertainty (every step located in one
+        batch on the first call)."""
+        from calib.estimators.points import locate_targets
+        if not located:
+            rows = [{**r, "target": f"{i}/{r['target']}"} for i, s in enumerate(data.steps) for r in s["readings"]]
+            located[-1] = {}
+            for key, tp in locate_targets(rows, stations).items():
+                i, tg = key.split("/", 1)
+                located.setdefault(id(data.steps[int(i)]), {})[tg] = tp
+        return located.get(id(st), {})
+    points.station_fit = stations
 
     # 3. sweeps -> axes -> DH ---------------------------------------------------------------------------------------
     axes = {}
@@ -189,7 +200,7 @@ def reprocess(path: str, n_mc: int = 0, progress=None) -> dict:
 # -- stages ------------------------------------------------------------------------------------------------------
 def _ruler(steps, setup, sigma, est, twin, figs):
     """The same ruler fit the runner uses live (:mod:`acq.session.stations`), recorded with its estimates."""
-    from .stations import fit_ruler, ruler_rows
+    from .stations import fit_ruler, ruler_rows, ruler_station_fit
     if not steps:
         return None
     res, stations = fit_ruler(ruler_rows(steps), {**setup, "stations": {**setup["stations"],
@@ -203,15 +214,13 @@ def _ruler(steps, setup, sigma, est, twin, figs):
     L, g1, g2 = (res[n].value for n in ("L_mm", "gamma1_rad", "gamma2_rad"))
     figs["ruler"] = {"L_mm": L, "gamma1_deg": g1 / DEG, "gamma2_deg": g2 / DEG,
                      "residual_arcsec": (np.asarray(res.extras.get("residual", [])) / ARCSEC).tolist()}
-    return stations
+    return ruler_station_fit(res, stations)
 
 
-def _block(covs):
-    n = len(covs)
-    U = np.zeros((3 * n, 3 * n))
-    for i, c in enumerate(covs):
-        U[3 * i:3 * i + 3, 3 * i:3 * i + 3] = c
-    return U
+def _block(pts, points):
+    """Joint covariance of located targets (the stations' common term included)."""
+    from calib.estimators.points import points_covariance
+    return points_covariance(pts, points.station_fit)
 
 
 def _sweeps(steps, points, robot, setup, est, truth, figs, n_mc):
@@ -229,7 +238,7 @@ def _sweeps(steps, points, robot, setup, est, truth, figs, n_mc):
         sts.sort(key=lambda s: s["spec"]["meta"]["index"])
         pts = [points(s)["P"] for s in sts]
         P = np.array([p[0] for p in pts])
-        U = _block([p[1] for p in pts])
+        U = _block(pts, points)
         res = fit_axis(P, U, n_mc=n_mc, joint=f"j{j}")
         axes[j] = res
         v = res.value
@@ -393,23 +402,18 @@ def _gauge_truth(twin, model, ident, q) -> dict[str, float]:
 
 
 def _joint_angles(steps, points, axis_n):
-    """Angle turned about ``axis_n`` from the first step, per step, from A1 -> A2 (and its sigma)."""
-    from calib.estimators.transmission import joint_angle
-    ref = None
-    out, sig = [], []
-    for st in steps:
-        p = points(st)
-        if "A1" not in p or "A2" not in p:
-            out.append(np.nan)
-            sig.append(np.nan)
-            continue
-        x = np.concatenate([p["A1"][0], p["A2"][0]])
-        if ref is None:
-            ref = x
-        out.append(float(joint_angle(np.concatenate([ref, x])[None], axis_n)[0, 0]))
-        d = np.linalg.norm(x[3:] - x[:3])
-        sig.append(float(np.sqrt(np.trace(p["A1"][1]) + np.trace(p["A2"][1])) / d))
-    return np.array(out), np.array(sig)
+    """Angle turned about ``axis_n`` from the first step, per step, from A1 -> A2, and each one's 1-sigma
+    (:func:`calib.estimators.transmission.joint_angles`); NaN where a step lacks A1 or A2."""
+    from calib.estimators.points import points_covariance
+    from calib.estimators.transmission import joint_angles
+    out, sig = np.full(len(steps), np.nan), np.full(len(steps), np.nan)
+    ok = [i for i, st in enumerate(steps) if {"A1", "A2"} <= set(points(st))]
+    if ok:
+        pairs = [(points(steps[i])["A1"], points(steps[i])["A2"]) for i in ok]
+        cov = np.array([points_covariance(list(p), points.station_fit) for p in pairs])
+        out[ok], sig[ok] = joint_angles(np.array([p[0][0] for p in pairs]), np.array([p[1][0] for p in pairs]),
+                                        cov, axis_n)
+    return out, sig
 
 
 def _own_axis(sts, points, j, n_mc):
@@ -419,7 +423,7 @@ def _own_axis(sts, points, j, n_mc):
     pts = [p for p in pts if p is not None]
     P = np.array([p[0] for p in pts])
     # points more than 180 deg apart are fine for a circle fit, but keep the sweep order for the normal's sign
-    return fit_axis(P, _block([p[1] for p in pts]), n_mc=0, joint=f"j{j}").value[3:6]
+    return fit_axis(P, _block(pts, points), n_mc=0, joint=f"j{j}").value[3:6]
 
 
 def _transmission(steps, points, robot, axes, est, twin, figs, n_mc):

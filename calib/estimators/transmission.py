@@ -45,6 +45,24 @@ def joint_angle_first_order(x: np.ndarray, n: np.ndarray) -> np.ndarray:
     return np.concatenate([-g0, g0, -g, g])[None, :]
 
 
+def joint_angles(A1_mm: np.ndarray, A2_mm: np.ndarray, cov_mm2: np.ndarray, axis_n: np.ndarray):
+    """Angle turned about ``axis_n`` from the first pose, per pose, with each angle's 1-sigma.
+
+    ``A1_mm``, ``A2_mm`` (N, 3); ``cov_mm2`` (N, 6, 6) the covariance of ``[A1, A2]`` of each pose (reading noise and
+    the stations' common term).  The sigma is first order (:func:`joint_angle_first_order`) in the pose's own targets
+    only: the reference pose's error is the same for every angle, an offset every fit of these angles absorbs.
+    Why not ``sqrt(trace)``: only the target motion across the A1->A2 line and the axis turns the angle; the
+    along-line and axial components (the sight-line depth, the largest) do not.
+    """
+    A1, A2 = np.atleast_2d(np.asarray(A1_mm, float)), np.atleast_2d(np.asarray(A2_mm, float))
+    n = np.asarray(axis_n, float) / np.linalg.norm(axis_n)
+    x = np.concatenate([np.broadcast_to(np.r_[A1[0], A2[0]], (len(A1), 6)), A1, A2], -1)
+    ang = joint_angle(x, n)[:, 0]
+    g = np.stack([joint_angle_first_order(xi, n)[0, 6:] for xi in x])
+    sig = np.sqrt(np.einsum("ni,nij,nj->n", g, np.asarray(cov_mm2, float), g))
+    return ang, sig
+
+
 def measure_joint_angle(A1_ref, A2_ref, A1, A2, axis_n, points_cov_mm2: np.ndarray, n_mc: int = 20_000,
                         rng=0) -> EstimateSet:
     """Angle turned by a joint between two poses of the targets A1, A2 (rad), errors three ways.
