@@ -185,6 +185,7 @@ def reprocess(path: str, n_mc: int = 0, progress=None) -> dict:
     except (RobocalError, KeyError, ValueError, IndexError) as exc:
         problems.append(f"coupling: {exc}")
     step("done", 1.0)
+    problems += figs.pop("problems", [])          # what a stage could not do for part of its data
     return {
         "session": {"guid": data.session["guid"], "title": data.session["title"], "path": path,
                     "exit_status": data.session["exit_status"], "steps_accepted": len(data.steps)},
@@ -401,19 +402,23 @@ def _gauge_truth(twin, model, ident, q) -> dict[str, float]:
     return {n: g.value(n) for n in g.free}
 
 
-def _joint_angles(steps, points, axis_n):
+def _joint_angles(steps, points, axis_n, full: bool = False):
     """Angle turned about ``axis_n`` from the first step, per step, from A1 -> A2, and each one's 1-sigma
-    (:func:`calib.estimators.transmission.joint_angles`); NaN where a step lacks A1 or A2."""
-    from calib.estimators.points import points_covariance
+    (:func:`calib.estimators.transmission.joint_angles`); NaN where a step lacks A1 or A2.  ``full``: also the
+    angles' covariance (the stations' errors are common to every step)."""
     from calib.estimators.transmission import joint_angles
-    out, sig = np.full(len(steps), np.nan), np.full(len(steps), np.nan)
+    out, cov = np.full(len(steps), np.nan), np.full((len(steps), len(steps)), np.nan)
     ok = [i for i, st in enumerate(steps) if {"A1", "A2"} <= set(points(st))]
     if ok:
         pairs = [(points(steps[i])["A1"], points(steps[i])["A2"]) for i in ok]
-        cov = np.array([points_covariance(list(p), points.station_fit) for p in pairs])
-        out[ok], sig[ok] = joint_angles(np.array([p[0][0] for p in pairs]), np.array([p[1][0] for p in pairs]),
-                                        cov, axis_n)
-    return out, sig
+        read = np.array([np.block([[a.cov_reading_mm2, np.zeros((3, 3))], [np.zeros((3, 3)), b.cov_reading_mm2]])
+                         for a, b in pairs])
+        D = np.array([np.concatenate([a.d_station, b.d_station]) for a, b in pairs])
+        out[ok], cov[np.ix_(ok, ok)] = joint_angles(np.array([a.point_mm for a, _ in pairs]),
+                                                    np.array([b.point_mm for _, b in pairs]), read, axis_n, D,
+                                                    points.station_fit.cov)
+    sig = np.sqrt(np.diag(cov))
+    return (out, sig, cov) if full else (out, sig)
 
 
 def _own_axis(sts, points, j, n_mc):
@@ -427,6 +432,9 @@ def _own_axis(sts, points, j, n_mc):
 
 
 def _transmission(steps, points, robot, axes, est, twin, figs, n_mc):
+    """Per joint: the angle from A1, A2 about the joint's own axis against the encoder, and the harmonic fit (with
+    the angles' full covariance).  A joint whose fit fails, or whose order is not determined, is said so in the
+    figures and left out of the running errors; the other joints still count."""
     from calib.estimators.transmission import fit_transmission_error
     from calib.effects import TransmissionError
     if not steps:
@@ -435,18 +443,23 @@ def _transmission(steps, points, robot, axes, est, twin, figs, n_mc):
     for st in steps:
         by_joint.setdefault(st["spec"]["meta"]["joint"], []).append(st)
     figs["transmission"] = {}
-    fits = {}
+    fits, failed = {}, []
     for j, sts in sorted(by_joint.items()):
         if j not in axes:
-            raise RobocalError(f"joint {j}: no swept axis to measure the angle about")
+            failed.append(f"joint {j}: no swept axis to measure the angle about")
+            continue
         sts.sort(key=lambda s: s["spec"]["meta"]["index"])
         n = _own_axis(sts, points, j, n_mc) if len(sts) >= 4 else axes[j].value[3:6]
-        meas, sig = _joint_angles(sts, points, n)
+        meas, sig, cov = _joint_angles(sts, points, n, full=True)
         enc = np.array([(_encoder_q(s, robot) if _encoder_q(s, robot) is not None
                          else np.asarray(s["spec"]["pose_deg"]) * DEG)[j - 1] for s in sts])
         err = np.angle(np.exp(1j * (meas - (enc - enc[0]))))      # both sides wrap differently past 180 deg
         ok = np.isfinite(err)
-        res = fit_transmission_error(enc[ok], err[ok], float(np.nanmean(sig)), n_mc=n_mc)
+        try:
+            res = fit_transmission_error(enc[ok], err[ok], cov[np.ix_(ok, ok)], n_mc=n_mc)
+        except RobocalError as exc:
+            failed.append(f"joint {j}: {exc}")
+            continue
         tv = {}
         if twin is not None:
             for e in twin.scenario.effects:
@@ -454,10 +467,15 @@ def _transmission(steps, points, robot, axes, est, twin, figs, n_mc):
                     tv = {"omega": e.order, "amplitude1_rad": float(np.hypot(e.values[0], e.values[len(e.values) // 2]))
                           if len(e.values) > 1 else abs(float(e.values[0]))}
         est.add_set(f"te.j{j}.", res, tv, only=("omega", "amplitude1_rad"))
-        fits[j] = res
+        nd = res.extras.get("not_determined") or {}
+        if "omega" not in nd:
+            fits[j] = res
         figs["transmission"][j] = {"encoder_deg": (enc / DEG).tolist(), "error_deg": (err / DEG).tolist(),
                                    "sigma_deg": (sig / DEG).tolist(),
-                                   "fit": {k: float(res[k].value) for k in res.names}}
+                                   "fit": {k: float(res[k].value) for k in res.names}, "not_determined": nd}
+    if failed and not fits:
+        raise RobocalError("; ".join(failed))
+    figs.setdefault("problems", []).extend(f"transmission: {f}" for f in failed)
     return fits
 
 

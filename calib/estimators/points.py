@@ -167,11 +167,14 @@ def locate_targets(readings: list[dict], fit: StationFit, min_stations: int = 2)
     left out.
     """
     base = fit.stations
+    by: dict[tuple, list] = {}
+    for r in readings:
+        by.setdefault((r["station"], r["target"]), []).append(r)
     groups: dict[tuple, list] = {}
     for tg in sorted({r["target"] for r in readings}):
         names, obs = [], []
         for nm in base:
-            rs = [r for r in readings if r["station"] == nm and r["target"] == tg]
+            rs = by.get((nm, tg))
             if rs:
                 names.append(nm)
                 obs.append((*face_mean([r["hz_rad"] for r in rs], [r["v_rad"] for r in rs],
