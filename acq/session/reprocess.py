@@ -493,12 +493,16 @@ def _compliance(steps, points, robot, axes, est, twin, figs, n_mc):
         if j not in axes:
             raise RobocalError(f"joint {j}: no swept axis to measure the deflection about")
         sts.sort(key=lambda s: s["spec"]["meta"]["index"])
-        defl, sig = _joint_angles(sts, points, axes[j].value[3:6])
+        defl, sig, dcov = _joint_angles(sts, points, axes[j].value[3:6], full=True)
         T = np.array([torque_Nm(s["inputs"].get("load_n", s["spec"]["setup"]["load_n"]),
                                 s["inputs"].get("lever_mm", s["spec"]["setup"]["lever_mm"]),
                                 s["inputs"].get("theta_i_deg", 0.0) * DEG) for s in sts])
         unload = np.array([s["spec"]["meta"]["phase"] == "unload" for s in sts])
-        res = two_slope_fit(T, defl, unload, float(np.nanmean(sig)), n_mc=n_mc)
+        try:
+            res = two_slope_fit(T, defl, unload, dcov, n_mc=n_mc)
+        except RobocalError as exc:                 # e.g. "not determined": the other joints still count
+            figs.setdefault("problems", []).append(f"compliance: joint {j}: {exc}")
+            continue
         tv = {}
         if twin is not None:
             for e in twin.scenario.effects:
