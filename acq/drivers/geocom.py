@@ -178,7 +178,7 @@ class GeoComTheodolite(SerialInstrument):
         r = self.request(rpc, params, **kw)
         sp = gc.spec(rpc)
         if len(r.values) != len(sp.reply):
-            raise InstrumentError(self.name, _cmd(sp), f"instrument returned {r.warnings[0]} without values",
+            raise InstrumentError(self.name, _cmd(sp), f"instrument returned {r.warnings[0]}, without values",
                                   r.rc.code)
         return r
 
