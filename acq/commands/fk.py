@@ -34,6 +34,7 @@ def run(args) -> int:
         if not math.isfinite(v):
             raise RobocalError(f"fk: joint {i} reading {text!r} is not finite")
         q.append(v)
+    robot.check_readings(np.array(q), "fk")
     kin = Kinematics(robot)
     # base frame 0: identity base transform, whatever the description's base pose in the measurement frame
     params = kin.nominal.copy()
