@@ -97,7 +97,7 @@ def test_switching_an_effect_off_removes_its_signature():
 
 
 @pytest.mark.parametrize("old,new,key,words", [
-    ('type = "backlash"', 'type = "friction"', "effect[6].type", "unknown effect"),
+    ('type = "backlash"', 'type = "friction"', "effect[6].type", "unknown kind 'friction'"),
     ("joint = 4\norder = 0.9", "joint = 9\norder = 0.9", "effect[1].joint", "1..6"),
     ('"j3.a_mm" = -29.7', '"j3.length_mm" = -29.7', "geometry.set.j3.length_mm", "unknown parameter"),
     ("sigma_arcsec = 3.0", "sigma_arcsec = -3.0", "stations.sigma_arcsec", "positive"),
