@@ -7,7 +7,8 @@ they err, and how the encoders read.  :class:`Twin` then answers what the instru
 * :meth:`Twin.measure` — for joint readings commanded to the controller: the encoder counts (integers, so quantised),
   the joint readings the controller derives from them with the *nominal* description, the true joint angles, the true
   tool points and both theodolites' readings (noise, instrument errors, optional gross errors);
-* :meth:`Twin.sight` — readings of arbitrary points (ruler marks, dial-gauge targets).
+* :meth:`Twin.observe` — readings of arbitrary points (ruler marks, dial-gauge targets) from any stations: the one
+  place reading noise and gross errors are drawn (:meth:`Twin.sight`, :meth:`Twin.measure` and the emulators call it).
 
 Later work (estimators, identification, emulators, diagnosis) draws all synthetic truth from here.
 """
@@ -209,29 +210,45 @@ class Twin:
         ev = self.model.evaluate(q_read_rad, ctx, self.theta, tool_mm=tool_mm)
         return ev.point_mm, ev.theta_rad
 
-    def sight(self, points_mm: np.ndarray, faces: list[int] | None = None):
-        """Noisy readings (N, 2k) of points from every station, and the gross-error mask."""
-        faces = faces or [1] * len(self.stations)
+    def observe(self, points_mm: np.ndarray, stations: list[Station] | None = None, faces: list[int] | None = None,
+                rng: np.random.Generator | None = None):
+        """What the theodolites read for points (N, 3): readings (N, 2k) ordered (Hz_1, V_1, Hz_2, V_2, ...) and the
+        gross-error mask (N, 2k).
+
+        The one place reading noise and gross sighting errors are drawn (every simulated instrument calls it): each
+        station's observation with its instrument errors (:meth:`calib.theodolite.Station.observe`), then Gaussian
+        noise of the station's sigma (when the scenario has angle noise), then gross errors of +-``gross_rad`` at the
+        scenario's rate, then Hz wrapped to [0, 2 pi).  ``stations`` default to the scenario's, ``faces`` to face I,
+        ``rng`` to the twin's own generator (an emulator passes its own so that its stream is its own).
+        """
+        stations = self.stations if stations is None else stations
+        faces = faces or [1] * len(stations)
+        rng = self.rng if rng is None else rng
+        pts = np.atleast_2d(np.asarray(points_mm, float))
         cols = []
-        for s, f in zip(self.stations, faces):
-            cols += list(s.observe(points_mm, f))
+        for s, f in zip(stations, faces):
+            cols += list(s.observe(pts, f))
         out = np.stack(cols, -1)
-        sig = np.concatenate([[s.sigma_hz_rad, s.sigma_v_rad] for s in self.stations])
+        sig = np.concatenate([[s.sigma_hz_rad, s.sigma_v_rad] for s in stations])
         if self.scenario.angle_noise:
-            out = out + self.rng.normal(size=out.shape) * sig
-        gross = self.rng.random(out.shape) < self.scenario.gross_rate
+            out = out + rng.normal(size=out.shape) * sig
+        gross = rng.random(out.shape) < self.scenario.gross_rate
         if gross.any():
-            out = out + gross * self.rng.choice([-1.0, 1.0], out.shape) * self.scenario.gross_rad
+            out = out + gross * rng.choice([-1.0, 1.0], out.shape) * self.scenario.gross_rad
         hz_cols = np.arange(0, out.shape[1], 2)
         out[:, hz_cols] = np.mod(out[:, hz_cols], 2 * np.pi)
         return out, gross
+
+    def sight(self, points_mm: np.ndarray, faces: list[int] | None = None):
+        """Noisy readings (N, 2k) of points from every station, and the gross-error mask (see :meth:`observe`)."""
+        return self.observe(points_mm, None, faces)
 
     def measure(self, q_command_rad, ctx: PoseContext | None = None, faces: list[int] | None = None,
                 tool_mm=None) -> TwinMeasurement:
         q = np.atleast_2d(np.asarray(q_command_rad, float))
         counts, q_read = self.encoder(q)
         pts, th = self.true_points(q_read, ctx, tool_mm)
-        rd, gross = self.sight(pts, faces)
+        rd, gross = self.observe(pts, None, faces)
         return TwinMeasurement(q, counts, q_read, th, pts, rd, gross, faces or [1] * len(self.stations))
 
     def true_parameters(self) -> dict[str, float]:
