@@ -59,8 +59,30 @@ def build_parser() -> argparse.ArgumentParser:
     for mod in _command_modules():
         p = sub.add_parser(mod.NAME, help=mod.HELP, description=getattr(mod, "DESCRIPTION", mod.HELP))
         mod.add_arguments(p)
+        _add_chain_cut(p)
         p.set_defaults(_run=mod.run)
     return parser
+
+
+def _add_chain_cut(p: argparse.ArgumentParser) -> None:
+    """Every parser taking ``--robot`` also takes ``--base-link`` / ``--tip-link`` (a URDF's chain cut)."""
+    for action in p._actions:
+        if isinstance(action, argparse._SubParsersAction):
+            for sub in action.choices.values():
+                _add_chain_cut(sub)
+    if "--robot" in p._option_string_actions and "--base-link" not in p._option_string_actions:
+        p.add_argument("--base-link", metavar="LINK", help="URDF: the link the chain starts from (default: the root)")
+        p.add_argument("--tip-link", metavar="LINK",
+                       help="URDF: the link the chain ends at (default: the only moving leaf)")
+
+
+def _apply_chain_cut(args: argparse.Namespace) -> None:
+    from calib.robot import RobotPath
+    base, tip = getattr(args, "base_link", None), getattr(args, "tip_link", None)
+    if base or tip:
+        if not getattr(args, "robot", None):
+            raise RobocalError("--base-link / --tip-link need --robot FILE.urdf")
+        args.robot = RobotPath(args.robot, base, tip)
 
 
 def _debug_wanted(argv: list[str]) -> bool:
@@ -97,6 +119,7 @@ def main(argv: list[str] | None = None) -> int:
         if not getattr(args, "_run", None):
             parser.print_help()
             return EXIT_OK
+        _apply_chain_cut(args)
         return int(args._run(args) or 0)
     except RobocalError as exc:
         print(f"robocal: error: {exc}", file=sys.stderr)
