@@ -32,6 +32,7 @@ import numpy as np
 
 from .errors import RobocalError
 from .fileio import atomic_write_text
+from .textin import read_text
 from .units import DEG
 
 
@@ -59,17 +60,12 @@ def read_pose_csv(path: str | Path, n_joints: int = 6, prismatic=None) -> PoseTa
     ``prismatic`` (bool per joint, e.g. ``robot.prismatic``): those joints are given in mm, not degrees."""
     path = Path(path)
     src = str(path)
-    try:
-        text = path.read_text(encoding="utf-8")
-    except FileNotFoundError:
-        raise RobocalError(f"{src}: file not found") from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise RobocalError(f"{src}: cannot read: {exc}") from None
+    text = read_text(path)  # UTF-8 with or without a BOM; binary or another encoding: one line
     lines = [(i, ln) for i, ln in enumerate(text.splitlines(), 1) if ln.strip() and not ln.lstrip().startswith("#")]
     if not lines:
         raise RobocalError(f"{src}: no header row")
     header_line, header = lines[0]
-    cols = [c.strip() for c in next(csv.reader([header]))]
+    cols = [c.strip() for c in csv_fields(header, src, header_line)]
     qcols = [f"q{j}" for j in range(1, n_joints + 1)]
     missing = [c for c in qcols if c not in cols]
     if missing:
@@ -89,7 +85,7 @@ def read_pose_csv(path: str | Path, n_joints: int = 6, prismatic=None) -> PoseTa
     idx = {c: i for i, c in enumerate(cols)}
     rows = []
     for lineno, raw in lines[1:]:
-        vals = next(csv.reader([raw]))
+        vals = csv_fields(raw, src, lineno)
         if len(vals) != len(cols):
             raise RobocalError(f"{src}: line {lineno}: {len(vals)} fields, the header has {len(cols)}")
         rows.append((lineno, [v.strip() for v in vals]))
@@ -138,6 +134,15 @@ def read_pose_csv(path: str | Path, n_joints: int = 6, prismatic=None) -> PoseTa
                     d[r, j] = val
         table.direction = d
     return table
+
+
+def csv_fields(line: str, src: str, lineno: int) -> list[str]:
+    """The fields of one CSV line; a malformed line (a field over the csv module's 128 KiB limit, a stray quote)
+    is one error naming the file and the line."""
+    try:
+        return next(csv.reader([line], strict=True), [])
+    except csv.Error as exc:
+        raise RobocalError(f"{src}: line {lineno}: not a CSV row: {exc}") from None
 
 
 def write_pose_csv(path: str | Path, q_rad: np.ndarray, points_mm: np.ndarray | None = None,
