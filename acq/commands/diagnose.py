@@ -1,13 +1,14 @@
 """``robocal diagnose``: explain the sim-to-real gap of a robot from pose measurements (issue 8).
 
-DATA is a pose-measurement CSV, a session database (once the session store exports observations), or the FIGAROH
-TIAGo mocap CSV (recognised by its header; the shipped TIAGo description is then the default robot).
+DATA is a pose-measurement CSV (any robot description's joint names, units by --angle-unit / --length-unit) or a
+session database (once the session store exports observations).
 """
 from __future__ import annotations
 
 import json
 
 from calib.errors import RobocalError
+from acq.commands._csvargs import add_unit_arguments, units
 from acq.argtypes import float_range, nonneg_int, output_dir, positive_float, positive_int
 
 NAME = "diagnose"
@@ -17,9 +18,10 @@ HELP = "diagnose the sim-to-real gap: held-out residual, where it lies, which un
 def add_arguments(p):
     p.add_argument("data", metavar="DATA", nargs="?",
                    help="pose CSV (q1..qn deg, x y z mm, optional dir*, payload, temperature, time, sigma_*_mm), "
-                        "a session database, or the TIAGo mocap CSV")
+                        "or a session database")
     p.add_argument("--robot", metavar="FILE", help="robot description TOML (default: the thesis's Puma 560; "
                                                    "the shipped TIAGo arm for the TIAGo mocap file)")
+    add_unit_arguments(p)
     p.add_argument("--noise-mm", type=positive_float, default=None, metavar="S",
                    help="1-sigma point noise per coordinate (mm) when DATA carries no per-point uncertainty")
     p.add_argument("--json", action="store_true", help="print the result as one JSON object")
@@ -89,7 +91,7 @@ def run(args) -> int:
     from ..progress import progress_display
 
     robot = load_robot(args.robot) if args.robot else None
-    data = load_data(args.data, robot, args.noise_mm)
+    data = load_data(args.data, robot, args.noise_mm, **units(args))
     with progress_display("robocal diagnose") as update:
         diag = diagnose(data, level=args.geometry, n_folds=args.folds, alpha=args.alpha,
                         max_effects=args.max_effects, progress=update)

@@ -124,8 +124,9 @@ def session_observations(path: str | Path, robot: Robot) -> DiagnosisData:
     return d
 
 
-def load_data(path: str | Path, robot: Robot | None = None, noise_mm: float | None = None) -> DiagnosisData:
-    """Read DATA: a session database, the TIAGo mocap CSV (recognised by its header) or a pose-measurement CSV."""
+def load_data(path: str | Path, robot: Robot | None = None, noise_mm: float | None = None, *,
+              angle_unit: str | None = None, length_unit: str | None = None) -> DiagnosisData:
+    """Read DATA: a session database or a pose-measurement CSV (units: see :func:`calib.posecsv.read_pose_csv`)."""
     from calib.posecsv import read_pose_csv
     from calib.robot import load_robot
 
@@ -134,14 +135,12 @@ def load_data(path: str | Path, robot: Robot | None = None, noise_mm: float | No
         raise RobocalError(f"{path}: file not found")
     if is_session_db(path):
         return session_observations(path, robot or load_robot())
-    from .tiago import is_tiago_mocap, load_tiago_mocap
-    if is_tiago_mocap(path):
-        return load_tiago_mocap(path, robot, noise_mm)
     robot = robot or load_robot()
     import warnings
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        table = read_pose_csv(path, robot.n, robot.prismatic)
+        table = read_pose_csv(path, robot.n, robot.prismatic, robot=robot, angle_unit=angle_unit,
+                              length_unit=length_unit)
     if table.points_mm is None:
         raise RobocalError(f"{path}: columns x, y, z (measured tool points, mm) are needed to diagnose")
     cov = None
