@@ -19,6 +19,7 @@ from typing import Callable
 
 import numpy as np
 
+from calib.fileio import atomic_path, atomic_write_text
 from calib.units import DEG
 
 from .sections import DETERMINED, SECTIONS, UNDETERMINED, WEAK, Section, section_estimates, section_problems, \
@@ -435,7 +436,7 @@ def write_pdf(res: dict, path: str | Path, tolerance_mm: float | None = None) ->
     plt = _plt()
     path = Path(path)
     from .summary import summary_lines
-    with PdfPages(path) as pdf:
+    with atomic_path(path, suffix=".pdf") as tmp, PdfPages(tmp) as pdf:
         lines = [t for _, t in summary_lines(res)]
         acc = res.get("accuracy")
         if acc:
@@ -470,10 +471,10 @@ def write_report(result: dict, out_dir: str | Path, tolerance_mm: float | None =
         except Exception:                     # noqa: BLE001 - the report stands without the step counts
             record = None
     path = out / "report.html"
-    path.write_text(report_html(result, tolerance_mm, record), encoding="utf-8")
-    (out / "results.json").write_text(json.dumps({k: v for k, v in result.items() if k != "figures"}, indent=1))
+    atomic_write_text(path, report_html(result, tolerance_mm, record))
+    atomic_write_text(out / "results.json", json.dumps({k: v for k, v in result.items() if k != "figures"}, indent=1))
     if result.get("robot"):
-        (out / "robot.json").write_text(json.dumps(result["robot"], indent=1))
+        atomic_write_text(out / "robot.json", json.dumps(result["robot"], indent=1))
     if pdf:
         write_pdf(result, out / "report.pdf", tolerance_mm)
     return path
