@@ -15,6 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from calib.fileio import atomic_write_text
+from calib.provenance import provenance_html
 
 
 def _png(fig) -> str:
@@ -145,6 +146,7 @@ def write_report(result: dict, out_dir: str | Path) -> Path:
             "their truth is given in the gauge of the held ones).</p>"]
     for title, img in figs:
         body.append(f"<h2>{html.escape(title)}</h2>{img}")
+    body.append(provenance_html(prov))
     path = out / "report.html"
     atomic_write_text(path, "<!doctype html><html><head><meta charset='utf-8'><title>robocal report</title></head>"
                       "<body>" + "".join(body) + "</body></html>")
