@@ -117,11 +117,13 @@ def run(args) -> int:
     with progress_display("robocal diagnose") as update:
         diag = diagnose(data, level=args.geometry, n_folds=args.folds, alpha=args.alpha,
                         max_effects=args.max_effects, outliers=args.outliers, loss=args.loss, progress=update)
+    from calib.provenance import provenance
+    prov = provenance(args.robot or data.robot.source)
     if args.report:
         from calib.diagnose.report import write_report
-        write_report(diag, args.report)
+        write_report(diag, args.report, provenance=prov)
     if args.json:
-        print(json.dumps(diag.to_json(), indent=1, default=float))
+        print(json.dumps({**diag.to_json(), "provenance": prov}, indent=1, default=float))
     else:
         print(render(diag))
         if args.report:
