@@ -8,6 +8,8 @@ import numpy as np
 from calib.errors import RobocalError
 from acq.argtypes import effect_spec, output_file, positive_float
 
+from .diagnose import add_outlier_arguments
+
 NAME = "identify"
 HELP = "identify geometry (and running errors) from a pose-measurement CSV"
 
@@ -26,6 +28,7 @@ def add_arguments(p):
     p.add_argument("--out", type=output_file, metavar="MODEL.json", help="write every parameter with its uncertainty")
     p.add_argument("--out-robot", type=output_file, metavar="ROBOT.toml", help="write the identified robot description")
     p.add_argument("--json", action="store_true", help="print the model document as JSON")
+    add_outlier_arguments(p)
 
 
 def run(args) -> int:
@@ -34,6 +37,7 @@ def run(args) -> int:
     from calib.identify import PointObservations, identify
     from calib.model import MeasurementModel
     from calib.posecsv import read_pose_csv
+    from calib.provenance import provenance
     from calib.robot import load_robot
     from calib.units import DEG
 
@@ -52,23 +56,24 @@ def run(args) -> int:
     if table.sigma_mm is not None:
         cov = np.einsum("ni,ij->nij", table.sigma_mm ** 2, np.eye(3))
     obs = PointObservations(table.q_rad, table.points_mm, cov, sigma_mm=args.noise_mm, ctx=ctx)
-    ident = identify(model, obs)
+    ident = identify(model, obs, outliers=args.outliers, loss=args.loss)
+    prov = provenance(args.robot)
     if args.out:
-        save_model(args.out, model, ident, args.out_robot)
+        save_model(args.out, model, ident, args.out_robot, provenance=prov)
     elif args.out_robot:
         from calib.compensate import robot_from_theta
         from calib.robot import robot_to_toml
         from calib.fileio import atomic_write_text
         atomic_write_text(args.out_robot, robot_to_toml(robot_from_theta(model, ident.theta)))
     if args.json:
-        print(json.dumps(model_document(model, ident), indent=1))
+        print(json.dumps(model_document(model, ident, provenance=prov), indent=1))
         return 0
     print(f"robocal identify {args.data}: {table.n} poses, {len(ident.free)} parameters estimated, "
           f"residual RMS {ident.residual_rms:.4f} mm, reduced chi-square {ident.reduced_chi2:.2f}")
     for line in ident.identifiability.report():
         print("  " + line)
-    if ident.outliers:
-        print("  gross errors flagged and left out: poses " + ", ".join(str(i + 1) for i in ident.outliers))
+    for line in ident.outlier_report.lines():
+        print("  " + line)
     print(f"  {'parameter':<44}{'value':>14}{'1 sigma':>12}  unit")
     for name in ident.free:
         v, s = ident.value(name), ident.std(name)
