@@ -6,6 +6,7 @@ TIAGo mocap CSV (recognised by its header; the shipped TIAGo description is then
 from __future__ import annotations
 
 import json
+import sys
 
 from acq.argtypes import float_range, nonneg_int, output_dir, positive_float, positive_int
 from calib.errors import RobocalError
@@ -115,6 +116,8 @@ def run(args) -> int:
     with progress_display("robocal diagnose") as update:
         diag = diagnose(data, level=args.geometry, n_folds=args.folds, alpha=args.alpha,
                         max_effects=args.max_effects, outliers=args.outliers, loss=args.loss, progress=update)
+    if diag.warning():
+        print(f"warning: {diag.warning()}", file=sys.stderr)
     if args.report:
         from calib.diagnose.report import write_report
         write_report(diag, args.report)
