@@ -28,6 +28,7 @@ class SessionRecord:
     operator: str
     devices: list[dict]
     procedures: dict[str, ProcedureRecord]
+    setup: dict = field(default_factory=dict)
 
 
 def session_record(path: str) -> SessionRecord:
@@ -37,11 +38,15 @@ def session_record(path: str) -> SessionRecord:
     except Exception as exc:                   # noqa: BLE001 - the caller reports the record as unavailable
         raise RobocalError(f"{path}: cannot read the session record: {exc}") from None
     try:
-        row = conn.execute("SELECT session_id, created_unix_s, operator FROM session ORDER BY session_id "
-                           "LIMIT 1").fetchone()
+        row = conn.execute("SELECT session_id, created_unix_s, operator, setup_json FROM session ORDER BY "
+                           "session_id LIMIT 1").fetchone()
         if row is None:
             raise RobocalError(f"{path}: holds no session")
-        sid, created, operator = row
+        sid, created, operator, setup_json = row
+        try:
+            setup = json.loads(setup_json or "{}")
+        except ValueError:
+            setup = {}
         procs: dict[str, ProcedureRecord] = {}
         for step_id, key, proc, status, attempts, note in conn.execute(
                 "SELECT step_id, key, procedure, status, attempts, note FROM step WHERE session_id=? ORDER BY seq",
@@ -67,6 +72,6 @@ def session_record(path: str) -> SessionRecord:
             except ValueError:
                 identity = {}
             devices.append({"role": role, "driver": driver, "url": url, "identity": identity})
-        return SessionRecord(created, operator, devices, procs)
+        return SessionRecord(created, operator, devices, procs, setup if isinstance(setup, dict) else {})
     finally:
         conn.close()

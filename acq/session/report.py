@@ -14,6 +14,7 @@ import datetime as dt
 import html
 import io
 import json
+import re
 from pathlib import Path
 from typing import Callable
 
@@ -255,20 +256,34 @@ def accuracy_verdict(acc: dict, tolerance_mm: float | None) -> str:
     return " ".join(words)
 
 
-def _answer(res: dict, record, tolerance_mm: float | None) -> str:
+def _robot_name(res: dict) -> str | None:
+    """The description's name, from the identified model document's nominal description."""
+    doc = res.get("robot")
+    text = doc.get("nominal_robot_toml", "") if isinstance(doc, dict) else ""
+    found = re.search(r'^name\s*=\s*"([^"]*)"', text, re.M)
+    return found.group(1) if found else None
+
+
+def _stated_noise(record) -> str | None:
+    st = (record.setup.get("stations") or {}) if record is not None else {}
+    sig = st.get("sigma_arcsec") if isinstance(st, dict) else None
+    return f"theodolite readings {sig:g}″ (1σ) per angle" if isinstance(sig, (int, float)) else None
+
+
+def _answer(res: dict, record, tolerance_mm: float | None, figs_png: dict | None = None) -> str:
     s = res["session"]
     acc = res.get("accuracy")
     created = ""
     if record is not None and record.created_unix_s:
         created = dt.datetime.fromtimestamp(record.created_unix_s, dt.timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
-    robot = (res.get("robot") or {}).get("robot", {}).get("name") if isinstance(res.get("robot"), dict) else None
+    robot = _robot_name(res)
     inst = []
     if record is not None:
         for d in record.devices:
             who = d["identity"].get("name", "") + (f" #{d['identity']['serial']}" if d["identity"].get("serial")
                                                     else "")
             inst.append(f"{d['role']}: {d['driver']} {who}".strip())
-    noise = res.get("setup_noise")
+    noise = _stated_noise(record)
     rows = [("Session", f"{s['title']} ({s['guid'][:8]}), {s['steps_accepted']} steps accepted, {s['exit_status']}"),
             ("Recorded", created or "unknown"), ("Robot", robot or "as described in the session's set-up"),
             ("Instruments", "; ".join(inst) or "not recorded")]
@@ -291,7 +306,10 @@ def _answer(res: dict, record, tolerance_mm: float | None) -> str:
     else:
         acc_table = ("<p class='verdict not'>The accuracy before and after was not measured: the session has no pose "
                      "set large enough to hold poses out. Record the Chapter 6 pose set to measure it.</p>")
-    return f"<section class='answer' id='answer'><h2>The answer</h2><table>{table}</table>{acc_table}</section>"
+    maps = "".join(f"<figure><img alt='{html.escape(c)}' src='{src}'/><figcaption>{html.escape(c)}</figcaption>"
+                   f"</figure>" for c, src in (figs_png or {}).get("accuracy_map", []))
+    return (f"<section class='answer' id='answer'><h2>The answer</h2><table>{table}</table>{acc_table}{maps}"
+            f"</section>")
 
 
 def _estimates_table(ests: list[dict]) -> str:
@@ -413,7 +431,7 @@ def report_html(res: dict, tolerance_mm: float | None = None, record=None) -> st
     """The whole report as one HTML document (figures embedded)."""
     figs = {k: [(c, _png(fig)) for c, fig in v] for k, v in render_figures(res).items()}
     body = [f"<h1>Calibration report</h1><p class='muted'>robocal — {html.escape(res['session']['title'])}</p>",
-            _answer(res, record, tolerance_mm)]
+            _answer(res, record, tolerance_mm, figs)]
     body += [_section_html(sec, res, record, figs) for sec in SECTIONS]
     known = {p for sec in SECTIONS for p in section_problems(sec, res.get("problems", []))}
     others = [p for p in res.get("problems", []) if p not in known]

@@ -25,6 +25,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from calib.errors import RobocalError
+from calib.provenance import provenance
 from calib.robot import load_robot
 from calib.units import ARCSEC, DEG
 
@@ -177,7 +178,8 @@ def reprocess(path: str, n_mc: int = 0, progress=None) -> dict:
     return {
         "session": {"guid": data.session["guid"], "title": data.session["title"], "path": path,
                     "exit_status": data.session["exit_status"], "steps_accepted": len(data.steps)},
-        "provenance": {"code_version": code_version(), "reprocessed_unix_s": time.time(), "input_session":
+        "provenance": {**provenance(data.setup.get("robot") or None, twin.scenario.source if twin else None),
+                       "code_version": code_version(), "reprocessed_unix_s": time.time(), "input_session":
                        data.session["guid"], "n_mc": n_mc, "elapsed_s": time.perf_counter() - t0},
         "estimates": est.items,
         "accuracy": {k: v for k, v in figs.get("accuracy", {}).items() if not k.endswith(("_err_mm", "_index"))}

@@ -171,7 +171,7 @@ section(Section(
     [ThesisRow("a1 (Fig 5.10)", "ident.j2.a_mm", 431.0, "mm"),
      ThesisRow("a2 (Fig 5.10)", "ident.j3.a_mm", -29.7, "mm"),
      ThesisRow("d2 (Fig 5.10)", "ident.j4.d_mm", 432.2, "mm"),
-     ThesisRow("d3 (Fig 5.10)", "ident.j6.d_mm", 56.4, "mm")], ("poses", "accuracy_map")))
+     ThesisRow("d3 (Fig 5.10)", "ident.j6.d_mm", 56.4, "mm")], ("poses",)))
 
 
 def section_estimates(sec: Section, estimates: list[dict]) -> list[dict]:
