@@ -37,6 +37,7 @@ def run(args) -> int:
     from calib.identify import PointObservations, identify
     from calib.model import MeasurementModel
     from calib.posecsv import read_pose_csv
+    from calib.provenance import provenance
     from calib.robot import load_robot
     from calib.units import DEG
 
@@ -56,15 +57,16 @@ def run(args) -> int:
         cov = np.einsum("ni,ij->nij", table.sigma_mm ** 2, np.eye(3))
     obs = PointObservations(table.q_rad, table.points_mm, cov, sigma_mm=args.noise_mm, ctx=ctx)
     ident = identify(model, obs, outliers=args.outliers, loss=args.loss)
+    prov = provenance(args.robot)
     if args.out:
-        save_model(args.out, model, ident, args.out_robot)
+        save_model(args.out, model, ident, args.out_robot, provenance=prov)
     elif args.out_robot:
         from calib.compensate import robot_from_theta
         from calib.robot import robot_to_toml
         from calib.fileio import atomic_write_text
         atomic_write_text(args.out_robot, robot_to_toml(robot_from_theta(model, ident.theta)))
     if args.json:
-        print(json.dumps(model_document(model, ident), indent=1))
+        print(json.dumps(model_document(model, ident, provenance=prov), indent=1))
         return 0
     print(f"robocal identify {args.data}: {table.n} poses, {len(ident.free)} parameters estimated, "
           f"residual RMS {ident.residual_rms:.4f} mm, reduced chi-square {ident.reduced_chi2:.2f}")
