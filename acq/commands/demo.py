@@ -60,6 +60,11 @@ def run(args) -> int:
     t_rec = time.perf_counter() - t0
     print(f"session {db}: {state}, {pp.saved}/{pp.total} steps saved in {t_rec:.1f} s "
           f"({pp.failed_checks} failed checks, repeated or noted)", file=sys.stderr)
+    if state == "refused":
+        for line in pp.preflight_lines:
+            print(f"pre-flight: {line}", file=sys.stderr)
+        raise RobocalError(f"session {db}: the pre-flight failed for {len(pp.preflight_lines)} step(s) (listed "
+                           f"above); nothing was recorded")
     if state != "finished":
         raise RobocalError(f"session {db} ended {state}; continue it with: robocal demo --resume --db {db}")
     with progress_display("reprocessing", after_s=0.5) as update:

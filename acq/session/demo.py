@@ -25,7 +25,8 @@ from calib.twin import Twin, load_scenario
 from calib.units import ARCSEC, DEG
 
 from .headless import ScriptedOperator
-from .setup import predictor, setup_stations
+from .preflight import Preflight
+from .setup import predictor, session_setup, setup_stations
 from .procedures import READY_DEG, all_steps
 from .rig import EmulatedBench, Rig
 from .runner import Runner
@@ -38,6 +39,9 @@ DEMO_TITLE = "robocal demo: emulated Puma 560 (twin) and two GeoCOM theodolites"
 DEMO_POSES = 48
 #: wait after each move before recording encoders (the tap's frames in flight carry the previous pose)
 DEMO_SETTLE_S = 0.02
+#: transmission-error runs: joint 4 inside its -110..170 deg limits (with the pre-flight's 2 deg margin), joint 6 over
+#: most of its +-266 deg
+TE_RANGE_DEG = {"4": [-105.0, 165.0], "6": [-150.0, 150.0]}
 
 
 def demo_setup(twin: Twin) -> dict:
@@ -61,10 +65,12 @@ def demo_setup(twin: Twin) -> dict:
                                   "dir": [1, 0.15, 0]}]},
         "compliance": {"3": {"lever_mm": 500.0, "loads_n": [0, 10, 20, 30, 45, 60, 75], "theta_i_deg": 0.0,
                              "pose_deg": list(READY_DEG)},
+                       # joint 4 loaded with the forearm level: its axis horizontal, the lever across it level
                        "4": {"lever_mm": 500.0, "loads_n": [0, 5, 10, 15, 25, 35, 45], "theta_i_deg": 0.0,
-                             "pose_deg": list(READY_DEG)}},
+                             "pose_deg": [0.0, -90.0, 0.0, 0.0, 0.0, 0.0]}},
+        # the upper arm level (at READY it stands vertical and a weight only compresses it)
         "link": {"joint": 2, "gauges_x_mm": [150.0, 280.0, 400.0], "load_x_mm": 430.0, "loads_n": [0, 50, 100, 150],
-                 "second_moment_mm4": None, "pose_deg": list(READY_DEG)},
+                 "second_moment_mm4": None, "pose_deg": [0.0, 0.0, 90.0, 0.0, 0.0, 0.0]},
     }
 
 
@@ -85,7 +91,7 @@ def demo_plan(twin: Twin, seed: int, n_poses: int = DEMO_POSES, quick: bool = Tr
         "ruler": {"repeats": 2},
         "sweeps": {"points": 5, "span_deg": 60.0, "joints": [1, 2, 3, 4, 5, 6]},
         "poses": {"q_deg": np.round(q, 3).tolist()},
-        "transmission": {"joints": [4, 6], "points": 25, "repeats": 2, "range_deg": {"4": [-150.0, 150.0], "6": [-150.0, 150.0]}},
+        "transmission": {"joints": [4, 6], "points": 25, "repeats": 2, "range_deg": TE_RANGE_DEG},
         "compliance": {"joints": [3, 4]},
         "coupling": {"angle_deg": 10.0, "pairs": [[5, 6], [4, 6], [4, 5]]},
         "seed": seed,
@@ -155,7 +161,7 @@ def build_demo(db: str | Path, seed: int = 0, resume: bool = False, script: dict
         seed_offset = 0
     twin = Twin(load_scenario(), seed=seed)
     if not resume:
-        setup = demo_setup(twin)
+        setup = session_setup(demo_setup(twin), twin.robot)
         plan_d = plan or demo_plan(twin, seed)
         store = SessionStore.create(db, DEMO_TITLE, plan_d, setup, operator="scripted demo operator",
                                     metadata={"emulated": True, "scenario": "default", "seed": seed})
@@ -183,19 +189,21 @@ def build_demo(db: str | Path, seed: int = 0, resume: bool = False, script: dict
                                                     {"emulated": True, "channel": channel} if role == "encoder tap"
                                                     else {"emulated": True})
     bench = EmulatedBench(world)
+    setup = session_setup(setup, twin.robot)           # a resumed session's set-up may use the old keys
     steps = all_steps(plan_d, setup)
     if steps_filter is not None:
         steps = [s for s in steps if steps_filter(s)]
 
     def inputs(step: Step) -> dict:
-        return bench.read_gauges(step) if step.procedure == "link_compliance" else {}
+        return bench.read_gauges(step) if step.setup.get("gauges") else {}
 
     op = operator or ScriptedOperator(script, inputs=inputs)
     from .stations import stations_from_store
     # settle_s: frames already on the bus when the robot "moves" carry the old counts; real cells wait for the servo
     runner = Runner(store, rig, steps, op, bench=bench, stations=setup_stations(setup),
                     predict=predictor(twin.robot, setup), settle_s=DEMO_SETTLE_S,
-                    refit_stations=lambda st: stations_from_store(st, setup))
+                    refit_stations=lambda st: stations_from_store(st, setup),
+                    preflight=Preflight(twin.robot, setup))
     d = DemoRig(runner, world, twin, store, names)
     d._nodes = [node]
     return d
