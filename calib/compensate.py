@@ -54,7 +54,8 @@ def robot_from_theta(model: MeasurementModel, theta: np.ndarray) -> Robot:
     tool = np.array([g[kin.index[f"tool.{k}"]] for k in ("x_mm", "y_mm", "z_mm")])
     return replace(r, a_mm=per_joint("a_mm"), d_mm=per_joint("d_mm"), alpha_rad=per_joint("alpha_rad"),
                    theta_offset_rad=per_joint("theta_offset_rad"), beta_rad=per_joint("beta_rad"),
-                   base_xyz_mm=np.array(base), base_rpy_rad=np.array(rpy), tool_points_mm={"P": tool},
+                   base_xyz_mm=np.array(base), base_rpy_rad=np.array(rpy),
+                   tool_points_mm={next(iter(r.tool_points_mm)) if len(r.tool_points_mm) == 1 else "P": tool},
                    name=f"{r.name} (identified)")
 
 

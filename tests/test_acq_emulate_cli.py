@@ -160,3 +160,27 @@ def test_emulate_runs_on_the_twin_of_the_chosen_scenario(tmp_path):
     from acq.emulate.factories import make_world
     assert abs(readings[0] - make_world(None, noise=False).true_sight("B", 1)[0]) < 1e-12
     assert abs(readings[0] - readings[1]) > 1e-3
+
+
+def test_tcp_host_reports_a_failing_device_to_its_owner():
+    import socket
+    import threading as th
+
+    from acq.emulate.geocom_device import GeoComDevice
+    from acq.emulate.tcp_host import TcpHost
+    from tests.fakes.worlds import quiet_world
+
+    class Broken(GeoComDevice):
+        def on_line(self, line):
+            raise RuntimeError("parser bug")
+    seen = th.Event()
+    got = []
+    host = TcpHost(Broken(quiet_world(), "A"), on_failure=lambda h, exc: (got.append((h, exc)), seen.set()))
+    try:
+        with socket.create_connection((host.host, host.port), timeout=5) as s:
+            s.sendall(b"%R1Q,0:\r\n")
+            assert seen.wait(5)
+    finally:
+        host.close()
+    assert got[0][0] is host and isinstance(host.failure, RuntimeError)
+    assert host.describe().startswith("the TCP server of geocom on socket://")

@@ -53,7 +53,9 @@ class PtyHost:
             try:
                 r, _, _ = select.select([self._master], [], [], min(period, 0.05))
             except (OSError, ValueError):
-                return
+                if self._stop.is_set():             # closed by close()/unplug(): the normal end
+                    return
+                raise
             if r:
                 try:
                     data = os.read(self._master, 65536)
@@ -118,6 +120,8 @@ def run_guarded(host, serve: Callable[[], None]) -> None:
     try:
         serve()
     except BaseException as exc:            # noqa: BLE001 -- reported to the owner, never swallowed
+        if host._stop.is_set():             # the owner is closing the host: its fds go away under the loop
+            return
         host.failure = exc
         if host.on_failure is not None:
             host.on_failure(host, exc)

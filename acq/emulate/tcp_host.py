@@ -39,7 +39,9 @@ class TcpHost:
             try:
                 conn, _ = self._srv.accept()
             except OSError:
-                return
+                if self._stop.is_set():
+                    return
+                raise
             with conn:
                 self.device.read_output()                 # a new client does not get the last one's leftovers
                 while not self._stop.is_set():

@@ -195,9 +195,8 @@ def import_file(path: str, db: str, setup_json: str | None = None, resume: bool 
 
 
 def _default_setup() -> dict:
-    from calib.twin import Twin
-    from .demo import demo_setup
-    return demo_setup(Twin())
+    from .setup import standard_setup
+    return standard_setup()
 
 
 def _pose_steps(path: str) -> list[StepRecord]:
