@@ -226,3 +226,66 @@ def plan_te(c: Constraints, seed: int = 0, progress=None) -> SetupPlan:
 
 
 PROCEDURES: dict[str, Callable[..., SetupPlan]] = {"ruler": plan_ruler, "sweep": plan_sweep, "te": plan_te}
+
+
+# -- per-link sweep targets ------------------------------------------------------------------------------------------
+def sweep_targets(model, theta: np.ndarray, q_rad: np.ndarray, radius_mm: dict[int, float],
+                  toward_mm=(0.0, -1e4, 0.0)) -> dict[str, dict]:
+    """A target P_j for each joint's sweep at ``radius_mm[j]`` from joint j's axis (thesis section 4.3), carried by
+    the flange (link n: rigid with link j while only joint j turns), on the side of the axis facing ``toward_mm``
+    (the theodolites).  Returns ``{"j": {"link": n, "point_mm": [x, y, z] in frame n, "radius_mm": R}}``."""
+    n = model.robot.n
+    fp = model.kin.forward(np.asarray(q_rad, float)[None], theta[: model.n_geometric])
+    R6, t6 = fp.frame_R[0, n], fp.frame_t[0, n]
+    out = {}
+    for j, R in sorted(radius_mm.items()):
+        z, o = fp.joint_axis[0, j - 1], fp.joint_origin[0, j - 1]
+        r = t6 - o
+        foot = o + (r @ z) * z
+        u = t6 - foot
+        if np.linalg.norm(u) < 1.0:                # the flange on the axis (wrist joints): along the flange's x
+            u = R6[:, 0] - (R6[:, 0] @ z) * z
+        u /= np.linalg.norm(u)
+        if u @ (np.asarray(toward_mm, float) - foot) < 0:      # the side of the axis facing the theodolites
+            u = -u
+        p = foot + float(R) * u
+        out[str(j)] = {"link": n, "point_mm": [round(float(v), 2) for v in R6.T @ (p - t6)],
+                       "radius_mm": float(R)}
+    return out
+
+
+# -- the session set-up file ---------------------------------------------------------------------------------------
+def _ruler_into(v: dict, setup: dict, placements: int = 3) -> None:
+    """The designed ruler (R, r1 at X1, Y1) and baseline L; further placements step back and turn (thesis 4.2)."""
+    setup.setdefault("stations", {})["L_mm"] = round(v["L_mm"], 0)
+    X1, Y1 = v["X1_mm"], v["Y1_mm"]
+    setup["ruler"] = {"marks_mm": [0.0, round(v["r1_mm"], 1), round(v["R_mm"], 1)], "placements": [
+        {"where": f"designed placement {k + 1}: C at X {X1:.0f}, Y {Y1 + 300.0 * k:.0f} mm",
+         "C_mm": [round(X1, 1), round(Y1 + 300.0 * k, 1), 0.0], "dir": [1.0, round(0.1 * k, 3), 0.0]}
+        for k in range(placements)]}
+
+
+def _sweep_into(v: dict, setup: dict) -> None:
+    setup["sweep_radius_mm"] = round(v["Rj_mm"], 0)
+    setup.pop("sweep_targets", None)          # designed again at the new radius when the session starts
+
+
+def _te_into(v: dict, setup: dict) -> None:
+    et = setup.setdefault("extended_tool", {"A1_mm": [0.0, 0.0, 100.0]})
+    a1 = np.asarray(et.get("A1_mm", [0.0, 0.0, 100.0]), float)
+    et["A2_mm"] = [round(float(x), 1) for x in a1 + v["Rd_mm"] * np.array([1.0, 0.0, 1.0]) / np.sqrt(2.0)]
+
+
+#: how each procedure's design enters the session set-up file (``robocal plan setup ... --out``)
+INTO_SETUP: dict[str, Callable[[dict, dict], None]] = {"ruler": _ruler_into, "sweep": _sweep_into, "te": _te_into}
+
+
+def into_setup(plans: list[SetupPlan], setup: dict) -> dict:
+    """A copy of the session ``setup`` with the designed variables of ``plans`` written in."""
+    import json
+    out = json.loads(json.dumps(setup))
+    for p in plans:
+        INTO_SETUP[p.procedure](p.variables, out)
+    out["design"] = {**out.get("design", {}), **{p.procedure: {"variables": p.variables, "errors": p.errors}
+                                                  for p in plans}}
+    return out

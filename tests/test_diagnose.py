@@ -16,7 +16,8 @@ from calib.diagnose.validate import Case, cases, make_case_data, run_case, run_v
 from calib.errors import RobocalError
 from calib.posecsv import write_pose_csv
 
-TIAGO = Path("/work/shared/data/figaroh-tiago-mocap/qualysis_base_hand_calibration.csv")
+TIAGO = Path(__file__).resolve().parents[1] / "examples" / "tiago" / "qualysis_base_hand_calibration.csv"
+TIAGO_ROBOT = TIAGO.parent / "tiago_mocap.toml"
 
 
 def _csv(tmp_path, case: Case, with_sigma=True, with_dir=True) -> Path:
@@ -133,8 +134,9 @@ def test_bad_pose_row_names_file_line_and_column(tmp_path):
 
 
 @pytest.mark.skipif(not TIAGO.exists(), reason="TIAGo mocap data set not present")
-def test_tiago_mocap_loader_and_geometric_gap():
-    d = load_data(TIAGO, noise_mm=0.2)
+def test_tiago_mocap_through_the_generic_csv_path_and_geometric_gap():
+    from calib.robot import load_robot
+    d = load_data(TIAGO, load_robot(TIAGO_ROBOT), noise_mm=0.2, angle_unit="rad", length_unit="m")
     assert d.n == 34 and d.q_rad.shape == (34, 8) and d.robot.prismatic[0]
     assert 0 < d.q_rad[:, 0].min() and d.q_rad[:, 0].max() < 360            # torso lift in mm, not m
     diag = diagnose(d, level="offsets", max_effects=0, flag_outliers=False)
@@ -149,8 +151,9 @@ def test_tiago_bad_row(tmp_path):
     bad = text[:5] + [text[5].replace(text[5].split(",")[13], "nan", 1)] + text[6:]
     p = tmp_path / "t.csv"
     p.write_text("\n".join(bad) + "\n")
+    from calib.robot import load_robot
     with pytest.raises(RobocalError, match=r"line 6: column arm_1_joint"):
-        load_data(p, noise_mm=0.2)
+        load_data(p, load_robot(TIAGO_ROBOT), noise_mm=0.2, angle_unit="rad", length_unit="m")
 
 
 @pytest.mark.parametrize("args, msg", [
@@ -160,3 +163,25 @@ def test_tiago_bad_row(tmp_path):
 def test_validate_option_errors(args, msg, capsys):
     assert main(args) == 2
     assert msg in capsys.readouterr().err
+
+
+def test_outliers_reject_blunders_and_identify_gives_the_same_geometric_fit():
+    from calib.diagnose.gap import geometric_free
+    from calib.identify import identify
+    from calib.model import MeasurementModel
+
+    d, _ = make_case_data(Case(None, None, None, 0.0, seed=21, n_poses=80))
+    bad = [5, 33, 61]
+    d.points_mm[bad] += [2.0, -3.0, 2.5]
+    diag = diagnose(d, level="full", max_effects=0, outliers="reject")
+    j = diag.to_json()
+    assert j["outliers"]["rejected"] == [i + 1 for i in bad] and j["outliers"]["cluster"] is None
+    assert diag.data.n == 77
+    model = MeasurementModel(d.robot)
+    idn = identify(model, d.observations(), free=geometric_free(model, "full"), outliers="reject")
+    P = model.P
+    q = d.q_rad[:20]
+    gap = model.points(q, theta=idn.theta[:P]) - model.points(q, theta=diag.geometric.all_fit.theta[:P])
+    assert np.abs(gap).max() < 1e-3
+    flag = diagnose(d, level="full", max_effects=0).to_json()["outliers"]
+    assert flag["mode"] == "flag" and flag["flagged"] == [i + 1 for i in bad] and flag["rejected"] == []

@@ -1,11 +1,16 @@
 """Each non-geometric effect shows its own signature, and its Jacobian matches finite differences."""
+import json
+from importlib import resources
+
 import numpy as np
 import pytest
 
 from calib.effects import (Backlash, CrossCoupling, JointCompliance, LinkCompliance, ThermalDrift,
                            TransmissionError, thesis_effects)
 from calib.model import MeasurementModel
-from calib.units import DEG, G0_M_S2
+from calib.units import DEG, G0_M_S2, NM_PER_LBIN
+from tests.fakes import thesis_puma as fake
+from tests.fakes.thesis_puma import ThesisPuma
 
 
 def poses(rng, n=40):
@@ -65,27 +70,34 @@ def test_joint_compliance_follows_gravity_torque(puma, rng):
     m = MeasurementModel(puma, [JointCompliance(3, k)])
     q = poses(rng)
     ev = m.evaluate(q)
-    tau3 = gravity_torque_by_virtual_work(m, q)[:, 2]
+    arm = ThesisPuma.from_toml(resources.files("calib") / "data" / "puma560.toml")
+    tau3 = np.array([arm.gravity_torques(qi)[2] for qi in q])          # plain cross products, not the model
     np.testing.assert_allclose(ev.theta_rad[:, 2] - q[:, 2], tau3 / k, rtol=1e-6, atol=1e-12)
     # a payload adds its own torque: more sag
     heavy = m.evaluate(q, m.context(len(q), payload_kg=5.0))
     assert np.all(np.abs(heavy.theta_rad[:, 2] - q[:, 2]) >= np.abs(ev.theta_rad[:, 2] - q[:, 2]) - 1e-12)
 
 
-def test_two_slopes_and_dead_zone(puma):
-    c1, c2, tb, h = 1 / 13000.0, 1 / 11000.0, 11.3, 0.005 * DEG
-    m = MeasurementModel(puma, [JointCompliance(3, 1 / c1, 1 / c2, tb, h)])
-    q = np.zeros((4, 6))
-    tau = np.array([5.0, 20.0, 20.0, -20.0])
-    ctx = m.context(4, joint_torque_nm=np.outer(tau, [0, 0, 1, 0, 0, 0]),
-                    load_direction=np.outer([1, 1, -1, 1], np.ones(6)))
-    base = m.loads(m.kin.forward(q), m.context(4)).joint_torque_nm[:, 2]
-    d = m.evaluate(q, ctx).theta_rad[:, 2]
-    t = tau + base
-    expect = np.where(np.abs(t) <= tb, c1 * t, np.sign(t) * (c1 * tb + c2 * (np.abs(t) - tb)))
-    expect -= 0.5 * h * np.array([1, 1, -1, 1])
-    np.testing.assert_allclose(d, expect, atol=1e-15)
-    assert d[2] - d[1] == pytest.approx(h)                   # unloading lies one dead zone above loading
+def test_two_slopes_and_dead_zone_against_the_thesis_curve(puma, rng):
+    """The thesis's K3 (1.156e5 lb in/rad below 100 lb in, 1.223e5 above) under gravity plus an applied torque: the
+    torque from plain cross products of the link weights and the deflection read off the thesis's two-slope curve
+    (the independent generator); the dead zone puts unloading one h above loading."""
+    k1, k2, tb, h = 1.156e5 * NM_PER_LBIN, 1.223e5 * NM_PER_LBIN, 100 * NM_PER_LBIN, 0.005 * DEG
+    m = MeasurementModel(puma, [JointCompliance(3, k1, k2, tb, h)])
+    n = 40
+    q = poses(rng, n)
+    applied = rng.uniform(-30.0, 30.0, n)
+    e3 = np.array([0, 0, 1.0, 0, 0, 0])
+    defl = {}
+    for ld in (-1.0, 0.0, 1.0):
+        ctx = m.context(n, joint_torque_nm=np.outer(applied, e3), load_direction=ld * np.ones((n, 6)))
+        defl[ld] = m.evaluate(q, ctx).theta_rad[:, 2] - q[:, 2]
+    arm = ThesisPuma.from_toml(resources.files("calib") / "data" / "puma560.toml")
+    curve = fake.JointCompliance(3, k1, k2, tb)
+    tau = np.array([arm.gravity_torques(qi)[2] for qi in q]) + applied
+    assert np.any(np.abs(tau) < tb) and np.any(np.abs(tau) > tb)         # both slopes are exercised
+    np.testing.assert_allclose(defl[0.0], [curve.deflection(t) for t in tau], rtol=1e-9, atol=1e-15)
+    np.testing.assert_allclose(defl[-1.0] - defl[1.0], h, atol=1e-15)
 
 
 def test_cross_coupling_is_linear_in_the_source_joint(puma, rng):
@@ -165,3 +177,77 @@ def test_two_effects_of_one_kind_on_one_joint_get_distinct_names(puma):
     assert len(set(m.names)) == len(m.names)
     assert m.nominal[m.index["transmission_error.j4.s1_rad"]] == 0.01
     assert m.nominal[m.index["transmission_error.j4@2.s1_rad"]] == 0.02
+
+
+# -- the registry (contract C1) -------------------------------------------------------------------------------------
+def test_every_registered_kind_round_trips_through_text_json_and_zero():
+    from calib.effects import EFFECTS, effect_from_spec, effect_from_text, effect_spec, make_effect
+    assert {"transmission_error", "joint_compliance", "backlash", "cross_coupling", "link_compliance",
+            "thermal_drift"} <= set(EFFECTS)
+    for kind, cls in EFFECTS.items():
+        assert cls.kind == kind
+        fields = ([3] if cls.has_joint else []) + [{"order": 0.9, "harmonics": 2, "source": 5,
+                                                    "reference_degc": 21.5}.get(k, 1) for k in cls.options]
+        e = effect_from_text(":".join([kind] + [f"{f:g}" for f in fields]))
+        assert type(e) is cls and e.joint == (3 if cls.has_joint else None)
+        e.values = np.arange(1.0, len(e.values) + 1) * 1e-6
+        again = effect_from_spec(json.loads(json.dumps(effect_spec(e))), dict(zip(e.qualified_names(), e.values)),
+                                 "model.json: effects[0]")
+        assert again.qualified_names() == e.qualified_names() and np.array_equal(again.values, e.values)
+        assert again.option_values() == e.option_values()
+        z = make_effect(kind, e.joint, **e.option_values())
+        assert z.qualified_names() == e.qualified_names()
+
+
+def test_an_unknown_kind_lists_the_known_ones():
+    from calib.effects import EFFECTS, effect_from_spec, effect_from_text, make_effect
+    from calib.errors import RobocalError
+    for call in (lambda: effect_from_text("friction:2"), lambda: make_effect("friction", 2),
+                 lambda: effect_from_spec({"type": "friction", "joint": 2}, {}, "m.json: effects[1]")):
+        with pytest.raises(RobocalError) as exc:
+            call()
+        assert "unknown kind 'friction'" in str(exc.value) and all(k in str(exc.value) for k in EFFECTS)
+
+
+def test_a_new_effect_is_one_class_registered_once(puma):
+    """A kind registered once is built by the text, the scenario, the model JSON and the model without other edits."""
+    from calib.effects import EFFECTS, Effect, effect_from_text, register_effect
+    from calib.tomlspec import Field
+    from calib.twin import parse_scenario
+
+
+    class ZeroOffsetDrift(Effect):
+        kind = "zero_offset_drift"
+        param_names = ("offset_rad",)
+        scenario_fields = {"joint": Field("int", required=True, min=1), "offset_deg": Field("number", default=0.0)}
+
+        def __init__(self, joint, offset_rad):
+            super().__init__(joint, {"offset_rad": offset_rad})
+
+        @classmethod
+        def zero(cls, joint=None):
+            return cls(joint, 0.0)
+
+        @classmethod
+        def from_table(cls, c):
+            return cls(c["joint"], c["offset_deg"] * DEG)
+
+        def joint_delta(self, q, ctx, loads, values):
+            delta, grad = np.zeros_like(q), np.zeros(q.shape + (1,))
+            grad[:, self.joint - 1, 0] = 1.0
+            return delta + grad[..., 0] * values[0], grad
+
+    register_effect(ZeroOffsetDrift)
+    try:
+        with pytest.raises(TypeError, match="registered twice"):
+            register_effect(type("Again", (ZeroOffsetDrift,), {}))
+        e = effect_from_text("zero_offset_drift:2")
+        sc = parse_scenario('[[effect]]\ntype = "zero_offset_drift"\njoint = 2\noffset_deg = 0.1\n')
+        assert sc.effects[0].values[0] == pytest.approx(0.1 * DEG)
+        m = MeasurementModel(puma, [e])
+        q = np.zeros((1, 6))
+        theta = m.nominal
+        theta[m.index["zero_offset_drift.j2.offset_rad"]] = 0.01
+        assert m.evaluate(q, theta=theta).theta_rad[0, 1] == pytest.approx(0.01)
+    finally:
+        EFFECTS.pop("zero_offset_drift", None)

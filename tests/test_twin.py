@@ -8,10 +8,11 @@ import numpy as np
 import pytest
 
 from calib.errors import ConfigError
-from calib.model import MeasurementModel
 from calib.theodolite import intersect
 from calib.twin import Twin, load_scenario, parse_scenario
 from calib.units import ARCSEC, DEG, NM_PER_LBIN
+from tests.fakes import thesis_puma as fake
+from tests.fakes.thesis_puma import ThesisPuma, base_matrix
 
 DEFAULT = (resources.files("calib") / "data" / "twin_default.toml").read_text()
 
@@ -54,11 +55,55 @@ def test_encoder_counts_are_integers_and_quantise_the_readings():
     assert np.any(err > 1e-9)
 
 
-def test_truth_comes_from_the_same_model():
+def thesis_arm(tw: Twin) -> ThesisPuma:
+    """The independent generator set to the twin's true geometry (masses from the description file itself)."""
+    t = tw.true_parameters()
+    arm = ThesisPuma.from_toml(resources.files("calib") / "data" / "puma560.toml")
+    for j in range(6):
+        for attr, key in (("alpha", "alpha_rad"), ("a_mm", "a_mm"), ("d_mm", "d_mm"),
+                          ("theta_offset", "theta_offset_rad"), ("beta", "beta_rad")):
+            getattr(arm, attr)[j] = t[f"j{j + 1}.{key}"]
+    arm.base = base_matrix([t["base.x_mm"], t["base.y_mm"], t["base.z_mm"]], t["base.yaw_rad"],
+                           t["base.pitch_rad"], t["base.roll_rad"])
+    arm.tool_xyz_t = (-t["tool.x_mm"], -t["tool.y_mm"], -t["tool.z_mm"])      # ^6E puts the tool at -Xt, -Yt, -Zt
+    return arm
+
+
+def thesis_running_errors(tw: Twin) -> list:
+    t = tw.true_parameters()
+    c = {j: (1 / t[f"joint_compliance.j{j}.compliance1_rad_per_nm"], 1 / t[f"joint_compliance.j{j}.compliance2_rad_per_nm"],
+             t[f"joint_compliance.j{j}.breakpoint_nm"]) for j in (3, 4)}
+    return [fake.TransmissionError(4, 0.9, t["transmission_error.j4.s1_rad"]),
+            fake.TransmissionError(6, 1.8, t["transmission_error.j6.s1_rad"]),
+            fake.JointCompliance(3, *c[3]), fake.JointCompliance(4, *c[4]),
+            fake.CrossCoupling(6, 5, t["cross_coupling.j5j6.sigma"])]
+
+
+def test_twin_truth_agrees_with_the_independent_thesis_generator():
+    """True tool points and joint angles of the default twin (geometry, base, tool, transmission errors, two-slope
+    compliance under gravity and payload, coupling) against plain A-matrix products of the thesis."""
     tw = Twin()
-    q = tw.random_poses(20)
-    m = tw.measure(q)
-    np.testing.assert_allclose(m.point_true_mm, tw.model.points(m.q_read_rad, theta=tw.theta), atol=1e-12)
+    q = tw.random_poses(60)
+    payload = np.where(np.arange(60) % 3 == 0, 6.0, 0.0)
+    m = tw.measure(q, tw.context(60, payload_kg=payload))
+    arm = thesis_arm(tw)
+    pts, th = fake.true_points(arm, m.q_read_rad, thesis_running_errors(tw), payload)
+    np.testing.assert_allclose(m.point_true_mm, pts, atol=1e-9, rtol=0)
+    np.testing.assert_allclose(m.theta_true_rad, th, atol=1e-12, rtol=0)
+    rigid, _ = fake.true_points(arm, m.q_read_rad)
+    assert np.abs(m.point_true_mm - rigid).max() > 0.1          # the running errors are there to be compared
+
+
+def test_twin_readings_agree_with_the_thesis_station_formulas():
+    """Noise-free readings: eq 4.3.1's inverse (section 5.3.1) with the offsets gamma1, gamma2 of the scenario."""
+    sc = parse_scenario(DEFAULT.replace("angles = true", "angles = false").replace("height_b_mm = 0.0",
+                                                                                   "height_b_mm = 120.0"))
+    tw = Twin(sc)
+    m = tw.measure(tw.random_poses(80))
+    expect = fake.leica_readings(m.point_true_mm, 1609.9, -1.489 * DEG, 1.358 * DEG, 120.0)
+    np.testing.assert_allclose(np.angle(np.exp(1j * (m.readings_rad - expect))), 0.0, atol=1e-12)
+    alpha, beta, phi_a, _ = fake.thesis_angles(m.point_true_mm, 1609.9, 120.0)
+    np.testing.assert_allclose(fake.point_from_angles(alpha, beta, phi_a, 1609.9), m.point_true_mm, atol=1e-9)
 
 
 def test_readings_intersect_back_to_the_truth_within_noise():
@@ -80,6 +125,26 @@ def test_noise_free_twin_is_exact():
     np.testing.assert_allclose(out.point_mm, m.point_true_mm, atol=1e-9)
 
 
+def test_observe_draws_the_station_noise_from_the_given_stream():
+    """Twin.observe is the one place reading noise is drawn: any station subset and face, the caller's generator."""
+    tw = Twin()
+    quiet = Twin(parse_scenario(DEFAULT.replace("angles = true", "angles = false")))
+    p = tw.true_points(tw.random_poses(2000))[0]
+    state = tw.rng.bit_generator.state
+    out, gross = tw.observe(p, [tw.stations[1]], [2], rng=np.random.default_rng(3))
+    assert tw.rng.bit_generator.state == state                  # an emulator keeps its own stream
+    assert out.shape == gross.shape == (2000, 2) and not gross.any()
+    again, _ = tw.observe(p, [tw.stations[1]], [2], rng=np.random.default_rng(3))
+    np.testing.assert_array_equal(out, again)
+    exact, _ = quiet.observe(p, [quiet.stations[1]], [2])
+    d = np.angle(np.exp(1j * (out - exact)))                    # Hz wraps at 2 pi
+    z = d / [tw.stations[1].sigma_hz_rad, tw.stations[1].sigma_v_rad]
+    assert np.all(np.abs(z.mean(0)) < 0.1) and np.all(np.abs(z.std(0) - 1) < 0.06)
+    assert np.all((out[:, 0] >= 0) & (out[:, 0] < 2 * np.pi))
+    # sight is observe from every station with the twin's own generator
+    np.testing.assert_array_equal(Twin().sight(p[:5])[0], Twin().observe(p[:5])[0])
+
+
 def test_gross_errors_are_injected_at_the_stated_rate():
     sc = parse_scenario(DEFAULT.replace("gross_rate = 0.0", "gross_rate = 0.1"))
     tw = Twin(sc)
@@ -97,7 +162,7 @@ def test_switching_an_effect_off_removes_its_signature():
 
 
 @pytest.mark.parametrize("old,new,key,words", [
-    ('type = "backlash"', 'type = "friction"', "effect[6].type", "unknown effect"),
+    ('type = "backlash"', 'type = "friction"', "effect[6].type", "unknown kind 'friction'"),
     ("joint = 4\norder = 0.9", "joint = 9\norder = 0.9", "effect[1].joint", "1..6"),
     ('"j3.a_mm" = -29.7', '"j3.length_mm" = -29.7', "geometry.set.j3.length_mm", "unknown parameter"),
     ("sigma_arcsec = 3.0", "sigma_arcsec = -3.0", "stations.sigma_arcsec", "positive"),
@@ -132,13 +197,13 @@ def test_twin_command_json_summary():
 
 
 def test_fk_command_json_on_default_robot():
-    r = run_cli("fk", "0", "-90", "90", "0", "0", "0", "--json")
+    """robocal fk on the description without a tool: the origin of frame 6 from the thesis's A-matrices."""
+    r = run_cli("fk", "10", "-70", "95", "20", "-30", "40", "--json")
     assert r.returncode == 0, r.stderr
     out = json.loads(r.stdout)
     assert set(out) == {"x_mm", "y_mm", "z_mm"}
-    model = MeasurementModel(load_scenario().robot)
-    np.testing.assert_allclose([out["x_mm"], out["y_mm"], out["z_mm"]],
-                               model.points(np.array([[0, -90, 90, 0, 0, 0]]) * DEG)[0], atol=1e-6)
+    expect = ThesisPuma().tool_point(np.array([10, -70, 95, 20, -30, 40]) * DEG)
+    np.testing.assert_allclose([out["x_mm"], out["y_mm"], out["z_mm"]], expect, atol=1e-6)
 
 
 @pytest.mark.parametrize("args,words", [

@@ -13,6 +13,7 @@ from calib.robot import load_robot
 from calib.units import DEG
 
 from ..progress import progress_display
+from acq.argtypes import finite_float, output_file, positive_float, positive_int, seed_int
 
 NAME = "plan"
 HELP = "design the experiment: choose identification poses or score a pose set"
@@ -21,28 +22,42 @@ HELP = "design the experiment: choose identification poses or score a pose set"
 def add_arguments(p):
     sub = p.add_subparsers(dest="what", metavar="WHAT", required=True)
     poses = sub.add_parser("poses", help="choose N poses maximising an observability index, or --evaluate a set")
-    poses.add_argument("--count", type=int, metavar="N", help="number of poses to choose")
+    poses.add_argument("--count", type=positive_int, metavar="N", help="number of poses to choose")
     poses.add_argument("--evaluate", metavar="FILE.csv", help="score this pose set instead (columns q1..q6, deg)")
     poses.add_argument("--robot", metavar="FILE", help="robot description TOML (default: the thesis's Puma 560)")
-    poses.add_argument("--out", metavar="FILE.csv", help="write the chosen poses (q1..q6 in degrees)")
+    poses.add_argument("--out", type=output_file, metavar="FILE.csv", help="write the chosen poses (q1..q6 in degrees)")
     poses.add_argument("--index", choices=INDICES, default="O1", help="observability index (default O1, D-optimal)")
     poses.add_argument("--set", dest="pset", choices=("geometric", "full", "chapter6"), default="geometric",
                        help="parameters to identify (default: geometric)")
-    poses.add_argument("--tool", nargs=3, type=float, metavar=("X", "Y", "Z"),
+    poses.add_argument("--tool", nargs=3, type=finite_float, metavar=("X", "Y", "Z"),
                        help="tool target in frame 6, mm (default: the robot's tool point)")
-    poses.add_argument("--noise-mm", type=float, default=0.05, help="1-sigma point noise per coordinate (mm)")
-    poses.add_argument("--seed", type=int, default=0)
+    poses.add_argument("--noise-mm", type=positive_float, default=0.05, help="1-sigma point noise per coordinate (mm)")
+    poses.add_argument("--seed", type=seed_int, default=0)
     poses.add_argument("--json", action="store_true", help="print the result as JSON")
     setup = sub.add_parser("setup", help="set-up geometry of a Chapter 4 procedure for minimum estimation error")
-    setup.add_argument("procedure", choices=("ruler", "sweep", "te"),
-                       help="ruler pre-calibration, joint sweep (circle point analysis), transmission-error run")
-    setup.add_argument("--room-x", nargs=2, type=float, metavar=("MIN", "MAX"), default=(-1500.0, 3500.0),
+    setup.add_argument("procedure", choices=("ruler", "sweep", "te", "all"),
+                       help="ruler pre-calibration, joint sweep (circle point analysis), transmission-error run, or "
+                            "all three")
+    setup.add_argument("--room-x", nargs=2, type=finite_float, metavar=("MIN", "MAX"), default=(-1500.0, 3500.0),
                        help="room extent along the baseline from theodolite A (mm)")
-    setup.add_argument("--room-y", type=float, default=4000.0, help="room depth in front of the baseline (mm)")
-    setup.add_argument("--min-focus-mm", type=float, default=900.0, help="closest sighting distance (mm)")
-    setup.add_argument("--sigma-arcsec", type=float, default=3.0, help="1-sigma reading noise (arc seconds)")
-    setup.add_argument("--seed", type=int, default=0)
+    setup.add_argument("--room-y", type=positive_float, default=4000.0, help="room depth in front of the baseline (mm)")
+    setup.add_argument("--min-focus-mm", type=positive_float, default=900.0, help="closest sighting distance (mm)")
+    setup.add_argument("--sigma-arcsec", type=positive_float, default=3.0, help="1-sigma reading noise (arc seconds)")
+    setup.add_argument("--seed", type=seed_int, default=0)
     setup.add_argument("--json", action="store_true", help="print the result as JSON")
+    setup.add_argument("--out", type=output_file, metavar="SETUP.json",
+                       help="write the session set-up file with the design in it (read by robocal session --setup "
+                            "and robocal demo --setup)")
+    setup.add_argument("--setup", dest="base_setup", metavar="SETUP.json",
+                       help="the set-up file to start from (default: the standard template)")
+    check = sub.add_parser("check", help="pre-flight of a session's plan or of a set-up file against the robot "
+                                         "(exit 2 when a step fails)")
+    check.add_argument("target", metavar="SESSION_OR_SETUP",
+                       help="a session database (.db) or a set-up JSON (checked with the standard plan)")
+    check.add_argument("--robot", metavar="FILE", help="robot description TOML (default: the set-up's, or the "
+                                                       "thesis's Puma 560)")
+    check.add_argument("--poses", metavar="POSES.csv", help="with a set-up: add this Chapter 6 pose set")
+    check.add_argument("--json", action="store_true", help="print every failing check as JSON")
 
 
 def _model(args) -> MeasurementModel:
@@ -57,6 +72,8 @@ def run(args) -> int:
         return _poses(args)
     if args.what == "setup":
         return _setup(args)
+    if args.what == "check":
+        return _check(args)
     raise RobocalError(f"plan: unknown subcommand {args.what!r}")
 
 
@@ -140,12 +157,38 @@ def _setup(args) -> int:
                            "positive")
     c = Constraints(room_x_mm=(lo, hi), room_y_mm=args.room_y, min_focus_mm=args.min_focus_mm,
                     sigma_arcsec=args.sigma_arcsec)
-    with progress_display(f"plan setup {args.procedure}") as update:
-        plan = PROCEDURES[args.procedure](c, seed=args.seed, progress=update)
+    names = list(PROCEDURES) if args.procedure == "all" else [args.procedure]
+    plans = []
+    for name in names:
+        with progress_display(f"plan setup {name}") as update:
+            plans.append(PROCEDURES[name](c, seed=args.seed, progress=update))
+    if args.out:
+        _write_setup(args, plans)
     if args.json:
-        print(json.dumps({"procedure": plan.procedure, "variables": plan.variables, "errors": plan.errors,
-                          "objective": plan.objective, "trend": plan.trend}, indent=2, default=float))
+        docs = [{"procedure": p.procedure, "variables": p.variables, "errors": p.errors, "objective": p.objective,
+                 "trend": p.trend} for p in plans]
+        print(json.dumps(docs[0] if len(docs) == 1 else docs, indent=2, default=float))
         return 0
+    for plan in plans:
+        _print_setup(plan)
+    if args.out:
+        print(f"  set-up written: {args.out} (check it with: robocal plan check {args.out})")
+    return 0
+
+
+def _write_setup(args, plans) -> None:
+    from acq.session.setup import standard_setup
+    from calib.fileio import atomic_write_text
+    from calib.jsonfile import read_json
+    from calib.setup_plan import into_setup
+
+    base = read_json(args.base_setup, ("stations", "ruler")) if args.base_setup else standard_setup()
+    base["stations"]["sigma_arcsec"] = args.sigma_arcsec
+    base["min_focus_mm"] = args.min_focus_mm
+    atomic_write_text(args.out, json.dumps(into_setup(plans, base), indent=2, default=float))
+
+
+def _print_setup(plan) -> None:
     print(f"robocal plan setup {plan.procedure}: minimising the {plan.objective}")
     print("  set-up:  " + "  ".join(f"{k} {v:.1f}" for k, v in plan.variables.items()))
     print("  errors (1 sigma):  " + "  ".join(f"{k} {v:.4g}" for k, v in plan.errors.items()))
@@ -155,4 +198,46 @@ def _setup(args) -> int:
         print("  " + "".join(f"{k:>18}" for k in keys))
         for row in plan.trend:
             print("  " + "".join(f"{row[k]:>18.4g}" for k in keys))
-    return 0
+
+
+def _check(args) -> int:
+    """``robocal plan check``: the pre-flight alone (:mod:`acq.session.preflight`), one line per failing step."""
+    from acq.session.preflight import Preflight, failing_lines
+    from acq.session.procedures import all_steps
+
+    plan, setup, robot = _plan_and_setup(args)
+    steps = all_steps(plan, setup)
+    findings = Preflight(robot, setup).check(steps)
+    lines = failing_lines(findings)
+    if args.json:
+        print(json.dumps({"steps": len(steps), "failing_steps": len(lines),
+                          "failures": [{"key": f.key, "check": f.check, "value": f.value, "limit": f.limit,
+                                        "unit": f.unit, "detail": f.detail} for f in findings]}, indent=2))
+    else:
+        for line in lines:
+            print(line)
+        print(f"robocal plan check {args.target}: {len(steps)} steps, "
+              + (f"{len(lines)} fail the pre-flight" if lines else "all pass the pre-flight"))
+    return 2 if lines else 0
+
+
+def _plan_and_setup(args):
+    """(plan, set-up with old keys mapped, robot) of a session database or a set-up JSON."""
+    from pathlib import Path
+
+    from acq.session.setup import session_setup
+
+    path = Path(args.target)
+    if not path.is_file():
+        raise RobocalError(f"{args.target}: no such file")
+    if path.read_bytes()[:16] == b"SQLite format 3\x00":
+        from acq.commands.session import _stored_plan_setup
+        plan, setup = _stored_plan_setup(str(path))
+    else:
+        from acq.commands.session import default_plan
+        from calib.jsonfile import read_json
+        setup = read_json(str(path), ("stations", "base_xyz_mm", "ruler"))
+        q = read_pose_csv(args.poses).q_rad / DEG if args.poses else None
+        plan = setup.get("plan") or default_plan(q)
+    robot = load_robot(args.robot or setup.get("robot") or None)
+    return plan, session_setup(setup, robot), robot

@@ -18,17 +18,18 @@ still run.
 """
 from __future__ import annotations
 
-import json
 import time
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from calib.errors import RobocalError
+from calib.provenance import provenance
 from calib.robot import load_robot
 from calib.units import ARCSEC, DEG
 
-from .store import code_version, connect_readonly, from_npy
+from .setup_file import setup_from_text
+from .store import StoreError, code_version, connect_readonly, from_npy, json_column
 
 
 @dataclass
@@ -59,7 +60,7 @@ def load_session(path: str) -> SessionData:
                       (s["session_id"],))
         for st in steps:
             a = st["attempts"]
-            st["spec"] = json.loads(st["spec_json"])
+            st["spec"] = json_column(st["spec_json"], f"{path}: step {st['key']!r}: spec_json")
             st["readings"] = _rows(conn, "SELECT station, target, face, repeat, hz_rad, v_rad FROM reading "
                                          "WHERE step_id=? AND attempt=? ORDER BY reading_id", (st["step_id"], a))
             st["inputs"] = {r["name"]: r["value"] for r in _rows(
@@ -67,11 +68,22 @@ def load_session(path: str) -> SessionData:
                 (st["step_id"], a))}
             ch = _rows(conn, "SELECT counts FROM encoder_chunk WHERE step_id=? AND attempt=? ORDER BY chunk_id",
                        (st["step_id"], a))
-            st["counts"] = np.concatenate([from_npy(c["counts"]) for c in ch]) if ch else None
+            st["counts"] = _counts(ch, f"{path}: step {st['key']!r}: encoder counts")
         devices = _rows(conn, "SELECT role, driver, url, identity_json FROM device")
-        return SessionData(path, s, json.loads(s["plan_json"]), json.loads(s["setup_json"]), steps, devices)
+        return SessionData(path, s, json_column(s["plan_json"], f"{path}: session plan_json"),
+                           setup_from_text(s["setup_json"], f"{path}: session setup_json"), steps, devices)
     finally:
         conn.close()
+
+
+def _counts(chunks: list[dict], where: str) -> np.ndarray | None:
+    """The encoder counts of a step's chunks, one (samples, joints) array; damaged blobs are one line."""
+    if not chunks:
+        return None
+    arrays = [from_npy(c["counts"], where) for c in chunks]
+    if any(a.ndim != 2 or a.shape[1] != arrays[0].shape[1] for a in arrays):
+        raise StoreError(f"{where}: damaged array data (chunks of different shapes)")
+    return np.concatenate(arrays)
 
 
 class _Est:
@@ -103,7 +115,7 @@ class _Est:
 
 
 def _twin_for(data: SessionData):
-    meta = json.loads(data.session.get("metadata_json") or "{}")
+    meta = json_column(data.session.get("metadata_json") or "{}", f"{data.path}: session metadata_json")
     if not meta.get("emulated"):
         return None
     from calib.twin import Twin, load_scenario
@@ -189,9 +201,12 @@ def reprocess(path: str, n_mc: int = 0, progress=None) -> dict:
     return {
         "session": {"guid": data.session["guid"], "title": data.session["title"], "path": path,
                     "exit_status": data.session["exit_status"], "steps_accepted": len(data.steps)},
-        "provenance": {"code_version": code_version(), "reprocessed_unix_s": time.time(), "input_session":
+        "provenance": {**provenance(data.setup.get("robot") or None, twin.scenario.source if twin else None),
+                       "code_version": code_version(), "reprocessed_unix_s": time.time(), "input_session":
                        data.session["guid"], "n_mc": n_mc, "elapsed_s": time.perf_counter() - t0},
         "estimates": est.items,
+        "accuracy": {k: v for k, v in figs.get("accuracy", {}).items() if not k.endswith(("_err_mm", "_index"))}
+        or None,
         "problems": problems,
         "robot": ident_doc,
         "figures": figs,
@@ -372,8 +387,23 @@ def _poses(steps, points, robot, setup, est, twin, figs, running=None, problems=
                      + "; its truth is not comparable with the value")
     pred = model.points(q, theta=ident.theta[:model.P])
     figs["poses"] = {"residual_mm": np.linalg.norm(P - pred, axis=1).tolist(),
-                     "rms_mm": float(ident.residual_rms), "held": [n for n in wanted if n not in ident.free]}
+                     "rms_mm": float(ident.residual_rms), "held": [n for n in wanted if n not in ident.free],
+                     "points_mm": P.tolist()}
+    _accuracy(model, obs, ident.free, theta0, priors, figs, problems)
     return model_document(model, ident, truth)
+
+
+def _accuracy(model, obs, free, theta0, priors, figs, problems) -> None:
+    """Before/after accuracy on held-out poses (:mod:`calib.accuracy`) into ``figs['accuracy']``; a pose set too
+    small to split is said in ``problems``, not guessed."""
+    from calib.accuracy import before_after
+    try:
+        acc = before_after(model, obs, free, theta0=theta0, priors=priors)
+    except RobocalError as exc:
+        problems.append(f"poses: accuracy before/after not computed: {exc}")
+        return
+    figs["accuracy"] = {**acc.as_dict(), "test_index": acc.test_index.tolist(),
+                        "before_err_mm": acc.before_err_mm.tolist(), "after_err_mm": acc.after_err_mm.tolist()}
 
 
 def _unit(name: str) -> str:
