@@ -18,7 +18,6 @@ still run.
 """
 from __future__ import annotations
 
-import json
 import time
 from dataclasses import dataclass, field
 
@@ -29,7 +28,8 @@ from calib.provenance import provenance
 from calib.robot import load_robot
 from calib.units import ARCSEC, DEG
 
-from .store import code_version, connect_readonly, from_npy
+from .setup_file import setup_from_text
+from .store import StoreError, code_version, connect_readonly, from_npy, json_column
 
 
 @dataclass
@@ -60,7 +60,7 @@ def load_session(path: str) -> SessionData:
                       (s["session_id"],))
         for st in steps:
             a = st["attempts"]
-            st["spec"] = json.loads(st["spec_json"])
+            st["spec"] = json_column(st["spec_json"], f"{path}: step {st['key']!r}: spec_json")
             st["readings"] = _rows(conn, "SELECT station, target, face, repeat, hz_rad, v_rad FROM reading "
                                          "WHERE step_id=? AND attempt=? ORDER BY reading_id", (st["step_id"], a))
             st["inputs"] = {r["name"]: r["value"] for r in _rows(
@@ -68,11 +68,22 @@ def load_session(path: str) -> SessionData:
                 (st["step_id"], a))}
             ch = _rows(conn, "SELECT counts FROM encoder_chunk WHERE step_id=? AND attempt=? ORDER BY chunk_id",
                        (st["step_id"], a))
-            st["counts"] = np.concatenate([from_npy(c["counts"]) for c in ch]) if ch else None
+            st["counts"] = _counts(ch, f"{path}: step {st['key']!r}: encoder counts")
         devices = _rows(conn, "SELECT role, driver, url, identity_json FROM device")
-        return SessionData(path, s, json.loads(s["plan_json"]), json.loads(s["setup_json"]), steps, devices)
+        return SessionData(path, s, json_column(s["plan_json"], f"{path}: session plan_json"),
+                           setup_from_text(s["setup_json"], f"{path}: session setup_json"), steps, devices)
     finally:
         conn.close()
+
+
+def _counts(chunks: list[dict], where: str) -> np.ndarray | None:
+    """The encoder counts of a step's chunks, one (samples, joints) array; damaged blobs are one line."""
+    if not chunks:
+        return None
+    arrays = [from_npy(c["counts"], where) for c in chunks]
+    if any(a.ndim != 2 or a.shape[1] != arrays[0].shape[1] for a in arrays):
+        raise StoreError(f"{where}: damaged array data (chunks of different shapes)")
+    return np.concatenate(arrays)
 
 
 class _Est:
@@ -104,7 +115,7 @@ class _Est:
 
 
 def _twin_for(data: SessionData):
-    meta = json.loads(data.session.get("metadata_json") or "{}")
+    meta = json_column(data.session.get("metadata_json") or "{}", f"{data.path}: session metadata_json")
     if not meta.get("emulated"):
         return None
     from calib.twin import Twin, load_scenario
