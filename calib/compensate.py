@@ -78,7 +78,7 @@ def model_document(model: MeasurementModel, ident: Identification, truth: dict[s
         "parameters": params,
         "effects": [effect_spec(e) for e in model.effects],
         "covariance": {"names": free, "matrix": ident.cov[np.ix_(idx, idx)].tolist()},
-        "identifiability": ident.identifiability.report(),
+        "identifiability": ident.identifiability.report(model.robot.description_joint_names),
         "residual_rms": ident.residual_rms,
         "reduced_chi2": ident.reduced_chi2,
         "outliers": ident.outliers,

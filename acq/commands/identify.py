@@ -89,7 +89,7 @@ def run(args) -> int:
     if held_out:
         print(f"  data's own split: {held_out['n_fit']} fit rows (RMS {held_out['fit_rms_mm']:.4f} mm), "
               f"{held_out['n_test']} test rows: RMS {held_out['test_rms_mm']:.4f} mm, max {held_out['test_max_mm']:.4f} mm")
-    for line in ident.identifiability.report():
+    for line in ident.identifiability.report(robot.description_joint_names):
         print("  " + line)
     for line in ident.outlier_report.lines():
         print("  " + line)
