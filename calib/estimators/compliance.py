@@ -147,14 +147,16 @@ def _torque_cov(load_N, lever_mm, theta_i_rad, sigma_load_N, sigma_lever_mm, sig
 
 def _profile_interval(T, u, y, W, min_side, Tb_hat, n_grid: int = 400):
     """Profile likelihood of the breakpoint: the range of Tb whose best chi^2 is within 1 of the minimum (the
-    1-sigma interval), and whether it reaches an end of the search range (then the data do not determine it)."""
+    1-sigma interval), and whether its 2-sigma interval reaches an end of the search range (then the data do not
+    determine it)."""
     lo, hi = _search_range(T, min_side)
     grid = np.union1d(np.linspace(lo, hi, n_grid), [Tb_hat])
     _, chi2 = _fit_fixed(T, u, y, grid, W)
     inside = grid[chi2 <= chi2.min() + 1.0]
     a, b = float(inside.min()), float(inside.max())
+    wide = grid[chi2 <= chi2.min() + 4.0]            # the 2-sigma interval must stay inside the loads applied
     step = (hi - lo) / n_grid
-    return a, b, (a <= lo + step) or (b >= hi - step)
+    return a, b, bool(wide.min() <= lo + step or wide.max() >= hi - step)
 
 
 def two_slope_fit(torque_Nm_, deflection_rad, unloading, sigma_deflection_rad, n_mc: int = 5000, rng=0, *,
