@@ -284,6 +284,11 @@ def _sweeps(steps, points, robot, setup, est, truth, figs, n_mc):
     dh = dh_estimate(V, C, q0, fn.frame_R[0, 0], fn.frame_t[0, 0], fn.frame_R[0, 1:-1, :, 0], robot.hayati[:-1],
                      robot.d_mm[:-1], alpha_ref=robot.alpha_rad[:-1], n_mc=n_mc)
     tv = {n: truth[n] for n in dh.names if truth is not None and n in truth}
+    for k in np.flatnonzero(robot.hayati[:-1]):
+        # d of a Hayati link is held at its design value; the next link's d (its axis is parallel) takes the rest
+        held, nxt = f"j{k + 1}.d_mm", f"j{k + 2}.d_mm"
+        if truth is not None and held in truth and nxt in tv:
+            tv[nxt] = truth[nxt] + np.cos(robot.alpha_rad[k]) * (truth[held] - robot.d_mm[k])
     est.add_set("dh.", dh, tv)
     nominal = dict(zip(kin.names, kin.nominal))
     figs["dh"] = [{"name": n, "value": float(dh[n].value), "error": float(dh[n].error),
