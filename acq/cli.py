@@ -1,19 +1,43 @@
 """The ``robocal`` command line: one console script, one subcommand per module in :mod:`acq.commands`.
 
 A command module defines ``NAME``, ``HELP`` and ``add_arguments(parser)`` and ``run(args) -> int``; it is found by
-scanning the package, so a new command is one new file (a registry, not an if/elif chain).  Errors the operator can fix
-(:class:`calib.errors.RobocalError`) print one line, ``robocal: error: ...``, and exit with status 2.
+scanning the package, so a new command is one new file (a registry, not an if/elif chain).
+
+Exit status and messages (the README's "Errors" section):
+
+- 0: done.
+- 2: bad input the operator can fix -- an option (checked at parse time by :mod:`acq.argtypes`), a file, a device.
+  One line on stderr: ``robocal: error: WHERE: what is wrong``.
+- 3: an internal error (a bug).  The last-resort handler prints one line naming the command and the exception;
+  ``robocal --debug ...`` (or ``ROBOCAL_DEBUG=1``) prints the traceback as well.
+- 130: interrupted with Ctrl-C.
 """
 from __future__ import annotations
 
 import argparse
 import importlib
+import os
 import pkgutil
+import re
 import sys
+import traceback
 
 from calib.errors import RobocalError
 
 from . import commands
+
+EXIT_OK, EXIT_INPUT, EXIT_INTERNAL, EXIT_INTERRUPTED = 0, 2, 3, 130
+
+
+class _Parser(argparse.ArgumentParser):
+    """An argument parser whose errors are one line, ``robocal: error: COMMAND: --opt must be ...`` (exit 2)."""
+
+    def error(self, message: str):  # type: ignore[override]
+        where = self.prog.split(" ", 1)[1] + ": " if " " in self.prog else ""
+        # "argument --rate-hz: must be positive" reads better as "--rate-hz must be positive"
+        message = re.sub(r"^argument ([^:]+): (must|is|file not found)", r"\1 \2", message)
+        message = re.sub(r"^argument ", "", message)
+        self.exit(EXIT_INPUT, f"robocal: error: {where}{' '.join(message.split())} (see --help)\n")
 
 
 def _command_modules():
@@ -26,33 +50,93 @@ def _command_modules():
 
 
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
+    parser = _Parser(
         prog="robocal",
         description="Calibrate an industrial robot with two theodolites and a joint-encoder tap.")
-    sub = parser.add_subparsers(dest="command", metavar="COMMAND")
+    parser.add_argument("--debug", action="store_true",
+                        help="on an internal error (exit 3) show the Python traceback (also ROBOCAL_DEBUG=1)")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
     for mod in _command_modules():
         p = sub.add_parser(mod.NAME, help=mod.HELP, description=getattr(mod, "DESCRIPTION", mod.HELP))
         mod.add_arguments(p)
+        _add_chain_cut(p)
         p.set_defaults(_run=mod.run)
     return parser
 
 
+def _add_chain_cut(p: argparse.ArgumentParser) -> None:
+    """Every parser taking ``--robot`` also takes ``--base-link`` / ``--tip-link`` (a URDF's chain cut)."""
+    for action in p._actions:
+        if isinstance(action, argparse._SubParsersAction):
+            for sub in action.choices.values():
+                _add_chain_cut(sub)
+    if "--robot" in p._option_string_actions and "--base-link" not in p._option_string_actions:
+        p.add_argument("--base-link", metavar="LINK", help="URDF: the link the chain starts from (default: the root)")
+        p.add_argument("--tip-link", metavar="LINK",
+                       help="URDF: the link the chain ends at (default: the only moving leaf)")
+
+
+def _apply_chain_cut(args: argparse.Namespace) -> None:
+    from calib.robot import RobotPath
+    base, tip = getattr(args, "base_link", None), getattr(args, "tip_link", None)
+    if base or tip:
+        if not getattr(args, "robot", None):
+            raise RobocalError("--base-link / --tip-link need --robot FILE.urdf")
+        args.robot = RobotPath(args.robot, base, tip)
+
+
+def _debug_wanted(argv: list[str]) -> bool:
+    return "--debug" in argv or os.environ.get("ROBOCAL_DEBUG", "") not in ("", "0")
+
+
+def _command_name(argv: list[str]) -> str:
+    words = [a for a in argv if not a.startswith("-")]
+    return words[0] if words else "robocal"
+
+
+def _internal_error(exc: BaseException, argv: list[str], debug: bool) -> int:
+    """The last-resort handler: an exception nobody turned into a RobocalError is a bug, reported in one line."""
+    if debug:
+        traceback.print_exception(exc, file=sys.stderr)
+    text = " ".join(str(exc).split())[:300]
+    detail = f"{type(exc).__name__}: {text}" if text else type(exc).__name__
+    hint = "" if debug else "; run again with robocal --debug for the traceback"
+    print(f"robocal: internal error in '{_command_name(argv)}': {detail} (a bug, please report it{hint})",
+          file=sys.stderr)
+    return EXIT_INTERNAL
+
+
 def main(argv: list[str] | None = None) -> int:
-    parser = build_parser()
-    args = parser.parse_args(argv)
-    if not getattr(args, "_run", None):
-        parser.print_help()
-        return 0
+    argv = list(sys.argv[1:] if argv is None else argv)
+    debug = _debug_wanted(argv)
+    argv = [a for a in argv if a != "--debug"]  # accepted anywhere on the line, not only before the command
     try:
+        parser = build_parser()
+        try:
+            args = parser.parse_args(argv)
+        except SystemExit as exc:  # --help (0) or a bad option (2, already printed as one line)
+            return exc.code if isinstance(exc.code, int) else EXIT_INPUT
+        if not getattr(args, "_run", None):
+            parser.print_help()
+            return EXIT_OK
+        _apply_chain_cut(args)
         return int(args._run(args) or 0)
     except RobocalError as exc:
         print(f"robocal: error: {exc}", file=sys.stderr)
-        return 2
+        return EXIT_INPUT
     except KeyboardInterrupt:
         print("robocal: interrupted", file=sys.stderr)
-        return 130
+        return EXIT_INTERRUPTED
     except BrokenPipeError:
-        return 0
+        return EXIT_OK
+    except OSError as exc:
+        if exc.filename is None:
+            return _internal_error(exc, argv, debug)
+        # a file the operator named (or the directory it goes into): fixable by the operator
+        print(f"robocal: error: {exc.filename}: {exc.strerror or exc}", file=sys.stderr)
+        return EXIT_INPUT
+    except Exception as exc:  # noqa: BLE001 -- the last-resort handler
+        return _internal_error(exc, argv, debug)
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -20,8 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .effects import (Backlash, CrossCoupling, Effect, JointCompliance, LinkCompliance, PoseContext, ThermalDrift,
-                      TransmissionError)
+from .effects import PoseContext, effect_from_spec, effect_spec
 from .errors import RobocalError
 from .identify import Identification
 from .jsonfile import read_json
@@ -58,45 +57,6 @@ def robot_from_theta(model: MeasurementModel, theta: np.ndarray) -> Robot:
                    name=f"{r.name} (identified)")
 
 
-def _effect_spec(e: Effect) -> dict:
-    spec = {"type": e.kind, "joint": e.joint}
-    if isinstance(e, TransmissionError):
-        spec["order"] = e.order
-        spec["harmonics"] = e.harmonics
-    if isinstance(e, CrossCoupling):
-        spec["source"] = e.source
-    if isinstance(e, ThermalDrift):
-        spec["reference_degc"] = e.reference_c
-    return spec
-
-
-def _effect_from_spec(spec: dict, values: dict[str, float], where: str) -> Effect:
-    kind = spec.get("type")
-    try:
-        if kind == "transmission_error":
-            h = int(spec["harmonics"])
-            e = TransmissionError(int(spec["joint"]), float(spec["order"]), [0.0] * h, [0.0] * h)
-        elif kind == "joint_compliance":
-            e = JointCompliance(int(spec["joint"]), 1.0)
-        elif kind == "backlash":
-            e = Backlash(int(spec["joint"]), 0.0)
-        elif kind == "cross_coupling":
-            e = CrossCoupling(int(spec["joint"]), int(spec["source"]), 0.0)
-        elif kind == "thermal_drift":
-            e = ThermalDrift(0.0, float(spec.get("reference_degc", 20.0)))
-        elif kind == "link_compliance":
-            e = LinkCompliance(int(spec["joint"]), 1.0)
-        else:
-            raise RobocalError(f"{where}: unknown effect type {kind!r}")
-    except (KeyError, TypeError, ValueError) as exc:
-        raise RobocalError(f"{where}: effect {kind!r} is missing or has a bad field ({exc})") from None
-    for i, name in enumerate(e.qualified_names()):
-        if name not in values:
-            raise RobocalError(f"{where}: parameter {name} is missing")
-        e.values[i] = values[name]
-    return e
-
-
 def model_document(model: MeasurementModel, ident: Identification, truth: dict[str, float] | None = None) -> dict:
     """The model JSON: every parameter with value, error (1 sigma), unit and whether it was estimated."""
     P = model.P
@@ -112,7 +72,7 @@ def model_document(model: MeasurementModel, ident: Identification, truth: dict[s
         "robot_toml": robot_to_toml(robot_from_theta(model, ident.theta[:P])),
         "nominal_robot_toml": robot_to_toml(model.robot),
         "parameters": params,
-        "effects": [_effect_spec(e) for e in model.effects],
+        "effects": [effect_spec(e) for e in model.effects],
         "covariance": {"names": free, "matrix": ident.cov[np.ix_(idx, idx)].tolist()},
         "identifiability": ident.identifiability.report(),
         "residual_rms": ident.residual_rms,
@@ -148,7 +108,7 @@ def load_model(path: str | Path) -> IdentifiedModel:
     robot = parse_robot(doc["robot_toml"], f"{src}: robot_toml")
     nominal_robot = parse_robot(doc["nominal_robot_toml"], f"{src}: nominal_robot_toml")
     values = {p["name"]: float(p["value"]) for p in doc["parameters"]}
-    effects = [_effect_from_spec(s, values, f"{src}: effects[{i}]") for i, s in enumerate(doc["effects"])]
+    effects = [effect_from_spec(s, values, f"{src}: effects[{i}]") for i, s in enumerate(doc["effects"])]
     model = MeasurementModel(robot, effects)
     theta = model.nominal.copy()
     for i, name in enumerate(model.names):

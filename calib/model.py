@@ -177,8 +177,8 @@ class MeasurementModel:
                 d, g = e.geometry_delta(geo, self.length_idx, ctx, v)
                 geo_pose += d
                 geo_grads.append(g)
-        need_loads = any(getattr(e, "needs_loads", False) for e in self.effects)
-        torque_driven = any(hasattr(e, "torque_gain") for e in self.effects)
+        need_loads = any(e.needs_loads for e in self.effects)
+        torque_driven = any(e.torque_driven for e in self.effects)
         loads = (self.loads(self.kin.forward(q, geo_pose), ctx, derivative=jacobian and torque_driven)
                  if need_loads else None)
         th = q.copy()
@@ -207,18 +207,15 @@ class MeasurementModel:
         Jq = Je[:, :, self.kin.joint_elements]
         if loads is not None and torque_driven:
             # joint deflections follow the torques, and the torques move with the geometry
-            gain = sum(e.torque_gain(q, ctx, loads, v) for e, v in zip(self.effects, vals)
-                       if hasattr(e, "torque_gain"))
+            gain = sum(e.torque_gain(q, ctx, loads, v) for e, v in zip(self.effects, vals) if e.torque_driven)
             J[:, :, : self.n_geometric] += np.einsum("nij,nje->nie", Jq, gain[:, :, None] * loads.dtau_dgeo)
         gi = ji = pi = 0
-        for e, s in zip(self.effects, self.effect_slices):
+        for e, s, v in zip(self.effects, self.effect_slices, vals):
             if e.stage == "joint":
                 J[:, :, s] = np.einsum("nij,njk->nik", Jq, joint_grads[ji]); ji += 1
             elif e.stage == "geometry":
-                # lengths scale with (1 + kappa dT): chain rule on the geometric columns too
-                kappa = theta[s][0]
-                dT = ctx.temperature_c - e.reference_c
-                J[:, :, self.length_idx] *= (1.0 + kappa * dT)[:, None, None]
+                # the effect's change of the geometry depends on the geometry: its own chain rule
+                J[:, :, : self.n_geometric] = e.geometry_chain(J[:, :, : self.n_geometric], self.length_idx, ctx, v)
                 J[:, :, s] = np.einsum("nip,npk->nik", Je, geo_grads[gi]); gi += 1
             else:
                 J[:, :, s] = point_grads[pi]; pi += 1

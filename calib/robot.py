@@ -97,10 +97,53 @@ class Robot:
     joint_names: tuple[str, ...] = ()
     source: str = "<memory>"
     prismatic: np.ndarray = field(default_factory=lambda: np.zeros(0, bool))  # joint variable adds to d (mm)
+    # frame 0 in the description's own base frame (a URDF's base link); identity for a DH description
+    frame0_in_base: np.ndarray = field(default_factory=lambda: np.eye(4))
+    # controller readings -> joint variables: theta = reading_matrix @ r + reading_offset (internal units); the
+    # readings are what a pose CSV and ``robocal fk`` give (mimic joints and reading conventions are not readings)
+    reading_names: tuple[str, ...] = ()
+    reading_matrix: np.ndarray | None = None
+    reading_offset: np.ndarray | None = None
+    reading_prismatic: np.ndarray | None = None
+    # which description quantity each kinematic parameter corrects (URDF imports), and priors (1-sigma) by name
+    param_meaning: dict[str, str] = field(default_factory=dict)
+    tolerances: dict[str, float] = field(default_factory=dict)
 
     def __post_init__(self):
         if self.prismatic.size != len(self.a_mm):
             object.__setattr__(self, "prismatic", np.zeros(len(self.a_mm), bool))
+        if not self.joint_names:
+            object.__setattr__(self, "joint_names", tuple(f"j{i}" for i in range(1, self.n + 1)))
+        if self.reading_matrix is None:
+            object.__setattr__(self, "reading_matrix", np.eye(self.n))
+            object.__setattr__(self, "reading_names", tuple(self.joint_names))
+            object.__setattr__(self, "reading_prismatic", self.prismatic.copy())
+        if self.reading_offset is None:
+            object.__setattr__(self, "reading_offset", np.zeros(self.n))
+        if self.reading_prismatic is None:
+            pris = np.array([bool(np.any(self.prismatic[self.reading_matrix[:, k] != 0]))
+                             for k in range(self.reading_matrix.shape[1])], bool)
+            object.__setattr__(self, "reading_prismatic", pris)
+
+    # -- readings -----------------------------------------------------------------------------------------------
+    @property
+    def n_readings(self) -> int:
+        return self.reading_matrix.shape[1]
+
+    @property
+    def readings_are_joints(self) -> bool:
+        """True when every reading is one joint variable (no mimic joint, no reading convention)."""
+        return (self.reading_matrix.shape == (self.n, self.n) and np.array_equal(self.reading_matrix, np.eye(self.n))
+                and not np.any(self.reading_offset))
+
+    def joints_from_readings(self, r) -> np.ndarray:
+        """Joint variables (..., n) in rad / mm from controller readings (..., m) in rad / mm."""
+        return np.asarray(r, float) @ self.reading_matrix.T + self.reading_offset
+
+    @property
+    def reading_edge_scale(self) -> np.ndarray:
+        """Internal units per edge unit of each reading: rad per degree, or 1 (mm) for a prismatic one."""
+        return np.where(self.reading_prismatic, 1.0, DEG)
 
     @property
     def edge_scale(self) -> np.ndarray:
@@ -179,13 +222,71 @@ def parse_robot(text: str, source: str = "<string>") -> Robot:
     return _build(chk, data)
 
 
-def load_robot(path: str | Path | None = None) -> Robot:
-    """Load a robot description file; ``None`` gives the shipped Puma 560 of the thesis."""
+class RobotPath(str):
+    """A ``--robot`` argument with the chain cut of ``--base-link`` / ``--tip-link`` (used by URDF descriptions).
+
+    A ``str`` so that every command passing ``args.robot`` to :func:`load_robot` gets the cut without knowing of it.
+    """
+
+    def __new__(cls, path: str, base_link: str | None = None, tip_link: str | None = None):
+        obj = super().__new__(cls, path)
+        obj.base_link, obj.tip_link = base_link, tip_link
+        return obj
+
+
+def load_robot(path: str | Path | None = None, base_link: str | None = None, tip_link: str | None = None) -> Robot:
+    """Load a robot description: ``None`` gives the shipped Puma 560 of the thesis; a ``.urdf`` file is imported
+    (:func:`robot_from_urdf`); a TOML file with ``urdf = ...`` is a calibration description wrapping a URDF
+    (:mod:`calib.description`); any other TOML is a DH description (this module's format)."""
     if path is None:
         ref = resources.files("calib") / "data" / "puma560.toml"
         return parse_robot(ref.read_text(encoding="utf-8"), "puma560.toml (default)")
+    base_link = base_link or getattr(path, "base_link", None)
+    tip_link = tip_link or getattr(path, "tip_link", None)
+    if str(path).lower().endswith(".urdf"):
+        return robot_from_urdf(path, base_link, tip_link)
     chk, data = Checker.load(path)
+    if "urdf" in data:
+        from .description import build_description
+        return build_description(chk, data, Path(path), base_link, tip_link)
+    if base_link or tip_link:
+        chk.fail(None, "--base-link and --tip-link apply to URDF descriptions only")
     return _build(chk, data)
+
+
+def rpy_from_matrix(R: np.ndarray) -> np.ndarray:
+    """(roll, pitch, yaw) with R = Rz(yaw) Ry(pitch) Rx(roll), the base convention of :mod:`calib.kinematics`."""
+    pitch = -np.arcsin(np.clip(R[2, 0], -1.0, 1.0))
+    return np.array([np.arctan2(R[2, 1], R[2, 2]), pitch, np.arctan2(R[1, 0], R[0, 0])])
+
+
+def robot_from_urdf(path: str | Path, base_link: str | None = None, tip_link: str | None = None,
+                    tool_points_mm: dict[str, np.ndarray] | None = None) -> Robot:
+    """Import one chain of a URDF (see :mod:`calib.urdf`); tool points are given in the tip link's frame (mm)."""
+    from .urdf import analyse_chain, parameter_meaning, read_urdf
+
+    ch = analyse_chain(read_urdf(path), base_link, tip_link)
+    n = len(ch.axes)
+    T = ch.tip_in_frame_n
+    pts = tool_points_mm if tool_points_mm else {ch.tip_link: np.zeros(3)}
+    tool = {k: T[:3, :3] @ np.asarray(v, float) + T[:3, 3] for k, v in pts.items()}
+    F0 = ch.frame0_in_base
+
+    def col(attr):
+        return np.array([getattr(L, attr) for L in ch.links], float)
+
+    return Robot(
+        name=f"{ch.tree.name} ({ch.base_link} -> {ch.tip_link})",
+        a_mm=col("a"), d_mm=col("d"), alpha_rad=col("alpha"), theta_offset_rad=col("theta"), beta_rad=col("beta"),
+        hayati=np.array([L.hayati for L in ch.links], bool), limits_rad=ch.limits,
+        gear_ratio=np.ones(n), counts_per_rev=np.full(n, 2.0 ** 20), mass_kg=ch.mass_kg, com_mm=ch.com_mm,
+        coupling=np.eye(n), gravity_m_s2=F0[:3, :3].T @ np.array([0.0, 0.0, -G0_M_S2]),
+        base_xyz_mm=F0[:3, 3].copy(), base_rpy_rad=rpy_from_matrix(F0[:3, :3]),
+        tool_points_mm=tool, joint_names=tuple(j.name for j in ch.axes), source=str(path),
+        prismatic=ch.prismatic, frame0_in_base=F0, reading_names=tuple(ch.readings),
+        reading_matrix=ch.reading_matrix, reading_offset=ch.reading_offset,
+        param_meaning=parameter_meaning(ch),
+    )
 
 
 def _build(chk: Checker, data: dict) -> Robot:

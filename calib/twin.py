@@ -7,7 +7,8 @@ they err, and how the encoders read.  :class:`Twin` then answers what the instru
 * :meth:`Twin.measure` — for joint readings commanded to the controller: the encoder counts (integers, so quantised),
   the joint readings the controller derives from them with the *nominal* description, the true joint angles, the true
   tool points and both theodolites' readings (noise, instrument errors, optional gross errors);
-* :meth:`Twin.sight` — readings of arbitrary points (ruler marks, dial-gauge targets).
+* :meth:`Twin.observe` — readings of arbitrary points (ruler marks, dial-gauge targets) from any stations: the one
+  place reading noise and gross errors are drawn (:meth:`Twin.sight`, :meth:`Twin.measure` and the emulators call it).
 
 Later work (estimators, identification, emulators, diagnosis) draws all synthetic truth from here.
 """
@@ -19,8 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .effects import (Backlash, CrossCoupling, Effect, JointCompliance, LinkCompliance, PoseContext,
-                      ThermalDrift, TransmissionError)
+from .effects import EFFECTS, Effect, PoseContext, effect_from_table
 from .model import MeasurementModel
 from .robot import Robot, load_robot
 from .theodolite import Station, thesis_stations
@@ -62,41 +62,8 @@ NOISE = {
     "gross_arcsec": Field("number", default=60.0, positive=True),
     "encoder_quantisation": Field("bool", default=True),
 }
-_COMMON = {"type": Field("str", required=True), "enabled": Field("bool", default=True)}
-EFFECT_SPECS: dict[str, dict[str, Field]] = {
-    "transmission_error": {"joint": Field("int", required=True, min=1), "order": Field("number", required=True,
-                                                                                       positive=True),
-                           "sin_deg": Field("vector", default=[]), "cos_deg": Field("vector", default=[])},
-    "joint_compliance": {"joint": Field("int", required=True, min=1),
-                         "stiffness_nm_per_rad": Field("number", required=True, positive=True),
-                         "stiffness2_nm_per_rad": Field("number", positive=True),
-                         "breakpoint_nm": Field("number", positive=True),
-                         "deadzone_deg": Field("number", default=0.0, min=0)},
-    "backlash": {"joint": Field("int", required=True, min=1), "width_deg": Field("number", required=True, min=0)},
-    "cross_coupling": {"joint": Field("int", required=True, min=1), "source": Field("int", required=True, min=1),
-                       "sigma": Field("number", required=True, min=-1, max=1)},
-    "thermal_drift": {"kappa_per_degc": Field("number", required=True, min=0, max=1e-3),
-                      "reference_degc": Field("number", default=20.0)},
-    "link_compliance": {"joint": Field("int", required=True, min=1), "ei_nmm2": Field("number", required=True,
-                                                                                      positive=True)},
-}
-
-
-def _build_effect(kind: str, c: dict) -> Effect:
-    """Effect from a checked scenario table: units of the file (deg, N m) converted to radians here."""
-    builders = {
-        "transmission_error": lambda: TransmissionError(c["joint"], c["order"], [v * DEG for v in c["sin_deg"]],
-                                                        [v * DEG for v in c["cos_deg"]]),
-        "joint_compliance": lambda: JointCompliance(c["joint"], c["stiffness_nm_per_rad"],
-                                                    c["stiffness2_nm_per_rad"],
-                                                    c["breakpoint_nm"] if c["breakpoint_nm"] else np.inf,
-                                                    c["deadzone_deg"] * DEG),
-        "backlash": lambda: Backlash(c["joint"], c["width_deg"] * DEG),
-        "cross_coupling": lambda: CrossCoupling(c["joint"], c["source"], c["sigma"]),
-        "thermal_drift": lambda: ThermalDrift(c["kappa_per_degc"], c["reference_degc"]),
-        "link_compliance": lambda: LinkCompliance(c["joint"], c["ei_nmm2"]),
-    }
-    return builders[kind]()
+#: each effect kind's ``[[effect]]`` keys (the registry's; kept for readers of this module)
+EFFECT_SPECS: dict[str, dict[str, Field]] = {k: cls.scenario_fields for k, cls in EFFECTS.items()}
 
 
 @dataclass
@@ -192,18 +159,8 @@ def _scenario(chk: Checker, data: dict) -> Scenario:
     if not isinstance(top["effect"], list):
         chk.fail("effect", "must be an array of tables ([[effect]])")
     for i, raw in enumerate(top["effect"], 1):
-        key = f"effect[{i}]"
-        if not isinstance(raw, dict) or "type" not in raw:
-            chk.fail(f"{key}.type", "missing (one of " + ", ".join(EFFECT_SPECS) + ")")
-        kind = raw["type"]
-        if kind not in EFFECT_SPECS:
-            chk.fail(f"{key}.type", f"unknown effect {kind!r} (known: {', '.join(EFFECT_SPECS)})")
-        c = chk.table(raw, {**_COMMON, **EFFECT_SPECS[kind]}, key)
-        for jkey in ("joint", "source"):
-            if jkey in c and c[jkey] is not None and not 1 <= c[jkey] <= n:
-                chk.fail(f"{key}.{jkey}", f"must be a joint number 1..{n}, got {c[jkey]}")
-        eff = _build_effect(kind, c)
-        (effects if c["enabled"] else disabled).append(eff if c["enabled"] else eff.label)
+        eff, enabled = effect_from_table(raw, chk, f"effect[{i}]", n)
+        (effects if enabled else disabled).append(eff if enabled else eff.label)
     return Scenario(name=tw["name"], seed=tw["seed"], robot=robot, true_params=truth, effects=effects,
                     stations=stations, angle_noise=noise["angles"], gross_rate=noise["gross_rate"],
                     gross_rad=noise["gross_arcsec"] * ARCSEC, encoder_quantisation=noise["encoder_quantisation"],
@@ -253,29 +210,45 @@ class Twin:
         ev = self.model.evaluate(q_read_rad, ctx, self.theta, tool_mm=tool_mm)
         return ev.point_mm, ev.theta_rad
 
-    def sight(self, points_mm: np.ndarray, faces: list[int] | None = None):
-        """Noisy readings (N, 2k) of points from every station, and the gross-error mask."""
-        faces = faces or [1] * len(self.stations)
+    def observe(self, points_mm: np.ndarray, stations: list[Station] | None = None, faces: list[int] | None = None,
+                rng: np.random.Generator | None = None):
+        """What the theodolites read for points (N, 3): readings (N, 2k) ordered (Hz_1, V_1, Hz_2, V_2, ...) and the
+        gross-error mask (N, 2k).
+
+        The one place reading noise and gross sighting errors are drawn (every simulated instrument calls it): each
+        station's observation with its instrument errors (:meth:`calib.theodolite.Station.observe`), then Gaussian
+        noise of the station's sigma (when the scenario has angle noise), then gross errors of +-``gross_rad`` at the
+        scenario's rate, then Hz wrapped to [0, 2 pi).  ``stations`` default to the scenario's, ``faces`` to face I,
+        ``rng`` to the twin's own generator (an emulator passes its own so that its stream is its own).
+        """
+        stations = self.stations if stations is None else stations
+        faces = faces or [1] * len(stations)
+        rng = self.rng if rng is None else rng
+        pts = np.atleast_2d(np.asarray(points_mm, float))
         cols = []
-        for s, f in zip(self.stations, faces):
-            cols += list(s.observe(points_mm, f))
+        for s, f in zip(stations, faces):
+            cols += list(s.observe(pts, f))
         out = np.stack(cols, -1)
-        sig = np.concatenate([[s.sigma_hz_rad, s.sigma_v_rad] for s in self.stations])
+        sig = np.concatenate([[s.sigma_hz_rad, s.sigma_v_rad] for s in stations])
         if self.scenario.angle_noise:
-            out = out + self.rng.normal(size=out.shape) * sig
-        gross = self.rng.random(out.shape) < self.scenario.gross_rate
+            out = out + rng.normal(size=out.shape) * sig
+        gross = rng.random(out.shape) < self.scenario.gross_rate
         if gross.any():
-            out = out + gross * self.rng.choice([-1.0, 1.0], out.shape) * self.scenario.gross_rad
+            out = out + gross * rng.choice([-1.0, 1.0], out.shape) * self.scenario.gross_rad
         hz_cols = np.arange(0, out.shape[1], 2)
         out[:, hz_cols] = np.mod(out[:, hz_cols], 2 * np.pi)
         return out, gross
+
+    def sight(self, points_mm: np.ndarray, faces: list[int] | None = None):
+        """Noisy readings (N, 2k) of points from every station, and the gross-error mask (see :meth:`observe`)."""
+        return self.observe(points_mm, None, faces)
 
     def measure(self, q_command_rad, ctx: PoseContext | None = None, faces: list[int] | None = None,
                 tool_mm=None) -> TwinMeasurement:
         q = np.atleast_2d(np.asarray(q_command_rad, float))
         counts, q_read = self.encoder(q)
         pts, th = self.true_points(q_read, ctx, tool_mm)
-        rd, gross = self.sight(pts, faces)
+        rd, gross = self.observe(pts, None, faces)
         return TwinMeasurement(q, counts, q_read, th, pts, rd, gross, faces or [1] * len(self.stations))
 
     def true_parameters(self) -> dict[str, float]:

@@ -125,3 +125,29 @@ def test_context_refuses_a_frame_that_does_not_exist():
         PoseContext(1, 6, point_force_link=[7])
     c = PoseContext(3, 6, point_force_link=[1, 2])
     assert c.point_force_mm.shape == (3, 2, 3) and c.subset([0, 2]).point_force_n.shape == (2, 2, 3)
+
+
+def test_link_bending_under_a_mass_on_the_link(puma):
+    """Link compliance of link 2 with a mass on link 2 at a: a point on link 2 at x moves by the cantilever
+    deflection P x^2 (3a - x) / (6 EI) across the link; a point on link 1 does not move."""
+    from calib.effects import LinkCompliance
+    from tests.fakes.point_loads import frames
+    ei = 2.0e11
+    m = MeasurementModel(puma, [LinkCompliance(2, ei)])
+    q = np.array([0.0, -20.0, 60.0, 0.0, 0.0, 0.0]) * DEG
+    T = frames(puma, q)
+    o1, o2, R2 = T[1][:3, 3], T[2][:3, 3], T[2][:3, :3]
+    L = np.linalg.norm(o2 - o1)
+    u = (o2 - o1) / L
+    on_link = lambda x: R2.T @ (o1 + u * x - o2)                         # noqa: E731 frame-2 coordinates
+    g = m.gravity_n_per_kg()
+    a, mass = 300.0, 20.0
+    ctx = _ctx(m, 1, [2], [[on_link(a)]], [[mass * g]])
+    P = mass * g - (mass * g @ u) * u                                    # the force across the link
+    for x in (100.0, 250.0, 400.0):
+        d = m.points(q[None], ctx, tool_mm=on_link(x), link=2) - m.points(q[None], tool_mm=on_link(x), link=2)
+        shape = x * x * (3 * a - x) if x <= a else a * a * (3 * x - a)
+        np.testing.assert_allclose(d[0], P * shape / (6 * ei), rtol=1e-9, atol=1e-12)
+    d1 = m.points(q[None], ctx, tool_mm=[10.0, 20.0, 30.0], link=1) - m.points(q[None], tool_mm=[10.0, 20.0, 30.0],
+                                                                              link=1)
+    assert np.all(d1 == 0.0)

@@ -80,6 +80,26 @@ def test_noise_free_twin_is_exact():
     np.testing.assert_allclose(out.point_mm, m.point_true_mm, atol=1e-9)
 
 
+def test_observe_draws_the_station_noise_from_the_given_stream():
+    """Twin.observe is the one place reading noise is drawn: any station subset and face, the caller's generator."""
+    tw = Twin()
+    quiet = Twin(parse_scenario(DEFAULT.replace("angles = true", "angles = false")))
+    p = tw.true_points(tw.random_poses(2000))[0]
+    state = tw.rng.bit_generator.state
+    out, gross = tw.observe(p, [tw.stations[1]], [2], rng=np.random.default_rng(3))
+    assert tw.rng.bit_generator.state == state                  # an emulator keeps its own stream
+    assert out.shape == gross.shape == (2000, 2) and not gross.any()
+    again, _ = tw.observe(p, [tw.stations[1]], [2], rng=np.random.default_rng(3))
+    np.testing.assert_array_equal(out, again)
+    exact, _ = quiet.observe(p, [quiet.stations[1]], [2])
+    d = np.angle(np.exp(1j * (out - exact)))                    # Hz wraps at 2 pi
+    z = d / [tw.stations[1].sigma_hz_rad, tw.stations[1].sigma_v_rad]
+    assert np.all(np.abs(z.mean(0)) < 0.1) and np.all(np.abs(z.std(0) - 1) < 0.06)
+    assert np.all((out[:, 0] >= 0) & (out[:, 0] < 2 * np.pi))
+    # sight is observe from every station with the twin's own generator
+    np.testing.assert_array_equal(Twin().sight(p[:5])[0], Twin().observe(p[:5])[0])
+
+
 def test_gross_errors_are_injected_at_the_stated_rate():
     sc = parse_scenario(DEFAULT.replace("gross_rate = 0.0", "gross_rate = 0.1"))
     tw = Twin(sc)
@@ -97,7 +117,7 @@ def test_switching_an_effect_off_removes_its_signature():
 
 
 @pytest.mark.parametrize("old,new,key,words", [
-    ('type = "backlash"', 'type = "friction"', "effect[6].type", "unknown effect"),
+    ('type = "backlash"', 'type = "friction"', "effect[6].type", "unknown kind 'friction'"),
     ("joint = 4\norder = 0.9", "joint = 9\norder = 0.9", "effect[1].joint", "1..6"),
     ('"j3.a_mm" = -29.7', '"j3.length_mm" = -29.7', "geometry.set.j3.length_mm", "unknown parameter"),
     ("sigma_arcsec = 3.0", "sigma_arcsec = -3.0", "stations.sigma_arcsec", "positive"),

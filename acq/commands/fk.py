@@ -8,23 +8,25 @@ import numpy as np
 
 from calib.errors import RobocalError
 from calib.kinematics import Kinematics
-from calib.robot import load_robot
+from calib.robot import load_robot, rpy_from_matrix
 
 NAME = "fk"
-HELP = "tool point (mm, robot base frame 0) for six joint readings in degrees"
+HELP = "tool point (mm, robot base frame) for joint readings in degrees (mm for prismatic joints)"
 
 
 def add_arguments(p):
     p.add_argument("q", nargs="+", metavar="Q",
                    help="joint readings in degrees (theta_j of the A-matrices; mm for a prismatic joint)")
-    p.add_argument("--robot", metavar="FILE", help="robot description TOML (default: the thesis's Puma 560)")
+    p.add_argument("--robot", metavar="FILE", help="robot description: TOML, URDF or a calibration description "
+                   "wrapping a URDF (default: the thesis's Puma 560)")
     p.add_argument("--json", action="store_true", help='print {"x_mm": .., "y_mm": .., "z_mm": ..}')
 
 
 def run(args) -> int:
     robot = load_robot(args.robot)
-    if len(args.q) != robot.n:
-        raise RobocalError(f"fk: expected {robot.n} joint readings for {robot.name}, got {len(args.q)}")
+    if len(args.q) != robot.n_readings:
+        raise RobocalError(f"fk: expected {robot.n_readings} joint readings for {robot.name} "
+                           f"({', '.join(robot.reading_names)}), got {len(args.q)}")
     q = []
     for i, text in enumerate(args.q, 1):
         try:
@@ -35,10 +37,14 @@ def run(args) -> int:
             raise RobocalError(f"fk: joint {i} reading {text!r} is not finite")
         q.append(v)
     kin = Kinematics(robot)
-    # base frame 0: identity base transform, whatever the description's base pose in the measurement frame
+    # the description's own base frame (frame 0 of a DH description, a URDF's base link), whatever the base pose in
+    # the measurement frame
     params = kin.nominal.copy()
-    params[[kin.index[f"base.{k}"] for k in ("x_mm", "y_mm", "z_mm", "yaw_rad", "pitch_rad", "roll_rad")]] = 0.0
-    x, y, z = kin.points(np.array([q]) * robot.edge_scale, params)[0]
+    F0 = robot.frame0_in_base
+    base = [*F0[:3, 3], *rpy_from_matrix(F0[:3, :3])[::-1]]
+    params[[kin.index[f"base.{k}"] for k in ("x_mm", "y_mm", "z_mm", "yaw_rad", "pitch_rad", "roll_rad")]] = base
+    theta = robot.joints_from_readings(np.array([q]) * robot.reading_edge_scale)
+    x, y, z = kin.points(theta, params)[0]
     if args.json:
         print(json.dumps({"x_mm": round(float(x), 6), "y_mm": round(float(y), 6), "z_mm": round(float(z), 6)}))
     else:

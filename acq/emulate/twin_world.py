@@ -168,19 +168,13 @@ class TwinWorld:
         return float(hz[0]), float(v[0])
 
     def sight(self, station_name: str, face: int) -> tuple[float, float]:
+        """The station's reading of the current target: :meth:`calib.twin.Twin.observe` (the one place reading noise
+        and gross errors are drawn) with this world's generator, plus an injected sighting fault if any."""
         st = self._station(station_name)
-        hz, v = self.true_sight(station_name, face)
-        sc = self.twin.scenario
+        p = self.target_mm()
         with self._lock:
-            if sc.angle_noise:
-                dh, dv = self._rng.normal(0.0, 1.0, 2)
-                hz += dh * st.sigma_hz_rad
-                v += dv * st.sigma_v_rad
-            if sc.gross_rate > 0:
-                if self._rng.random() < sc.gross_rate:
-                    hz += self._rng.choice([-1.0, 1.0]) * sc.gross_rad
-                if self._rng.random() < sc.gross_rate:
-                    v += self._rng.choice([-1.0, 1.0]) * sc.gross_rad
+            out, _ = self.twin.observe(p[None], [st], [face], rng=self._rng)
+            hz, v = float(out[0, 0]), float(out[0, 1])
             f = self._faults.get(station_name)
             if f is not None and f[2] > 0:
                 # a pointing error: face II reads the zenith angle as 360 deg - V, so it flips the sign there

@@ -17,8 +17,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from calib.effects import (Backlash, CrossCoupling, Effect, JointCompliance, LinkCompliance, ThermalDrift,
-                           TransmissionError)
+from calib.effects import EFFECTS, Effect, make_effect
 from calib.units import DEG
 
 from .data import DiagnosisData
@@ -58,19 +57,8 @@ class Candidate:
 
     def make(self) -> Effect:
         """A fresh effect instance at (nearly) zero magnitude: the model's own code gives its Jacobian."""
-        if self.kind == "transmission_error":
-            return TransmissionError(self.joint, self.order, [0.0], [0.0])
-        if self.kind == "joint_compliance":
-            return JointCompliance(self.joint, 1e12)
-        if self.kind == "backlash":
-            return Backlash(self.joint, 0.0)
-        if self.kind == "cross_coupling":
-            return CrossCoupling(self.joint, self.source, 0.0)
-        if self.kind == "link_compliance":
-            return LinkCompliance(self.joint, 1e18)
-        if self.kind == "thermal_drift":
-            return ThermalDrift(0.0, self.reference_c)
-        raise ValueError(self.kind)
+        given = {"order": self.order, "harmonics": 1, "source": self.source, "reference_degc": self.reference_c}
+        return make_effect(self.kind, self.joint, **{k: given[k] for k in EFFECTS[self.kind].options})
 
     def parameters(self, values: dict[str, float], sigmas: dict[str, float]) -> dict[str, float]:
         """The estimated parameters in edge units (degrees, N m), with their 1-sigma, for reports and JSON."""

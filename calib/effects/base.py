@@ -1,0 +1,173 @@
+"""What every effect shares: the pose conditions, the loads, the :class:`Effect` base class and the registry.
+
+An effect class is registered once with :func:`register_effect`; everything that builds an effect from its kind name
+(the model JSON, the twin scenario's ``[[effect]]`` tables, ``--effect kind:args`` on identify, the diagnosis
+candidates) looks the class up in :data:`EFFECTS` (see :mod:`calib.effects.registry`), so adding an effect is one
+module in this package plus its tests.
+
+An effect class says, besides its physics:
+
+* ``scenario_fields`` and :meth:`Effect.from_table`: its ``[[effect]]`` table in a scenario file (file units, deg);
+* ``options`` / :meth:`Effect.option_values`: the structural settings beyond the joint (order, source joint,
+  reference temperature) that fix its parameter list; they travel in the model JSON and the ``--effect`` text;
+* :meth:`Effect.zero`: the effect at zero (or negligible) magnitude, the start of an identification.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any, ClassVar
+
+import numpy as np
+
+
+@dataclass
+class PoseContext:
+    """What each of N poses was measured under, beyond its joint readings.  Arrays over poses; zeros by default."""
+
+    n_poses: int
+    n_joints: int = 6
+    direction: np.ndarray | None = None        # (N, n) +1/-1: sign of each joint's last motion; 0 unknown
+    load_direction: np.ndarray | None = None   # (N, n) +1 loading, -1 unloading, 0 unknown
+    payload_kg: np.ndarray | None = None       # (N,) mass hanging at the tool point
+    tool_force_n: np.ndarray | None = None     # (N, 3) external force at the tool point, measurement frame
+    joint_torque_nm: np.ndarray | None = None  # (N, n) torque applied directly to joints (compliance loads)
+    temperature_c: np.ndarray | None = None    # (N,)
+    time_s: np.ndarray | None = None           # (N,)
+    # forces at points fixed on links (hung masses: mass x the model's gravity), K of them per pose (contract C2)
+    point_force_link: np.ndarray | None = None  # (K,) int: frame the point is fixed in (0 base, j = link j)
+    point_force_mm: np.ndarray | None = None    # (N, K, 3) the point, in that frame
+    point_force_n: np.ndarray | None = None     # (N, K, 3) the force, in the measurement frame
+
+    def __post_init__(self):
+        N, n = self.n_poses, self.n_joints
+        for name, shape in (("direction", (N, n)), ("load_direction", (N, n)), ("payload_kg", (N,)),
+                            ("tool_force_n", (N, 3)), ("joint_torque_nm", (N, n)), ("temperature_c", (N,)),
+                            ("time_s", (N,))):
+            v = getattr(self, name)
+            default = 20.0 if name == "temperature_c" else 0.0
+            v = np.full(shape, default) if v is None else np.broadcast_to(np.asarray(v, float), shape).copy()
+            setattr(self, name, v)
+        link = np.zeros(0, int) if self.point_force_link is None else np.asarray(self.point_force_link)
+        if link.ndim != 1 or (link.size and (np.any(link != np.round(link)) or link.min() < 0 or link.max() > n)):
+            raise ValueError(f"point_force_link must be frame indices 0..{n}, got {self.point_force_link!r}")
+        self.point_force_link = link.astype(int)
+        K = link.size
+        for name in ("point_force_mm", "point_force_n"):
+            v = getattr(self, name)
+            v = np.zeros((N, K, 3)) if v is None else np.broadcast_to(np.asarray(v, float), (N, K, 3)).copy()
+            setattr(self, name, v)
+
+    def subset(self, idx) -> "PoseContext":
+        pick = {k: getattr(self, k)[idx] for k in ("direction", "load_direction", "payload_kg", "tool_force_n",
+                                                      "joint_torque_nm", "temperature_c", "time_s",
+                                                      "point_force_mm", "point_force_n")}
+        n_new = len(pick["payload_kg"])
+        return PoseContext(n_new, self.n_joints, point_force_link=self.point_force_link, **pick)
+
+
+@dataclass
+class Loads:
+    """Quantities some effects need, computed once per forward pass by the model."""
+
+    joint_torque_nm: np.ndarray       # (N, n) torque about each joint axis (gravity + payload + tool force + applied)
+    tip_force_n: np.ndarray           # (N, n, 3) force carried at the end of each link (frame j origin)
+    dtau_dgeo: np.ndarray | None = None   # (N, n, P_geometric) d torque / d geometric parameter, when asked
+    # the point forces of the pose context, placed: for effects that load a link along its length
+    point_force_n: np.ndarray | None = None   # (N, K, 3) N, measurement frame
+    point_at_mm: np.ndarray | None = None     # (N, K, 3) where each acts, measurement frame
+    point_link: np.ndarray | None = None      # (K,) frame each point is fixed in
+
+
+class JointNumber(int):
+    """Marks an option that names a joint (1..n), e.g. the source joint of a cross coupling: checked like ``joint``."""
+
+
+class Effect:
+    """Base class.  Subclasses set ``kind``, ``stage`` and implement the stage's method.
+
+    Stages (see :mod:`calib.model`): ``joint`` -> :meth:`joint_delta`; ``geometry`` -> :meth:`geometry_delta` and
+    :meth:`geometry_chain`; ``point`` -> :meth:`point_delta`.
+    """
+
+    kind: ClassVar[str] = ""
+    stage: ClassVar[str] = "joint"
+    needs_loads: ClassVar[bool] = False        # the model computes :class:`Loads` for it
+    torque_driven: ClassVar[bool] = False      # implements :meth:`torque_gain` (deflection follows the torque)
+    has_joint: ClassVar[bool] = True           # acts on one joint (``joint`` required in tables, JSON and text)
+    #: structural settings beyond the joint, name -> type (int or float), in the order of the ``--effect`` text
+    options: ClassVar[dict[str, type]] = {}
+    #: how many of ``options`` the ``--effect`` text must give (the rest have defaults in :meth:`zero`)
+    text_required: ClassVar[int] = 0
+    #: the keys of its ``[[effect]]`` table in a scenario file (``calib.tomlspec.Field``), besides type/enabled
+    scenario_fields: ClassVar[dict[str, Any]] = {}
+
+    def __init__(self, joint: int | None, values: dict[str, float]):
+        self.joint = joint                       # 1-based joint the effect disturbs, or None
+        self.values = np.array([values[k] for k in self.param_names], float)
+
+    # -- construction (used through calib.effects.registry) --------------------------------------------------------
+    @classmethod
+    def zero(cls, joint: int | None = None, **options) -> "Effect":
+        """The effect at zero (or negligible) magnitude with the given structure: the start of an identification."""
+        raise NotImplementedError
+
+    @classmethod
+    def from_table(cls, c: dict) -> "Effect":
+        """The effect from a checked scenario ``[[effect]]`` table (file units: degrees, N m, N mm^2)."""
+        raise NotImplementedError
+
+    def option_values(self) -> dict[str, Any]:
+        """This instance's structural settings (the keys of ``options``)."""
+        return {}
+
+    # -- naming ----------------------------------------------------------------------------------------------------
+    @property
+    def label(self) -> str:
+        return f"{self.kind}.j{self.joint}" if self.joint is not None else self.kind
+
+    @property
+    def param_names(self) -> tuple[str, ...]:
+        raise NotImplementedError
+
+    def qualified_names(self) -> list[str]:
+        return [f"{self.label}.{p}" for p in self.param_names]
+
+    def describe(self) -> str:
+        parts = ", ".join(f"{k}={v:.6g}" for k, v in zip(self.param_names, self.values))
+        return f"{self.label}({parts})"
+
+    # -- physics ---------------------------------------------------------------------------------------------------
+    def joint_delta(self, q, ctx: PoseContext, loads: Loads | None, values):
+        """joint stage: (N, n) change of the joint angles and its derivative (N, n, K) w.r.t. ``values``."""
+        raise NotImplementedError
+
+    def torque_gain(self, q, ctx: PoseContext, loads: Loads, values):
+        """torque-driven joint effects: (N, n) d delta / d tau (for the chain rule through the loads)."""
+        raise NotImplementedError
+
+    def geometry_delta(self, params, length_idx, ctx: PoseContext, values):
+        """geometry stage: (N, P) change of the geometric parameters and its derivative (N, P, K)."""
+        raise NotImplementedError
+
+    def geometry_chain(self, J_geo, length_idx, ctx: PoseContext, values):
+        """geometry stage: the Jacobian w.r.t. the geometric parameters (N, 3, P) given the one w.r.t. the changed
+        parameters: ``J_geo @ (I + d delta / d params)``.  The default is a change that does not depend on them."""
+        return J_geo
+
+    def point_delta(self, fp, point, loads: Loads | None, values):
+        """point stage: (N, 3) displacement of the point and its derivative (N, 3, K)."""
+        raise NotImplementedError
+
+
+#: kind name -> effect class, filled by :func:`register_effect` as the kind modules are imported
+EFFECTS: dict[str, type[Effect]] = {}
+
+
+def register_effect(cls: type[Effect]) -> type[Effect]:
+    """Class decorator: make an effect kind known to every builder (once per kind)."""
+    if not cls.kind:
+        raise TypeError(f"{cls.__name__} has no kind")
+    if EFFECTS.get(cls.kind, cls) is not cls:
+        raise TypeError(f"effect kind {cls.kind!r} registered twice ({EFFECTS[cls.kind].__name__}, {cls.__name__})")
+    EFFECTS[cls.kind] = cls
+    return cls

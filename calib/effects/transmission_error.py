@@ -1,0 +1,65 @@
+"""Gear transmission error of one joint as a harmonic series in its angle (section 4.4; K_theta fits of 5.4.2).
+
+``delta = sum_h s_h sin(h nu q) + c_h cos(h nu q)``; ``nu`` is the fundamental order per radian of joint angle (the
+thesis's K_theta4 = 0.050 deg sin(0.9 theta4) is nu = 0.9, s_1 = 0.050 deg).
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from ..tomlspec import Field
+from ..units import DEG
+from .base import Effect, register_effect
+
+
+@register_effect
+class TransmissionError(Effect):
+    kind = "transmission_error"
+    options = {"order": float, "harmonics": int}
+    text_required = 1
+    scenario_fields = {"joint": Field("int", required=True, min=1),
+                       "order": Field("number", required=True, positive=True),
+                       "sin_deg": Field("vector", default=[]), "cos_deg": Field("vector", default=[])}
+
+    def __init__(self, joint: int, order: float, sin_rad, cos_rad):
+        self.order = float(order)
+        self.harmonics = max(len(sin_rad), len(cos_rad))
+        s = list(sin_rad) + [0.0] * (self.harmonics - len(sin_rad))
+        c = list(cos_rad) + [0.0] * (self.harmonics - len(cos_rad))
+        vals = {}
+        for h in range(self.harmonics):
+            vals[f"s{h + 1}_rad"], vals[f"c{h + 1}_rad"] = s[h], c[h]
+        self._names = tuple(vals)
+        super().__init__(joint, vals)
+
+    @classmethod
+    def zero(cls, joint=None, order: float = 1.0, harmonics: int = 1):
+        if not order > 0 or harmonics < 1:
+            raise ValueError("order and harmonics must be positive")
+        return cls(joint, order, [0.0] * harmonics, [0.0] * harmonics)
+
+    @classmethod
+    def from_table(cls, c):
+        return cls(c["joint"], c["order"], [v * DEG for v in c["sin_deg"]], [v * DEG for v in c["cos_deg"]])
+
+    def option_values(self):
+        return {"order": self.order, "harmonics": self.harmonics}
+
+    @property
+    def param_names(self):
+        return self._names
+
+    def basis(self, q):
+        qj = q[:, self.joint - 1]
+        cols = []
+        for h in range(1, self.harmonics + 1):
+            cols += [np.sin(h * self.order * qj), np.cos(h * self.order * qj)]
+        return np.stack(cols, -1)                                 # (N, K)
+
+    def joint_delta(self, q, ctx, loads, values):
+        B = self.basis(q)
+        delta = np.zeros_like(q)
+        delta[:, self.joint - 1] = B @ values
+        grad = np.zeros(q.shape + (len(values),))
+        grad[:, self.joint - 1, :] = B
+        return delta, grad

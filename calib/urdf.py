@@ -1,0 +1,464 @@
+"""URDF robot descriptions: one serial chain of a URDF tree as a robocal :class:`calib.robot.Robot`.
+
+Parsing is yourdfpy's (a maintained URDF reader); this module only cuts the tree into a chain and maps it onto the
+chain robocal identifies (:mod:`calib.kinematics`: ``Rz(theta) Tz(d) Tx(a) Rx(alpha) Ry(beta)`` per moving joint).
+
+* The chain runs from ``base_link`` (default: the root) to ``tip_link`` (default: the only *moving leaf*, the child of
+  a moving joint below which nothing moves; several candidates are an error that lists them).
+* Fixed joints fold into the next moving joint; joints of side branches are held at zero (their links' masses count
+  for the link they hang from).  A mimic joint stays an axis of the chain, driven as ``multiplier x q + offset`` of
+  the joint it follows: it is not a reading (see :attr:`Robot.reading_matrix`).
+* Prismatic joints add to d (mm), continuous joints are revolute joints with +-720 deg limits.
+* Every moving axis ``j`` becomes one link of the chain, with its frame ``j-1`` on that axis: standard DH (common
+  normal) where consecutive axes are skew or intersecting, Hayati (``beta`` instead of ``d``) where they are within
+  :data:`PARALLEL_DEG` of parallel, so the parameters are a minimal, well-conditioned set.  Frame ``n`` is frame
+  ``n-1`` turned by the last joint; the tip link's origin (and any tool point given on the tip link) is the tool point
+  in frame ``n``.  :func:`parameter_meaning` says which URDF quantity each parameter corrects.
+* The base link's frame is the measurement frame unless the calibration description says otherwise: the robot's
+  base pose is frame 0 in the base link (``Robot.frame0_in_base``), and ``robocal fk`` prints the tip in the base link.
+* Inertials: each link's mass and centre of mass, summed over what moves with axis ``j`` and expressed in frame ``j``.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from .errors import RobocalError
+from .units import DEG
+
+PARALLEL_DEG = 1.0            # consecutive axes closer to parallel than this use the Hayati beta
+MOVING = ("revolute", "continuous", "prismatic")
+CONTINUOUS_LIMIT_RAD = 4 * math.pi
+
+
+@dataclass
+class UJoint:
+    """One URDF joint, as read (SI units of the file)."""
+
+    name: str
+    type: str
+    parent: str
+    child: str
+    origin: np.ndarray                 # (4, 4) child frame at q = 0 in the parent link frame
+    axis: np.ndarray                   # (3,) unit, in the joint frame
+    limits: tuple[float, float] | None
+    mimic: tuple[str, float, float] | None     # (followed joint, multiplier, offset)
+    line: int | None = None
+
+
+@dataclass
+class ULink:
+    name: str
+    mass_kg: float
+    com_m: np.ndarray                  # (3,) in the link frame
+
+
+@dataclass
+class UrdfTree:
+    source: str
+    name: str
+    links: dict[str, ULink]
+    joints: dict[str, UJoint]          # by name
+    child_joint: dict[str, UJoint]     # link -> the joint whose child it is
+    lines: dict[str, int]              # element name -> source line ("link:NAME" / "joint:NAME")
+
+    def where(self, kind: str, name: str) -> str:
+        line = self.lines.get(f"{kind}:{name}")
+        return f"{self.source}: line {line}: {kind} {name!r}" if line else f"{self.source}: {kind} {name!r}"
+
+    @property
+    def root(self) -> str:
+        roots = [n for n in self.links if n not in self.child_joint]
+        return roots[0]
+
+    def children(self, link: str) -> list[UJoint]:
+        return [j for j in self.joints.values() if j.parent == link]
+
+
+# -- reading --------------------------------------------------------------------------------------------------------
+def _source_lines(path: Path) -> dict[str, int]:
+    """Line number of every <link> and <joint> element at the top level (for error messages)."""
+    try:
+        from lxml import etree
+        root = etree.parse(str(path)).getroot()
+    except Exception:                                    # yourdfpy reports the parse error itself
+        return {}
+    return {f"{el.tag}:{el.get('name')}": el.sourceline for el in root if el.tag in ("link", "joint")}
+
+
+def read_urdf(path: str | Path) -> UrdfTree:
+    """Read a URDF file and check it is a tree (one root, each link the child of at most one joint)."""
+    import yourdfpy
+
+    path = Path(path)
+    src = str(path)
+    if not path.exists():
+        raise RobocalError(f"{src}: file not found")
+    lines = _source_lines(path)
+    try:
+        u = yourdfpy.URDF.load(str(path), build_scene_graph=False, load_meshes=False,
+                               load_collision_meshes=False)
+    except Exception as exc:
+        raise RobocalError(f"{src}: not a readable URDF: {exc}") from None
+    links = {}
+    for ln in u.robot.links:
+        iner = ln.inertial
+        mass = float(iner.mass) if iner is not None and iner.mass is not None else 0.0
+        com = (np.asarray(iner.origin, float)[:3, 3] if iner is not None and iner.origin is not None
+               else np.zeros(3))
+        links[ln.name] = ULink(ln.name, mass, com)
+    tree = UrdfTree(src, u.robot.name or path.stem, links, {}, {}, lines)
+    for j in u.robot.joints:
+        origin = np.eye(4) if j.origin is None else np.asarray(j.origin, float)
+        axis = np.array([1.0, 0, 0]) if j.axis is None else np.asarray(j.axis, float)
+        where = tree.where("joint", j.name)
+        if j.type not in MOVING + ("fixed",):
+            raise RobocalError(f"{where}: joint type {j.type!r} is not supported (revolute, continuous, "
+                               "prismatic, fixed)")
+        norm = np.linalg.norm(axis)
+        if j.type in MOVING and not norm > 0:
+            raise RobocalError(f"{where}: the axis is zero")
+        for link in (j.parent, j.child):
+            if link not in links:
+                raise RobocalError(f"{where}: link {link!r} is not defined")
+        if j.child in tree.child_joint:
+            other = tree.child_joint[j.child].name
+            raise RobocalError(f"{where}: link {j.child!r} is already the child of joint {other!r}: a closed loop "
+                               "(URDF describes trees)")
+        limits = None
+        if j.type in ("revolute", "prismatic") and j.limit is not None and j.limit.lower is not None \
+                and j.limit.upper is not None:
+            limits = (float(j.limit.lower), float(j.limit.upper))
+        mimic = None
+        if j.mimic is not None:
+            mimic = (j.mimic.joint, float(j.mimic.multiplier if j.mimic.multiplier is not None else 1.0),
+                     float(j.mimic.offset if j.mimic.offset is not None else 0.0))
+        uj = UJoint(j.name, j.type, j.parent, j.child, origin, axis / (norm or 1.0), limits, mimic,
+                    lines.get(f"joint:{j.name}"))
+        tree.joints[j.name] = uj
+        tree.child_joint[j.child] = uj
+    roots = [n for n in links if n not in tree.child_joint]
+    if len(roots) != 1:
+        if not roots:
+            raise RobocalError(f"{src}: every link is the child of a joint: a closed loop (URDF describes trees)")
+        raise RobocalError(f"{src}: {len(roots)} root links ({', '.join(roots)}): the links are not one tree")
+    for j in tree.joints.values():
+        if j.mimic is not None and j.mimic[0] not in tree.joints:
+            raise RobocalError(f"{tree.where('joint', j.name)}: mimics joint {j.mimic[0]!r}, which is not defined")
+    return tree
+
+
+# -- cutting the chain ----------------------------------------------------------------------------------------------
+def _path(tree: UrdfTree, base: str, tip: str) -> list[UJoint]:
+    """Joints from ``base`` down to ``tip``; error when ``tip`` is not below ``base``."""
+    out = []
+    link = tip
+    while link != base:
+        j = tree.child_joint.get(link)
+        if j is None:
+            raise RobocalError(f"{tree.where('link', tip)}: is not below the base link {base!r}")
+        out.append(j)
+        link = j.parent
+    return out[::-1]
+
+
+def _subtree_moves(tree: UrdfTree, link: str) -> bool:
+    return any(j.type in MOVING or _subtree_moves(tree, j.child) for j in tree.children(link))
+
+
+def moving_leaves(tree: UrdfTree, base: str) -> list[str]:
+    """Children of moving joints below ``base`` below which nothing moves (tip candidates)."""
+    out = []
+
+    def walk(link):
+        for j in tree.children(link):
+            if j.type in MOVING and not _subtree_moves(tree, j.child):
+                out.append(j.child)
+            walk(j.child)
+    walk(base)
+    return out
+
+
+def _check_link(tree: UrdfTree, name: str, what: str) -> None:
+    if name not in tree.links:
+        known = ", ".join(tree.links)
+        raise RobocalError(f"{tree.source}: {what} link {name!r} is not in the URDF (links: {known})")
+
+
+def cut_chain(tree: UrdfTree, base_link: str | None = None, tip_link: str | None = None) -> tuple[str, str, list[UJoint]]:
+    base = base_link or tree.root
+    _check_link(tree, base, "base")
+    if tip_link is None:
+        leaves = moving_leaves(tree, base)
+        if len(leaves) != 1:
+            what = "no moving link" if not leaves else f"{len(leaves)} moving leaves ({', '.join(leaves)})"
+            raise RobocalError(f"{tree.source}: {what} below {base!r}: choose the chain's end with --tip-link")
+        tip_link = leaves[0]
+    _check_link(tree, tip_link, "tip")
+    joints = _path(tree, base, tip_link)
+    if not any(j.type in MOVING for j in joints):
+        raise RobocalError(f"{tree.source}: no moving joint between {base!r} and {tip_link!r}")
+    return base, tip_link, joints
+
+
+# -- geometry helpers -----------------------------------------------------------------------------------------------
+def _rot(axis: np.ndarray, angle: float) -> np.ndarray:
+    x, y, z = axis
+    c, s, C = math.cos(angle), math.sin(angle), 1 - math.cos(angle)
+    return np.array([[c + x * x * C, x * y * C - z * s, x * z * C + y * s],
+                     [y * x * C + z * s, c + y * y * C, y * z * C - x * s],
+                     [z * x * C - y * s, z * y * C + x * s, c + z * z * C]])
+
+
+def _hom(R=None, t=None) -> np.ndarray:
+    T = np.eye(4)
+    if R is not None:
+        T[:3, :3] = R
+    if t is not None:
+        T[:3, 3] = t
+    return T
+
+
+def joint_motion(j: UJoint, q: float) -> np.ndarray:
+    """The joint's own motion (4x4) for value q (rad or m), applied after its origin."""
+    if j.type == "prismatic":
+        return _hom(t=j.axis * q)
+    if j.type in ("revolute", "continuous"):
+        return _hom(_rot(j.axis, q))
+    return np.eye(4)
+
+
+def dh_matrix(theta, d, a, alpha, beta=0.0) -> np.ndarray:
+    """Rz(theta) Tz(d) Tx(a) Rx(alpha) Ry(beta), the link transform of :mod:`calib.kinematics`."""
+    ez, ex, ey = np.eye(3)[2], np.eye(3)[0], np.eye(3)[1]
+    return (_hom(_rot(ez, theta)) @ _hom(t=[0, 0, d]) @ _hom(t=[a, 0, 0]) @ _hom(_rot(ex, alpha))
+            @ _hom(_rot(ey, beta)))
+
+
+def _unit(v: np.ndarray) -> np.ndarray:
+    return v / np.linalg.norm(v)
+
+
+def _angle_about(axis, u, v) -> float:
+    """Signed angle turning u into v about axis (u, v perpendicular to axis)."""
+    return math.atan2(float(np.dot(np.cross(u, v), axis)), float(np.dot(u, v)))
+
+
+@dataclass
+class DHLink:
+    theta: float
+    d: float
+    a: float
+    alpha: float
+    beta: float
+    hayati: bool
+
+
+def _next_frame(F: np.ndarray, u: np.ndarray, p: np.ndarray) -> DHLink:
+    """DH/Hayati parameters taking frame F (z on the current axis) to a frame with z = u through point p."""
+    z0, x0, o0 = F[:3, 2], F[:3, 0], F[:3, 3]
+    c = float(np.dot(z0, u))
+    if abs(c) > math.cos(PARALLEL_DEG * DEG):
+        # Hayati: origin where the next axis crosses the plane through o0 normal to z0
+        s = float(np.dot(o0 - p, z0)) / c
+        o1 = p + s * u
+        r = o1 - o0
+        a = float(np.linalg.norm(r))
+        x1 = r / a if a > 1e-12 else x0
+        theta = _angle_about(z0, x0, x1) if a > 1e-12 else 0.0
+        y1 = np.cross(z0, x1)
+        beta = math.asin(max(-1.0, min(1.0, float(np.dot(u, x1)))))
+        alpha = math.atan2(-float(np.dot(u, y1)), float(np.dot(u, z0)))
+        return DHLink(theta, 0.0, a, alpha, beta, True)
+    # common normal between the line (o0, z0) and the line (p, u)
+    w = o0 - p
+    b = float(np.dot(z0, u))
+    dd, e = float(np.dot(z0, w)), float(np.dot(u, w))
+    den = 1 - b * b
+    s0 = (b * e - dd) / den                     # along z0 from o0
+    s1 = (e - b * dd) / den                     # along u from p
+    c0, c1 = o0 + s0 * z0, p + s1 * u
+    r = c1 - c0
+    a = float(np.linalg.norm(r))
+    x1 = r / a if a > 1e-9 else _unit(np.cross(z0, u))
+    if a <= 1e-9:
+        a = 0.0
+    theta = _angle_about(z0, x0, x1)
+    alpha = _angle_about(x1, z0, u)
+    return DHLink(theta, s0, a, alpha, 0.0, False)
+
+
+# -- the robot ------------------------------------------------------------------------------------------------------
+@dataclass
+class UrdfChain:
+    """The cut chain in numbers: what :func:`calib.robot.robot_from_urdf` turns into a Robot."""
+
+    tree: UrdfTree
+    base_link: str
+    tip_link: str
+    axes: list[UJoint]                  # moving joints, base to tip (mimic ones included)
+    links: list[DHLink]
+    frame0_in_base: np.ndarray          # (4, 4), mm
+    tip_in_frame_n: np.ndarray          # (4, 4), mm: the tip link's frame in frame n
+    mass_kg: np.ndarray
+    com_mm: np.ndarray                  # (n, 3) in DH frame j
+    limits: np.ndarray                  # (n, 2) rad or mm
+    prismatic: np.ndarray
+    readings: list[str]                 # non-mimic axes' names
+    reading_matrix: np.ndarray          # (n, m): axis value = M @ reading + offset
+    reading_offset: np.ndarray          # (n,) rad or mm
+
+
+def _to_mm(T: np.ndarray) -> np.ndarray:
+    T = T.copy()
+    T[:3, 3] *= 1000.0
+    return T
+
+
+def _frame0(base_T_axis: np.ndarray, u: np.ndarray) -> np.ndarray:
+    """Frame 0: z on the first axis, origin its point nearest the base origin, x nearest the base x."""
+    p = base_T_axis[:3, 3]
+    o = p - np.dot(p, u) * u
+    ex = np.array([1.0, 0, 0])
+    x = ex - np.dot(ex, u) * u
+    if np.linalg.norm(x) < 1e-6:
+        ey = np.array([0.0, 1, 0])
+        x = ey - np.dot(ey, u) * u
+    x = _unit(x)
+    return _hom(np.column_stack([x, np.cross(u, x), u]), o)
+
+
+def analyse_chain(tree: UrdfTree, base_link: str | None = None, tip_link: str | None = None) -> UrdfChain:
+    base, tip, path = cut_chain(tree, base_link, tip_link)
+    # frames (base link, mm) of every joint at q = 0
+    T = np.eye(4)
+    axes: list[UJoint] = []
+    axis_T: list[np.ndarray] = []
+    for j in path:
+        T = T @ _to_mm(j.origin)
+        if j.type in MOVING:
+            axes.append(j)
+            axis_T.append(T.copy())
+    tip_T = T
+    names = [j.name for j in axes]
+    for j in axes:
+        if j.mimic is not None and j.mimic[0] not in names:
+            raise RobocalError(f"{tree.where('joint', j.name)}: mimics joint {j.mimic[0]!r}, which is not in the "
+                               f"chain {base!r} -> {tip!r}")
+    u = [_unit(Tj[:3, :3] @ j.axis) for j, Tj in zip(axes, axis_T)]
+    p = [Tj[:3, 3] for Tj in axis_T]
+    F = _frame0(axis_T[0], u[0])
+    frames = [F]
+    links = []
+    for k in range(len(axes)):
+        if k + 1 < len(axes):
+            L = _next_frame(F, u[k + 1], p[k + 1])
+        else:
+            L = DHLink(0.0, 0.0, 0.0, 0.0, 0.0, False)
+        links.append(L)
+        F = F @ dh_matrix(L.theta, L.d, L.a, L.alpha, L.beta)
+        frames.append(F)
+    n = len(axes)
+    mass, com = _masses(tree, path, axes, axis_T, frames)
+    limits = np.zeros((n, 2))
+    for k, j in enumerate(axes):
+        if j.type == "continuous" or j.limits is None:
+            limits[k] = (-CONTINUOUS_LIMIT_RAD, CONTINUOUS_LIMIT_RAD) if j.type != "prismatic" else (-1e6, 1e6)
+        else:
+            limits[k] = np.array(j.limits) * (1000.0 if j.type == "prismatic" else 1.0)
+    readings = [j.name for j in axes if j.mimic is None]
+    M = np.zeros((n, len(readings)))
+    off = np.zeros(n)
+    for k, j in enumerate(axes):
+        if j.mimic is None:
+            M[k, readings.index(j.name)] = 1.0
+        else:
+            name, mult, offset = _resolve_mimic(tree, j)
+            scale = 1000.0 if j.type == "prismatic" else 1.0          # mm per SI unit of the mimic joint
+            fscale = 1000.0 if tree.joints[name].type == "prismatic" else 1.0
+            M[k, readings.index(name)] = mult * scale / fscale
+            off[k] = offset * scale
+    return UrdfChain(tree, base, tip, axes, links, frames[0], np.linalg.inv(frames[-1]) @ tip_T, mass, com,
+                     limits, np.array([j.type == "prismatic" for j in axes]), readings, M, off)
+
+
+def _resolve_mimic(tree: UrdfTree, j: UJoint) -> tuple[str, float, float]:
+    """Follow a mimic chain to a non-mimic joint: (name, multiplier, offset)."""
+    name, mult, off = j.mimic
+    seen = {j.name}
+    while tree.joints[name].mimic is not None:
+        if name in seen:
+            raise RobocalError(f"{tree.where('joint', j.name)}: mimic joints follow each other in a loop")
+        seen.add(name)
+        n2, m2, o2 = tree.joints[name].mimic
+        name, mult, off = n2, mult * m2, mult * o2 + off
+    return name, mult, off
+
+
+def _masses(tree, path, axes, axis_T, frames) -> tuple[np.ndarray, np.ndarray]:
+    """Mass and centre of mass (frame j, mm) of everything moving with axis j and not with axis j+1, at q = 0."""
+    n = len(axes)
+    mass, com = np.zeros(n), np.zeros((n, 3))
+    chain_links = {j.child for j in path}
+    for k, j in enumerate(axes):
+        nxt = axes[k + 1] if k + 1 < n else None
+        total, moment = 0.0, np.zeros(3)
+        stack = [(j.child, axis_T[k])]
+        while stack:
+            link, T = stack.pop()
+            ln = tree.links[link]
+            total += ln.mass_kg
+            moment += ln.mass_kg * (T[:3, :3] @ (ln.com_m * 1000.0) + T[:3, 3])
+            for c in tree.children(link):
+                if nxt is not None and c is nxt:
+                    continue
+                if c.child in chain_links and c.type in MOVING:
+                    continue
+                stack.append((c.child, T @ _to_mm(c.origin)))
+        mass[k] = total
+        if total > 0:
+            Fi = np.linalg.inv(frames[k + 1])
+            com[k] = Fi[:3, :3] @ (moment / total) + Fi[:3, 3]
+    return mass, com
+
+
+def urdf_forward_mm(chain: UrdfChain, readings: np.ndarray) -> np.ndarray:
+    """The tip link origin (mm, base link) straight from the URDF joints (reference for tests and fk)."""
+    tree = chain.tree
+    path = _path(tree, chain.base_link, chain.tip_link)
+    vals = chain.reading_matrix @ np.asarray(readings, float) + chain.reading_offset
+    by_name = {j.name: v for j, v in zip(chain.axes, vals)}
+    T = np.eye(4)
+    for j in path:
+        v = by_name.get(j.name, 0.0)
+        T = T @ _to_mm(j.origin) @ _to_mm(joint_motion(j, v / 1000.0 if j.type == "prismatic" else v))
+    return T[:3, 3]
+
+
+def parameter_meaning(chain: UrdfChain) -> dict[str, str]:
+    """Which URDF quantity each kinematic parameter of the chain corrects (for reports and ``--free``)."""
+    out = {}
+    ax = chain.axes
+    for k, (j, L) in enumerate(zip(ax, chain.links)):
+        p = f"j{k + 1}"
+        if k + 1 < len(ax):
+            nx = ax[k + 1].name
+            out[f"{p}.theta_offset_rad"] = (f"zero of {j.name} (a rotation of {nx}'s origin about {j.name}'s axis)"
+                                            if j.type != "prismatic" else f"direction of {j.name}'s common normal")
+            out[f"{p}.d_mm"] = (f"{'travel of ' + j.name + ' / ' if j.type == 'prismatic' else ''}"
+                                f"position of {nx}'s origin along {j.name}'s axis (origin xyz of {nx})")
+            out[f"{p}.a_mm"] = f"distance between the axes of {j.name} and {nx} (origin xyz of {nx})"
+            out[f"{p}.alpha_rad"] = f"angle between the axes of {j.name} and {nx} (origin rpy / axis of {nx})"
+            out[f"{p}.beta_rad"] = (f"tilt of {nx}'s axis towards the common normal (origin rpy / axis of {nx}; "
+                                    "Hayati, the axes are nearly parallel)")
+        else:
+            for q in ("theta_offset_rad", "d_mm", "a_mm", "alpha_rad", "beta_rad"):
+                out[f"{p}.{q}"] = f"zero of {j.name} / pose of the tip link {chain.tip_link} on it"
+    for q in ("x_mm", "y_mm", "z_mm", "yaw_rad", "pitch_rad", "roll_rad"):
+        out[f"base.{q}"] = f"pose of {ax[0].name}'s axis in the measurement frame (origin of {ax[0].name} and above)"
+    for q in ("x_mm", "y_mm", "z_mm"):
+        out[f"tool.{q}"] = f"tool point on {chain.tip_link} (origins of the fixed joints after {ax[-1].name})"
+    return out

@@ -1,0 +1,100 @@
+"""The error contract of the command line (C8): option types checked at parse time, one line, exit 2; anything else
+is an internal error, one line naming the command and the exception, exit 3; atomic output files."""
+from __future__ import annotations
+
+import argparse
+import os
+import subprocess
+import sys
+
+import pytest
+
+from acq import argtypes, cli
+from calib.errors import RobocalError
+from calib.fileio import atomic_path, atomic_write_text
+
+
+@pytest.mark.parametrize("fn, raw", [
+    (argtypes.finite_float, "nan"), (argtypes.finite_float, "inf"), (argtypes.finite_float, "1e400"),
+    (argtypes.finite_float, "x"), (argtypes.positive_float, "0"), (argtypes.positive_float, "-5"),
+    (argtypes.nonneg_float, "-1"), (argtypes.positive_int, "0"), (argtypes.positive_int, "1.5"),
+    (argtypes.nonneg_int, "-1"), (argtypes.any_int, "9" * 4301), (argtypes.seed_int, "-1"),
+    (argtypes.int_range(1, 6), "7"), (argtypes.float_range(0, 1, low_open=True), "0"),
+])
+def test_bad_values_are_refused_with_a_reason(fn, raw):
+    with pytest.raises(argparse.ArgumentTypeError, match="must"):
+        fn(raw)
+
+
+@pytest.mark.parametrize("fn, raw, value", [
+    (argtypes.finite_float, "-1e300", -1e300), (argtypes.positive_float, "0.5", 0.5), (argtypes.nonneg_int, "0", 0),
+    (argtypes.positive_int, " 12 ", 12), (argtypes.float_range(0, 1), "1", 1.0), (argtypes.seed_int, "0", 0),
+])
+def test_good_values_pass(fn, raw, value):
+    assert fn(raw) == value
+
+
+def test_output_paths_are_checked_before_work(tmp_path):
+    assert argtypes.output_file("-") == "-"
+    assert argtypes.output_file(str(tmp_path / "a.json"))
+    with pytest.raises(argparse.ArgumentTypeError, match="does not exist"):
+        argtypes.output_file(str(tmp_path / "missing" / "a.json"))
+    with pytest.raises(argparse.ArgumentTypeError, match="is a directory"):
+        argtypes.output_file(str(tmp_path))
+    assert argtypes.output_dir(str(tmp_path / "new" / "deeper"))
+    (tmp_path / "f").write_text("x")
+    with pytest.raises(argparse.ArgumentTypeError, match="not a directory"):
+        argtypes.output_dir(str(tmp_path / "f"))
+    with pytest.raises(argparse.ArgumentTypeError, match="file not found"):
+        argtypes.existing_file(str(tmp_path / "nope.csv"))
+
+
+@pytest.mark.skipif(os.geteuid() == 0, reason="root writes anywhere")
+def test_read_only_directory_is_refused(tmp_path):
+    ro = tmp_path / "ro"
+    ro.mkdir()
+    ro.chmod(0o500)
+    try:
+        with pytest.raises(argparse.ArgumentTypeError, match="not writable"):
+            argtypes.output_file(str(ro / "x.json"))
+    finally:
+        ro.chmod(0o700)
+
+
+def test_atomic_write_leaves_old_content_on_failure(tmp_path):
+    out = tmp_path / "out.json"
+    atomic_write_text(out, "old")
+    with pytest.raises(RuntimeError):
+        with atomic_path(out) as tmp:
+            tmp.write_text("half")
+            raise RuntimeError("crash in the middle")
+    assert out.read_text() == "old" and sorted(p.name for p in tmp_path.iterdir()) == ["out.json"]
+    atomic_write_text(out, "new")
+    assert out.read_text() == "new"
+    with pytest.raises(RobocalError, match="cannot write"):
+        atomic_write_text(tmp_path / "missing" / "x", "y")
+
+
+def test_parse_errors_are_one_line(capsys):
+    assert cli.main(["fk", "--robot"]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("robocal: error: fk: ") and err.count("\n") == 1
+
+
+def test_last_resort_handler_names_command_and_exception(monkeypatch, capsys):
+    def boom(args):
+        raise ZeroDivisionError("division by zero")
+    from acq.commands import fk
+    monkeypatch.setattr(fk, "run", boom)
+    assert cli.main(["fk", "0", "0", "0", "0", "0", "0"]) == 3
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "'fk'" in err and "ZeroDivisionError" in err and "Traceback" not in err
+    assert cli.main(["fk", "0", "0", "0", "0", "0", "0", "--debug"]) == 3
+    err = capsys.readouterr().err
+    assert "Traceback" in err and err.strip().splitlines()[-1].startswith("robocal: internal error in 'fk'")
+
+
+def test_exit_codes_through_the_console_script():
+    r = subprocess.run([sys.executable, "-m", "acq.cli", "fk", "nan", "0", "0", "0", "0", "0"], capture_output=True,
+                       text=True, timeout=60)
+    assert r.returncode == 2 and r.stderr.count("\n") == 1 and "Traceback" not in r.stderr

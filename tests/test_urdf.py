@@ -1,0 +1,162 @@
+"""URDF import: the chain robocal builds from a URDF against Pinocchio's own reading of the same file."""
+import numpy as np
+import pytest
+
+from calib.errors import RobocalError
+from calib.kinematics import Kinematics
+from calib.robot import load_robot, robot_from_urdf
+from calib.units import DEG
+
+URDFS = "/work/shared/data/figaroh-urdfs"
+CASES = [("ur10_robot.urdf", None, None), ("tx40_mdh_modified.urdf", None, None),
+         ("tiago_no_hand.urdf", "base_footprint", "arm_7_link"), ("tiago_no_hand.urdf", "torso_lift_link", "head_2_link")]
+
+
+def _pin_tip(path, base, tip, names, q_by_name):
+    pin = pytest.importorskip("pinocchio")
+    model = pin.buildModelFromUrdf(path)
+    data = model.createData()
+    q = pin.neutral(model)
+    for name, v in q_by_name.items():
+        jid = model.getJointId(name)
+        q[model.joints[jid].idx_q] = v
+    pin.framesForwardKinematics(model, data, q)
+    Tb = data.oMf[model.getFrameId(base)] if base else pin.SE3.Identity()
+    Tt = data.oMf[model.getFrameId(tip)]
+    return (Tb.inverse() * Tt).translation * 1000.0
+
+
+def _tip_in_base(robot, readings):
+    """Tip point (mm) in the URDF base link: the chain with the base pose set to frame 0 in the base link."""
+    from calib.robot import rpy_from_matrix
+    kin = Kinematics(robot)
+    p = kin.nominal.copy()
+    F0 = robot.frame0_in_base
+    p[[kin.index[f"base.{k}"] for k in ("x_mm", "y_mm", "z_mm")]] = F0[:3, 3]
+    p[[kin.index[f"base.{k}"] for k in ("roll_rad", "pitch_rad", "yaw_rad")]] = rpy_from_matrix(F0[:3, :3])
+    return kin.points(robot.joints_from_readings(readings), p)
+
+
+@pytest.mark.parametrize("fname,base,tip", CASES)
+def test_chain_matches_pinocchio_on_random_configurations(fname, base, tip):
+    path = f"{URDFS}/{fname}"
+    robot = robot_from_urdf(path, base, tip)
+    rng = np.random.default_rng(7)
+    lo = np.clip(robot.limits_rad[:, 0], -np.pi, None)
+    hi = np.clip(robot.limits_rad[:, 1], None, np.pi)
+    for _ in range(20):
+        r = rng.uniform(lo, hi)          # readings = joints here (no mimic joint in these chains)
+        got = _tip_in_base(robot, r[None])[0]
+        si = {name: v / 1000.0 if pris else v for name, v, pris in zip(robot.joint_names, r, robot.prismatic)}
+        want = _pin_tip(path, base, tip or robot.name.split("-> ")[1].rstrip(")"), robot.joint_names, si)
+        np.testing.assert_allclose(got, want, atol=1e-6)
+
+
+def test_joint_names_and_kinds_are_kept():
+    robot = robot_from_urdf(f"{URDFS}/tiago_no_hand.urdf", tip_link="arm_7_link")
+    assert robot.joint_names == ("torso_lift_joint",) + tuple(f"arm_{k}_joint" for k in range(1, 8))
+    assert robot.prismatic.tolist() == [True] + [False] * 7
+    np.testing.assert_allclose(robot.limits_rad[0], [0.0, 350.0])
+    # torso lift and arm_1 are both vertical: the Hayati beta carries that link
+    assert robot.hayati[0]
+    assert "arm_1_joint" in robot.param_meaning["j1.a_mm"]
+
+
+def test_masses_are_the_urdf_inertials():
+    path = f"{URDFS}/ur10_robot.urdf"
+    robot = robot_from_urdf(path)
+    # ur_description UR10 link masses (shoulder 7.778 ... wrist_1, wrist_2 1.96)
+    np.testing.assert_allclose(robot.mass_kg[:5], [7.778, 12.93, 3.87, 1.96, 1.96], atol=1e-9)
+    # wrist_3 carries a fixed camera mount: Pinocchio folds the same bodies onto the joint
+    pin = pytest.importorskip("pinocchio")
+    model = pin.buildModelFromUrdf(path)
+    want = [model.inertias[model.getJointId(n)].mass for n in robot.joint_names]
+    np.testing.assert_allclose(robot.mass_kg, want, atol=1e-9)
+
+
+def test_mass_centre_is_where_the_urdf_puts_it():
+    """The centre of mass of the last link, carried through the chain, lands where the URDF frames put it."""
+    path = f"{URDFS}/ur10_robot.urdf"
+    robot = robot_from_urdf(path)
+    rng = np.random.default_rng(3)
+    r = rng.uniform(-2, 2, 6)
+    kin = Kinematics(robot)
+    fp = kin.forward(robot.joints_from_readings(r[None]))
+    com_world = fp.frame_R[0, -1] @ robot.com_mm[-1] + fp.frame_t[0, -1]
+    pin = pytest.importorskip("pinocchio")
+    model = pin.buildModelFromUrdf(path)
+    data = model.createData()
+    q = pin.neutral(model)
+    for name, v in zip(robot.joint_names, r):
+        q[model.joints[model.getJointId(name)].idx_q] = v
+    pin.forwardKinematics(model, data, q)
+    jid = model.getJointId(robot.joint_names[-1])
+    want = data.oMi[jid].act(model.inertias[jid].lever) * 1000.0
+    # frame 0 of the chain is the measurement frame's base pose (the base link here)
+    np.testing.assert_allclose(com_world, want, atol=1e-6)
+
+
+MIMIC = """<robot name="m">
+  <link name="b"/><link name="l1"/><link name="l2"/><link name="l3"/>
+  <joint name="j1" type="revolute"><parent link="b"/><child link="l1"/><axis xyz="0 0 1"/>
+    <limit lower="-3" upper="3" effort="1" velocity="1"/></joint>
+  <joint name="j2" type="revolute"><parent link="l1"/><child link="l2"/><origin xyz="0.3 0 0.1" rpy="0.2 0 0"/>
+    <axis xyz="0 1 0"/><mimic joint="j1" multiplier="-2" offset="0.1"/>
+    <limit lower="-3" upper="3" effort="1" velocity="1"/></joint>
+  <joint name="j3" type="prismatic"><parent link="l2"/><child link="l3"/><origin xyz="0.2 0.1 0" rpy="0 0.3 0"/>
+    <axis xyz="1 0 0"/><limit lower="0" upper="0.5" effort="1" velocity="1"/></joint>
+</robot>"""
+
+
+def test_mimic_joint_is_driven_by_the_joint_it_follows(tmp_path):
+    f = tmp_path / "m.urdf"
+    f.write_text(MIMIC)
+    robot = robot_from_urdf(f)
+    assert robot.reading_names == ("j1", "j3") and robot.n == 3
+    r = np.array([[0.4, 120.0]])
+    q1 = 0.4
+    q2 = -2 * q1 + 0.1
+    # independent: plain homogeneous products
+    def rz(a): c, s = np.cos(a), np.sin(a); return np.array([[c, -s, 0, 0], [s, c, 0, 0], [0, 0, 1, 0], [0, 0, 0, 1.]])
+    def ry(a): c, s = np.cos(a), np.sin(a); return np.array([[c, 0, s, 0], [0, 1, 0, 0], [-s, 0, c, 0], [0, 0, 0, 1.]])
+    def rx(a): c, s = np.cos(a), np.sin(a); return np.array([[1, 0, 0, 0], [0, c, -s, 0], [0, s, c, 0], [0, 0, 0, 1.]])
+    def tr(x, y, z): T = np.eye(4); T[:3, 3] = (x, y, z); return T
+    T = rz(q1) @ tr(300, 0, 100) @ rx(0.2) @ ry(q2) @ tr(200, 100, 0) @ ry(0.3) @ tr(120, 0, 0)
+    np.testing.assert_allclose(_tip_in_base(robot, r)[0], T[:3, 3], atol=1e-9)
+
+
+@pytest.mark.parametrize("text,match", [
+    (MIMIC.replace('<joint name="j3" type="prismatic"><parent link="l2"/><child link="l3"/>',
+                   '<joint name="j3" type="prismatic"><parent link="l2"/><child link="l1"/>'), "closed loop"),
+    (MIMIC.replace('<child link="l3"/>', '<child link="l9"/>'), "link 'l9' is not defined"),
+])
+def test_bad_urdf_is_one_line(tmp_path, text, match):
+    f = tmp_path / "bad.urdf"
+    f.write_text(text)
+    with pytest.raises(RobocalError, match=match) as e:
+        robot_from_urdf(f)
+    assert str(f) in str(e.value) and "line" in str(e.value)
+
+
+def test_unknown_link_lists_the_links():
+    with pytest.raises(RobocalError, match="tip link 'nowhere' is not in the URDF .*arm_7_link"):
+        robot_from_urdf(f"{URDFS}/tiago_no_hand.urdf", tip_link="nowhere")
+
+
+def test_several_leaves_are_listed():
+    with pytest.raises(RobocalError, match="moving leaves .*head_2_link.*arm_7_link.*--tip-link"):
+        robot_from_urdf(f"{URDFS}/tiago_no_hand.urdf")
+
+
+def test_fk_command_prints_the_tip_in_the_base_link(capsys):
+    from acq.cli import main
+    path = f"{URDFS}/tiago_no_hand.urdf"
+    rc = main(["fk", "--robot", path, "--tip-link", "arm_7_link", "--json", "100", "10", "20", "30", "40", "50",
+               "60", "70"])
+    assert rc == 0
+    import json
+    got = json.loads(capsys.readouterr().out)
+    r = [0.1] + [v * DEG for v in (10, 20, 30, 40, 50, 60, 70)]
+    robot = load_robot(path, tip_link="arm_7_link")
+    want = _pin_tip(path, None, "arm_7_link", None, dict(zip(robot.joint_names, r)))
+    np.testing.assert_allclose([got["x_mm"], got["y_mm"], got["z_mm"]], want, atol=1e-5)
