@@ -54,17 +54,24 @@ def demo_setup(twin: Twin) -> dict:
                      "gamma2_deg": round((b.yaw_rad - np.pi) / DEG, 2),
                      "sigma_arcsec": a.sigma_hz_rad / ARCSEC},
         "tool_target_mm": [50.0, 0.0, 100.0],
-        "extended_tool": {"A1_mm": [0.0, 0.0, 100.0], "A2_mm": [200.0, 0.0, 300.0]},
+        # A1 -> A2 about 570 mm: the angle a joint turns is read from this line (compliance, transmission error)
+        "extended_tool": {"A1_mm": [0.0, 0.0, 100.0], "A2_mm": [400.0, 0.0, 500.0]},
         "ruler": {"marks_mm": [0.0, 930.0, 1860.0],
                   "placements": [{"where": "1.2 m in front, left", "C_mm": [-300.0, 1200.0, 0.0], "dir": [1, 0, 0]},
                                  {"where": "1.8 m in front, turned", "C_mm": [-200.0, 1800.0, 0.0],
                                   "dir": [1, 0.15, 0]}]},
-        "compliance": {"3": {"lever_mm": 500.0, "loads_n": [0, 10, 20, 30, 45, 60, 75], "theta_i_deg": 0.0,
+        # loads: several below each joint's breakpoint torque (thesis 5.5.2) so the first slope is measured too
+        "compliance": {"3": {"lever_mm": 500.0, "loads_n": [0, 5, 10, 15, 20, 25, 35, 50, 75], "theta_i_deg": 0.0,
                              "pose_deg": list(READY_DEG)},
-                       "4": {"lever_mm": 500.0, "loads_n": [0, 5, 10, 15, 25, 35, 45], "theta_i_deg": 0.0,
-                             "pose_deg": list(READY_DEG)}},
+                       # joint 4 loaded with the forearm level and the wrist turned a quarter: its axis horizontal
+                       # and the lever (frame 4's x axis) level across it, so the weight turns it (at READY the axis
+                       # is vertical and no weight can); joints 5 and 6 at 90 deg put A1 -> A2 across the axis, so
+                       # joint 3's give under the same weight does not enter the angle measured about joint 4
+                       "4": {"lever_mm": 500.0, "loads_n": [0, 2, 4, 6, 8, 10, 15, 25, 35, 45], "theta_i_deg": 0.0,
+                             "pose_deg": [0.0, -90.0, 0.0, 90.0, 90.0, 90.0]}},
+        # link 2 level (joint 2 at 0 deg): the weight bends it across its length (at READY it hangs along it)
         "link": {"joint": 2, "gauges_x_mm": [150.0, 280.0, 400.0], "load_x_mm": 430.0, "loads_n": [0, 50, 100, 150],
-                 "second_moment_mm4": None, "pose_deg": list(READY_DEG)},
+                 "second_moment_mm4": None, "pose_deg": [0.0, 0.0, 90.0, 0.0, 0.0, 0.0]},
     }
 
 
@@ -86,7 +93,7 @@ def demo_plan(twin: Twin, seed: int, n_poses: int = DEMO_POSES, quick: bool = Tr
         "sweeps": {"points": 5, "span_deg": 60.0, "joints": [1, 2, 3, 4, 5, 6]},
         "poses": {"q_deg": np.round(q, 3).tolist()},
         "transmission": {"joints": [4, 6], "points": 25, "repeats": 2, "range_deg": {"4": [-150.0, 150.0], "6": [-150.0, 150.0]}},
-        "compliance": {"joints": [3, 4]},
+        "compliance": {"joints": [3, 4], "repeats": 3},
         "coupling": {"angle_deg": 10.0, "pairs": [[5, 6], [4, 6], [4, 5]]},
         "seed": seed,
     }
@@ -129,8 +136,9 @@ class DemoRig:
 
 
 def build_demo(db: str | Path, seed: int = 0, resume: bool = False, script: dict | None = None,
-               plan: dict | None = None, steps_filter=None, operator=None) -> DemoRig:
-    """Open (or create) the demo session in ``db`` and wire emulated devices, bench, operator and runner."""
+               plan: dict | None = None, steps_filter=None, operator=None, scenario: str | None = None) -> DemoRig:
+    """Open (or create) the demo session in ``db`` and wire emulated devices, bench, operator and runner.
+    ``scenario``: a twin scenario TOML (default: the default scenario); a resumed session keeps its own."""
     import can
 
     from acq.drivers import open_theodolite
@@ -150,15 +158,18 @@ def build_demo(db: str | Path, seed: int = 0, resume: bool = False, script: dict
         seed = plan_d.get("seed", seed)
         # a resumed emulated session continues with a fresh noise stream (the twin's truth is the same)
         seed_offset = 1 + len(store.done_keys())
+        scenario = json.loads(meta.get("metadata_json") or "{}").get("scenario_path")
     else:
         plan_d = None
         seed_offset = 0
-    twin = Twin(load_scenario(), seed=seed)
+    twin = Twin(load_scenario(scenario or None), seed=seed)
     if not resume:
         setup = demo_setup(twin)
         plan_d = plan or demo_plan(twin, seed)
         store = SessionStore.create(db, DEMO_TITLE, plan_d, setup, operator="scripted demo operator",
-                                    metadata={"emulated": True, "scenario": "default", "seed": seed})
+                                    metadata={"emulated": True, "scenario": "default" if not scenario else "file",
+                                              "scenario_path": str(Path(scenario).resolve()) if scenario else None,
+                                              "seed": seed})
     world = TwinWorld(twin, seed=seed * 1000 + seed_offset)
     tag = uuid.uuid4().hex[:8]
     names = []
@@ -188,7 +199,7 @@ def build_demo(db: str | Path, seed: int = 0, resume: bool = False, script: dict
         steps = [s for s in steps if steps_filter(s)]
 
     def inputs(step: Step) -> dict:
-        return bench.read_gauges(step) if step.procedure == "link_compliance" else {}
+        return bench.read_gauges(step)          # the step's gauges, if it has any
 
     op = operator or ScriptedOperator(script, inputs=inputs)
     from .stations import stations_from_store

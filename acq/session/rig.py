@@ -152,16 +152,9 @@ class EmulatedBench(Bench):
         w = self.world
         if step.pose_deg is not None:
             w.command(np.asarray(step.pose_deg, float) * DEG)
-        s = c3_setup(step, inputs, self._kin, w.robot.gravity_m_s2)
-        loads = [dict(ld) for ld in s.get("loads", [])]
-        if loads and inputs.get("load_kg") is not None:
-            loads[0]["mass_kg"] = float(inputs["load_kg"])
-        n = w.robot.n
-        direction = np.zeros(n)
-        for j, v in (s.get("load_direction") or {}).items():
-            direction[int(j) - 1] = float(v)
+        s = c3_setup(step.setup, step.pose_deg, inputs, self._kin)
         w.hang([HungMass(int(ld["link"]), tuple(float(x) for x in ld["point_mm"]), float(ld["mass_kg"]))
-                for ld in loads], direction)
+                for ld in s.get("loads", [])], load_directions(s, w.robot.n))
 
     def aim(self, target: TargetSpec) -> None:
         self.world.aim(self._Target(target.name, tool_mm=target.tool_mm, point_mm=target.point_mm,
@@ -169,38 +162,53 @@ class EmulatedBench(Bench):
 
     def read_gauges(self, step: Step, inputs: dict | None = None) -> dict:
         """What the step's dial gauges show (``<name>_mm``), with the step's loads hung at its pose."""
+        s = c3_setup(step.setup, step.pose_deg, inputs or {}, self._kin)
+        if not s.get("gauges"):
+            return {}
         self.prepare(step, inputs or {})
-        s = c3_setup(step, inputs or {}, self._kin, self.world.robot.gravity_m_s2)
         return {f"{g['name']}_mm": self.world.gauge_mm(int(g["link"]), g["point_mm"], g["axis"])
                 for g in s.get("gauges", [])}
 
 
-def c3_setup(step: Step, inputs: dict, kin, gravity_m_s2) -> dict:
-    """The step's physical set-up in the vocabulary of contract C3 (loads and gauges at points on links).
+def c3_setup(setup: dict, pose_deg, inputs: dict, kin) -> dict:
+    """A step's physical set-up in the vocabulary of contract C3 (loads and gauges at points on links), with the
+    operator's ``load_kg`` (when entered) as the mass of the first load.
 
-    Steps written before it are translated, by geometry only: a load ``load_n`` on a lever ``lever_mm`` of joint j
+    Steps written before C3 are translated, by geometry only: a load ``load_n`` on a lever ``lever_mm`` of joint j
     is a mass ``load_n / g`` at ``lever_mm`` along frame j's x axis (a point on link j); a load or a gauge at ``x``
     mm along link j is a point on the segment from joint j's centre (frame j-1) to frame j at the step's pose, gauges
     reading along gravity.  Whether the load turns a joint is then the geometry's business, not the step's.
     """
-    s = dict(step.setup)
-    if "loads" in s or "joint" not in s:
-        return s
-    j = int(s["joint"])
-    g = float(np.linalg.norm(gravity_m_s2))
-    load_n = float(inputs.get("load_n", s.get("load_n", 0.0)))
-    if "lever_mm" in s:                                                      # joint compliance
-        lever = float(inputs.get("lever_mm", s["lever_mm"]))
-        s["loads"] = [{"link": j, "point_mm": [lever, 0.0, 0.0], "mass_kg": load_n / g}]
-        s["load_direction"] = {str(j): s.get("load_direction", 0)} if not isinstance(s.get("load_direction"),
-                                                                                   dict) else s["load_direction"]
-    elif "load_x_mm" in s:                                                   # link compliance
-        along = _along_link(kin, step.pose_deg, j)
-        s["loads"] = [{"link": j, "point_mm": along(s["load_x_mm"]), "mass_kg": load_n / g}]
-        down = (np.asarray(gravity_m_s2, float) / g).tolist()
-        s["gauges"] = [{"name": f"gauge{i + 1}", "link": j, "point_mm": along(x), "axis": down}
-                       for i, x in enumerate(s.get("gauges_x_mm", []))]
+    s = dict(setup)
+    if "loads" not in s and "joint" in s:
+        j = int(s["joint"])
+        gravity = kin.robot.gravity_m_s2
+        g = float(np.linalg.norm(gravity))
+        load_n = float(inputs.get("load_n", s.get("load_n", 0.0)))
+        if "lever_mm" in s:                                                  # joint compliance
+            lever = float(inputs.get("lever_mm", s["lever_mm"]))
+            s["loads"] = [{"link": j, "point_mm": [lever, 0.0, 0.0], "mass_kg": load_n / g}]
+            if not isinstance(s.get("load_direction"), dict):
+                s["load_direction"] = {str(j): s.get("load_direction", 0)}
+        elif "load_x_mm" in s:                                               # link compliance
+            along = _along_link(kin, pose_deg, j)
+            s["loads"] = [{"link": j, "point_mm": along(s["load_x_mm"]), "mass_kg": load_n / g}]
+            down = (np.asarray(gravity, float) / g).tolist()
+            s["gauges"] = [{"name": f"gauge{i + 1}", "link": j, "point_mm": along(x), "axis": down}
+                           for i, x in enumerate(s.get("gauges_x_mm", []))]
+    loads = [dict(ld) for ld in s.get("loads", [])]
+    if loads and inputs.get("load_kg") is not None:
+        loads[0]["mass_kg"] = float(inputs["load_kg"])
+    s["loads"] = loads
     return s
+
+
+def load_directions(setup: dict, n: int) -> np.ndarray:
+    """(n,) +1 loading / -1 unloading / 0 per joint from ``setup["load_direction"]`` ({"3": 1})."""
+    d = np.zeros(n)
+    for j, v in (setup.get("load_direction") or {}).items():
+        d[int(j) - 1] = float(v)
+    return d
 
 
 def _along_link(kin, pose_deg, j: int):
