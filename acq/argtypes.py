@@ -162,3 +162,18 @@ def existing_file(raw: str) -> str:
     if not os.access(path, os.R_OK):
         raise _fail("is not readable", raw)
     return raw
+
+
+def effect_spec(raw: str) -> str:
+    """An ``--effect KIND:FIELD:...`` text whose fields are finite numbers (the effect registry checks the rest)."""
+    kind, *fields = str(raw).split(":")
+    if not kind:
+        raise _fail("must start with an effect kind (KIND:FIELDS)", raw)
+    for i, field in enumerate(fields, 1):
+        try:
+            value = float(field)
+        except ValueError:
+            raise _fail(f"field {i} must be a number", raw) from None
+        if not math.isfinite(value) or abs(value) > 1e6:
+            raise _fail(f"field {i} must be a finite number of at most 1e6", raw)
+    return raw

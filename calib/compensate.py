@@ -22,6 +22,7 @@ import numpy as np
 
 from .effects import PoseContext, effect_from_spec, effect_spec
 from .errors import RobocalError
+from .fileio import atomic_write_text
 from .identify import Identification
 from .jsonfile import read_json
 from .model import MeasurementModel
@@ -84,9 +85,9 @@ def model_document(model: MeasurementModel, ident: Identification, truth: dict[s
 def save_model(path: str | Path, model: MeasurementModel, ident: Identification,
                robot_toml: str | Path | None = None, truth: dict[str, float] | None = None) -> dict:
     doc = model_document(model, ident, truth)
-    Path(path).write_text(json.dumps(doc, indent=1), encoding="utf-8")
+    atomic_write_text(path, json.dumps(doc, indent=1))
     if robot_toml:
-        Path(robot_toml).write_text(doc["robot_toml"], encoding="utf-8")
+        atomic_write_text(robot_toml, doc["robot_toml"])
     return doc
 
 

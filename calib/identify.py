@@ -10,9 +10,10 @@ The pipeline:
    every translation of the chain (link lengths a, offsets d, base position, tool point), so one linear solve gives them;
 2. **identifiability** — the whitened Jacobian of the free parameters is analysed (:mod:`calib.identifiability`);
    undeterminable combinations are fixed automatically and reported in words;
-3. **nonlinear least squares** — trust-region reflective with the model's analytic Jacobian and a robust loss; poses
-   whose whitened residual is implausible (chi-square, 99.99 %) are flagged as gross errors, removed and the fit is
-   repeated without the robust loss;
+3. **nonlinear least squares** — trust-region reflective with the model's analytic Jacobian; a first fit with a
+   robust loss shows the poses whose whitened residual is implausible (chi-square, 99.99 %): they are flagged, and
+   left out only in ``reject`` mode when they do not cluster in a pose condition (:mod:`calib.outliers`); the final
+   fit uses plain least squares or the loss asked for (Huber, Cauchy);
 4. **uncertainty** — covariance ``(J^T W J)^-1`` of the kept parameters (inflated by the reduced chi-square when that
    exceeds 1), standard deviations and correlations, with |rho| > 0.9 flagged.
 """
@@ -27,9 +28,8 @@ from .effects import PoseContext
 from .errors import RobocalError
 from .identifiability import Identifiability, analyse
 from .model import MeasurementModel
+from .outliers import OutlierReport, check_mode, decide, pose_conditions
 from .theodolite import Station
-
-GROSS_P = 1e-4            # per-pose probability below which a residual is called a gross error
 
 
 @dataclass
@@ -117,6 +117,7 @@ class Identification:
     outliers: list[int]               # 0-based pose indices flagged as gross errors
     n_obs: int
     stations: list[Station] | None = None
+    outlier_report: OutlierReport | None = None    # flagged, rejected, cluster (calib.outliers)
 
     @property
     def sigma(self) -> np.ndarray:
@@ -295,14 +296,22 @@ def linear_translations(model: MeasurementModel, obs: PointObservations, theta: 
     return th
 
 
-def identify(model: MeasurementModel, obs: PointObservations | AngleObservations, free: list[str] | None = None,
-             theta0: np.ndarray | None = None, robust: bool = True,
-             priors: dict[str, tuple[float, float]] | None = None, start: bool = True,
-             max_nfev: int = 200) -> Identification:
-    """Identify the free parameters from the observations (see the module docstring for the pipeline)."""
-    priors = priors or {}
-    theta0 = np.array(model.nominal if theta0 is None else theta0, float)
-    prob = _Problem(model, obs, theta0, priors)
+@dataclass
+class _Setup:
+    """What the steps of :func:`identify` share: the problem, the free and kept sets, the start point."""
+
+    prob: _Problem
+    free: list[str]
+    per: int                       # observations per pose
+    theta: np.ndarray | None = None
+    ident: Identifiability | None = None
+
+    @property
+    def m_obs(self) -> int:
+        return self.prob.obs.n * self.per
+
+
+def _free_set(model: MeasurementModel, prob: _Problem, obs, free: list[str] | None) -> list[str]:
     if free is None:
         free = default_free(model)
         if prob.angles:
@@ -310,28 +319,32 @@ def identify(model: MeasurementModel, obs: PointObservations | AngleObservations
     unknown = [n for n in free if n not in prob.names]
     if unknown:
         raise RobocalError(f"identification: unknown parameter {unknown[0]!r} in the free set")
-    if start and not prob.angles:
-        prob.theta0[: model.P] = initial_base(model, obs.q_rad, obs.points_mm, obs.ctx, theta0)
+    return free
+
+
+def _check_enough_poses(model: MeasurementModel, st: _Setup, priors: dict) -> None:
+    """Too few observations for the request?  Count what a rich experiment could identify (random poses)."""
+    if st.m_obs >= len(st.free):
+        return
+    obs = st.prob.obs
+    lim = model.robot.limits_rad
+    rng = np.random.default_rng(0)
+    rich_q = lim[:, 0] + (lim[:, 1] - lim[:, 0]) * rng.random((max(40, len(st.free)), model.robot.n))
+    rich = obs.subset(np.zeros(len(rich_q), int))
+    rich.q_rad = rich_q
+    free_idx = [st.prob.names.index(n) for n in st.free]
+    Jr = _Problem(model, rich, st.prob.theta0, priors).residuals(st.prob.theta0)[1][:, free_idx]
+    k = analyse(Jr, st.free).kept
+    if st.m_obs + len(priors) < len(k):
+        raise RobocalError(f"identification: {st.m_obs} observations from {obs.n} poses for {len(k)} identifiable "
+                           f"parameters; measure at least {int(np.ceil(len(k) / st.per))} poses")
+
+
+def _identifiability(model: MeasurementModel, st: _Setup, priors: dict, start: bool) -> None:
+    """Step 2 (and Chapter 6's linear step for the start): which free parameters the data determine."""
+    prob, obs = st.prob, st.prob.obs
     theta = prob.theta0.copy()
-    free_idx = [prob.names.index(n) for n in free]
-    per = 3 if not prob.angles else 2 * len(obs.stations)
-    m_obs = obs.n * per
-
-    if m_obs < len(free):
-        # too few observations for the request? Count what a rich experiment could identify (random poses)
-        lim = model.robot.limits_rad
-        rng = np.random.default_rng(0)
-        rich_q = lim[:, 0] + (lim[:, 1] - lim[:, 0]) * rng.random((max(40, len(free)), model.robot.n))
-        rich = obs.subset(np.zeros(len(rich_q), int))
-        rich.q_rad = rich_q
-        Jr = _Problem(model, rich, theta, priors).residuals(theta)[1][:, free_idx]
-        k = analyse(Jr, free).kept
-        if m_obs + len(priors) < len(k):
-            raise RobocalError(f"identification: {m_obs} observations from {obs.n} poses for {len(k)} identifiable "
-                               f"parameters; measure at least {int(np.ceil(len(k) / per))} poses")
-
-    # identifiability of the requested set, with the reason where a joint barely moves
-    r, J = prob.residuals(theta)
+    free_idx = [prob.names.index(n) for n in st.free]
     ranges = np.ptp(obs.q_rad, axis=0)
 
     def rejac(k):
@@ -341,74 +354,112 @@ def identify(model: MeasurementModel, obs: PointObservations | AngleObservations
         o2.q_rad[:, k] = np.linspace(lo, hi, obs.n)
         return _Problem(model, o2, theta, priors).residuals(theta)[1][:, free_idx]
 
-    ident = analyse(J[:, free_idx], free, rejac, ranges, fix_preference)
+    def run():
+        return analyse(prob.residuals(theta)[1][:, free_idx], st.free, rejac, ranges, fix_preference)
+
+    ident = run()
     if start and not prob.angles:
         # Chapter 6's linear step for the translations that stay free (held ones keep their design values), then
         # the analysis again at this better point: a null tool on the flange axis hides the wrist, for example
         for _ in range(2):
             trans = [n for n in ident.kept if n.endswith("_mm") and n in model.kin.index]
             theta[: model.P] = linear_translations(model, obs, prob.theta0[: model.P], trans)
-            r, J = prob.residuals(theta)
-            ident = analyse(J[:, free_idx], free, rejac, ranges, fix_preference)
+            ident = run()
             if all(n in trans for n in ident.kept if n.endswith("_mm") and n in model.kin.index):
                 break
         held = [prob.names.index(n) for n in ident.fixed]
         theta[held] = prob.theta0[held]
-    kept = ident.kept
-    if len(kept) > m_obs + len(priors):
-        raise RobocalError(f"identification: {m_obs} observations for {len(kept)} identifiable parameters; "
-                           f"measure at least {int(np.ceil(len(kept) / per))} poses")
-    kidx = np.array([prob.names.index(n) for n in kept], int)
+    if len(ident.kept) > st.m_obs + len(priors):
+        raise RobocalError(f"identification: {st.m_obs} observations for {len(ident.kept)} identifiable parameters; "
+                           f"measure at least {int(np.ceil(len(ident.kept) / st.per))} poses")
+    st.theta, st.ident = theta, ident
 
-    def solve(problem, x0, loss):
-        def fun(x):
-            th = theta_full.copy()
-            th[kidx] = x
-            return problem.residuals(th, jac=False)[0]
 
-        def jac(x):
-            th = theta_full.copy()
-            th[kidx] = x
-            return problem.residuals(th)[1][:, kidx]
+def _solve(problem: _Problem, theta_full: np.ndarray, kidx: np.ndarray, loss: str, max_nfev: int) -> np.ndarray:
+    """Step 3: trust-region least squares over the kept parameters (the rest held in ``theta_full``)."""
+    def fun(x):
+        th = theta_full.copy()
+        th[kidx] = x
+        return problem.residuals(th, jac=False)[0]
 
-        res = optimize.least_squares(fun, x0, jac=jac, method="trf", x_scale="jac", loss=loss, f_scale=3.0,
-                                     max_nfev=max_nfev)
-        return res.x
+    def jac(x):
+        th = theta_full.copy()
+        th[kidx] = x
+        return problem.residuals(th)[1][:, kidx]
 
-    theta_full = theta.copy()
-    x = solve(prob, theta[kidx], "soft_l1" if robust else "linear")
-    theta_full[kidx] = x
-    outliers: list[int] = []
-    if robust:
-        r, _ = prob.residuals(theta_full, jac=False)
-        chi = (r[: obs.n * per].reshape(obs.n, per) ** 2).sum(1)
-        from scipy import stats        # imported here: it is slow to import and only this step needs it
+    res = optimize.least_squares(fun, theta_full[kidx], jac=jac, method="trf", x_scale="jac", loss=loss,
+                                 f_scale=3.0, max_nfev=max_nfev)
+    out = theta_full.copy()
+    out[kidx] = res.x
+    return out
 
-        # robust scale: an incomplete model inflates every residual alike; a gross error stands out of the rest
-        scale = max(1.0, float(np.median(chi) / stats.chi2.median(per)))
-        limit = stats.chi2.isf(GROSS_P, per) * scale
-        outliers = [int(i) for i in np.flatnonzero(chi > limit)]
-        if outliers:
-            keep_poses = np.setdiff1d(np.arange(obs.n), outliers)
-            prob = _Problem(model, obs.subset(keep_poses), theta0, priors)
-            prob.theta0 = theta_full.copy()
-        x = solve(prob, theta_full[kidx], "linear")
-        theta_full[kidx] = x
-    r, J = prob.residuals(theta_full)
+
+def pose_chi2(problem: _Problem, theta: np.ndarray, per: int) -> np.ndarray:
+    """Whitened residual sum of squares per pose (priors left out)."""
+    r, _ = problem.residuals(theta, jac=False)
+    return (r[: problem.obs.n * per].reshape(problem.obs.n, per) ** 2).sum(1)
+
+
+def _outlier_step(model: MeasurementModel, st: _Setup, kidx, theta, mode: str, labels, priors, max_nfev):
+    """Step 3b: a robust (soft L1) fit to see the gross errors, the shared decision (:mod:`calib.outliers`), and the
+    problem the final fit runs on (without the rejected poses)."""
+    prob, obs = st.prob, st.prob.obs
+    if mode == "off":
+        return prob, theta, OutlierReport("off")
+    th_rob = _solve(prob, theta, kidx, "soft_l1", max_nfev)
+    report = decide(mode, pose_chi2(prob, th_rob, st.per), st.per, pose_conditions(obs.q_rad, obs.ctx, labels))
+    if report.rejected:
+        keep = np.setdiff1d(np.arange(obs.n), report.rejected)
+        prob = _Problem(model, obs.subset(keep), prob.theta0[: model.P], priors)
+        prob.theta0 = th_rob.copy()
+    return prob, th_rob, report
+
+
+def _uncertainty(model: MeasurementModel, prob: _Problem, theta: np.ndarray, kidx: np.ndarray):
+    """Step 4: covariance (inflated by the reduced chi-square above 1), reduced chi-square, unweighted RMS."""
+    r, J = prob.residuals(theta)
     Jk = J[:, kidx]
     dof = max(1, len(r) - len(kidx))
     red = float(r @ r / dof)
-    cov_k = np.linalg.pinv(Jk.T @ Jk) * max(1.0, red)
     cov = np.zeros((len(prob.names), len(prob.names)))
-    cov[np.ix_(kidx, kidx)] = cov_k
+    cov[np.ix_(kidx, kidx)] = np.linalg.pinv(Jk.T @ Jk) * max(1.0, red)
     # unweighted residual RMS (mm for points, rad for angles)
     if not prob.angles:
-        pred = model.points(prob.obs.q_rad, prob.obs.ctx, theta_full[: model.P])
+        pred = model.points(prob.obs.q_rad, prob.obs.ctx, theta[: model.P])
         rms = float(np.sqrt(np.mean(np.sum((prob.obs.points_mm - pred) ** 2, axis=1))))
     else:
-        sig = np.concatenate([[s.sigma_hz_rad, s.sigma_v_rad] for s in prob.stations(theta_full)])
+        sig = np.concatenate([[s.sigma_hz_rad, s.sigma_v_rad] for s in prob.stations(theta)])
         raw = r[: prob.obs.n * len(sig)].reshape(prob.obs.n, -1) * sig
         rms = float(np.sqrt(np.mean(raw ** 2)))
+    return cov, red, rms, len(r)
+
+
+def identify(model: MeasurementModel, obs: PointObservations | AngleObservations, free: list[str] | None = None,
+             theta0: np.ndarray | None = None, robust: bool = True,
+             priors: dict[str, tuple[float, float]] | None = None, start: bool = True,
+             max_nfev: int = 200, outliers: str = "flag", loss: str = "linear",
+             labels: dict[str, list] | None = None) -> Identification:
+    """Identify the free parameters from the observations (see the module docstring for the pipeline).
+
+    ``outliers``: ``flag`` (report, keep), ``reject`` (leave out flagged poses that do not cluster) or ``off``
+    (``robust=False`` is ``off``, as before); ``loss``: scipy's ``linear``, ``huber``, ``cauchy`` or ``soft_l1`` for
+    the final fit; ``labels``: per-pose groups (station, target) the outlier cluster test also looks at.
+    """
+    check_mode(outliers, loss)
+    priors = priors or {}
+    theta0 = np.array(model.nominal if theta0 is None else theta0, float)
+    prob = _Problem(model, obs, theta0, priors)
+    st = _Setup(prob, _free_set(model, prob, obs, free), 3 if not prob.angles else 2 * len(obs.stations))
+    if start and not prob.angles:
+        prob.theta0[: model.P] = initial_base(model, obs.q_rad, obs.points_mm, obs.ctx, theta0)
+    _check_enough_poses(model, st, priors)
+    _identifiability(model, st, priors, start)
+    kept = st.ident.kept
+    kidx = np.array([prob.names.index(n) for n in kept], int)
+    prob, theta, report = _outlier_step(model, st, kidx, st.theta, outliers if robust else "off", labels, priors,
+                                        max_nfev)
+    theta = _solve(prob, theta, kidx, loss, max_nfev)
+    cov, red, rms, n_obs = _uncertainty(model, prob, theta, kidx)
     fixed = [n for n in prob.names if n not in kept]
-    return Identification(prob.names, theta_full, kept, fixed, cov, ident, rms, red, outliers, len(r),
-                          prob.stations(theta_full))
+    return Identification(prob.names, theta, kept, fixed, cov, st.ident, rms, red, report.flagged, n_obs,
+                          prob.stations(theta), report)

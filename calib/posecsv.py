@@ -22,6 +22,7 @@ Unknown columns are ignored with a warning; a malformed row is an error naming t
 from __future__ import annotations
 
 import csv
+import io
 import math
 import warnings
 from dataclasses import dataclass, field
@@ -30,6 +31,7 @@ from pathlib import Path
 import numpy as np
 
 from .errors import RobocalError
+from .fileio import atomic_write_text
 from .units import DEG
 
 
@@ -155,8 +157,9 @@ def write_pose_csv(path: str | Path, q_rad: np.ndarray, points_mm: np.ndarray | 
         cols.append(k)
         data.append(np.asarray(v, float).reshape(len(q), -1))
     arr = np.hstack(data)
-    with open(path, "w", newline="", encoding="utf-8") as fh:
-        w = csv.writer(fh)
-        w.writerow(cols)
-        for row in arr:
-            w.writerow([f"{v:.6f}" for v in row])
+    fh = io.StringIO(newline="")
+    w = csv.writer(fh)
+    w.writerow(cols)
+    for row in arr:
+        w.writerow([f"{v:.6f}" for v in row])
+    atomic_write_text(path, fh.getvalue())

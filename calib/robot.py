@@ -195,6 +195,26 @@ class Robot:
         q = np.atleast_2d(theta_rad)
         return np.all((q >= self.limits_rad[:, 0]) & (q <= self.limits_rad[:, 1]), axis=-1)
 
+    def check_readings(self, q_edge: np.ndarray, where: str) -> None:
+        """Refuse joint readings (degrees, mm for a prismatic joint) that no robot of this description can give.
+
+        A revolute reading beyond two turns, or a prismatic one further outside its limits than the stroke, is a
+        typing or unit mistake (``fk 1e308 ...``, radians for degrees) rather than a pose: one line naming the joint.
+        """
+        from .errors import RobocalError
+        q = np.atleast_2d(np.asarray(q_edge, float))
+        lim = self.limits_rad / self.edge_scale[:, None]
+        span = lim[:, 1] - lim[:, 0]
+        lo = np.where(self.prismatic, lim[:, 0] - span, -720.0)
+        hi = np.where(self.prismatic, lim[:, 1] + span, 720.0)
+        bad = ~np.isfinite(q) | (q < lo) | (q > hi)
+        if bad.any():
+            row, j = map(int, np.argwhere(bad)[0])
+            unit = "mm" if self.prismatic[j] else "deg"
+            pose = f"pose {row + 1}: " if q.shape[0] > 1 else ""
+            raise RobocalError(f"{where}: {pose}joint {j + 1} reading {q[row, j]:g} {unit} is outside "
+                               f"{lo[j]:g}..{hi[j]:g} {unit} (a typing or unit mistake?)")
+
 
 def _coupling_matrix(chk: Checker, c: dict, n: int) -> np.ndarray:
     if c["matrix"] is not None:

@@ -43,13 +43,14 @@ def test_reference_replies_decode():
     r = gc.decode_reply(b"%R1P,0,0:0,1996,'07','19','10','13','2f'")
     # bytes are hex (TPS1200 manual §3.2.1, GeoComPy Byte.parse): the manual's example is 1996-07-25 16:19:47
     assert gc.decode_values(gc.RPCS[5008], r.fields) == (1996, 0x07, 0x19, 0x10, 0x13, 0x2F)
-    r = gc.decode_reply(b"%R1P,3081,5:")
-    assert (r.rc_com, r.trid) == (3081, 5)
+    r = gc.decode_reply(b"%R1P,3081,5:0")
+    assert (r.rc_com, r.trid, r.rc) == (3081, 5, 0)
 
 
 @pytest.mark.parametrize("bad", [
     b"%R1P,0,0:", b"%R1P,0,0", b"%R1Q,0,0:0", b"R1P,0,0:0", b"%R1P,0,0:0,1.5\x00", b"%R1P,0,0:0,\xff",
-    b"%R1P,0,0,12345:0", b"%R1P, 0,0:0", b"%R1P,0,0:0,1.0,2.0,",
+    b"%R1P,0,0,12345:0", b"%R1P, 0,0:0", b"%R1P,0,0:0,1.0,2.0,", b"%R1P,3081,5:", b"%R1P,0,0:0,1e400,1.0",
+    b"%R1P,0,0:0,1.0,-1e999", b"%R1P,0,0:0,inf,1.0", b"%R1P,0,0:0,nan,1.0",
 ])
 def test_garbage_is_rejected(bad):
     with pytest.raises(gc.CodecError):
@@ -61,7 +62,7 @@ def test_missing_requested_checksum_is_an_error():
     for frame in (b"%R1P,0,0:0", b"%R1P,43,40194:0,4.358392574848940,1.634123456789010", b"%R1P,3101,0:0,1"):
         with pytest.raises(gc.CodecError):
             gc.decode_reply(frame, expect_checksum=True)
-    assert gc.decode_reply(b"%R1P,3110,4:", expect_checksum=True).rc_com == 3110     # instrument without CRC
+    assert gc.decode_reply(b"%R1P,3110,4:0", expect_checksum=True).rc_com == 3110    # instrument without CRC
 
 
 @settings(max_examples=200)
@@ -102,6 +103,10 @@ def _ask(dev: GeoComDevice, line: bytes) -> bytes:
     return dev.read_output()
 
 
+def _with_crc(head: bytes, body: bytes) -> bytes:
+    return head + b"," + str(crc16_arc_bitwise(head + b":" + body)).encode() + b":" + body + b"\r\n"
+
+
 @pytest.fixture
 def dev():
     return GeoComDevice(quiet_world(), "A")
@@ -118,9 +123,14 @@ def dev():
     (b"%R1Q,2006:1\r\n", b"%R1P,0,0:0\r\n"),
     (b"%R1Q,2008:1,1\r\n", b"%R1P,0,0:0\r\n"),
     (b"%R1Q,0,0,10948:\r\n", b"%R1P,0,0,18235:0\r\n"),
-    (b"%R1Q,0,0,10949:\r\n", b"%R1P,3101,0,20891:\r\n".replace(b"20891", str(crc16_arc_bitwise(b"%R1P,3101,0:")).encode())),
-    (b"%R1Q,4242,5:\r\n", b"%R1P,3081,5:\r\n"),
-    (b"hello\r\n", b"%R1P,3080,0:\r\n"),
+    (b"%R1Q,0,0,10949:\r\n", _with_crc(b"%R1P,3101,0", b"0")),
+    (b"%R1Q,4242,5:\r\n", b"%R1P,3081,5:0\r\n"),
+    (_with_crc(b"%R1Q,4242,5", b""), _with_crc(b"%R1P,3081,5", b"0")),
+    (b"hello\r\n", b"%R1P,3080,0:0\r\n"),
+    (b"%R1Q,107:" + b"9" * 4301 + b"\r\n", b"%R1P,0,0:2\r\n"),
+    (b"%R1Q,9027:1e400,1.5,0,0,0\r\n", b"%R1P,0,0:2\r\n"),
+    (b"%R1Q,9027:nan,1.5,0,0,0\r\n", b"%R1P,0,0:2\r\n"),
+    (b"%R1Q," + b"9" * 4301 + b":\r\n", b"%R1P,3080,0:0\r\n"),
     (b"c\r\n", b"?\r\n"),
     (b"\n\r\n\r\n", b""),
     (b"%R1Q,2107:9\r\n", b"%R1P,0,0:2\r\n"),

@@ -36,6 +36,7 @@ def test_geocompy_connects_and_reads_the_twin(checksum):
             angle = tps.tmc.get_angle()
             full = tps.tmc.get_angle_inclination()
             face = tps.tmc.get_face()
+            unknown = tps.request(4242)          # an RPC the emulator does not know: a reply GeoComPy can parse
     # the connect sequence of GeoComPy 1.0: LF, 0, 108, 5004, 5003, 110, 5034
     rpcs = [int(q.split(b",")[1].split(b":")[0]) for q in dev.requests if q.startswith(b"%R1Q")]
     assert rpcs[:6] == [0, 108, 5004, 5003, 110, 5034]
@@ -47,6 +48,8 @@ def test_geocompy_connects_and_reads_the_twin(checksum):
     assert abs(float(angle.params[0]) - hz) < 1e-12 and abs(float(angle.params[1]) - v) < 1e-12
     assert abs(float(full.params[0]) - hz) < 1e-12
     assert face.params.value == 0 and face.error == 0
+    from geocompy.geo.gctypes import GeoComCode
+    assert unknown.error == GeoComCode.COM_PROC_UNAVAIL, unknown
 
 
 def test_pty_unplug_mid_frame_is_a_clear_link_error():

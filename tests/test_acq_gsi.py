@@ -42,9 +42,43 @@ def test_real_gsi_lines(line, point, hz, v, sd):
     "21.102+1792086", "21.102+17920860X", "21.102*17920860 ", "*21.102+17920860 ", "21.102+1792\x010860 ",
     "21.10Z+17920860 ",
 ])
-def test_malformed_gsi_rejected(bad):
+def test_malformed_gsi_never_becomes_a_value(bad):
     with pytest.raises(gsi.GsiError):
-        gsi.parse_block(bad)
+        words = gsi.parse_block(bad)
+        assert [w.known for w in words] == [False]
+        words[0].angle_rad()
+
+
+def test_unknown_word_keeps_the_rest_of_its_block():
+    """'/' in a remark, '?' in a DNA code, '_' in a point name are read; a word that breaks the grammar is kept as
+    unknown (raw characters) and its neighbours still count."""
+    line = ("110012+PT_4/7?A 21.102+17920860 71....+AB/CD?_x 22.1x2+07567500 31..00+00003387 "
+            "41....+?..00012 ")
+    words = gsi.parse_block(line)
+    assert [w.wi for w in words] == [11, 21, 71, 22, 31, 41]
+    assert words[0].text() == "PT_4/7?A" and words[2].text() == "AB/CD?_x" and words[5].text() == "?..00012"
+    assert abs(words[1].angle_rad() - 179.20860 * GON) < 1e-12 and words[4].length_m() == 3.387
+    unknown = words[3]
+    assert (unknown.known, unknown.raw) == (False, "22.1x2+07567500 ")
+    with pytest.raises(gsi.GsiError, match="does not follow the GSI grammar"):
+        unknown.angle_rad()
+    with pytest.raises(gsi.GsiError, match="not numeric"):
+        gsi.parse_block("22.102+0756Z500 ")[0].angle_rad()
+    bad_byte = gsi.parse_block(b"21.102+17920860 22.102+075\xe97500 ")
+    assert bad_byte[0].known and not bad_byte[1].known
+
+
+def test_exactly_400_gon_is_a_valid_reading():
+    from acq.drivers.gsi import _reading
+    r = _reading("theodolite B", "GET/M/WI21/WI22", gsi.parse_block("21.102+40000000 ")[0].angle_rad(),
+                 100 * GON, 0.0, 0.0, b"")
+    assert r.hz_rad == 0.0
+    with pytest.raises(ProtocolError, match="outside 0..400 gon"):
+        _reading("theodolite B", "GET/M/WI21/WI22", gsi.parse_block("21.102+40000001 ")[0].angle_rad(),
+                 100 * GON, 0.0, 0.0, b"")
+    with pytest.raises(ProtocolError, match="outside 0..400 gon"):
+        _reading("theodolite B", "GET/M/WI21/WI22", gsi.parse_block("22.102-00000001 ")[0].angle_rad(),
+                 100 * GON, 0.0, 0.0, b"")
 
 
 @given(st.floats(0, 2 * math.pi - 1e-6), st.sampled_from(["gon", "deg", "dms"]), st.booleans())

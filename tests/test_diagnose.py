@@ -160,3 +160,25 @@ def test_tiago_bad_row(tmp_path):
 def test_validate_option_errors(args, msg, capsys):
     assert main(args) == 2
     assert msg in capsys.readouterr().err
+
+
+def test_outliers_reject_blunders_and_identify_gives_the_same_geometric_fit():
+    from calib.diagnose.gap import geometric_free
+    from calib.identify import identify
+    from calib.model import MeasurementModel
+
+    d, _ = make_case_data(Case(None, None, None, 0.0, seed=21, n_poses=80))
+    bad = [5, 33, 61]
+    d.points_mm[bad] += [2.0, -3.0, 2.5]
+    diag = diagnose(d, level="full", max_effects=0, outliers="reject")
+    j = diag.to_json()
+    assert j["outliers"]["rejected"] == [i + 1 for i in bad] and j["outliers"]["cluster"] is None
+    assert diag.data.n == 77
+    model = MeasurementModel(d.robot)
+    idn = identify(model, d.observations(), free=geometric_free(model, "full"), outliers="reject")
+    P = model.P
+    q = d.q_rad[:20]
+    gap = model.points(q, theta=idn.theta[:P]) - model.points(q, theta=diag.geometric.all_fit.theta[:P])
+    assert np.abs(gap).max() < 1e-3
+    flag = diagnose(d, level="full", max_effects=0).to_json()["outliers"]
+    assert flag["mode"] == "flag" and flag["flagged"] == [i + 1 for i in bad] and flag["rejected"] == []

@@ -1,11 +1,15 @@
 """Each non-geometric effect shows its own signature, and its Jacobian matches finite differences."""
+from importlib import resources
+
 import numpy as np
 import pytest
 
 from calib.effects import (Backlash, CrossCoupling, JointCompliance, LinkCompliance, ThermalDrift,
                            TransmissionError, thesis_effects)
 from calib.model import MeasurementModel
-from calib.units import DEG, G0_M_S2
+from calib.units import DEG, G0_M_S2, NM_PER_LBIN
+from tests.fakes import thesis_puma as fake
+from tests.fakes.thesis_puma import ThesisPuma
 
 
 def poses(rng, n=40):
@@ -65,27 +69,34 @@ def test_joint_compliance_follows_gravity_torque(puma, rng):
     m = MeasurementModel(puma, [JointCompliance(3, k)])
     q = poses(rng)
     ev = m.evaluate(q)
-    tau3 = gravity_torque_by_virtual_work(m, q)[:, 2]
+    arm = ThesisPuma.from_toml(resources.files("calib") / "data" / "puma560.toml")
+    tau3 = np.array([arm.gravity_torques(qi)[2] for qi in q])          # plain cross products, not the model
     np.testing.assert_allclose(ev.theta_rad[:, 2] - q[:, 2], tau3 / k, rtol=1e-6, atol=1e-12)
     # a payload adds its own torque: more sag
     heavy = m.evaluate(q, m.context(len(q), payload_kg=5.0))
     assert np.all(np.abs(heavy.theta_rad[:, 2] - q[:, 2]) >= np.abs(ev.theta_rad[:, 2] - q[:, 2]) - 1e-12)
 
 
-def test_two_slopes_and_dead_zone(puma):
-    c1, c2, tb, h = 1 / 13000.0, 1 / 11000.0, 11.3, 0.005 * DEG
-    m = MeasurementModel(puma, [JointCompliance(3, 1 / c1, 1 / c2, tb, h)])
-    q = np.zeros((4, 6))
-    tau = np.array([5.0, 20.0, 20.0, -20.0])
-    ctx = m.context(4, joint_torque_nm=np.outer(tau, [0, 0, 1, 0, 0, 0]),
-                    load_direction=np.outer([1, 1, -1, 1], np.ones(6)))
-    base = m.loads(m.kin.forward(q), m.context(4)).joint_torque_nm[:, 2]
-    d = m.evaluate(q, ctx).theta_rad[:, 2]
-    t = tau + base
-    expect = np.where(np.abs(t) <= tb, c1 * t, np.sign(t) * (c1 * tb + c2 * (np.abs(t) - tb)))
-    expect -= 0.5 * h * np.array([1, 1, -1, 1])
-    np.testing.assert_allclose(d, expect, atol=1e-15)
-    assert d[2] - d[1] == pytest.approx(h)                   # unloading lies one dead zone above loading
+def test_two_slopes_and_dead_zone_against_the_thesis_curve(puma, rng):
+    """The thesis's K3 (1.156e5 lb in/rad below 100 lb in, 1.223e5 above) under gravity plus an applied torque: the
+    torque from plain cross products of the link weights and the deflection read off the thesis's two-slope curve
+    (the independent generator); the dead zone puts unloading one h above loading."""
+    k1, k2, tb, h = 1.156e5 * NM_PER_LBIN, 1.223e5 * NM_PER_LBIN, 100 * NM_PER_LBIN, 0.005 * DEG
+    m = MeasurementModel(puma, [JointCompliance(3, k1, k2, tb, h)])
+    n = 40
+    q = poses(rng, n)
+    applied = rng.uniform(-30.0, 30.0, n)
+    e3 = np.array([0, 0, 1.0, 0, 0, 0])
+    defl = {}
+    for ld in (-1.0, 0.0, 1.0):
+        ctx = m.context(n, joint_torque_nm=np.outer(applied, e3), load_direction=ld * np.ones((n, 6)))
+        defl[ld] = m.evaluate(q, ctx).theta_rad[:, 2] - q[:, 2]
+    arm = ThesisPuma.from_toml(resources.files("calib") / "data" / "puma560.toml")
+    curve = fake.JointCompliance(3, k1, k2, tb)
+    tau = np.array([arm.gravity_torques(qi)[2] for qi in q]) + applied
+    assert np.any(np.abs(tau) < tb) and np.any(np.abs(tau) > tb)         # both slopes are exercised
+    np.testing.assert_allclose(defl[0.0], [curve.deflection(t) for t in tau], rtol=1e-9, atol=1e-15)
+    np.testing.assert_allclose(defl[-1.0] - defl[1.0], h, atol=1e-15)
 
 
 def test_cross_coupling_is_linear_in_the_source_joint(puma, rng):

@@ -175,13 +175,14 @@ def test_snapshot_cannot_start(snap_compare):
 
 @pytest.mark.skipif(shutil.which("tmux") is None and not os.environ.get("CI"), reason="tmux not installed")
 def test_real_terminal_under_tmux(tmp_path):
+    """The operator's laptop terminal (80x24): every prompt readable and answered by key presses."""
     assert shutil.which("tmux"), "tmux is needed (the CI script installs it)"
     name = f"robocal-test-{os.getpid()}"
     db = tmp_path / "t.db"
     cmd = f"{sys.executable} -m acq.cli session --emulate --db {db} --only ruler/p0"
     # Textual sizes itself from COLUMNS/LINES when set (pytest sets them): let the pane decide
     env_cmd = f"cd {os.getcwd()} && env -u COLUMNS -u LINES TERM=xterm-256color {cmd}"
-    subprocess.run(["tmux", "new-session", "-d", "-s", name, "-x", "200", "-y", "50", env_cmd], check=True)
+    subprocess.run(["tmux", "new-session", "-d", "-s", name, "-x", "80", "-y", "24", env_cmd], check=True)
 
     def screen():
         return subprocess.run(["tmux", "capture-pane", "-p", "-t", name], capture_output=True, text=True).stdout

@@ -46,3 +46,29 @@ def test_te_plot_recovers_a_known_angle_error():
     title, _, unit, lines = plot_series("transmission", steps, st)
     got = np.array(lines[0][2])
     np.testing.assert_allclose(got, np.degrees(err - err.mean()), atol=2e-3)
+
+
+def test_deflection_plot_separates_loading_and_unloading_in_the_units_entered():
+    """Loads entered in kg go on the axis as kg; the unloading branch is its own series (meta phase 'unload')."""
+    st = stations()
+    base = np.array([500.0, 2800.0, 300.0])
+    steps = []
+    for i, (m, phase) in enumerate([(0, "load"), (5, "load"), (10, "load"), (5, "unload"), (0, "unload")]):
+        drop = 0.01 * m + (0.003 if phase == "unload" else 0.0)      # a dead zone between the branches
+        sd = sighted(st, {"A1": base - [0.0, 0.0, drop]}, f"compliance/j3/{i}")
+        sd.procedure, sd.meta = "compliance", {"joint": 3, "phase": phase}
+        sd.inputs["load_kg"] = float(m)
+        steps.append(sd)
+    title, xlabel, unit, lines = plot_series("compliance", steps, st)
+    assert xlabel == "load (kg)" and unit == "mm"
+    series = {name: (xs, ys) for name, xs, ys in lines}
+    assert series["loading"][0] == [0.0, 5.0, 10.0] and series["unloading"][0] == [5.0, 0.0]
+    np.testing.assert_allclose(series["loading"][1], [0.0, 0.05, 0.10], atol=1e-5)
+    np.testing.assert_allclose(series["unloading"][1], [0.053, 0.003], atol=1e-5)
+
+
+def test_a_procedure_without_its_own_plot_shows_the_miss_distance():
+    sd = StepData("poses/000", "poses")
+    sd.checks = [{"name": "miss P", "value": 0.02}, {"name": "miss P", "value": 0.03}]
+    title, _, unit, lines = plot_series("some_new_procedure", [sd], stations())
+    assert title.startswith("miss distance") and lines[0][2] == [0.02, 0.03]

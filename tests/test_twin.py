@@ -8,10 +8,11 @@ import numpy as np
 import pytest
 
 from calib.errors import ConfigError
-from calib.model import MeasurementModel
 from calib.theodolite import intersect
 from calib.twin import Twin, load_scenario, parse_scenario
 from calib.units import ARCSEC, DEG, NM_PER_LBIN
+from tests.fakes import thesis_puma as fake
+from tests.fakes.thesis_puma import ThesisPuma, base_matrix
 
 DEFAULT = (resources.files("calib") / "data" / "twin_default.toml").read_text()
 
@@ -54,11 +55,55 @@ def test_encoder_counts_are_integers_and_quantise_the_readings():
     assert np.any(err > 1e-9)
 
 
-def test_truth_comes_from_the_same_model():
+def thesis_arm(tw: Twin) -> ThesisPuma:
+    """The independent generator set to the twin's true geometry (masses from the description file itself)."""
+    t = tw.true_parameters()
+    arm = ThesisPuma.from_toml(resources.files("calib") / "data" / "puma560.toml")
+    for j in range(6):
+        for attr, key in (("alpha", "alpha_rad"), ("a_mm", "a_mm"), ("d_mm", "d_mm"),
+                          ("theta_offset", "theta_offset_rad"), ("beta", "beta_rad")):
+            getattr(arm, attr)[j] = t[f"j{j + 1}.{key}"]
+    arm.base = base_matrix([t["base.x_mm"], t["base.y_mm"], t["base.z_mm"]], t["base.yaw_rad"],
+                           t["base.pitch_rad"], t["base.roll_rad"])
+    arm.tool_xyz_t = (-t["tool.x_mm"], -t["tool.y_mm"], -t["tool.z_mm"])      # ^6E puts the tool at -Xt, -Yt, -Zt
+    return arm
+
+
+def thesis_running_errors(tw: Twin) -> list:
+    t = tw.true_parameters()
+    c = {j: (1 / t[f"joint_compliance.j{j}.compliance1_rad_per_nm"], 1 / t[f"joint_compliance.j{j}.compliance2_rad_per_nm"],
+             t[f"joint_compliance.j{j}.breakpoint_nm"]) for j in (3, 4)}
+    return [fake.TransmissionError(4, 0.9, t["transmission_error.j4.s1_rad"]),
+            fake.TransmissionError(6, 1.8, t["transmission_error.j6.s1_rad"]),
+            fake.JointCompliance(3, *c[3]), fake.JointCompliance(4, *c[4]),
+            fake.CrossCoupling(6, 5, t["cross_coupling.j5j6.sigma"])]
+
+
+def test_twin_truth_agrees_with_the_independent_thesis_generator():
+    """True tool points and joint angles of the default twin (geometry, base, tool, transmission errors, two-slope
+    compliance under gravity and payload, coupling) against plain A-matrix products of the thesis."""
     tw = Twin()
-    q = tw.random_poses(20)
-    m = tw.measure(q)
-    np.testing.assert_allclose(m.point_true_mm, tw.model.points(m.q_read_rad, theta=tw.theta), atol=1e-12)
+    q = tw.random_poses(60)
+    payload = np.where(np.arange(60) % 3 == 0, 6.0, 0.0)
+    m = tw.measure(q, tw.context(60, payload_kg=payload))
+    arm = thesis_arm(tw)
+    pts, th = fake.true_points(arm, m.q_read_rad, thesis_running_errors(tw), payload)
+    np.testing.assert_allclose(m.point_true_mm, pts, atol=1e-9, rtol=0)
+    np.testing.assert_allclose(m.theta_true_rad, th, atol=1e-12, rtol=0)
+    rigid, _ = fake.true_points(arm, m.q_read_rad)
+    assert np.abs(m.point_true_mm - rigid).max() > 0.1          # the running errors are there to be compared
+
+
+def test_twin_readings_agree_with_the_thesis_station_formulas():
+    """Noise-free readings: eq 4.3.1's inverse (section 5.3.1) with the offsets gamma1, gamma2 of the scenario."""
+    sc = parse_scenario(DEFAULT.replace("angles = true", "angles = false").replace("height_b_mm = 0.0",
+                                                                                   "height_b_mm = 120.0"))
+    tw = Twin(sc)
+    m = tw.measure(tw.random_poses(80))
+    expect = fake.leica_readings(m.point_true_mm, 1609.9, -1.489 * DEG, 1.358 * DEG, 120.0)
+    np.testing.assert_allclose(np.angle(np.exp(1j * (m.readings_rad - expect))), 0.0, atol=1e-12)
+    alpha, beta, phi_a, _ = fake.thesis_angles(m.point_true_mm, 1609.9, 120.0)
+    np.testing.assert_allclose(fake.point_from_angles(alpha, beta, phi_a, 1609.9), m.point_true_mm, atol=1e-9)
 
 
 def test_readings_intersect_back_to_the_truth_within_noise():
@@ -152,13 +197,13 @@ def test_twin_command_json_summary():
 
 
 def test_fk_command_json_on_default_robot():
-    r = run_cli("fk", "0", "-90", "90", "0", "0", "0", "--json")
+    """robocal fk on the description without a tool: the origin of frame 6 from the thesis's A-matrices."""
+    r = run_cli("fk", "10", "-70", "95", "20", "-30", "40", "--json")
     assert r.returncode == 0, r.stderr
     out = json.loads(r.stdout)
     assert set(out) == {"x_mm", "y_mm", "z_mm"}
-    model = MeasurementModel(load_scenario().robot)
-    np.testing.assert_allclose([out["x_mm"], out["y_mm"], out["z_mm"]],
-                               model.points(np.array([[0, -90, 90, 0, 0, 0]]) * DEG)[0], atol=1e-6)
+    expect = ThesisPuma().tool_point(np.array([10, -70, 95, 20, -30, 40]) * DEG)
+    np.testing.assert_allclose([out["x_mm"], out["y_mm"], out["z_mm"]], expect, atol=1e-6)
 
 
 @pytest.mark.parametrize("args,words", [

@@ -7,7 +7,7 @@ from calib.kinematics import Kinematics
 from calib.robot import load_robot, robot_from_urdf
 from calib.units import DEG
 
-URDFS = "/work/shared/data/figaroh-urdfs"
+URDFS = str(__import__("pathlib").Path(__file__).resolve().parents[1] / "examples" / "urdf")
 CASES = [("ur10_robot.urdf", None, None), ("tx40_mdh_modified.urdf", None, None),
          ("tiago_no_hand.urdf", "base_footprint", "arm_7_link"), ("tiago_no_hand.urdf", "torso_lift_link", "head_2_link")]
 

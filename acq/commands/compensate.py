@@ -33,6 +33,7 @@ def run(args) -> int:
         raise RobocalError("compensate: joint angles must be numbers (degrees)") from None
     if not np.isfinite(q).all():
         raise RobocalError("compensate: joint angles must be finite")
+    im.model.robot.check_readings(q, "compensate")
     q = q * DEG
     if args.reading:
         true = corrected_readings(im, q)[0]

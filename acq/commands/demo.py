@@ -10,18 +10,20 @@ import time
 from pathlib import Path
 
 from calib.errors import RobocalError
+from calib.fileio import atomic_write_text
+from acq.argtypes import output_dir, output_file, seed_int
 
 NAME = "demo"
 HELP = "record an emulated calibration session of every procedure, then reprocess it"
 
 
 def add_arguments(p):
-    p.add_argument("--db", default=None,
+    p.add_argument("--db", type=output_file, default=None,
                    help="session database to write (default robocal-demo.db, or the next free robocal-demo-N.db)")
-    p.add_argument("--seed", type=int, default=0, help="seed of the emulated instruments' noise")
+    p.add_argument("--seed", type=seed_int, default=0, help="seed of the emulated instruments' noise")
     p.add_argument("--resume", action="store_true", help="continue an interrupted demo session in --db")
-    p.add_argument("--json", metavar="OUT", help="write the estimates JSON here ('-' for stdout)")
-    p.add_argument("--report", metavar="DIR", help="write the HTML report here")
+    p.add_argument("--json", type=output_file, metavar="OUT", help="write the estimates JSON here ('-' for stdout)")
+    p.add_argument("--report", type=output_dir, metavar="DIR", help="write the HTML report here")
     p.add_argument("--overwrite", action="store_true", help="replace an existing --db")
 
 
@@ -77,7 +79,7 @@ def _write_json(res: dict, out: str) -> None:
     if out == "-":
         print(text)
     else:
-        Path(out).write_text(text, encoding="utf-8")
+        atomic_write_text(out, text)
 
 
 def _summary(res: dict) -> None:

@@ -7,10 +7,21 @@ from __future__ import annotations
 
 import json
 
+from acq.argtypes import float_range, nonneg_int, output_dir, positive_float, positive_int
 from calib.errors import RobocalError
+from calib.outliers import LOSSES, OUTLIER_MODES
 
 NAME = "diagnose"
 HELP = "diagnose the sim-to-real gap: held-out residual, where it lies, which unmodelled effect, how far it shrinks"
+
+
+def add_outlier_arguments(p) -> None:
+    """--outliers and --loss, shared by identify and diagnose (one implementation: calib.outliers)."""
+    p.add_argument("--outliers", choices=OUTLIER_MODES, default="flag",
+                   help="poses with implausible residuals: flag (report, keep; default), reject (leave out, unless "
+                        "they cluster in a pose condition: then they are a systematic effect and kept), off")
+    p.add_argument("--loss", choices=LOSSES, default="linear",
+                   help="loss of the least-squares fit (scipy least_squares): linear (plain), huber, cauchy, soft_l1")
 
 
 def add_arguments(p):
@@ -19,25 +30,26 @@ def add_arguments(p):
                         "a session database, or the TIAGo mocap CSV")
     p.add_argument("--robot", metavar="FILE", help="robot description TOML (default: the thesis's Puma 560; "
                                                    "the shipped TIAGo arm for the TIAGo mocap file)")
-    p.add_argument("--noise-mm", type=float, default=None, metavar="S",
+    p.add_argument("--noise-mm", type=positive_float, default=None, metavar="S",
                    help="1-sigma point noise per coordinate (mm) when DATA carries no per-point uncertainty")
     p.add_argument("--json", action="store_true", help="print the result as one JSON object")
-    p.add_argument("--report", metavar="DIR", help="write an HTML report with PNG figures into DIR")
+    p.add_argument("--report", type=output_dir, metavar="DIR", help="write an HTML report with PNG figures into DIR")
     p.add_argument("--geometry", choices=("auto", "full", "offsets"), default="auto",
                    help="geometric parameter set of the baseline (auto: full unless the poses are too few)")
-    p.add_argument("--folds", type=int, default=None, metavar="K",
+    p.add_argument("--folds", type=positive_int, default=None, metavar="K",
                    help="k-fold held-out test (default 5; leave-one-out up to 40 poses)")
-    p.add_argument("--alpha", type=float, default=0.01,
+    p.add_argument("--alpha", type=float_range(0, 1, low_open=True, high_open=True), default=0.01,
                    help="family-wise significance level of the nested F-test (default 0.01)")
-    p.add_argument("--max-effects", type=int, default=6, metavar="N", help="stop after N accepted effects")
+    p.add_argument("--max-effects", type=nonneg_int, default=6, metavar="N", help="stop after N accepted effects")
+    add_outlier_arguments(p)
     p.add_argument("--validate", action="store_true",
                    help="run the withheld-effect validation on twin data instead of diagnosing DATA")
-    p.add_argument("--seeds", type=int, default=3, metavar="N", help="seeds per case for --validate (default 3)")
+    p.add_argument("--seeds", type=positive_int, default=3, metavar="N", help="seeds per case for --validate (default 3)")
     p.add_argument("--levels", default="2,4", metavar="L1,L2",
                    help="--validate: effect sizes as multiples of the noise floor (tool-point displacement RMS; "
                         "default 2,4)")
-    p.add_argument("--clean", type=int, default=4, metavar="N", help="--validate: clean cases per seed (default 4)")
-    p.add_argument("--workers", type=int, default=None, metavar="N", help="processes for --validate (default: CPUs)")
+    p.add_argument("--clean", type=nonneg_int, default=4, metavar="N", help="--validate: clean cases per seed (default 4)")
+    p.add_argument("--workers", type=positive_int, default=None, metavar="N", help="processes for --validate (default: CPUs)")
 
 
 def _validate(args) -> int:
@@ -70,6 +82,17 @@ def _validate(args) -> int:
     return 0
 
 
+def _read(path: str, robot, noise_mm):
+    """DATA as DiagnosisData: a session database through the session layer (plain arrays), else the file loader."""
+    from calib.diagnose.data import from_session_arrays, is_session_db, load_data
+    from calib.robot import load_robot
+
+    if is_session_db(path):
+        from acq.session.exchange import pose_arrays
+        return from_session_arrays(robot or load_robot(), pose_arrays(str(path)), str(path))
+    return load_data(path, robot, noise_mm)
+
+
 def run(args) -> int:
     if args.validate:
         return _validate(args)
@@ -81,17 +104,17 @@ def run(args) -> int:
         raise RobocalError(f"diagnose: --folds must be at least 2, got {args.folds}")
     if not 0 < args.alpha < 1:
         raise RobocalError(f"diagnose: --alpha must be between 0 and 1, got {args.alpha}")
-    from calib.diagnose import diagnose, load_data
+    from calib.diagnose import diagnose
     from calib.diagnose.render import render
     from calib.robot import load_robot
 
     from ..progress import progress_display
 
     robot = load_robot(args.robot) if args.robot else None
-    data = load_data(args.data, robot, args.noise_mm)
+    data = _read(args.data, robot, args.noise_mm)
     with progress_display("robocal diagnose") as update:
         diag = diagnose(data, level=args.geometry, n_folds=args.folds, alpha=args.alpha,
-                        max_effects=args.max_effects, progress=update)
+                        max_effects=args.max_effects, outliers=args.outliers, loss=args.loss, progress=update)
     if args.report:
         from calib.diagnose.report import write_report
         write_report(diag, args.report)

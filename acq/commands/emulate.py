@@ -11,6 +11,7 @@ import numpy as np
 
 from calib.errors import RobocalError
 from calib.units import DEG
+from acq.argtypes import any_int, float_range, positive_float, seed_int
 
 NAME = "emulate"
 HELP = "run an emulated theodolite (GeoCOM, GSI) or encoder tap; prints where to connect, serves until Ctrl-C"
@@ -20,20 +21,20 @@ def add_arguments(p):
     p.add_argument("device", choices=("geocom", "gsi", "tap"), help="what to emulate")
     how = p.add_mutually_exclusive_group()
     how.add_argument("--pty", action="store_true", help="theodolite on a pseudo-terminal (default for geocom/gsi)")
-    how.add_argument("--tcp", type=int, metavar="PORT", help="serve on TCP PORT (0 = any); connect with socket://")
+    how.add_argument("--tcp", type=any_int, metavar="PORT", help="serve on TCP PORT (0 = any); connect with socket://")
     how.add_argument("--slcan-pty", action="store_true",
                      help="tap as an SLCAN adapter on a pty, for python-can's slcan interface (default for tap)")
     how.add_argument("--serial-pty", action="store_true", help="tap as COBS+CRC frames on a pty")
     how.add_argument("--can", metavar="IFACE:CHANNEL", help="tap as a node on a python-can bus, e.g. socketcan:vcan0")
-    p.add_argument("--seed", type=int, default=0, help="world noise seed (default 0)")
+    p.add_argument("--seed", type=seed_int, default=0, help="world noise seed (default 0)")
     p.add_argument("--no-noise", action="store_true", help="no reading noise")
     p.add_argument("--station", help="station name in the world (default A for geocom, B for gsi)")
-    p.add_argument("--q-deg", type=float, nargs=6, metavar="Q", help="robot joint angles (deg) the world holds")
+    p.add_argument("--q-deg", type=float_range(-360, 360), nargs=6, metavar="Q", help="robot joint angles (deg) the world holds")
     p.add_argument("--gsi8", action="store_true", help="gsi: GSI-8 words (default GSI-16)")
     p.add_argument("--unit", choices=("gon", "deg", "dms"), default="gon", help="gsi: angle unit (default gon)")
-    p.add_argument("--stream-hz", type=float, default=0.0, help="gsi: also stream a block at this rate")
-    p.add_argument("--rate-hz", type=float, default=200.0, help="tap: samples per second (default 200)")
-    p.add_argument("--duration", type=float, metavar="S", help="stop after S seconds (default: until Ctrl-C)")
+    p.add_argument("--stream-hz", type=float_range(0, 1000), default=0.0, help="gsi: also stream a block at this rate")
+    p.add_argument("--rate-hz", type=float_range(0, 10000, low_open=True), default=200.0, help="tap: samples per second (default 200)")
+    p.add_argument("--duration", type=positive_float, metavar="S", help="stop after S seconds (default: until Ctrl-C)")
 
 
 def _world(args):

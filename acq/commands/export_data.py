@@ -5,6 +5,7 @@ Formats are documented in :mod:`acq.session.exchange` and docs/operator-guide.md
 from __future__ import annotations
 
 import sys
+from acq.argtypes import output_file
 
 NAME = "export"
 HELP = "export a session's raw readings (CSV/JSON) or its pose measurements (pose CSV)"
@@ -12,9 +13,9 @@ HELP = "export a session's raw readings (CSV/JSON) or its pose measurements (pos
 
 def add_arguments(p):
     p.add_argument("session", help="session database")
-    p.add_argument("--readings", metavar="CSV", help="raw theodolite readings of accepted steps")
-    p.add_argument("--poses", metavar="CSV", help="pose set: encoder joint readings (deg) and tool target (mm)")
-    p.add_argument("--json", metavar="OUT", help="the whole session (steps, inputs, readings) as JSON")
+    p.add_argument("--readings", type=output_file, metavar="CSV", help="raw theodolite readings of accepted steps")
+    p.add_argument("--poses", type=output_file, metavar="CSV", help="pose set: encoder joint readings (deg) and tool target (mm)")
+    p.add_argument("--json", type=output_file, metavar="OUT", help="the whole session (steps, inputs, readings) as JSON")
 
 
 def run(args) -> int:

@@ -36,6 +36,7 @@ def run(args) -> int:
         if not math.isfinite(v):
             raise RobocalError(f"fk: joint {i} reading {text!r} is not finite")
         q.append(v)
+    robot.check_readings(np.array(q), "fk")
     kin = Kinematics(robot)
     # the description's own base frame (frame 0 of a DH description, a URDF's base link), whatever the base pose in
     # the measurement frame

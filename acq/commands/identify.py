@@ -6,6 +6,9 @@ import json
 import numpy as np
 
 from calib.errors import RobocalError
+from acq.argtypes import effect_spec, output_file, positive_float
+
+from .diagnose import add_outlier_arguments
 
 NAME = "identify"
 HELP = "identify geometry (and running errors) from a pose-measurement CSV"
@@ -14,17 +17,18 @@ HELP = "identify geometry (and running errors) from a pose-measurement CSV"
 def add_arguments(p):
     p.add_argument("data", metavar="DATA.csv", help="pose CSV: q1..q6 (deg), x, y, z (mm) and optional conditions")
     p.add_argument("--robot", metavar="FILE", help="robot description TOML (default: the thesis's Puma 560)")
-    p.add_argument("--noise-mm", type=float, default=0.05,
+    p.add_argument("--noise-mm", type=positive_float, default=0.05,
                    help="1-sigma point noise per coordinate (mm), used when the file has no sigma_*_mm columns")
-    p.add_argument("--effect", action="append", default=[], metavar="SPEC",
+    p.add_argument("--effect", type=effect_spec, action="append", default=[], metavar="SPEC",
                    help="running error to identify, e.g. transmission_error:4:0.9, joint_compliance:3, "
                         "backlash:2, cross_coupling:6:5, link_compliance:2, thermal_drift (repeatable)")
     p.add_argument("--thesis-effects", action="store_true",
                    help="identify the running errors the thesis measured (TE 4 and 6, compliance 3 and 4, "
                         "coupling 5->6)")
-    p.add_argument("--out", metavar="MODEL.json", help="write every parameter with its uncertainty")
-    p.add_argument("--out-robot", metavar="ROBOT.toml", help="write the identified robot description")
+    p.add_argument("--out", type=output_file, metavar="MODEL.json", help="write every parameter with its uncertainty")
+    p.add_argument("--out-robot", type=output_file, metavar="ROBOT.toml", help="write the identified robot description")
     p.add_argument("--json", action="store_true", help="print the model document as JSON")
+    add_outlier_arguments(p)
 
 
 def run(args) -> int:
@@ -51,13 +55,14 @@ def run(args) -> int:
     if table.sigma_mm is not None:
         cov = np.einsum("ni,ij->nij", table.sigma_mm ** 2, np.eye(3))
     obs = PointObservations(table.q_rad, table.points_mm, cov, sigma_mm=args.noise_mm, ctx=ctx)
-    ident = identify(model, obs)
+    ident = identify(model, obs, outliers=args.outliers, loss=args.loss)
     if args.out:
         save_model(args.out, model, ident, args.out_robot)
     elif args.out_robot:
         from calib.compensate import robot_from_theta
         from calib.robot import robot_to_toml
-        open(args.out_robot, "w", encoding="utf-8").write(robot_to_toml(robot_from_theta(model, ident.theta)))
+        from calib.fileio import atomic_write_text
+        atomic_write_text(args.out_robot, robot_to_toml(robot_from_theta(model, ident.theta)))
     if args.json:
         print(json.dumps(model_document(model, ident), indent=1))
         return 0
@@ -65,8 +70,8 @@ def run(args) -> int:
           f"residual RMS {ident.residual_rms:.4f} mm, reduced chi-square {ident.reduced_chi2:.2f}")
     for line in ident.identifiability.report():
         print("  " + line)
-    if ident.outliers:
-        print("  gross errors flagged and left out: poses " + ", ".join(str(i + 1) for i in ident.outliers))
+    for line in ident.outlier_report.lines():
+        print("  " + line)
     print(f"  {'parameter':<44}{'value':>14}{'1 sigma':>12}  unit")
     for name in ident.free:
         v, s = ident.value(name), ident.std(name)

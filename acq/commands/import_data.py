@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import sys
+from acq.argtypes import output_file
 
 NAME = "import"
 HELP = "import raw readings or pose measurements (CSV) measured with other tools into a new session database"
@@ -9,7 +10,7 @@ HELP = "import raw readings or pose measurements (CSV) measured with other tools
 
 def add_arguments(p):
     p.add_argument("file", help="raw-readings CSV (has hz_deg) or pose CSV (has q1..q6, x, y, z)")
-    p.add_argument("--db", required=True, help="new session database")
+    p.add_argument("--db", type=output_file, required=True, help="new session database")
     p.add_argument("--setup", metavar="JSON", help="setup geometry (ruler, tool targets ...); default: the demo's")
 
 

@@ -13,6 +13,7 @@ from calib.robot import load_robot
 from calib.units import DEG
 
 from ..progress import progress_display
+from acq.argtypes import finite_float, output_file, positive_float, positive_int, seed_int
 
 NAME = "plan"
 HELP = "design the experiment: choose identification poses or score a pose set"
@@ -21,27 +22,27 @@ HELP = "design the experiment: choose identification poses or score a pose set"
 def add_arguments(p):
     sub = p.add_subparsers(dest="what", metavar="WHAT", required=True)
     poses = sub.add_parser("poses", help="choose N poses maximising an observability index, or --evaluate a set")
-    poses.add_argument("--count", type=int, metavar="N", help="number of poses to choose")
+    poses.add_argument("--count", type=positive_int, metavar="N", help="number of poses to choose")
     poses.add_argument("--evaluate", metavar="FILE.csv", help="score this pose set instead (columns q1..q6, deg)")
     poses.add_argument("--robot", metavar="FILE", help="robot description TOML (default: the thesis's Puma 560)")
-    poses.add_argument("--out", metavar="FILE.csv", help="write the chosen poses (q1..q6 in degrees)")
+    poses.add_argument("--out", type=output_file, metavar="FILE.csv", help="write the chosen poses (q1..q6 in degrees)")
     poses.add_argument("--index", choices=INDICES, default="O1", help="observability index (default O1, D-optimal)")
     poses.add_argument("--set", dest="pset", choices=("geometric", "full", "chapter6"), default="geometric",
                        help="parameters to identify (default: geometric)")
-    poses.add_argument("--tool", nargs=3, type=float, metavar=("X", "Y", "Z"),
+    poses.add_argument("--tool", nargs=3, type=finite_float, metavar=("X", "Y", "Z"),
                        help="tool target in frame 6, mm (default: the robot's tool point)")
-    poses.add_argument("--noise-mm", type=float, default=0.05, help="1-sigma point noise per coordinate (mm)")
-    poses.add_argument("--seed", type=int, default=0)
+    poses.add_argument("--noise-mm", type=positive_float, default=0.05, help="1-sigma point noise per coordinate (mm)")
+    poses.add_argument("--seed", type=seed_int, default=0)
     poses.add_argument("--json", action="store_true", help="print the result as JSON")
     setup = sub.add_parser("setup", help="set-up geometry of a Chapter 4 procedure for minimum estimation error")
     setup.add_argument("procedure", choices=("ruler", "sweep", "te"),
                        help="ruler pre-calibration, joint sweep (circle point analysis), transmission-error run")
-    setup.add_argument("--room-x", nargs=2, type=float, metavar=("MIN", "MAX"), default=(-1500.0, 3500.0),
+    setup.add_argument("--room-x", nargs=2, type=finite_float, metavar=("MIN", "MAX"), default=(-1500.0, 3500.0),
                        help="room extent along the baseline from theodolite A (mm)")
-    setup.add_argument("--room-y", type=float, default=4000.0, help="room depth in front of the baseline (mm)")
-    setup.add_argument("--min-focus-mm", type=float, default=900.0, help="closest sighting distance (mm)")
-    setup.add_argument("--sigma-arcsec", type=float, default=3.0, help="1-sigma reading noise (arc seconds)")
-    setup.add_argument("--seed", type=int, default=0)
+    setup.add_argument("--room-y", type=positive_float, default=4000.0, help="room depth in front of the baseline (mm)")
+    setup.add_argument("--min-focus-mm", type=positive_float, default=900.0, help="closest sighting distance (mm)")
+    setup.add_argument("--sigma-arcsec", type=positive_float, default=3.0, help="1-sigma reading noise (arc seconds)")
+    setup.add_argument("--seed", type=seed_int, default=0)
     setup.add_argument("--json", action="store_true", help="print the result as JSON")
 
 

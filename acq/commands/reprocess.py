@@ -5,15 +5,17 @@ the session's ``result`` table: raw data is never rewritten).
 """
 from __future__ import annotations
 
+from acq.argtypes import int_range, output_dir, output_file
+
 NAME = "reprocess"
 HELP = "rerun the calibration from a saved session (read-only), write JSON estimates and an HTML report"
 
 
 def add_arguments(p):
     p.add_argument("session", help="session database (.db)")
-    p.add_argument("--json", metavar="OUT", help="estimates JSON ('-' for stdout)")
-    p.add_argument("--report", metavar="DIR", help="directory for report.html, results.json, robot.json")
-    p.add_argument("--mc", type=int, default=0, help="Monte Carlo draws for the estimation errors (0: GUM only)")
+    p.add_argument("--json", type=output_file, metavar="OUT", help="estimates JSON ('-' for stdout)")
+    p.add_argument("--report", type=output_dir, metavar="DIR", help="directory for report.html, results.json, robot.json")
+    p.add_argument("--mc", type=int_range(0, 100000), default=0, help="Monte Carlo draws for the estimation errors (0: GUM only)")
     p.add_argument("--store", action="store_true", help="also record the result (with provenance) in the session")
 
 

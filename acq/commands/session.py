@@ -16,17 +16,19 @@ import json
 from pathlib import Path
 
 from calib.errors import RobocalError
+from calib.fileio import atomic_write_text
+from acq.argtypes import output_file, seed_int
 
 NAME = "session"
 HELP = "guide the operator through a calibration session (Textual TUI)"
 
 
 def add_arguments(p):
-    p.add_argument("--db", metavar="PATH", default="session.db",
+    p.add_argument("--db", type=output_file, metavar="PATH", default="session.db",
                    help="session database (created, or resumed if it exists; default session.db)")
     p.add_argument("--emulate", action="store_true",
                    help="use the emulated instruments driven by the simulated Puma 560 (the twin)")
-    p.add_argument("--seed", type=int, default=0, help="seed of the emulated instruments")
+    p.add_argument("--seed", type=seed_int, default=0, help="seed of the emulated instruments")
     p.add_argument("--only", metavar="PREFIX", action="append", default=[],
                    help="run only the steps whose key starts with PREFIX (e.g. ruler, sweep/j2); repeatable")
     p.add_argument("--theodolite", metavar="NAME=KIND:URL", action="append", default=[],
@@ -36,7 +38,7 @@ def add_arguments(p):
     p.add_argument("--setup", metavar="SETUP.json", help="bench geometry (see --write-setup)")
     p.add_argument("--poses", metavar="POSES.csv", help="Chapter 6 pose set (q1..q6, deg)")
     p.add_argument("--robot", metavar="FILE", help="robot description TOML (default: the thesis's Puma 560)")
-    p.add_argument("--write-setup", metavar="FILE", help="write a set-up template (JSON) and exit")
+    p.add_argument("--write-setup", type=output_file, metavar="FILE", help="write a set-up template (JSON) and exit")
 
 
 def _only(prefixes):
@@ -186,7 +188,7 @@ def real_builder(db: str, theodolites: list[str], tap: str | None, setup_path: s
 
 def run(args) -> int:
     if args.write_setup:
-        Path(args.write_setup).write_text(json.dumps(setup_template(), indent=2), encoding="utf-8")
+        atomic_write_text(args.write_setup, json.dumps(setup_template(), indent=2))
         print(f"robocal session: set-up template written to {args.write_setup}")
         return 0
     if args.emulate:

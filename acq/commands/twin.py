@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import json
 
+from acq.argtypes import int_range, output_file, seed_int
 from calib.twin import Twin, load_scenario
 from calib.twin_report import render, summarise
 
@@ -12,10 +13,10 @@ HELP = "run the simulated Puma 560 (the twin) and summarise its sim-to-real gap"
 
 def add_arguments(p):
     p.add_argument("--scenario", metavar="FILE", help="twin scenario TOML (default: the thesis's findings)")
-    p.add_argument("--poses", type=int, default=200, metavar="N", help="number of random poses (default 200)")
-    p.add_argument("--seed", type=int, default=None, help="override the scenario's seed for the poses and noise")
+    p.add_argument("--poses", type=int_range(10, 1000000), default=200, metavar="N", help="number of random poses (default 200)")
+    p.add_argument("--seed", type=seed_int, default=None, help="override the scenario's seed for the poses and noise")
     p.add_argument("--json", action="store_true", help="print the summary as JSON")
-    p.add_argument("--export", metavar="FILE.csv",
+    p.add_argument("--export", type=output_file, metavar="FILE.csv",
                    help="also write the poses as a pose-measurement CSV (joint readings, intersected points)")
 
 

@@ -17,12 +17,15 @@ from ..errors import DeviceError, DeviceTimeout, InstrumentError, LinkLost, Prot
 from ..link import SerialLink, SerialSettings
 from . import geocom_codec as gc
 from .base import AngleReading, DeviceInfo, SerialInstrument
-from .geocom_codes import ReturnCode, describe
+from .geocom_codes import ANGLES_ONLY, ReturnCode, describe
 
 DRIVER_NAME = "geocom"
 DEFAULT_BAUD = 19200
 #: codes meaning "request refused, nothing done" (busy, request checksum bad): sending it again is safe
 _REFUSED = {13, 1293, 3101}
+#: plausibility envelopes of physical values: beyond them a reply is garbled, whatever its grammar says
+MAX_DISTANCE_M = 1.0e5
+TEMPERATURE_RANGE_C = (-80.0, 120.0)
 
 
 @dataclass(frozen=True)
@@ -71,7 +74,7 @@ class GeoComTheodolite(SerialInstrument):
         self.link.write(b"\n", "connect")
         self.link.drain(0.02)
         self.request(0)
-        self.precision = int(self.request(108).values[0])
+        self.precision = self.double_precision()
 
     def reconnect(self) -> None:
         """Reopen the port (after an unplug) and repeat the handshake."""
@@ -166,55 +169,85 @@ class GeoComTheodolite(SerialInstrument):
         except LinkLost:
             pass
 
+    def get(self, rpc: int, params: Sequence[str] = (), **kw) -> Result:
+        """A call whose values the caller needs: every value the RPC's reply has, or a DeviceError.
+
+        A warning code (1283-1289 ...) may come without values; for a call that needs them that is an
+        :class:`InstrumentError` naming the code, never an IndexError further down.
+        """
+        r = self.request(rpc, params, **kw)
+        sp = gc.spec(rpc)
+        if len(r.values) != len(sp.reply):
+            raise InstrumentError(self.name, _cmd(sp), f"instrument returned {r.warnings[0]}, without values",
+                                  r.rc.code)
+        return r
+
+    def _implausible(self, rpc: int, what: str) -> ProtocolError:
+        return ProtocolError(self.name, _cmd(gc.spec(rpc)), f"implausible reply: {what}")
+
     # -- COM / CSV ----------------------------------------------------------------------------------------------------
     def null_proc(self) -> None:
         self.request(0)
+
+    def double_precision(self) -> int:
+        digits = self.get(108).values[0]
+        if not 0 <= digits <= 15:
+            raise self._implausible(108, f"double precision {digits} is not 0..15 digits")
+        return int(digits)
 
     def set_double_precision(self, digits: int) -> None:
         self.request(107, [gc.fmt_long(digits)])
         self.precision = digits
 
     def identify(self) -> DeviceInfo:
-        name = self.request(5004).values[0]
-        serial_no = self.request(5003).values[0]
-        geocom = self.request(110).values
-        firmware = self.request(5034).values
+        name = self.get(5004).values[0]
+        serial_no = self.get(5003).values[0]
+        geocom = self.get(110).values
+        firmware = self.get(5034).values
         return DeviceInfo(DRIVER_NAME, self.link.url, name=str(name), serial=str(serial_no),
                           firmware=".".join(map(str, firmware)), protocol_version=".".join(map(str, geocom)))
 
     def internal_temperature_c(self) -> float:
-        return float(self.request(5011).values[0])
+        t = float(self.get(5011).values[0])
+        if not TEMPERATURE_RANGE_C[0] <= t <= TEMPERATURE_RANGE_C[1]:
+            raise self._implausible(5011, f"internal temperature {t:g} degC is outside "
+                                          f"{TEMPERATURE_RANGE_C[0]:g}..{TEMPERATURE_RANGE_C[1]:g} degC")
+        return t
 
     # -- TMC ----------------------------------------------------------------------------------------------------------
     def angles(self, inc: gc.IncPrg = gc.IncPrg.AUTO) -> AngleReading:
         """Hz, V (TMC_GetAngle5, RPC 2107), corrected with the inclination as ``inc`` says."""
-        r = self.request(2107, [gc.fmt_long(inc)])
-        if len(r.values) != 2:
-            raise InstrumentError(self.name, "TMC_GetAngle5 (RPC 2107)", f"{r.warnings[0]} and no angles", r.rc.code)
+        r = self.get(2107, [gc.fmt_long(inc)])
         hz, v = r.values
-        return self._reading(r, "TMC_GetAngle5", hz, v)
+        return self._reading(r, 2107, hz, v)
 
     def angles_with_inclination(self, inc: gc.IncPrg = gc.IncPrg.AUTO) -> AngleReading:
         """Hz, V, accuracy, cross/length inclination and face (TMC_GetAngle1, RPC 2003)."""
-        r = self.request(2003, [gc.fmt_long(inc)])
-        if len(r.values) != 9:
-            raise InstrumentError(self.name, "TMC_GetAngle1 (RPC 2003)", f"{r.warnings[0]} and no angles", r.rc.code)
+        r = self.get(2003, [gc.fmt_long(inc)])
         hz, v, acc, t_ms, xinc, linc, _incacc, _inct, face = r.values
         if face not in (0, 1):
-            raise ProtocolError(self.name, "TMC_GetAngle1 (RPC 2003)", f"garbled reply: face {face} is not 0 or 1")
-        return self._reading(r, "TMC_GetAngle1", hz, v, face=face + 1, angle_accuracy_rad=acc,
+            raise self._implausible(2003, f"face {face} is not 0 or 1")
+        if acc < 0:
+            raise self._implausible(2003, f"angle accuracy {acc:g} rad is negative")
+        for what, x in (("cross inclination", xinc), ("length inclination", linc)):
+            if abs(x) > math.pi / 2:
+                raise self._implausible(2003, f"{what} {x:g} rad is beyond +-pi/2")
+        return self._reading(r, 2003, hz, v, face=face + 1, angle_accuracy_rad=acc,
                              incline_cross_rad=xinc, incline_length_rad=linc, t_device_ms=t_ms)
 
-    def _reading(self, r: Result, command: str, hz: float, v: float, **extra) -> AngleReading:
+    def _reading(self, r: Result, rpc: int, hz: float, v: float, **extra) -> AngleReading:
         for what, val in (("Hz", hz), ("V", v)):
-            if not -1e-9 <= val < math.tau + 1e-9:        # a reply rounded up to exactly 2 pi is still valid
-                raise ProtocolError(self.name, command, f"garbled reply: {what} = {val} rad is outside [0, 2 pi)")
+            if not -1e-9 <= val <= math.tau + 1e-9:        # a reply rounded up to exactly 2 pi is still valid
+                raise self._implausible(rpc, f"{what} = {val!r} rad is outside [0, 2 pi]")
+        dist = extra.get("slope_distance_m")
+        if dist is not None and not 0 < dist <= MAX_DISTANCE_M:
+            raise self._implausible(rpc, f"slope distance {dist!r} m is outside (0, {MAX_DISTANCE_M:g}] m")
         extra.setdefault("face", 2 if v % math.tau > math.pi else 1)
-        return AngleReading(self.name, command, float(hz) % math.tau, float(v) % math.tau, r.t_wall, r.t_mono,
-                            warnings=r.warnings, raw=r.reply.raw, **extra)
+        return AngleReading(self.name, gc.spec(rpc).name, float(hz) % math.tau, float(v) % math.tau, r.t_wall,
+                            r.t_mono, warnings=r.warnings, raw=r.reply.raw, **extra)
 
     def incline_switch(self) -> bool:
-        return bool(self.request(2007).values[0])
+        return bool(self.get(2007).values[0])
 
     def set_incline_switch(self, on: bool) -> None:
         self.request(2006, [gc.fmt_bool(on)])
@@ -224,19 +257,15 @@ class GeoComTheodolite(SerialInstrument):
 
     def simple_measurement(self, wait_ms: int = 5000, inc: gc.IncPrg = gc.IncPrg.AUTO) -> AngleReading:
         """Hz, V and slope distance (TMC_GetSimpleMea); ``slope_distance_m`` is None when only angles are valid."""
-        r = self.request(2108, [gc.fmt_long(wait_ms), gc.fmt_long(inc)], timeout_s=wait_ms / 1000 + 5)
-        if len(r.values) != 3:
-            raise InstrumentError(self.name, "TMC_GetSimpleMea (RPC 2108)", f"{r.warnings[0]} and no values",
-                                  r.rc.code)
+        r = self.get(2108, [gc.fmt_long(wait_ms), gc.fmt_long(inc)], timeout_s=wait_ms / 1000 + 5)
         hz, v, dist = r.values
-        dist_ok = r.rc.code in (0, 1283, 1284)
-        return self._reading(r, "TMC_GetSimpleMea", hz, v, slope_distance_m=float(dist) if dist_ok else None)
+        return self._reading(r, 2108, hz, v, slope_distance_m=_distance(r, dist))
 
     def face(self) -> int:
         """1 = face I, 2 = face II."""
-        f = self.request(2026).values[0]
+        f = self.get(2026).values[0]
         if f not in (0, 1):
-            raise ProtocolError(self.name, "TMC_GetFace (RPC 2026)", f"garbled reply: face {f} is not 0 or 1")
+            raise self._implausible(2026, f"face {f} is not 0 or 1")
         return int(f) + 1
 
     # -- AUT / BAP (motorised instruments) ---------------------------------------------------------------------------
@@ -250,9 +279,15 @@ class GeoComTheodolite(SerialInstrument):
         self.request(9028, [gc.fmt_long(pos_mode), gc.fmt_long(atr), "0"])
 
     def measure_distance_angle(self, prog: gc.BapPrg = gc.BapPrg.DEF_DIST) -> AngleReading:
-        r = self.request(17017, [gc.fmt_long(prog)])
+        """Hz, V and distance (BAP_MeasDistanceAngle); ``slope_distance_m`` is None when only angles are valid."""
+        r = self.get(17017, [gc.fmt_long(prog)])
         hz, v, dist, _prog = r.values
-        return self._reading(r, "BAP_MeasDistanceAngle", hz, v, slope_distance_m=float(dist))
+        return self._reading(r, 17017, hz, v, slope_distance_m=_distance(r, dist))
+
+
+def _distance(r: Result, dist: float) -> float | None:
+    """The distance of a reply, or None when its return code says only the angles are valid."""
+    return None if r.rc.code in ANGLES_ONLY else float(dist)
 
 
 def _cmd(sp: gc.RpcSpec) -> str:

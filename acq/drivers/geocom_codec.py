@@ -81,17 +81,25 @@ _BYTE = re.compile(r"'([0-9a-fA-F]{2})'\Z")
 
 
 def parse_double(s: str) -> float:
-    if not _DOUBLE.match(s):
-        raise CodecError(f"{s!r} is not a GeoCOM double")
-    return float(s)
+    """A finite double: ``1e400`` (inf after float()) is not a number any instrument sends."""
+    if len(s) > 64 or not _DOUBLE.match(s):
+        raise CodecError(f"{s[:40]!r} is not a GeoCOM double")
+    x = float(s)
+    if not math.isfinite(x):
+        raise CodecError(f"{s[:40]!r} is out of the range of a double")
+    return x
+
+
+#: a GeoCOM long is 32 bit: 10 decimal digits (plus sign) or 8 hex digits at most
+_LONG_MAX_CHARS = 11
 
 
 def parse_long(s: str) -> int:
-    if _LONG.match(s):
+    if len(s) <= _LONG_MAX_CHARS and _LONG.match(s):
         return int(s)
-    if _HEX.match(s):
+    if len(s) <= 10 and _HEX.match(s):
         return int(s, 16)
-    raise CodecError(f"{s!r} is not a GeoCOM long")
+    raise CodecError(f"{s[:40]!r} is not a GeoCOM long")
 
 
 def parse_bool(s: str) -> bool:
@@ -248,8 +256,8 @@ class Reply:
     raw: bytes
 
 
-#: RC may be missing after the colon only on a communication error (``%R1P,3081,5:``, protocols.md §1.8)
-_REPLY = re.compile(r"%R1P,(\d{1,5}),(\d{1,5})(?:,(\d{1,5}))?:(\d{1,5})?(?:,(.*))?\Z")
+#: the reply grammar of protocols.md §1.3: the RPC return code after the colon is never missing
+_REPLY = re.compile(r"%R1P,(\d{1,5}),(\d{1,5})(?:,(\d{1,5}))?:(\d{1,5})(?:,(.*))?\Z")
 
 
 def split_fields(text: str) -> tuple[str, ...]:
@@ -288,8 +296,6 @@ def decode_reply(frame: bytes, expect_checksum: bool = False) -> Reply:
     if not m:
         raise CodecError(f"not a GeoCOM reply: {text[:60]!r}")
     rc_com, trid, crc, rc, values = m.groups()
-    if rc is None and (int(rc_com) == 0 or values is not None):
-        raise CodecError(f"reply without a return code: {text[:60]!r}")
     if crc is not None:
         start, end = m.span(3)
         if crc16_arc((text[:start - 1] + text[end:]).encode("ascii")) != int(crc):
@@ -298,7 +304,7 @@ def decode_reply(frame: bytes, expect_checksum: bool = False) -> Reply:
         # only a bare communication error (e.g. 3110 NO_CHECKSUM) may come back without the requested CRC
         raise CodecError(f"reply without the checksum that was requested: {text[:60]!r}")
     fields = split_fields(values) if values is not None else ()
-    return Reply(int(rc_com), int(trid), int(rc or 0), fields, None if crc is None else int(crc), frame)
+    return Reply(int(rc_com), int(trid), int(rc), fields, None if crc is None else int(crc), frame)
 
 
 def decode_values(rpc_spec: RpcSpec, fields: Sequence[str]) -> tuple:

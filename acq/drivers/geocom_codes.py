@@ -143,6 +143,10 @@ _TABLE: list[tuple[int, str, str, str]] = [
     (9217, "BAP_CHANGE_ALL_TO_DIST", _W, "no prism found; measured reflectorless"),
 ]
 
+#: TMC/BAP codes whose reply carries angles but *no valid distance* (protocols.md §1.8): a distance sent with them
+#: is a placeholder and must never become a reading
+ANGLES_ONLY = frozenset({1285, 1288, 1289})
+
 RETURN_CODES: dict[int, ReturnCode] = {c: ReturnCode(c, n, s, t) for c, n, s, t in _TABLE}
 
 #: subsystem ranges for codes not in the table (EDM numbering differs between sources: log the number)

@@ -18,6 +18,7 @@ from .base import AngleReading, DeviceInfo, SerialInstrument
 DRIVER_NAME = "gsi"
 DEFAULT_BAUD = 19200
 TWO_PI = math.tau
+MAX_DISTANCE_M = 1.0e5
 
 
 class GsiTheodolite(SerialInstrument):
@@ -106,10 +107,10 @@ class GsiTheodolite(SerialInstrument):
 
     def _words(self, wis: list[int], measure: bool, command: str) -> dict[int, gsi.Word]:
         rep = self.request(gsi.get_command(wis, measure), command)
-        got = {w.wi: w for w in rep.words}
+        got = _known(rep.words)
         missing = [wi for wi in wis if wi not in got]
         if missing:
-            raise ProtocolError(self.name, command, f"garbled reply: word(s) {missing} missing")
+            raise ProtocolError(self.name, command, f"garbled reply: word(s) {missing} missing or unreadable")
         return got
 
     def angles(self) -> AngleReading:
@@ -132,18 +133,32 @@ class GsiTheodolite(SerialInstrument):
                 break
         t_mono, t_wall = time.monotonic(), time.time()
         try:
-            words = {w.wi: w for w in gsi.parse_block(line)}
+            words = _known(gsi.parse_block(line))
+            missing = [wi for wi in (21, 22) if wi not in words]
+            if missing:
+                raise gsi.GsiError(f"word(s) {missing} missing or unreadable")
             hz, v = words[21].angle_rad(), words[22].angle_rad()
             dist = words[31].length_m() if 31 in words else None
-        except (gsi.GsiError, KeyError) as exc:
+        except gsi.GsiError as exc:
             raise ProtocolError(self.name, cmd, f"garbled block: {exc}") from None
         return _reading(self.name, cmd, hz, v, t_wall, t_mono, line, slope_distance_m=dist)
 
 
+def _known(words) -> dict[int, gsi.Word]:
+    """Words by index; unknown words stay in the raw frame but never stand in for a value."""
+    return {w.wi: w for w in words if w.known}
+
+
 def _reading(device: str, cmd: str, hz: float, v: float, t_wall: float, t_mono: float, raw: bytes,
              **extra) -> AngleReading:
-    if not (0 <= hz < TWO_PI and 0 <= v < TWO_PI):
-        raise ProtocolError(device, cmd, f"garbled reply: Hz {hz} / V {v} rad outside [0, 2 pi)")
+    for what, val in (("Hz", hz), ("V", v)):
+        if not 0 <= val <= TWO_PI:                  # exactly 400.00000 gon is a valid reading (= 0)
+            raise ProtocolError(device, cmd, f"implausible reply: {what} = {val!r} rad is outside 0..400 gon")
+    dist = extra.get("slope_distance_m")
+    if dist is not None and not 0 <= dist <= MAX_DISTANCE_M:
+        raise ProtocolError(device, cmd, f"implausible reply: slope distance {dist!r} m is outside "
+                                         f"0..{MAX_DISTANCE_M:g} m")
+    hz, v = hz % TWO_PI, v % TWO_PI
     return AngleReading(device, cmd, hz, v, t_wall, t_mono, face=2 if v > TWO_PI / 2 else 1, raw=raw, **extra)
 
 

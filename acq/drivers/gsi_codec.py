@@ -2,7 +2,12 @@
 
 A word is ``WI(2-3) | info(3-4 chars: compensator, input mode, unit) | sign | data(8 or 16) | blank``; a block is a
 line of words, GSI-16 blocks start with ``*``.  Angles and distances carry implied decimals set by the unit code.
-Parsing is strict (any deviation raises :class:`GsiError`) so a garbled line never becomes a reading; angles come out
+
+Why words are read one by one: real files carry any printable character in point names, codes and remarks ('/' in
+a remark, '?' in a DNA code, '_' in a point name), and one word this codec cannot read must not throw away the Hz
+and V next to it.  So a block is split by word size and each word that does not follow the grammar is kept as an
+*unknown* word (``known=False``, its characters in ``raw``); only a line that cannot be split into words is an
+error.  Asking an unknown word for a value raises :class:`GsiError`, so it never becomes a reading.  Angles come out
 in radians, distances in metres: gon and degrees exist only here.
 """
 from __future__ import annotations
@@ -16,10 +21,10 @@ GON = math.pi / 200.0
 DEG = math.pi / 180.0
 MIL = 2 * math.pi / 6400.0
 
-#: unit code -> (kind, implied decimals, scale to SI per unit)
+#: unit code -> (kind, implied decimals, metres per unit for lengths / units per full circle for angles)
 UNITS: dict[str, tuple[str, int, float]] = {
-    "0": ("length", 3, 1.0), "1": ("length", 3, 0.3048), "2": ("angle", 5, GON), "3": ("angle", 5, DEG),
-    "4": ("dms", 5, DEG), "5": ("angle", 4, MIL), "6": ("length", 4, 1.0), "7": ("length", 4, 0.3048),
+    "0": ("length", 3, 1.0), "1": ("length", 3, 0.3048), "2": ("angle", 5, 400.0), "3": ("angle", 5, 360.0),
+    "4": ("dms", 5, 360.0), "5": ("angle", 4, 6400.0), "6": ("length", 4, 1.0), "7": ("length", 4, 0.3048),
     "8": ("length", 5, 1.0),
 }
 ANGLE_UNIT_CODE = {"gon": "2", "deg": "3", "dms": "4", "mil": "5"}
@@ -31,19 +36,21 @@ class GsiError(ValueError):
 
 @dataclass(frozen=True)
 class Word:
-    wi: int
+    wi: int            # -1 for an unknown word whose index is not even digits
     info: str          # the characters between WI and sign (3 for 2-digit WIs incl. the '.', 3 for 3-digit WIs)
     sign: str
     data: str
+    known: bool = True     # False: the word does not follow the grammar; ``raw`` keeps it as read
+    raw: str = ""
 
     @property
     def unit(self) -> str:
-        return self.info[-1]
+        return self.info[-1:]
 
     def angle_rad(self) -> float:
-        kind, dec, scale = _unit(self)
+        kind, dec, full = _unit(self)
         if kind == "angle":
-            val = _digits(self) / 10 ** dec * scale
+            val = _digits(self) / 10 ** dec / full * math.tau     # so 400.00000 gon is exactly 2 pi
         elif kind == "dms":
             n = _digits(self)                 # DDDMMSSs
             tenth_s = n % 10
@@ -52,7 +59,7 @@ class Word:
             d = n // 100000
             if m >= 60 or s >= 60:
                 raise GsiError(f"WI{self.wi}: {self.data!r} is not a DDD.MMSSs angle")
-            val = (d + m / 60 + (s + tenth_s / 10) / 3600) * DEG
+            val = (d + m / 60 + (s + tenth_s / 10) / 3600) / full * math.tau
         else:
             raise GsiError(f"WI{self.wi} unit {self.unit!r} is not an angle unit")
         return -val if self.sign == "-" else val
@@ -65,10 +72,15 @@ class Word:
         return -val if self.sign == "-" else val
 
     def text(self) -> str:
-        return self.data.lstrip("0") or "0"
+        """The data as text (point name, code, serial number): leading zeros and padding blanks removed."""
+        if not self.known:
+            raise GsiError(f"word {self.raw!r} does not follow the GSI grammar")
+        return self.data.lstrip("0 ").rstrip() or "0"
 
 
 def _unit(w: Word) -> tuple[str, int, float]:
+    if not w.known:
+        raise GsiError(f"word {w.raw!r} does not follow the GSI grammar")
     try:
         return UNITS[w.unit]
     except KeyError:
@@ -81,19 +93,24 @@ def _digits(w: Word) -> int:
     return int(w.data)
 
 
-_WORD8 = re.compile(r"(\d{2})([0-9.]{4})([+-])([0-9A-Za-z .+-]{8}) ?\Z")
-_WORD16 = re.compile(r"(\d{2})([0-9.]{4})([+-])([0-9A-Za-z .+-]{16}) ?\Z")
+#: data may hold any printable character (point names, codes, remarks); the blank after it ends the word
+_WORD = {16: re.compile(r"(\d{2})([0-9.]{4})([+-])([\x20-\x7e]{8}) \Z"),
+         24: re.compile(r"(\d{2})([0-9.]{4})([+-])([\x20-\x7e]{16}) \Z")}
+_WI_DIGITS = re.compile(r"(\d{2,3})")
+
+
+def _text(line: bytes | str) -> str:
+    """Bytes as latin-1: every byte is one character, so a stray byte spoils one word, not the line."""
+    return line.decode("latin-1") if isinstance(line, bytes) else line
 
 
 def parse_block(line: bytes | str) -> list[Word]:
-    """Words of one GSI line (terminator removed).  ``*`` prefix -> GSI-16; a missing trailing blank is tolerated."""
-    if isinstance(line, bytes):
-        try:
-            line = line.decode("ascii")
-        except UnicodeDecodeError:
-            raise GsiError(f"non-ASCII bytes in GSI line {line[:40]!r}") from None
-    if any(not 0x20 <= ord(c) <= 0x7E for c in line):
-        raise GsiError(f"control characters in GSI line {line[:40]!r}")
+    """Words of one GSI line (terminator removed).  ``*`` prefix -> GSI-16; a missing trailing blank is tolerated.
+
+    Raises :class:`GsiError` only when the line cannot be split into words; a word that does not follow the
+    grammar comes back with ``known=False``.
+    """
+    line = _text(line)
     gsi16 = line.startswith("*")
     body = line[1:] if gsi16 else line
     size = 24 if gsi16 else 16
@@ -101,23 +118,20 @@ def parse_block(line: bytes | str) -> list[Word]:
         body += " "
     if not body.strip() or len(body) % size:
         raise GsiError(f"GSI line length {len(body)} is not a multiple of {size}: {line[:40]!r}")
-    pat = _WORD16 if gsi16 else _WORD8
-    words = []
-    for i in range(0, len(body), size):
-        chunk = body[i:i + size]
-        m = pat.match(chunk)
-        if not m or chunk[-1] != " ":
-            raise GsiError(f"malformed GSI word {chunk!r}")
-        wi2, info, sign, data = m.groups()
-        if wi2 in ("11", "41"):                       # point / code word: pos 3-6 is the block number
-            words.append(Word(int(wi2), info, sign, data))
-            continue
-        if info[0].isdigit():                        # 3-digit WI (531, 538, 913 ...)
-            wi, info = int(wi2 + info[0]), "." + info[1:]
-        else:
-            wi = int(wi2)
-        words.append(Word(wi, info[1:], sign, data))
-    return words
+    return [_word(body[i:i + size], size) for i in range(0, len(body), size)]
+
+
+def _word(chunk: str, size: int) -> Word:
+    m = _WORD[size].match(chunk)
+    if not m:
+        wi = _WI_DIGITS.match(chunk)
+        return Word(int(wi.group(1)) if wi else -1, "", "", "", known=False, raw=chunk)
+    wi2, info, sign, data = m.groups()
+    if wi2 in ("11", "41"):                       # point / code word: pos 3-6 is the block number
+        return Word(int(wi2), info, sign, data, raw=chunk)
+    if info[0].isdigit():                        # 3-digit WI (531, 538, 913 ...)
+        return Word(int(wi2 + info[0]), info[1:], sign, data, raw=chunk)
+    return Word(int(wi2), info[1:], sign, data, raw=chunk)
 
 
 def format_word(wi: int, info: str, value: int | str, gsi16: bool, sign: str = "+") -> str:
@@ -179,10 +193,7 @@ ONLINE_CODES = {427: "invalid command"}
 
 
 def parse_online_reply(line: bytes) -> OnlineReply:
-    try:
-        text = line.decode("ascii")
-    except UnicodeDecodeError:
-        raise GsiError(f"non-ASCII bytes in reply {line[:40]!r}") from None
+    text = _text(line)
     if text == "?":
         return OnlineReply("ok")
     m = _CODE.match(text)

@@ -3,8 +3,11 @@
 Own strict parsing (never the driver's codec, so a shared misunderstanding cannot hide): requests
 ``%R1Q,<rpc>[,<trid>[,<crc>]]:<params>`` framed on CR/LF; empty lines and bare LF ignored; ``c`` answered ``?``.
 Replies echo the TrId (0 if none), carry a CRC-16/ARC iff the request did, format doubles with the current double
-precision.  Unknown RPC -> ``%R1P,3081,<trid>:``; undecodable request -> ``%R1P,3080,0:``; bad request CRC ->
-``3101``; wrong parameter count or type -> RC 2 (IVPARAM).
+precision.  Every reply follows the reply grammar of protocols.md §1.3, return code included: a communication-layer
+fault travels in ``<RC_COM>`` with RPC return code 0 (the shape GeoComPy synthesises for its own COM errors):
+unknown RPC -> ``%R1P,3081,<trid>:0``; undecodable request -> ``%R1P,3080,0:0``; bad request CRC ->
+``%R1P,3101,<trid>,<crc>:0``.  A parameter of the wrong count, type or range (a 4,301-digit integer, ``1e400``)
+-> RC 2 (IVPARAM).  No request can make the device raise.
 
 State: incline switch, face, telescope pointing after AUT_MakePositioning (otherwise the operator keeps it on the
 target and the world's ``sight`` is read), distance measured by TMC_DoMeasure (cleared by TMC_CLEAR), double
@@ -20,6 +23,8 @@ from collections import defaultdict, deque
 from typing import Callable
 
 import numpy as np
+
+from calib.errors import RobocalError
 
 from .device import DeviceBase
 from .world import World
@@ -47,15 +52,30 @@ class _BadParam(Exception):
 
 
 def _num(s: str) -> float:
-    if not _NUM.match(s):
+    if len(s) > 64 or not _NUM.match(s):
         raise _BadParam(s)
-    return float(s)
+    x = float(s)
+    if not math.isfinite(x):
+        raise _BadParam(s)
+    return x
 
 
 def _int(s: str) -> int:
-    if not _INT.match(s):
+    """A 32-bit GeoCOM long (decimal or 0x hex); anything longer is a bad parameter, not a ValueError."""
+    if len(s) > 11 or not _INT.match(s):
         raise _BadParam(s)
-    return int(s, 16) if s[:2].lower() == "0x" else int(s)
+    n = int(s, 16) if s[:2].lower() == "0x" else int(s)
+    if not -2 ** 31 <= n < 2 ** 32:
+        raise _BadParam(s)
+    return n
+
+
+def check_station(world: World, station: str, device: str) -> None:
+    """Refuse at start a station the world does not have (instead of failing on the first request)."""
+    stations = getattr(world, "stations", None)
+    if stations is not None and station not in stations:
+        raise RobocalError(f"emulator {device}: no station {station!r} in the world "
+                           f"(stations: {', '.join(map(str, stations))})")
 
 
 class GeoComDevice(DeviceBase):
@@ -66,6 +86,7 @@ class GeoComDevice(DeviceBase):
                  firmware: tuple[int, int, int] = (2, 20, 1), motorised: bool = True, seed: int = 0,
                  clock: Callable[[], float] = time.monotonic):
         super().__init__(clock)
+        check_station(world, station, "geocom")
         self.world = world
         self.station = station
         self.instrument_name = instrument_name
@@ -80,7 +101,7 @@ class GeoComDevice(DeviceBase):
         self.pointing: tuple[float, float] | None = None
         self.distance_ready = False
         self.ang_switch = [True, True, True, True]
-        self._script: dict[int, deque[int]] = defaultdict(deque)
+        self._script: dict[int, deque[tuple[int, bool]]] = defaultdict(deque)
         self.requests: list[bytes] = []                 # every request line seen (tests inspect it)
         self._handlers: dict[int, Callable[[list[str]], tuple[int, list[str]]]] = {
             0: self._null, 107: self._set_precision, 108: self._get_precision, 110: self._sw_version,
@@ -92,9 +113,11 @@ class GeoComDevice(DeviceBase):
         }
 
     # -- fault hooks --------------------------------------------------------------------------------------------------
-    def script_rc(self, rpc: int, rc: int, times: int = 1) -> None:
-        """The next ``times`` calls of ``rpc`` return ``rc`` (values kept for TMC warning codes)."""
-        self._script[rpc].extend([rc] * times)
+    def script_rc(self, rpc: int, rc: int, times: int = 1, *, with_values: bool | None = None) -> None:
+        """The next ``times`` calls of ``rpc`` return ``rc``; values are kept for the TMC warning codes unless
+        ``with_values`` says otherwise (a real instrument may send a warning code alone)."""
+        keep = rc in _WITH_VALUES if with_values is None else with_values
+        self._script[rpc].extend([(rc, keep)] * times)
 
     # -- framing ------------------------------------------------------------------------------------------------------
     def on_line(self, line: bytes) -> None:
@@ -106,18 +129,18 @@ class GeoComDevice(DeviceBase):
             return
         m = _REQ.match(line)
         if not m or any(not 0x20 <= b <= 0x7E for b in line):
-            self.emit(b"%R1P,3080,0:\r\n")
+            self.emit(b"%R1P,3080,0:0\r\n")
             return
         rpc, trid, crc, params = int(m.group(1)), int(m.group(2) or 0), m.group(3), m.group(4)
         with_crc = crc is not None
         if with_crc:
             s, e = m.span(3)
             if crc16_arc_bitwise(line[:s - 1] + line[e:]) != int(crc):
-                self._reply(3101, trid, None, [], True)
+                self._reply(3101, trid, 0, [], True)
                 return
         handler = self._handlers.get(rpc)
         if handler is None:
-            self._reply(3081, trid, None, [], with_crc)
+            self._reply(3081, trid, 0, [], with_crc)
             return
         fields = params.decode("ascii").split(",") if params else []
         try:
@@ -125,12 +148,12 @@ class GeoComDevice(DeviceBase):
         except _BadParam:
             rc, values = 2, []
         if self._script[rpc]:
-            forced = self._script[rpc].popleft()
-            rc, values = forced, (values if forced in _WITH_VALUES else [])
+            rc, keep = self._script[rpc].popleft()
+            values = values if keep else []
         self._reply(0, trid, rc, values, with_crc)
 
-    def _reply(self, rc_com: int, trid: int, rc: int | None, values: list[str], with_crc: bool) -> None:
-        body = "" if rc is None else ",".join([str(rc), *values])
+    def _reply(self, rc_com: int, trid: int, rc: int, values: list[str], with_crc: bool) -> None:
+        body = ",".join([str(rc), *values])
         head = f"%R1P,{rc_com},{trid}"
         if with_crc:
             head += f",{crc16_arc_bitwise(f'{head}:{body}'.encode('ascii'))}"

@@ -23,6 +23,7 @@ measured positions as operator inputs ``x_mm``, ``y_mm``, ``z_mm``, so ``robocal
 from __future__ import annotations
 
 import csv
+import io
 import json
 import time
 import warnings
@@ -31,6 +32,7 @@ from pathlib import Path
 import numpy as np
 
 from calib.errors import RobocalError
+from calib.fileio import atomic_write_text
 from calib.units import DEG
 
 from .reprocess import load_session
@@ -49,12 +51,13 @@ def export_readings_csv(db: str, out: str) -> int:
             "ORDER BY s.seq, r.reading_id").fetchall()
     finally:
         conn.close()
-    with open(out, "w", newline="", encoding="utf-8") as f:
-        w = csv.writer(f)
-        w.writerow(READING_COLUMNS)
-        for key, proc, st, tg, face, hz, v, spec, raw in rows:
-            q = json.loads(spec).get("pose_deg") or [""] * 6
-            w.writerow([key, proc, st, tg, face, f"{hz / DEG:.10f}", f"{v / DEG:.10f}", *q, raw.hex()])
+    f = io.StringIO(newline="")
+    w = csv.writer(f)
+    w.writerow(READING_COLUMNS)
+    for key, proc, st, tg, face, hz, v, spec, raw in rows:
+        q = json.loads(spec).get("pose_deg") or [""] * 6
+        w.writerow([key, proc, st, tg, face, f"{hz / DEG:.10f}", f"{v / DEG:.10f}", *q, raw.hex()])
+    atomic_write_text(out, f.getvalue())
     return len(rows)
 
 
@@ -68,7 +71,7 @@ def export_json(db: str, out: str) -> None:
                       "encoder_counts_mean": None if s["counts"] is None else np.mean(s["counts"], 0).tolist()})
     doc = {"format": "robocal-session-json", "version": 1, "session": {k: v for k, v in d.session.items()},
            "plan": d.plan, "setup": d.setup, "steps": steps}
-    Path(out).write_text(json.dumps(doc, indent=1, default=str), encoding="utf-8")
+    atomic_write_text(out, json.dumps(doc, indent=1, default=str))
 
 
 def pose_arrays(db: str) -> dict:

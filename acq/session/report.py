@@ -14,6 +14,8 @@ from pathlib import Path
 
 import numpy as np
 
+from calib.fileio import atomic_write_text
+
 
 def _png(fig) -> str:
     buf = io.BytesIO()
@@ -144,9 +146,9 @@ def write_report(result: dict, out_dir: str | Path) -> Path:
     for title, img in figs:
         body.append(f"<h2>{html.escape(title)}</h2>{img}")
     path = out / "report.html"
-    path.write_text("<!doctype html><html><head><meta charset='utf-8'><title>robocal report</title></head><body>"
-                    + "".join(body) + "</body></html>", encoding="utf-8")
-    (out / "results.json").write_text(json.dumps({k: v for k, v in result.items() if k != "figures"}, indent=1))
+    atomic_write_text(path, "<!doctype html><html><head><meta charset='utf-8'><title>robocal report</title></head>"
+                      "<body>" + "".join(body) + "</body></html>")
+    atomic_write_text(out / "results.json", json.dumps({k: v for k, v in result.items() if k != "figures"}, indent=1))
     if result.get("robot"):
-        (out / "robot.json").write_text(json.dumps(result["robot"], indent=1))
+        atomic_write_text(out / "robot.json", json.dumps(result["robot"], indent=1))
     return path

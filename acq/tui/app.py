@@ -25,6 +25,7 @@ from textual_plotext import PlotextPlot
 from acq.session.runner import Answer, Event, Runner
 
 from .bridge import LiveValues, OperatorPrompt, RunnerEvent, TuiOperator
+from .panels import Progress, joint_table, point_lines, shorten, theodolite_lines
 from .views import DIAGRAMS, StepData, plot_series
 
 HELP = """\
@@ -38,6 +39,9 @@ HELP = """\
 | **s** | skip the step |
 | **p** | pause: the session stops after this step and resumes where it stopped |
 | **x** | abort the session (everything saved so far stays) |
+| **1** | show or hide the plan (folded on small terminals) |
+| **2** | show or hide the devices and the log (folded on small terminals) |
+| **d** | show or hide the set-up diagram |
 | **?** | this help |
 | **q** | quit (a step in progress is not saved; the session resumes later) |
 
@@ -78,21 +82,38 @@ class RobocalApp(App):
     TITLE = "robocal session"
     CSS = """
     #body { height: 1fr; }
-    #plan { width: 34; border: round $primary; }
-    #middle { width: 1fr; }
-    #right { width: 44; }
-    #step { height: auto; min-height: 7; border: round $accent; padding: 0 1; }
+    #plan { width: 36; border: round $primary; }
+    #middle { width: 1fr; min-width: 40; }
+    #right { width: 48; }
+    #step { height: auto; min-height: 4; border: round $accent; padding: 0 1; }
     #diagram { height: auto; color: $text-muted; padding: 0 1; }
     #prompt { height: auto; padding: 0 1; background: $boost; }
     #inputs { height: auto; }
-    #checks { height: 9; border: round $primary; }
-    #plot { height: 1fr; min-height: 10; border: round $primary; }
-    #live { height: auto; border: round $success; padding: 0 1; }
+    #live { height: auto; border: round $success; padding: 0 1; display: none; }
+    #live.has-data { display: block; }
+    #checks { height: auto; max-height: 9; border: round $primary; display: none; }
+    #checks.has-rows { display: block; }
+    #plot { height: 1fr; min-height: 12; border: round $primary; display: none; }
+    #plot.has-data { display: block; }
     #devices { height: auto; border: round $primary; padding: 0 1; }
     #log { height: 1fr; border: round $primary; }
-    #help { width: 80; height: 80%; border: thick $accent; background: $surface; }
+    #help { width: 80; max-width: 100%; height: 80%; border: thick $accent; background: $surface; }
     HelpScreen { align: center middle; }
+    /* small terminals: the step gets the room; side panels fold behind keys 1 (plan) and 2 (devices, log) */
+    Screen.-medium #plan { width: 28; }
+    Screen.-medium #right { display: none; }
+    Screen.-narrow #plan { display: none; }
+    Screen.-narrow #right { display: none; }
+    Screen.-short #diagram { display: none; }
+    #body.show-plan #plan { display: block; }
+    #body.show-side #right { display: block; }
+    #body.show-diagram #diagram { display: block; }
+    #body.hide-plan #plan { display: none; }
+    #body.hide-side #right { display: none; }
     """
+    #: widths (columns) and heights (rows) at which the layout changes; classes are set on the screen
+    HORIZONTAL_BREAKPOINTS = [(0, "-narrow"), (110, "-medium"), (160, "-wide")]
+    VERTICAL_BREAKPOINTS = [(0, "-short"), (36, "-tall")]
     BINDINGS = [
         Binding("c", "answer('continue')", "continue"),
         Binding("a", "answer('accept')", "accept"),
@@ -100,6 +121,9 @@ class RobocalApp(App):
         Binding("s", "answer('skip')", "skip"),
         Binding("p", "answer('pause')", "pause"),
         Binding("x", "answer('abort')", "abort"),
+        Binding("1", "toggle_panel('plan')", "plan"),
+        Binding("2", "toggle_panel('side')", "log"),
+        Binding("d", "toggle_panel('diagram')", "diagram", show=False),
         Binding("question_mark", "help", "help"),
         Binding("q", "quit", "quit"),
     ]
@@ -123,21 +147,24 @@ class RobocalApp(App):
         self.finished: dict | None = None
         self.state = "idle"
         self.results: list[str] = []
+        self.progress = Progress()
+        self.groups: dict = {}                               # procedure -> its node in the plan tree
+        self.step_t0: dict[str, float] = {}                  # key -> when the step started (for the estimate)
 
     # -- layout -------------------------------------------------------------------------------------------------
     def compose(self) -> ComposeResult:
         yield Header(show_clock=self.clock)
         with Horizontal(id="body"):
             yield Tree("plan", id="plan")
-            with Vertical(id="middle"):
+            with VerticalScroll(id="middle"):
                 yield Static("starting…", id="step")
                 yield Static("", id="diagram")
                 yield Static("", id="prompt")
                 yield Vertical(id="inputs")
+                yield Static("no readings yet", id="live")
                 yield DataTable(id="checks", cursor_type="row")
                 yield PlotextPlot(id="plot")
             with Vertical(id="right"):
-                yield Static("no readings yet", id="live")
                 yield Static("", id="devices")
                 yield RichLog(id="log", wrap=True, markup=False)
         yield Footer()
@@ -179,15 +206,41 @@ class RobocalApp(App):
         self._refresh_devices()
         self.set_interval(1.0, self._refresh_devices)
 
+    #: characters of a step title shown in the plan tree (the full title shows when the node is highlighted)
+    PLAN_LABEL_CHARS = 28
+
     def _build_plan(self, runner: Runner) -> None:
         tree = self.query_one("#plan", Tree)
+        tree.show_root = False
+        tree.guide_depth = 2
         tree.root.expand()
-        groups: dict[str, object] = {}
+        self.progress = Progress.of([s.procedure for s in runner.steps])
         for step in runner.steps:
             self.steps_by_key[step.key] = step
-            if step.procedure not in groups:
-                groups[step.procedure] = tree.root.add(step.procedure, expand=False)
-            self.nodes[step.key] = groups[step.procedure].add_leaf(f"· {step.title}", data=step.key)
+            if step.procedure not in self.groups:
+                self.groups[step.procedure] = tree.root.add(self.progress.group_label(step.procedure), expand=False)
+            self.nodes[step.key] = self.groups[step.procedure].add_leaf(
+                f"· {shorten(step.title, self.PLAN_LABEL_CHARS)}", data=step.key)
+        self._show_progress()
+
+    def _show_progress(self) -> None:
+        for proc, node in self.groups.items():
+            node.set_label(self.progress.group_label(proc))
+        cur = self.steps_by_key[self.current_key].procedure if self.current_key in self.steps_by_key else None
+        self.sub_title = self.progress.header(cur)
+
+    @on(Tree.NodeHighlighted, "#plan")
+    def _plan_highlighted(self, event: Tree.NodeHighlighted) -> None:
+        step = self.steps_by_key.get(event.node.data) if event.node.data else None
+        self.query_one("#plan", Tree).border_subtitle = step.title if step is not None else ""
+
+    def action_toggle_panel(self, which: str) -> None:
+        """Show or hide a side panel (the plan, the devices and log, the set-up diagram) at any terminal size."""
+        body = self.query_one("#body")
+        target = {"plan": "#plan", "side": "#right", "diagram": "#diagram"}[which]
+        shown = self.query_one(target).display
+        body.remove_class(f"show-{which}", f"hide-{which}")
+        body.add_class(f"hide-{which}" if shown else f"show-{which}")
 
     # -- runner thread -> app -------------------------------------------------------------------------------------
     def _from_runner(self, ev: Event) -> None:
@@ -216,12 +269,17 @@ class RobocalApp(App):
 
     def _ev_step_skipped_done(self, d: dict) -> None:
         self._mark(d["key"], "done")
+        step = self.steps_by_key.get(d["key"])
+        if step is not None:
+            self.progress.mark_done(step.procedure)
+            self._show_progress()
 
     def _ev_step_started(self, d: dict) -> None:
         key = d["key"]
         if self.current_key and self.current_key != key and self._status(self.current_key) == "current":
             self._mark(self.current_key, "")
         self.current_key = key
+        self.step_t0.setdefault(key, time.monotonic())
         step = self.steps_by_key.get(key)
         self.data[key] = StepData(key, d.get("procedure", ""), dict(step.meta) if step else {})
         self._mark(key, "current")
@@ -237,6 +295,8 @@ class RobocalApp(App):
             f"{d.get('instruction', '')}{pose_txt}")
         self.query_one("#diagram", Static).update(DIAGRAMS.get(d.get("procedure", ""), ""))
         self.query_one("#checks", DataTable).clear()
+        self.query_one("#checks", DataTable).remove_class("has-rows")
+        self._show_progress()
 
     def _ev_reading(self, d: dict) -> None:
         sd = self.data.get(d.get("key"))
@@ -257,7 +317,9 @@ class RobocalApp(App):
         val = d.get("value")
         lim = d.get("limit")
         unit = d.get("unit") or ""
-        self.query_one("#checks", DataTable).add_row(
+        table = self.query_one("#checks", DataTable)
+        table.add_class("has-rows")
+        table.add_row(
             d.get("name", ""), "[green]pass[/]" if ok else "[b red]FAIL[/]",
             "" if val is None else f"{val:.4g} {unit}", "" if lim is None else f"{lim:.4g} {unit}",
             d.get("message", ""))
@@ -268,6 +330,11 @@ class RobocalApp(App):
         sd = self.data.get(key)
         failed = sd is not None and any(not c.get("passed", True) for c in sd.checks)
         self._mark(key, "skipped" if status == "skipped" else ("warned" if failed else "accepted"))
+        step = self.steps_by_key.get(key)
+        if step is not None:
+            t0 = self.step_t0.pop(key, None)
+            self.progress.mark_done(step.procedure, None if t0 is None else time.monotonic() - t0)
+            self._show_progress()
         if sd is not None:
             sd.status = status
             self._update_results(sd)
@@ -313,6 +380,7 @@ class RobocalApp(App):
     def _show_results(self, res: dict, out: str) -> None:
         table = self.query_one("#checks", DataTable)
         table.clear(columns=True)
+        table.add_class("has-rows")
         table.add_columns("estimate", "value", "1 sigma", "unit", "truth")
         for e in res.get("estimates", []):
             truth = e.get("truth")
@@ -410,35 +478,32 @@ class RobocalApp(App):
             return
         node._robocal_status = status
         step = self.steps_by_key[key]
-        node.set_label(f"{STATUS_MARK.get(status, '·')} {step.title}")
+        node.set_label(f"{STATUS_MARK.get(status, '·')} {shorten(step.title, self.PLAN_LABEL_CHARS)}")
 
     def log_line(self, text: str) -> None:
         stamp = f"{time.strftime('%H:%M:%S')} " if self.clock else ""
         self.query_one("#log", RichLog).write(f"{stamp}{text}")
 
     def _refresh_live(self) -> None:
+        """Latest readings, labelled: one line per theodolite, the intersected points, the encoders per joint."""
         snap = self.live.snapshot()
-        lines = []
-        for st in ("A", "B"):
-            r = snap.get(f"theodolite {st}")
-            if r:
-                lines.append(f"theodolite {st}: Hz {r['hz_deg']:10.5f}°  V {r['v_deg']:9.5f}°  face {r.get('face')}"
-                             f"  [{r.get('target')}]")
+        theo = {k.split(" ", 1)[1]: v for k, v in snap.items() if k.startswith("theodolite ") and v}
+        lines = theodolite_lines(theo)
         sd = self.data.get(self.current_key) if self.current_key else None
         if sd is not None and self.handle is not None:
-            pts = sd.points(self.handle.runner.stations)
-            for name, p in pts.items():
-                lines.append(f"point {name}: x {p[0]:.3f}  y {p[1]:.3f}  z {p[2]:.3f} mm")
+            lines += point_lines(sd.points(self.handle.runner.stations))
             miss = [c for c in sd.checks if c.get("name", "").startswith("miss")]
             if miss and miss[-1].get("value") is not None:
                 lines.append(f"miss distance {miss[-1]['value']:.3f} mm")
         tap = getattr(self.handle.runner.rig, "tap", None) if self.handle else None
         sample = tap.latest() if tap is not None else None
         if sample is not None:
-            lines.append("counts  " + " ".join(f"{c:>8d}" for c in sample.counts))
-            if sample.joint_rad is not None:
-                lines.append("joints° " + " ".join(f"{np.degrees(v):8.3f}" for v in sample.joint_rad))
-        self.query_one("#live", Static).update("\n".join(lines) or "no readings yet")
+            live = self.query_one("#live", Static)
+            width = max((live.size.width or 80) - 4, 20)
+            lines += joint_table(sample.counts, sample.joint_rad, width)
+        live = self.query_one("#live", Static)
+        live.set_class(bool(lines), "has-data")
+        live.update("\n".join(lines) or "no readings yet")
 
     def _refresh_devices(self) -> None:
         if self.handle is None:
@@ -482,6 +547,7 @@ class RobocalApp(App):
         title, xlabel, ylabel, lines = series
         self.plotted = (title, sum(len(xs) for _, xs, _ in lines))
         plot = self.query_one("#plot", PlotextPlot)
+        plot.add_class("has-data")
         plt = plot.plt
         plt.clear_data()
         plt.clear_figure()

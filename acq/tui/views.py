@@ -3,6 +3,7 @@ series each procedure's plot shows, and small set-up diagrams.  Pure functions a
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import Callable
 
 import numpy as np
 
@@ -67,66 +68,100 @@ class StepData:
             rows = [{"station": st, "target": tg, "face": f, "hz_rad": h, "v_rad": v}
                     for st, tg, f, h, v in self.readings]
             try:
-                pts = {k: v[0] for k, v in intersect_targets(rows, stations).items()} if "A" in stations else {}
+                pts = ({k: v[0] for k, v in intersect_targets(rows, stations).items()}
+                       if len(stations) >= 2 else {})
             except RobocalError:
                 pts = {}
             self._cache = (key, pts)
         return self._cache[1]
 
 
-def plot_series(procedure: str, steps: list[StepData], stations: dict[str, Station]):
+Series = tuple[str, str, str, list]          # (title, x label, y label, [(label, xs, ys)])
+PlotFn = Callable[[list[StepData], dict[str, Station]], "Series | None"]
+#: the live plot of each procedure, by procedure name (a procedure without one gets the miss-distance plot)
+PLOTS: dict[str, PlotFn] = {}
+
+
+def plot_for(*procedures: str):
+    """Register the live plot of one or more procedures."""
+    def register(fn: PlotFn) -> PlotFn:
+        for name in procedures:
+            PLOTS[name] = fn
+        return fn
+    return register
+
+
+def plot_series(procedure: str, steps: list[StepData], stations: dict[str, Station]) -> Series | None:
     """(title, x label, y label, [(label, xs, ys)]) for the current procedure's plot, or None if too little data."""
-    if procedure == "sweep":
-        P = [next(iter(s.points(stations).values())) for s in steps if s.points(stations)]
-        if len(P) < 4:
-            return None
-        from calib.estimators.axes import fit_circle
-        P = np.array(P)
-        th = fit_circle(P)
-        c, n, r = th[:3], th[3:6], th[6]
-        d = P - c
-        radial = np.linalg.norm(d - np.outer(d @ n, n), axis=1) - r
-        return ("circle fit residuals", "position", "mm",
-                [("radial", list(range(1, len(P) + 1)), radial.tolist()),
-                 ("out of plane", list(range(1, len(P) + 1)), (d @ n).tolist())])
-    if procedure == "transmission":
-        pairs = [(s.points(stations), s.joint_deg, s.meta.get("joint")) for s in steps]
-        pairs = [(p, q, j) for p, q, j in pairs if len(p) >= 2 and q is not None and j]
-        if len(pairs) < 4:
-            return None
-        names = sorted(pairs[0][0])
-        A1 = np.array([p[names[0]] for p, _, _ in pairs])
-        A2 = np.array([p[names[1]] for p, _, _ in pairs])
-        n = np.linalg.svd(A1 - A1.mean(0))[2][-1]                 # axis: normal of the plane A1 sweeps
-        x = np.concatenate([np.broadcast_to(A1[0], A1.shape), np.broadcast_to(A2[0], A2.shape), A1, A2], axis=1)
-        ang = np.unwrap(joint_angle(x, n)[:, 0])                  # eq 4.4.1, the estimator's own function
-        j = int(pairs[0][2]) - 1
-        enc = np.array([q[j] for _, q, _ in pairs]) * DEG
-        sgn = np.sign(np.polyfit(enc - enc[0], ang, 1)[0]) or 1.0
-        err = sgn * ang - (enc - enc[0])
-        return ("transmission error", f"joint {j + 1} encoder (deg)", "deg",
-                [("measured - encoder", (enc / DEG).tolist(), ((err - err.mean()) / DEG).tolist())])
-    if procedure == "compliance":
-        rows = []
-        first = None
-        for s in steps:
-            p = s.points(stations)
-            if not p:
-                continue
-            pt = next(iter(p.values()))
-            first = pt if first is None else first
-            load = next((v for k, v in s.inputs.items() if k.startswith("load")), s.meta.get("load_n"))
-            if load is None:
-                continue
-            rows.append((float(load), float(np.linalg.norm(pt - first)), s.meta.get("phase", "")))
-        if len(rows) < 3:
-            return None
-        series = []
-        for phase in ("loading", "unloading"):
-            sel = [r for r in rows if r[2] == phase] or ([] if phase == "unloading" else rows)
-            if sel:
-                series.append((phase, [r[0] for r in sel], [r[1] for r in sel]))
-        return ("deflection under load", "load (N)", "mm", series)
+    return PLOTS.get(procedure, miss_distance_plot)(steps, stations)
+
+
+@plot_for("sweep", "sweeps")
+def circle_residuals_plot(steps: list[StepData], stations: dict[str, Station]) -> Series | None:
+    """Radial and out-of-plane residuals of the circle the swept target describes."""
+    P = [next(iter(s.points(stations).values())) for s in steps if s.points(stations)]
+    if len(P) < 4:
+        return None
+    from calib.estimators.axes import fit_circle
+    P = np.array(P)
+    th = fit_circle(P)
+    c, n, r = th[:3], th[3:6], th[6]
+    d = P - c
+    radial = np.linalg.norm(d - np.outer(d @ n, n), axis=1) - r
+    return ("circle fit residuals", "position", "mm",
+            [("radial", list(range(1, len(P) + 1)), radial.tolist()),
+             ("out of plane", list(range(1, len(P) + 1)), (d @ n).tolist())])
+
+
+@plot_for("transmission")
+def transmission_error_plot(steps: list[StepData], stations: dict[str, Station]) -> Series | None:
+    """Joint angle from the two targets minus the encoder's, over the encoder angle."""
+    pairs = [(s.points(stations), s.joint_deg, s.meta.get("joint")) for s in steps]
+    pairs = [(p, q, j) for p, q, j in pairs if len(p) >= 2 and q is not None and j]
+    if len(pairs) < 4:
+        return None
+    names = sorted(pairs[0][0])
+    A1 = np.array([p[names[0]] for p, _, _ in pairs])
+    A2 = np.array([p[names[1]] for p, _, _ in pairs])
+    n = np.linalg.svd(A1 - A1.mean(0))[2][-1]                 # axis: normal of the plane A1 sweeps
+    x = np.concatenate([np.broadcast_to(A1[0], A1.shape), np.broadcast_to(A2[0], A2.shape), A1, A2], axis=1)
+    ang = np.unwrap(joint_angle(x, n)[:, 0])                  # eq 4.4.1, the estimator's own function
+    j = int(pairs[0][2]) - 1
+    enc = np.array([q[j] for _, q, _ in pairs]) * DEG
+    sgn = np.sign(np.polyfit(enc - enc[0], ang, 1)[0]) or 1.0
+    err = sgn * ang - (enc - enc[0])
+    return ("transmission error", f"joint {j + 1} encoder (deg)", "deg",
+            [("measured - encoder", (enc / DEG).tolist(), ((err - err.mean()) / DEG).tolist())])
+
+
+@plot_for("compliance")
+def deflection_plot(steps: list[StepData], stations: dict[str, Station]) -> Series | None:
+    """Deflection of the first target against the load entered, loading and unloading apart."""
+    rows = []
+    first = None
+    unit = "N"
+    for s in steps:
+        p = s.points(stations)
+        if not p:
+            continue
+        pt = next(iter(p.values()))
+        first = pt if first is None else first
+        key = next((k for k in s.inputs if k.startswith("load_")), None)
+        load = s.inputs[key] if key is not None else s.meta.get("load_n")
+        if load is None:
+            continue
+        unit = key.split("_", 1)[1] if key is not None else unit
+        unloading = str(s.meta.get("phase", "")).startswith("unload")
+        rows.append((float(load), float(np.linalg.norm(pt - first)), "unloading" if unloading else "loading"))
+    if len(rows) < 3:
+        return None
+    series = [(phase, [r[0] for r in rows if r[2] == phase], [r[1] for r in rows if r[2] == phase])
+              for phase in ("loading", "unloading") if any(r[2] == phase for r in rows)]
+    return ("deflection under load", f"load ({unit})", "mm", series)
+
+
+def miss_distance_plot(steps: list[StepData], stations: dict[str, Station]) -> Series | None:
+    """Miss distance of the sight lines, sighting after sighting (any procedure with sightings)."""
     miss = []
     for s in steps:
         for c in s.checks:

@@ -50,6 +50,15 @@ class DiagnosisData:
         obs = PointObservations(self.q_rad, self.points_mm, self.cov_mm2, ctx=self.ctx)
         return obs if idx is None else obs.subset(np.asarray(idx))
 
+    def subset(self, idx) -> "DiagnosisData":
+        """The same data on the poses ``idx`` (conditions, labels and ids follow)."""
+        idx = np.asarray(idx)
+        return DiagnosisData(self.robot, self.q_rad[idx], self.points_mm[idx], self.cov_mm2[idx],
+                             self.ctx.subset(idx), self.source, self.noise_from, dict(self.has),
+                             {k: [v[i] for i in idx] for k, v in self.labels.items()},
+                             {k: np.asarray(v)[idx] for k, v in self.numeric.items()}, self.raw_angles,
+                             [self.pose_id[i] for i in idx] if self.pose_id else [], list(self.notes))
+
     @property
     def whitening(self) -> np.ndarray:
         """(N, 3, 3) W with W^T W = cov^-1: whitened residual = W r."""
@@ -99,23 +108,14 @@ def is_session_db(path: str | Path) -> bool:
         return False
 
 
-def session_observations(path: str | Path, robot: Robot) -> DiagnosisData:
-    """The hook for session databases: turn a session into the same observation arrays as a pose CSV.
-
-    The session store (``acq.session``) is being written in parallel.  The contract this hook expects from it is a
-    function ``acq.session.export.diagnosis_arrays(path) -> dict`` with keys ``q_rad`` (N, n), ``points_mm`` (N, 3),
-    ``cov_mm2`` (N, 3, 3), optional ``direction``, ``payload_kg``, ``temperature_c``, ``time_s``, ``procedure``
-    (list of N step procedure names), ``sighting_angle_deg`` (N,) (intersection angle of the two sight lines) and
-    ``raw_angles`` (bool).  Until that exists, a session file is refused with one clear line.
-    """
-    try:
-        from acq.session import export                     # type: ignore[attr-defined]
-        arrays = export.diagnosis_arrays(path)
-    except (ImportError, AttributeError):
-        raise RobocalError(f"{path}: session databases are not supported yet (give a pose-measurement CSV)") from None
+def from_session_arrays(robot: Robot, arrays: dict, source: str) -> DiagnosisData:
+    """A session database's pose set, as the session layer hands it over (plain arrays; ``calib`` never reads the
+    session store itself, data flow one way): ``q_rad`` (N, n), ``points_mm`` (N, 3), ``cov_mm2`` (N, 3, 3),
+    optional ``direction``, ``payload_kg``, ``temperature_c``, ``time_s``, ``procedure`` (N step procedure names),
+    ``sighting_angle_deg`` (N,) (intersection angle of the two sight lines) and ``raw_angles`` (bool)."""
     d = from_arrays(robot, arrays["q_rad"], arrays["points_mm"], arrays.get("cov_mm2"), None,
                     direction=arrays.get("direction"), payload_kg=arrays.get("payload_kg"),
-                    temperature_c=arrays.get("temperature_c"), time_s=arrays.get("time_s"), source=str(path))
+                    temperature_c=arrays.get("temperature_c"), time_s=arrays.get("time_s"), source=source)
     if arrays.get("procedure") is not None:
         d.labels["procedure"] = [str(s) for s in arrays["procedure"]]
     if arrays.get("sighting_angle_deg") is not None:
@@ -125,7 +125,8 @@ def session_observations(path: str | Path, robot: Robot) -> DiagnosisData:
 
 
 def load_data(path: str | Path, robot: Robot | None = None, noise_mm: float | None = None) -> DiagnosisData:
-    """Read DATA: a session database, the TIAGo mocap CSV (recognised by its header) or a pose-measurement CSV."""
+    """Read DATA: the TIAGo mocap CSV (recognised by its header) or a pose-measurement CSV.  (Session databases come
+    through the session layer as arrays: :func:`from_session_arrays`.)"""
     from calib.posecsv import read_pose_csv
     from calib.robot import load_robot
 
@@ -133,7 +134,8 @@ def load_data(path: str | Path, robot: Robot | None = None, noise_mm: float | No
     if not path.exists():
         raise RobocalError(f"{path}: file not found")
     if is_session_db(path):
-        return session_observations(path, robot or load_robot())
+        raise RobocalError(f"{path}: a session database reaches the diagnosis through the session layer "
+                           f"(robocal diagnose reads it); load_data reads pose CSVs")
     from .tiago import is_tiago_mocap, load_tiago_mocap
     if is_tiago_mocap(path):
         return load_tiago_mocap(path, robot, noise_mm)

@@ -10,8 +10,10 @@ from typing import Callable
 
 import numpy as np
 
+from calib.errors import RobocalError
 from calib.identify import identify
 from calib.model import MeasurementModel
+from calib.outliers import OutlierReport, check_mode
 
 from .breakdown import Factor, breakdown
 from .candidates import EFFECT_NAMES, TE_ORDERS, build_library
@@ -33,6 +35,7 @@ class Diagnosis:
     skipped: list[str]
     outliers: list[int] = field(default_factory=list)
     level_note: str = ""
+    outlier_report: OutlierReport = field(default_factory=lambda: OutlierReport("off"))
 
     @property
     def baseline_rms_mm(self) -> float:
@@ -77,37 +80,53 @@ class Diagnosis:
             "breakdown": [f.as_dict() for f in self.factors],
             "not_tested": self.skipped, "guard_notes": self.selection.skipped,
             "gross_errors_flagged": [i + 1 for i in self.outliers],
+            "outliers": self.outlier_report.as_dict(),
             "notes": d.notes + ([self.level_note] if self.level_note else []),
         }
 
 
+def _outlier_step(data: DiagnosisData, model: MeasurementModel, level: str, mode: str,
+                  loss: str) -> tuple[DiagnosisData, OutlierReport]:
+    """identify's own outlier decision on the geometric fit (one implementation); rejected poses leave the data."""
+    if mode == "off":
+        return data, OutlierReport("off")
+    free = geometric_free(model, "full" if level == "auto" else level)
+    rep = identify(model, data.observations(), free=free, outliers=mode, loss=loss,
+                   labels=data.labels or None).outlier_report
+    if rep.rejected:
+        data = data.subset(np.setdiff1d(np.arange(data.n), rep.rejected))
+    return data, rep
+
+
+def _geometric(data: DiagnosisData, model: MeasurementModel, level: str, folds, loss: str) -> tuple[str, CVResult, str]:
+    """The baseline: the geometric set fitted and scored held-out (``auto``: full unless the poses are too few)."""
+    if level == "auto":
+        full = cv_fit(model, data, geometric_free(model, "full"), folds, loss=loss)
+        if auto_level(model, data.n, len(folds)) == "full":
+            return "full", full, ""
+        offs = cv_fit(model, data, geometric_free(model, "offsets"), folds, loss=loss)
+        level, geo = ("offsets", offs) if offs.chi2 < full.chi2 else ("full", full)
+        return level, geo, (f"few poses for the full geometric set: held-out RMS {full.rms_mm:.3f} mm (full) vs "
+                            f"{offs.rms_mm:.3f} mm (offsets only); the '{level}' set is the baseline")
+    return level, cv_fit(model, data, geometric_free(model, level), folds, loss=loss), ""
+
+
 def diagnose(data: DiagnosisData, level: str = "auto", n_folds: int | None = None, alpha: float = 0.01,
              max_effects: int = 6, kinds: tuple[str, ...] = EFFECT_NAMES, te_orders=TE_ORDERS,
-             flag_outliers: bool = True, progress: Callable[[str, float], None] | None = None) -> Diagnosis:
-    """Run the whole diagnosis on ``data`` (see the package docstring)."""
+             flag_outliers: bool = True, progress: Callable[[str, float], None] | None = None,
+             outliers: str = "flag", loss: str = "linear") -> Diagnosis:
+    """Run the whole diagnosis on ``data`` (see the package docstring).  ``outliers``/``loss`` as identify's
+    (``flag_outliers=False`` is ``outliers="off"``)."""
+    if level not in ("auto", "full", "offsets"):
+        raise RobocalError(f"--geometry must be full, offsets or auto, got {level!r}")
+    check_mode(outliers, loss)
     prog = progress or (lambda s, f: None)
-    folds = make_folds(data.n, n_folds)
     model = MeasurementModel(data.robot)
     prog("geometric fit", 0.0)
-    note = ""
-    if level == "auto":
-        full = cv_fit(model, data, geometric_free(model, "full"), folds)
-        if auto_level(model, data.n, len(folds)) == "full":
-            level, geo = "full", full
-        else:
-            offs = cv_fit(model, data, geometric_free(model, "offsets"), folds)
-            level, geo = ("offsets", offs) if offs.chi2 < full.chi2 else ("full", full)
-            note = (f"few poses for the full geometric set: held-out RMS {full.rms_mm:.3f} mm (full) vs "
-                    f"{offs.rms_mm:.3f} mm (offsets only); the '{level}' set is the baseline")
-    else:
-        if level not in ("full", "offsets"):
-            from calib.errors import RobocalError
-            raise RobocalError(f"--geometry must be full, offsets or auto, got {level!r}")
-        geo = cv_fit(model, data, geometric_free(model, level), folds)
+    data, out_rep = _outlier_step(data, model, level, outliers if flag_outliers else "off", loss)
+    folds = make_folds(data.n, n_folds)
+    level, geo, note = _geometric(data, model, level, folds, loss)
     geo_free = geometric_free(model, level)
-    outliers: list[int] = []
-    if flag_outliers:
-        outliers = identify(model, data.observations(), free=geo_free, robust=True).outliers
     lib = build_library(data, kinds, te_orders)
     prog("effect selection", 0.2)
     sel = forward_select(data, geo, geo_free, lib.candidates, alpha, max_effects,
@@ -119,4 +138,4 @@ def diagnose(data: DiagnosisData, level: str = "auto", n_folds: int | None = Non
     factors = breakdown(data, geo.residual_mm, sel.final.residual_mm, base, up, ev.joint_jacobian)
     prog("done", 1.0)
     return Diagnosis(data, level, len(folds), noise_floor_mm(data), heldout_floor_mm(geo, data), geo, sel, factors,
-                     lib.skipped, outliers, note)
+                     lib.skipped, out_rep.flagged, note, out_rep)

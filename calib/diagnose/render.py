@@ -60,9 +60,7 @@ def render(d: Diagnosis, max_factor_rows: int = 40) -> str:
     if j["final_rms_mm"] > 1.2 * j["heldout_floor_mm"]:
         out.append("   the remaining gap is above the floor: something none of the candidates describes is left "
                    "(or the noise model is optimistic)")
-    if j["gross_errors_flagged"]:
-        out.append(f"   note: identify flags poses {', '.join(map(str, j['gross_errors_flagged']))} as gross errors "
-                   f"(kept in the diagnosis)")
+    out += [f"   note: {line}" for line in d.outlier_report.lines()]
     for n in j["notes"]:
         out.append(f"   note: {n}")
     return "\n".join(out)

@@ -143,6 +143,58 @@ class FaultyDevice:
                 self.inner.wait_output(min(end - now, 0.01))
 
 
+class ScriptedLink:
+    """An in-memory link (SerialLink's write/read_until/drain/reopen) whose instrument answers each request line with
+    ``answer(line) -> reply line`` (None: silence).  For driver tests on arbitrary replies without a port or a
+    thread: a call costs microseconds, so hypothesis can try thousands."""
+
+    def __init__(self, answer: Callable[[bytes], bytes | None], name: str = "theodolite T"):
+        self.answer = answer
+        self.name = self.url = name
+        self.is_open = True
+        self.requests: list[bytes] = []
+        self._out = bytearray()
+
+    def write(self, data: bytes, command: str) -> None:
+        for line in data.split(b"\r\n"):
+            if line.strip(b"\n"):
+                self.requests.append(line.strip(b"\n"))
+                reply = self.answer(line.strip(b"\n"))
+                if reply is not None:
+                    self._out += reply + b"\r\n"
+
+    def read_until(self, terminator: bytes, timeout_s: float, command: str) -> bytes:
+        from acq.errors import DeviceTimeout
+        i = self._out.find(terminator)
+        if i < 0:
+            self._out.clear()
+            raise DeviceTimeout(self.name, command, "no reply")
+        frame = bytes(self._out[:i])
+        del self._out[:i + len(terminator)]
+        return frame
+
+    def drain(self, quiet_s: float = 0.0) -> bytes:
+        out = bytes(self._out)
+        self._out.clear()
+        return out
+
+    def reopen(self) -> None:
+        self.is_open = True
+
+    def close(self) -> None:
+        self.is_open = False
+
+
+def geocom_answer(body: Callable[[int], str]) -> Callable[[bytes], bytes | None]:
+    """A GeoCOM instrument answering RPC ``rpc`` with ``%R1P,0,<trid>:<body(rpc)>`` (TrId echoed)."""
+    def answer(line: bytes) -> bytes | None:
+        m = re.match(rb"%R1Q,(\d+)(?:,(\d+))?", line)
+        if not m:
+            return None
+        return f"%R1P,0,{int(m.group(2) or 0)}:".encode() + body(int(m.group(1))).encode("latin-1")
+    return answer
+
+
 # -- CAN --------------------------------------------------------------------------------------------------------------
 @dataclass
 class BusFaults:
