@@ -394,7 +394,8 @@ def _poses(steps, points, robot, setup, est, twin, figs, running=None, problems=
                      + "; its truth is not comparable with the value")
     pred = model.points(q, theta=ident.theta[:model.P])
     figs["poses"] = {"residual_mm": np.linalg.norm(P - pred, axis=1).tolist(),
-                     "rms_mm": float(ident.residual_rms), "held": [n for n in wanted if n not in ident.free]}
+                     "rms_mm": float(ident.residual_rms), "held": [n for n in wanted if n not in ident.free],
+                     "running_errors": list(specs)}
     return model_document(model, ident, truth)
 
 
