@@ -54,12 +54,15 @@ def robot_from_theta(model: MeasurementModel, theta: np.ndarray) -> Robot:
     tool = np.array([g[kin.index[f"tool.{k}"]] for k in ("x_mm", "y_mm", "z_mm")])
     return replace(r, a_mm=per_joint("a_mm"), d_mm=per_joint("d_mm"), alpha_rad=per_joint("alpha_rad"),
                    theta_offset_rad=per_joint("theta_offset_rad"), beta_rad=per_joint("beta_rad"),
-                   base_xyz_mm=np.array(base), base_rpy_rad=np.array(rpy), tool_points_mm={"P": tool},
+                   base_xyz_mm=np.array(base), base_rpy_rad=np.array(rpy),
+                   tool_points_mm={next(iter(r.tool_points_mm)) if len(r.tool_points_mm) == 1 else "P": tool},
                    name=f"{r.name} (identified)")
 
 
-def model_document(model: MeasurementModel, ident: Identification, truth: dict[str, float] | None = None) -> dict:
-    """The model JSON: every parameter with value, error (1 sigma), unit and whether it was estimated."""
+def model_document(model: MeasurementModel, ident: Identification, truth: dict[str, float] | None = None,
+                   provenance: dict | None = None) -> dict:
+    """The model JSON: every parameter with value, error (1 sigma), unit and whether it was estimated; with
+    ``provenance`` (:func:`calib.provenance.provenance`) under that key."""
     P = model.P
     params = []
     for i, name in enumerate(ident.names):
@@ -79,12 +82,14 @@ def model_document(model: MeasurementModel, ident: Identification, truth: dict[s
         "residual_rms": ident.residual_rms,
         "reduced_chi2": ident.reduced_chi2,
         "outliers": ident.outliers,
+        **({"provenance": provenance} if provenance is not None else {}),
     }
 
 
 def save_model(path: str | Path, model: MeasurementModel, ident: Identification,
-               robot_toml: str | Path | None = None, truth: dict[str, float] | None = None) -> dict:
-    doc = model_document(model, ident, truth)
+               robot_toml: str | Path | None = None, truth: dict[str, float] | None = None,
+               provenance: dict | None = None) -> dict:
+    doc = model_document(model, ident, truth, provenance)
     atomic_write_text(path, json.dumps(doc, indent=1))
     if robot_toml:
         atomic_write_text(robot_toml, doc["robot_toml"])

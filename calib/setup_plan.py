@@ -226,3 +226,29 @@ def plan_te(c: Constraints, seed: int = 0, progress=None) -> SetupPlan:
 
 
 PROCEDURES: dict[str, Callable[..., SetupPlan]] = {"ruler": plan_ruler, "sweep": plan_sweep, "te": plan_te}
+
+
+# -- per-link sweep targets ------------------------------------------------------------------------------------------
+def sweep_targets(model, theta: np.ndarray, q_rad: np.ndarray, radius_mm: dict[int, float],
+                  toward_mm=(0.0, -1e4, 0.0)) -> dict[str, dict]:
+    """A target P_j for each joint's sweep at ``radius_mm[j]`` from joint j's axis (thesis section 4.3), carried by
+    the flange (link n: rigid with link j while only joint j turns), on the side of the axis facing ``toward_mm``
+    (the theodolites).  Returns ``{"j": {"link": n, "point_mm": [x, y, z] in frame n, "radius_mm": R}}``."""
+    n = model.robot.n
+    fp = model.kin.forward(np.asarray(q_rad, float)[None], theta[: model.n_geometric])
+    R6, t6 = fp.frame_R[0, n], fp.frame_t[0, n]
+    out = {}
+    for j, R in sorted(radius_mm.items()):
+        z, o = fp.joint_axis[0, j - 1], fp.joint_origin[0, j - 1]
+        r = t6 - o
+        foot = o + (r @ z) * z
+        u = t6 - foot
+        if np.linalg.norm(u) < 1.0:                # the flange on the axis (wrist joints): along the flange's x
+            u = R6[:, 0] - (R6[:, 0] @ z) * z
+        u /= np.linalg.norm(u)
+        if u @ (np.asarray(toward_mm, float) - foot) < 0:      # the side of the axis facing the theodolites
+            u = -u
+        p = foot + float(R) * u
+        out[str(j)] = {"link": n, "point_mm": [round(float(v), 2) for v in R6.T @ (p - t6)],
+                       "radius_mm": float(R)}
+    return out

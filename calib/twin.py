@@ -100,17 +100,29 @@ def parse_scenario(text: str, source: str = "<string>") -> Scenario:
 
 
 def _scenario(chk: Checker, data: dict) -> Scenario:
-    from .kinematics import Kinematics
-
+    """A checked scenario from the parsed file: robot, true geometry, stations, noise, effects (in that order)."""
     top = chk.table(data, TOP, "")
     tw = chk.table(top["twin"], TWIN, "twin")
     robot = load_robot(tw["robot"] or None)
-    rng = np.random.default_rng(tw["seed"])
+    truth = _true_geometry(chk, top, robot, np.random.default_rng(tw["seed"]))
+    stations = _stations(chk.table(top["stations"], STATIONS, "stations"))
+    noise = chk.table(top["noise"], NOISE, "noise")
+    effects, disabled = _effects(chk, top["effect"], robot.n)
+    return Scenario(name=tw["name"], seed=tw["seed"], robot=robot, true_params=truth, effects=effects,
+                    stations=stations, angle_noise=noise["angles"], gross_rate=noise["gross_rate"],
+                    gross_rad=noise["gross_arcsec"] * ARCSEC, encoder_quantisation=noise["encoder_quantisation"],
+                    source=chk.source, disabled=disabled)
+
+
+def _true_geometry(chk: Checker, top: dict, robot: Robot, rng: np.random.Generator) -> np.ndarray:
+    """The true geometric parameter vector: seeded random deviations first, explicit values override them, then the
+    base and the tool."""
+    from .kinematics import Kinematics
+
     kin = Kinematics(robot)
     truth = kin.nominal.copy()
     geo = chk.table(top["geometry"], GEOMETRY, "geometry")
     n = robot.n
-    # seeded random deviations first, explicit values override them
     for key, scale, unit in (("random_alpha_deg", DEG, "alpha_rad"), ("random_theta_offset_deg", DEG,
                                                                        "theta_offset_rad"),
                              ("random_beta_deg", DEG, "beta_rad")):
@@ -143,28 +155,31 @@ def _scenario(chk: Checker, data: dict) -> Scenario:
         yaw, pitch, roll
     tool = chk.table(top["tool"], TOOL, "tool")
     truth[kin.index["tool.x_mm"]:kin.index["tool.z_mm"] + 1] = tool["xyz_mm"]
+    return truth
 
-    st = chk.table(top["stations"], STATIONS, "stations")
+
+def _stations(st: dict) -> list[Station]:
+    """Theodolites A and B in the thesis's layout (L, gamma1, gamma2), with the scenario's instrument errors."""
     sig = st["sigma_arcsec"] * ARCSEC
     a, b = thesis_stations(st["L_mm"], st["gamma1_deg"] * DEG, st["gamma2_deg"] * DEG, sig, st["height_b_mm"])
     tilt = np.asarray(st["tilt_arcsec"]) * ARCSEC
-    stations = []
-    for i, s in enumerate((a, b)):
-        stations.append(Station(s.name, s.x_mm, s.y_mm, s.z_mm, s.yaw_rad, tilt[2 * i], tilt[2 * i + 1],
-                                st["collimation_arcsec"][i] * ARCSEC, st["trunnion_arcsec"][i] * ARCSEC,
-                                st["index_arcsec"][i] * ARCSEC, sig, sig))
-    noise = chk.table(top["noise"], NOISE, "noise")
+    return [Station(s.name, s.x_mm, s.y_mm, s.z_mm, s.yaw_rad, tilt[2 * i], tilt[2 * i + 1],
+                    st["collimation_arcsec"][i] * ARCSEC, st["trunnion_arcsec"][i] * ARCSEC,
+                    st["index_arcsec"][i] * ARCSEC, sig, sig) for i, s in enumerate((a, b))]
 
-    effects, disabled = [], []
-    if not isinstance(top["effect"], list):
+
+def _effects(chk: Checker, tables, n_joints: int) -> tuple[list[Effect], list[str]]:
+    """The enabled effects of the ``[[effect]]`` tables (through the registry) and the labels of the disabled ones."""
+    if not isinstance(tables, list):
         chk.fail("effect", "must be an array of tables ([[effect]])")
-    for i, raw in enumerate(top["effect"], 1):
-        eff, enabled = effect_from_table(raw, chk, f"effect[{i}]", n)
-        (effects if enabled else disabled).append(eff if enabled else eff.label)
-    return Scenario(name=tw["name"], seed=tw["seed"], robot=robot, true_params=truth, effects=effects,
-                    stations=stations, angle_noise=noise["angles"], gross_rate=noise["gross_rate"],
-                    gross_rad=noise["gross_arcsec"] * ARCSEC, encoder_quantisation=noise["encoder_quantisation"],
-                    source=chk.source, disabled=disabled)
+    effects, disabled = [], []
+    for i, raw in enumerate(tables, 1):
+        eff, enabled = effect_from_table(raw, chk, f"effect[{i}]", n_joints)
+        if enabled:
+            effects.append(eff)
+        else:
+            disabled.append(eff.label)
+    return effects, disabled
 
 
 @dataclass
@@ -198,7 +213,7 @@ class Twin:
         return MeasurementModel(self.robot)
 
     def context(self, n_poses: int, **kw) -> PoseContext:
-        return PoseContext(n_poses, self.robot.n, **kw)
+        return self.model.context(n_poses, **kw)
 
     def encoder(self, q_rad: np.ndarray):
         """Counts for joint readings and the readings the controller derives back from them (quantised)."""

@@ -96,7 +96,7 @@ def test_virtual_bus_samples_match_the_world():
     node = CanTapNode(can.Bus(interface="virtual", channel=ch), TapModel(w, ROBOT, rate_hz=500), own_bus=True)
     with tap, node:
         first = tap.read(1.0)
-        w.set_joint_angles(np.radians([-20, -45, 100, 10, -30, 45]))
+        w.command(np.radians([-20, -45, 100, 10, -30, 45]))
         deadline = time.monotonic() + 2
         while True:
             s = tap.read(1.0)
@@ -121,7 +121,7 @@ def test_int32_wrap_is_unwrapped_and_raw_kept():
         tap.read(1.0)
         q = w.joint_angles_rad()
         q[0] += np.radians(1.0) * np.sign(ROBOT.gear_ratio[0])   # +174 counts on motor 1: across the wrap
-        w.set_joint_angles(q)
+        w.command(q)
         for _ in range(200):
             s = tap.read(1.0)
             if s.counts_wire[0] < 0:

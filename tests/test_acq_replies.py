@@ -15,32 +15,9 @@ from acq.drivers.geocom import GeoComTheodolite
 from acq.drivers.gsi import GsiTheodolite
 from acq.errors import DeviceError, InstrumentError, ProtocolError
 from tests.fakes.faults import ScriptedLink, geocom_answer
+from tests.fakes.fuzz_targets import GEOCOM_CALLS, GEOCOM_GOOD, GSI_CALLS, GSI_GOOD, check_reading
 
-#: a healthy instrument's reply body per RPC (after ``%R1P,0,<trid>:``)
-GOOD = {
-    0: "0", 107: "0", 108: "0,15", 110: "0,3,50,0", 5003: "0,1234", 5004: '0,"TM30 0.5"', 5034: "0,2,20,1",
-    5011: "0,21.5", 2006: "0", 2007: "0,1", 2008: "0", 2026: "0,0", 2107: "0,1.0,1.5",
-    2003: "0,1.0,1.5,0.000001,100,0.00001,0.00001,0.000001,100,0", 2108: "0,1.0,1.5,30.5",
-    17017: "0,1.0,1.5,30.5,2", 9027: "0", 9028: "0",
-}
-
-#: driver call -> what it does (each takes the driver)
-CALLS = {
-    "connect": lambda d: d.connect(),
-    "identify": lambda d: d.identify(),
-    "internal temperature": lambda d: d.internal_temperature_c(),
-    "face": lambda d: d.face(),
-    "incline switch": lambda d: d.incline_switch(),
-    "set incline switch": lambda d: d.set_incline_switch(True),
-    "angles": lambda d: d.angles(),
-    "angles with inclination": lambda d: d.angles_with_inclination(),
-    "do measure": lambda d: d.do_measure(),
-    "simple measurement": lambda d: d.simple_measurement(),
-    "measure distance": lambda d: d.measure_distance_angle(),
-    "position": lambda d: d.position(1.0, 1.5),
-    "change face": lambda d: d.change_face(),
-    "double precision": lambda d: d.double_precision(),
-}
+GOOD, CALLS = GEOCOM_GOOD, GEOCOM_CALLS
 
 
 def _driver(bodies: dict[int, str]) -> GeoComTheodolite:
@@ -125,35 +102,10 @@ def test_every_geocom_call_on_arbitrary_replies_gives_a_value_or_a_device_error(
     except DeviceError as exc:
         assert str(exc).startswith("theodolite T: ") and "\n" not in str(exc)
         return
-    _check_value(out)
-
-
-def _check_value(out) -> None:
-    """A returned value is physical: finite angles in [0, 2 pi), a positive finite distance, a face 1 or 2."""
-    if out is None or isinstance(out, (bool, int, str)):
-        return
-    if isinstance(out, float):
-        assert math.isfinite(out)
-        return
-    if hasattr(out, "hz_rad"):
-        assert 0 <= out.hz_rad < math.tau and 0 <= out.v_rad < math.tau and out.face in (1, 2)
-        assert out.slope_distance_m is None or 0 < out.slope_distance_m < math.inf
+    check_reading(out)
 
 
 # -- GSI --------------------------------------------------------------------------------------------------------------
-GSI_GOOD = {b"c": b"?", b"GET/I/WI12": b"*12....+0000000000640054", b"GET/I/WI13": b"*13....+00000000TC1100__",
-            b"CONF/137": b"0137/0001", b"SET/137/1": b"?", b"SET/137/0": b"?",
-            b"GET/M/WI21/WI22": b"*21.102+0000000017920860 22.102+0000000007567500"}
-GSI_CALLS = {
-    "connect": lambda d: d.connect(),
-    "identify": lambda d: d.identify(),
-    "word length": lambda d: d.word_length(),
-    "set word length": lambda d: d.set_word_length(True),
-    "angles": lambda d: d.angles(),
-    "read block": lambda d: d.read_block(0.01),
-}
-
-
 def _gsi(replies: dict[bytes, bytes], stream: bytes = b"") -> GsiTheodolite:
     link = ScriptedLink(lambda line: replies.get(line, GSI_GOOD.get(line, b"@W427")))
     link._out += stream
@@ -197,7 +149,7 @@ def test_every_gsi_call_on_arbitrary_replies_gives_a_value_or_a_device_error(cal
     except DeviceError as exc:
         assert str(exc).startswith("theodolite T: ") and "\n" not in str(exc)
         return
-    _check_value(out)
+    check_reading(out)
 
 
 # -- the session runner gets a warning as a device fault (repeat / skip / pause) --------------------------------------

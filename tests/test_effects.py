@@ -1,4 +1,5 @@
 """Each non-geometric effect shows its own signature, and its Jacobian matches finite differences."""
+import json
 from importlib import resources
 
 import numpy as np
@@ -176,3 +177,77 @@ def test_two_effects_of_one_kind_on_one_joint_get_distinct_names(puma):
     assert len(set(m.names)) == len(m.names)
     assert m.nominal[m.index["transmission_error.j4.s1_rad"]] == 0.01
     assert m.nominal[m.index["transmission_error.j4@2.s1_rad"]] == 0.02
+
+
+# -- the registry (contract C1) -------------------------------------------------------------------------------------
+def test_every_registered_kind_round_trips_through_text_json_and_zero():
+    from calib.effects import EFFECTS, effect_from_spec, effect_from_text, effect_spec, make_effect
+    assert {"transmission_error", "joint_compliance", "backlash", "cross_coupling", "link_compliance",
+            "thermal_drift"} <= set(EFFECTS)
+    for kind, cls in EFFECTS.items():
+        assert cls.kind == kind
+        fields = ([3] if cls.has_joint else []) + [{"order": 0.9, "harmonics": 2, "source": 5,
+                                                    "reference_degc": 21.5}.get(k, 1) for k in cls.options]
+        e = effect_from_text(":".join([kind] + [f"{f:g}" for f in fields]))
+        assert type(e) is cls and e.joint == (3 if cls.has_joint else None)
+        e.values = np.arange(1.0, len(e.values) + 1) * 1e-6
+        again = effect_from_spec(json.loads(json.dumps(effect_spec(e))), dict(zip(e.qualified_names(), e.values)),
+                                 "model.json: effects[0]")
+        assert again.qualified_names() == e.qualified_names() and np.array_equal(again.values, e.values)
+        assert again.option_values() == e.option_values()
+        z = make_effect(kind, e.joint, **e.option_values())
+        assert z.qualified_names() == e.qualified_names()
+
+
+def test_an_unknown_kind_lists_the_known_ones():
+    from calib.effects import EFFECTS, effect_from_spec, effect_from_text, make_effect
+    from calib.errors import RobocalError
+    for call in (lambda: effect_from_text("friction:2"), lambda: make_effect("friction", 2),
+                 lambda: effect_from_spec({"type": "friction", "joint": 2}, {}, "m.json: effects[1]")):
+        with pytest.raises(RobocalError) as exc:
+            call()
+        assert "unknown kind 'friction'" in str(exc.value) and all(k in str(exc.value) for k in EFFECTS)
+
+
+def test_a_new_effect_is_one_class_registered_once(puma):
+    """A kind registered once is built by the text, the scenario, the model JSON and the model without other edits."""
+    from calib.effects import EFFECTS, Effect, effect_from_text, register_effect
+    from calib.tomlspec import Field
+    from calib.twin import parse_scenario
+
+
+    class ZeroOffsetDrift(Effect):
+        kind = "zero_offset_drift"
+        param_names = ("offset_rad",)
+        scenario_fields = {"joint": Field("int", required=True, min=1), "offset_deg": Field("number", default=0.0)}
+
+        def __init__(self, joint, offset_rad):
+            super().__init__(joint, {"offset_rad": offset_rad})
+
+        @classmethod
+        def zero(cls, joint=None):
+            return cls(joint, 0.0)
+
+        @classmethod
+        def from_table(cls, c):
+            return cls(c["joint"], c["offset_deg"] * DEG)
+
+        def joint_delta(self, q, ctx, loads, values):
+            delta, grad = np.zeros_like(q), np.zeros(q.shape + (1,))
+            grad[:, self.joint - 1, 0] = 1.0
+            return delta + grad[..., 0] * values[0], grad
+
+    register_effect(ZeroOffsetDrift)
+    try:
+        with pytest.raises(TypeError, match="registered twice"):
+            register_effect(type("Again", (ZeroOffsetDrift,), {}))
+        e = effect_from_text("zero_offset_drift:2")
+        sc = parse_scenario('[[effect]]\ntype = "zero_offset_drift"\njoint = 2\noffset_deg = 0.1\n')
+        assert sc.effects[0].values[0] == pytest.approx(0.1 * DEG)
+        m = MeasurementModel(puma, [e])
+        q = np.zeros((1, 6))
+        theta = m.nominal
+        theta[m.index["zero_offset_drift.j2.offset_rad"]] = 0.01
+        assert m.evaluate(q, theta=theta).theta_rad[0, 1] == pytest.approx(0.01)
+    finally:
+        EFFECTS.pop("zero_offset_drift", None)

@@ -15,7 +15,7 @@ SMALL = {
     "procedures": ["ruler", "sweeps", "poses", "transmission", "compliance", "link_compliance", "coupling"],
     "ruler": {"repeats": 2},
     "sweeps": {"points": 5, "span_deg": 60.0},
-    "transmission": {"joints": [4], "points": 19, "repeats": 2, "range_deg": {"4": [-150.0, 150.0]}},
+    "transmission": {"joints": [4], "points": 19, "repeats": 2, "range_deg": {"4": [-105.0, 165.0]}},
     "compliance": {"joints": [3]},
     "coupling": {"pairs": [[5, 6]]},
     "seed": 3,

@@ -25,6 +25,7 @@ def add_arguments(p):
     p.add_argument("--json", type=output_file, metavar="OUT", help="write the estimates JSON here ('-' for stdout)")
     p.add_argument("--report", type=output_dir, metavar="DIR", help="write the HTML report here")
     p.add_argument("--overwrite", action="store_true", help="replace an existing --db")
+    add_report_options(p)
 
 
 def run(args) -> int:
@@ -59,14 +60,20 @@ def run(args) -> int:
     t_rec = time.perf_counter() - t0
     print(f"session {db}: {state}, {pp.saved}/{pp.total} steps saved in {t_rec:.1f} s "
           f"({pp.failed_checks} failed checks, repeated or noted)", file=sys.stderr)
+    if state == "refused":
+        for line in pp.preflight_lines:
+            print(f"pre-flight: {line}", file=sys.stderr)
+        raise RobocalError(f"session {db}: the pre-flight failed for {len(pp.preflight_lines)} step(s) (listed "
+                           f"above); nothing was recorded")
     if state != "finished":
         raise RobocalError(f"session {db} ended {state}; continue it with: robocal demo --resume --db {db}")
     with progress_display("reprocessing", after_s=0.5) as update:
         res = reprocess(str(db), progress=update)
-    _summary(res)
+    _summary(res, args.verbose, args.tolerance_mm)
     if args.report:
         from acq.session.report import write_report
-        print(f"report: {write_report(res, args.report)}", file=sys.stderr)
+        print(f"report: {write_report(res, args.report, tolerance_mm=args.tolerance_mm, pdf=args.pdf)}",
+              file=sys.stderr)
     if args.json:
         _write_json(res, args.json)
     print(f"total {time.perf_counter() - t0:.1f} s", file=sys.stderr)
@@ -82,15 +89,19 @@ def _write_json(res: dict, out: str) -> None:
         atomic_write_text(out, text)
 
 
-def _summary(res: dict) -> None:
-    from rich.console import Console
-    from rich.table import Table
-    t = Table(title=f"estimates from {res['session']['title']}")
-    for c in ("name", "value", "error (1 sigma)", "unit", "truth"):
-        t.add_column(c)
-    for e in res["estimates"]:
-        err = "held" if e.get("held") else f"{e['error']:.2g}"
-        t.add_row(e["name"], f"{e['value']:.6g}", err, e["unit"], "" if e["truth"] is None else f"{e['truth']:.6g}")
-    Console().print(t)
-    for p in res["problems"]:
-        print(f"note: {p}", file=sys.stderr)
+def _summary(res: dict, verbose: bool = False, tolerance_mm: float | None = None) -> None:
+    """The compact summary per procedure and the accuracy before/after (every estimate with ``verbose``)."""
+    from acq.session.summary import accuracy_lines, print_summary
+    print_summary(res, verbose=verbose)
+    if tolerance_mm is not None:
+        for line in accuracy_lines(res.get("accuracy"), tolerance_mm)[1:]:
+            print(line)
+
+
+def add_report_options(p) -> None:
+    """Options of what the operator sees, shared by ``demo`` and ``reprocess``."""
+    from acq.argtypes import positive_float
+    p.add_argument("--verbose", action="store_true", help="print every estimate, not only the summary")
+    p.add_argument("--tolerance-mm", type=positive_float, default=None,
+                   help="position tolerance the calibrated robot must meet (report verdict)")
+    p.add_argument("--pdf", action="store_true", help="with --report, also write report.pdf")

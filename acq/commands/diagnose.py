@@ -1,12 +1,13 @@
 """``robocal diagnose``: explain the sim-to-real gap of a robot from pose measurements (issue 8).
 
-DATA is a pose-measurement CSV, a session database (once the session store exports observations), or the FIGAROH
-TIAGo mocap CSV (recognised by its header; the shipped TIAGo description is then the default robot).
+DATA is a pose-measurement CSV (any robot description's joint names, units by --angle-unit / --length-unit) or a
+session database (once the session store exports observations).
 """
 from __future__ import annotations
 
 import json
 
+from acq.commands._csvargs import add_unit_arguments, units
 from acq.argtypes import float_range, nonneg_int, output_dir, positive_float, positive_int
 from calib.errors import RobocalError
 from calib.outliers import LOSSES, OUTLIER_MODES
@@ -27,9 +28,10 @@ def add_outlier_arguments(p) -> None:
 def add_arguments(p):
     p.add_argument("data", metavar="DATA", nargs="?",
                    help="pose CSV (q1..qn deg, x y z mm, optional dir*, payload, temperature, time, sigma_*_mm), "
-                        "a session database, or the TIAGo mocap CSV")
+                        "or a session database")
     p.add_argument("--robot", metavar="FILE", help="robot description TOML (default: the thesis's Puma 560; "
                                                    "the shipped TIAGo arm for the TIAGo mocap file)")
+    add_unit_arguments(p)
     p.add_argument("--noise-mm", type=positive_float, default=None, metavar="S",
                    help="1-sigma point noise per coordinate (mm) when DATA carries no per-point uncertainty")
     p.add_argument("--json", action="store_true", help="print the result as one JSON object")
@@ -82,7 +84,7 @@ def _validate(args) -> int:
     return 0
 
 
-def _read(path: str, robot, noise_mm):
+def _read(path: str, robot, noise_mm, csv_units: dict | None = None):
     """DATA as DiagnosisData: a session database through the session layer (plain arrays), else the file loader."""
     from calib.diagnose.data import from_session_arrays, is_session_db, load_data
     from calib.robot import load_robot
@@ -90,7 +92,7 @@ def _read(path: str, robot, noise_mm):
     if is_session_db(path):
         from acq.session.exchange import pose_arrays
         return from_session_arrays(robot or load_robot(), pose_arrays(str(path)), str(path))
-    return load_data(path, robot, noise_mm)
+    return load_data(path, robot, noise_mm, **(csv_units or {}))
 
 
 def run(args) -> int:
@@ -111,15 +113,17 @@ def run(args) -> int:
     from ..progress import progress_display
 
     robot = load_robot(args.robot) if args.robot else None
-    data = _read(args.data, robot, args.noise_mm)
+    data = _read(args.data, robot, args.noise_mm, units(args))
     with progress_display("robocal diagnose") as update:
         diag = diagnose(data, level=args.geometry, n_folds=args.folds, alpha=args.alpha,
                         max_effects=args.max_effects, outliers=args.outliers, loss=args.loss, progress=update)
+    from calib.provenance import provenance
+    prov = provenance(args.robot or data.robot.source)
     if args.report:
         from calib.diagnose.report import write_report
-        write_report(diag, args.report)
+        write_report(diag, args.report, provenance=prov)
     if args.json:
-        print(json.dumps(diag.to_json(), indent=1, default=float))
+        print(json.dumps({**diag.to_json(), "provenance": prov}, indent=1, default=float))
     else:
         print(render(diag))
         if args.report:

@@ -2,71 +2,112 @@
 
 The first line of output is where to connect: a device path (``--pty``, ``--slcan-pty``, ``--serial-pty``) or a
 ``socket://`` URL (``--tcp``), or ``<interface>:<channel>`` (``--can``); everything after it is informational.
+
+The instrument observes the twin (``--scenario FILE``, the default scenario by default), the same world as the demo
+and every ``robocal://`` URL.  Every option is checked before anything starts (a rate of 0, NaN or 1e308, an unknown
+station, a pose outside the joint limits is one line and exit 2).  A server thread that fails stops the process
+with one line and a non-zero exit instead of leaving a process that no longer answers.
 """
 from __future__ import annotations
 
 import threading
 
-import numpy as np
-
+from acq import argtypes as at
 from calib.errors import RobocalError
-from calib.units import DEG
-from acq.argtypes import any_int, float_range, positive_float, seed_int
 
 NAME = "emulate"
 HELP = "run an emulated theodolite (GeoCOM, GSI) or encoder tap; prints where to connect, serves until Ctrl-C"
 
 
+class ServerFailed(RuntimeError):
+    """An emulator's server thread died: a bug, reported by the last-resort handler (exit 3)."""
+
+
 def add_arguments(p):
+    from acq.emulate.gsi_device import MAX_STREAM_HZ
+    from acq.emulate.tap_device import MAX_RATE_HZ
     p.add_argument("device", choices=("geocom", "gsi", "tap"), help="what to emulate")
     how = p.add_mutually_exclusive_group()
     how.add_argument("--pty", action="store_true", help="theodolite on a pseudo-terminal (default for geocom/gsi)")
-    how.add_argument("--tcp", type=any_int, metavar="PORT", help="serve on TCP PORT (0 = any); connect with socket://")
+    how.add_argument("--tcp", type=at.any_int, metavar="PORT",
+                     help="serve on TCP PORT (0 = any); connect with socket://")
     how.add_argument("--slcan-pty", action="store_true",
                      help="tap as an SLCAN adapter on a pty, for python-can's slcan interface (default for tap)")
     how.add_argument("--serial-pty", action="store_true", help="tap as COBS+CRC frames on a pty")
     how.add_argument("--can", metavar="IFACE:CHANNEL", help="tap as a node on a python-can bus, e.g. socketcan:vcan0")
-    p.add_argument("--seed", type=seed_int, default=0, help="world noise seed (default 0)")
+    p.add_argument("--scenario", type=at.existing_file, metavar="FILE",
+                   help="twin scenario TOML the instruments observe (default: the shipped default scenario)")
+    p.add_argument("--seed", type=at.seed_int, default=0, help="world noise seed (default 0)")
     p.add_argument("--no-noise", action="store_true", help="no reading noise")
-    p.add_argument("--station", help="station name in the world (default A for geocom, B for gsi)")
-    p.add_argument("--q-deg", type=float_range(-360, 360), nargs=6, metavar="Q", help="robot joint angles (deg) the world holds")
+    p.add_argument("--station", help="station name in the scenario (default A for geocom, B for gsi)")
+    p.add_argument("--q-deg", type=at.finite_float, nargs="+", metavar="Q",
+                   help="robot joint angles (deg) the world holds (default: READY)")
     p.add_argument("--gsi8", action="store_true", help="gsi: GSI-8 words (default GSI-16)")
     p.add_argument("--unit", choices=("gon", "deg", "dms"), default="gon", help="gsi: angle unit (default gon)")
-    p.add_argument("--stream-hz", type=float_range(0, 1000), default=0.0, help="gsi: also stream a block at this rate")
-    p.add_argument("--rate-hz", type=float_range(0, 10000, low_open=True), default=200.0, help="tap: samples per second (default 200)")
-    p.add_argument("--duration", type=positive_float, metavar="S", help="stop after S seconds (default: until Ctrl-C)")
+    p.add_argument("--stream-hz", type=at.float_range(0.0, MAX_STREAM_HZ), default=0.0,
+                   help=f"gsi: also stream a block at this rate (0 = off, at most {MAX_STREAM_HZ:g})")
+    p.add_argument("--rate-hz", type=at.float_range(0.0, MAX_RATE_HZ, low_open=True), default=200.0,
+                   help=f"tap: samples per second (default 200, at most {MAX_RATE_HZ:g})")
+    p.add_argument("--duration", type=at.positive_float, metavar="S", help="stop after S seconds (default: until Ctrl-C)")
 
 
 def _world(args):
-    from acq.emulate.world import DEMO_Q_DEG, KinematicWorld, demo_stations
-    from calib.robot import load_robot
-    q = np.array(args.q_deg if args.q_deg else DEMO_Q_DEG) * DEG
-    return KinematicWorld(load_robot(), demo_stations(), q, seed=args.seed, noise=not args.no_noise)
+    """The twin's world, with the pose and station checked against the scenario's robot and stations."""
+    import numpy as np
+
+    from acq.emulate.factories import make_world
+    from calib.units import DEG
+    world = make_world(args.scenario, seed=args.seed, noise=not args.no_noise)
+    where = f"emulate {args.device}"
+    if args.q_deg is not None:
+        robot = world.robot
+        q = np.asarray(args.q_deg, float)
+        if q.shape != (robot.n,):
+            raise RobocalError(f"{where}: --q-deg needs {robot.n} joint angles for {robot.name}, got {len(q)}")
+        lim = np.asarray(robot.limits_rad) / DEG
+        for j, (x, (lo, hi)) in enumerate(zip(q, lim), 1):
+            if not lo <= x <= hi:
+                raise RobocalError(f"{where}: --q-deg: joint {j} = {x:g} deg is outside its limits "
+                                   f"{lo:g}..{hi:g} deg")
+        world.command(q * DEG)
+    if args.device != "tap" and args.station is not None and args.station not in world.stations:
+        raise RobocalError(f"{where}: --station {args.station!r}: the scenario has stations "
+                           f"{', '.join(world.stations)}")
+    return world
 
 
 def run(args) -> int:
     if args.tcp is not None and not 0 <= args.tcp <= 65535:
         raise RobocalError(f"emulate {args.device}: --tcp {args.tcp}: a TCP port is 0..65535")
     world = _world(args)
-    hosts = []
+    hosts: list = []
+    stop = threading.Event()
+    failures: list[tuple[object, BaseException]] = []
+
+    def failed(host, exc: BaseException) -> None:
+        failures.append((host, exc))
+        stop.set()
+
     try:
-        where, info = _start(args, world, hosts)
+        where, info = _start(args, world, hosts, failed)
         print(where, flush=True)
         print(info, flush=True)
-        stop = threading.Event()
         try:
             stop.wait(args.duration if args.duration is not None else None)
         except KeyboardInterrupt:
             pass
-        return 0
     except OSError as exc:
         raise RobocalError(f"emulate {args.device}: cannot start: {exc}") from None
     finally:
         for h in hosts:
             h.close()
+    if failures:
+        host, exc = failures[0]
+        raise ServerFailed(f"{host.describe()} stopped: {type(exc).__name__}: {exc}")
+    return 0
 
 
-def _start(args, world, hosts) -> tuple[str, str]:
+def _start(args, world, hosts, failed) -> tuple[str, str]:
     from acq.emulate.pty_host import PtyHost
     from acq.emulate.tcp_host import TcpHost
     robot = world.robot
@@ -83,10 +124,10 @@ def _start(args, world, hosts) -> tuple[str, str]:
                             stream_hz=args.stream_hz)
             what = f"GSI theodolite (station {dev.station}, GSI-{16 if dev.gsi16 else 8}, {args.unit})"
         if args.tcp is not None:
-            host = TcpHost(dev, port=args.tcp)
+            host = TcpHost(dev, port=args.tcp, on_failure=failed)
             hosts.append(host)
             return host.url, f"{what} on {host.url}; Ctrl-C stops"
-        host = PtyHost(dev)
+        host = PtyHost(dev, on_failure=failed)
         hosts.append(host)
         return host.path, f"{what} on pty {host.path}; Ctrl-C stops"
     # tap
@@ -94,7 +135,7 @@ def _start(args, world, hosts) -> tuple[str, str]:
         raise RobocalError("emulate tap: use --slcan-pty, --serial-pty or --can")
     if args.serial_pty:
         from acq.emulate.tap_device import SerialTapDevice
-        host = PtyHost(SerialTapDevice(world, robot, rate_hz=args.rate_hz))
+        host = PtyHost(SerialTapDevice(world, robot, rate_hz=args.rate_hz), on_failure=failed)
         hosts.append(host)
         return host.path, f"encoder tap, COBS+CRC-16 frames at {args.rate_hz:g} Hz on {host.path}; Ctrl-C stops"
     if args.can:
@@ -109,16 +150,12 @@ def _start(args, world, hosts) -> tuple[str, str]:
             bus = can.Bus(interface=iface, channel=channel)
         except (can.CanError, OSError, ValueError, ImportError) as exc:
             raise RobocalError(f"emulate tap: cannot open CAN bus {args.can}: {exc}") from None
-        node = CanTapNode(bus, TapModel(world, robot, rate_hz=args.rate_hz), own_bus=True).start()
-        hosts.append(_Closer(node.stop))
+        node = CanTapNode(bus, TapModel(world, robot, rate_hz=args.rate_hz), own_bus=True, on_failure=failed)
+        hosts.append(node)
+        node.start()
         return args.can, f"encoder tap node on {args.can} at {args.rate_hz:g} samples/s; Ctrl-C stops"
     from acq.emulate.slcan_device import SlcanTapDevice
-    host = PtyHost(SlcanTapDevice(world, robot, rate_hz=args.rate_hz))
+    host = PtyHost(SlcanTapDevice(world, robot, rate_hz=args.rate_hz), on_failure=failed)
     hosts.append(host)
     return host.path, (f"encoder tap behind an SLCAN adapter on {host.path} "
                        f"(python-can: interface='slcan', channel='{host.path}'); Ctrl-C stops")
-
-
-class _Closer:
-    def __init__(self, fn):
-        self.close = fn

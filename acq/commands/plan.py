@@ -44,6 +44,14 @@ def add_arguments(p):
     setup.add_argument("--sigma-arcsec", type=positive_float, default=3.0, help="1-sigma reading noise (arc seconds)")
     setup.add_argument("--seed", type=seed_int, default=0)
     setup.add_argument("--json", action="store_true", help="print the result as JSON")
+    check = sub.add_parser("check", help="pre-flight of a session's plan or of a set-up file against the robot "
+                                         "(exit 2 when a step fails)")
+    check.add_argument("target", metavar="SESSION_OR_SETUP",
+                       help="a session database (.db) or a set-up JSON (checked with the standard plan)")
+    check.add_argument("--robot", metavar="FILE", help="robot description TOML (default: the set-up's, or the "
+                                                       "thesis's Puma 560)")
+    check.add_argument("--poses", metavar="POSES.csv", help="with a set-up: add this Chapter 6 pose set")
+    check.add_argument("--json", action="store_true", help="print every failing check as JSON")
 
 
 def _model(args) -> MeasurementModel:
@@ -58,6 +66,8 @@ def run(args) -> int:
         return _poses(args)
     if args.what == "setup":
         return _setup(args)
+    if args.what == "check":
+        return _check(args)
     raise RobocalError(f"plan: unknown subcommand {args.what!r}")
 
 
@@ -157,3 +167,51 @@ def _setup(args) -> int:
         for row in plan.trend:
             print("  " + "".join(f"{row[k]:>18.4g}" for k in keys))
     return 0
+
+
+def _check(args) -> int:
+    """``robocal plan check``: the pre-flight alone (:mod:`acq.session.preflight`), one line per failing step."""
+    from acq.session.preflight import Preflight, failing_lines
+    from acq.session.procedures import all_steps
+
+    plan, setup, robot = _plan_and_setup(args)
+    steps = all_steps(plan, setup)
+    findings = Preflight(robot, setup).check(steps)
+    lines = failing_lines(findings)
+    if args.json:
+        print(json.dumps({"steps": len(steps), "failing_steps": len(lines),
+                          "failures": [{"key": f.key, "check": f.check, "value": f.value, "limit": f.limit,
+                                        "unit": f.unit, "detail": f.detail} for f in findings]}, indent=2))
+    else:
+        for line in lines:
+            print(line)
+        print(f"robocal plan check {args.target}: {len(steps)} steps, "
+              + (f"{len(lines)} fail the pre-flight" if lines else "all pass the pre-flight"))
+    return 2 if lines else 0
+
+
+def _plan_and_setup(args):
+    """(plan, set-up with old keys mapped, robot) of a session database or a set-up JSON."""
+    from pathlib import Path
+
+    from acq.session.setup import session_setup
+
+    path = Path(args.target)
+    if not path.is_file():
+        raise RobocalError(f"{args.target}: no such file")
+    if path.read_bytes()[:16] == b"SQLite format 3\x00":
+        from acq.session.store import connect_readonly
+        conn = connect_readonly(str(path))
+        try:
+            plan_json, setup_json = conn.execute("SELECT plan_json, setup_json FROM session").fetchone()
+        finally:
+            conn.close()
+        plan, setup = json.loads(plan_json), json.loads(setup_json)
+    else:
+        from acq.commands.session import default_plan
+        from calib.jsonfile import read_json
+        setup = read_json(str(path), ("stations", "base_xyz_mm", "ruler"))
+        q = read_pose_csv(args.poses).q_rad / DEG if args.poses else None
+        plan = setup.get("plan") or default_plan(q)
+    robot = load_robot(args.robot or setup.get("robot") or None)
+    return plan, session_setup(setup, robot), robot

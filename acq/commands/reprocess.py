@@ -6,6 +6,7 @@ the session's ``result`` table: raw data is never rewritten).
 from __future__ import annotations
 
 from acq.argtypes import int_range, output_dir, output_file
+from acq.commands.demo import add_report_options
 
 NAME = "reprocess"
 HELP = "rerun the calibration from a saved session (read-only), write JSON estimates and an HTML report"
@@ -17,6 +18,7 @@ def add_arguments(p):
     p.add_argument("--report", type=output_dir, metavar="DIR", help="directory for report.html, results.json, robot.json")
     p.add_argument("--mc", type=int_range(0, 100000), default=0, help="Monte Carlo draws for the estimation errors (0: GUM only)")
     p.add_argument("--store", action="store_true", help="also record the result (with provenance) in the session")
+    add_report_options(p)
 
 
 def run(args) -> int:
@@ -27,11 +29,11 @@ def run(args) -> int:
     res = reprocess(args.session, n_mc=args.mc)
     if args.json:
         _write_json(res, args.json)
-    else:
-        _summary(res)
+    if args.json != "-":
+        _summary(res, args.verbose, args.tolerance_mm)
     if args.report:
         from acq.session.report import write_report
-        write_report(res, args.report)
+        write_report(res, args.report, tolerance_mm=args.tolerance_mm, pdf=args.pdf)
     if args.store:
         save_result(args.session, res["session"]["guid"], "robocal reprocess", {"n_mc": args.mc},
                     {k: v for k, v in res.items() if k != "figures"})

@@ -85,12 +85,12 @@ def parse_tap(text: str) -> tuple[str, dict]:
 
 def default_plan(poses_deg=None) -> dict:
     """The standard plan for a real cell (the demo's, with the operator's pose set when given)."""
+    from acq.session.demo import TE_RANGE_DEG
     plan = {
         "procedures": ["ruler", "sweeps", "transmission", "compliance", "link_compliance", "coupling"],
         "ruler": {"repeats": 2},
         "sweeps": {"points": 8, "span_deg": 90.0, "joints": [1, 2, 3, 4, 5, 6]},
-        "transmission": {"joints": [4, 6], "points": 25, "repeats": 2,
-                         "range_deg": {"4": [-150.0, 150.0], "6": [-150.0, 150.0]}},
+        "transmission": {"joints": [4, 6], "points": 25, "repeats": 2, "range_deg": dict(TE_RANGE_DEG)},
         "compliance": {"joints": [3, 4]},
         "coupling": {"angle_deg": 10.0, "pairs": [[5, 6], [4, 6], [4, 5]]},
         "seed": 0,

@@ -1,4 +1,5 @@
-"""Emulated instruments, shipped for the demo and the tests, driven by an injected :class:`~acq.emulate.world.World`.
+"""Emulated instruments, shipped for the demo and the tests, observing one world: the twin
+(:class:`~acq.emulate.twin_world.TwinWorld`, made by :func:`~acq.emulate.factories.make_world` from a scenario).
 
 Devices (byte state machines, no I/O; each parses with its own code, never the drivers' codecs):
 :class:`~acq.emulate.geocom_device.GeoComDevice`, :class:`~acq.emulate.gsi_device.GsiDevice`,

@@ -10,12 +10,16 @@ import time
 
 import can
 
+from .pty_host import FailureHook, run_guarded
 from .tap_device import TapModel, can_frames
 
 
 class CanTapNode:
-    def __init__(self, bus: can.BusABC, model: TapModel, *, own_bus: bool = False):
+    def __init__(self, bus: can.BusABC, model: TapModel, *, own_bus: bool = False,
+                 on_failure: FailureHook | None = None):
         self.bus = bus
+        self.on_failure = on_failure
+        self.failure: BaseException | None = None
         self.model = model
         self.own_bus = own_bus
         self.frames_sent = 0
@@ -40,7 +44,16 @@ class CanTapNode:
     def __exit__(self, *exc) -> None:
         self.stop()
 
+    def describe(self) -> str:
+        return f"the CAN tap node on {getattr(self.bus, 'channel_info', 'its bus')}"
+
+    def close(self) -> None:
+        self.stop()
+
     def _run(self) -> None:
+        run_guarded(self, self._serve)
+
+    def _serve(self) -> None:
         period = 1.0 / self.model.rate_hz
         step = max(period, 0.001)
         while not self._stop.is_set():

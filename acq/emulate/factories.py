@@ -1,51 +1,91 @@
-"""Factories behind ``robocal://<kind>?...`` URLs and ``robocal emulate``: a device on the demo world.
+"""Factories behind ``robocal://<kind>?...`` URLs and ``robocal emulate``: a device on the twin's world.
 
-Options come as strings (URL query); each factory says which it understands and rejects the others, so a typo in a
-URL is an error rather than a silently ignored setting.
+One world (issue 13, contract C5): every emulated instrument observes a :class:`~acq.emulate.twin_world.TwinWorld`
+on :class:`calib.twin.Twin` built from a scenario TOML (``scenario=PATH``; the default scenario by default), so a URL
+instrument, ``robocal emulate`` and the demo all see the same simulated robot.
+
+Options come as strings (URL query); each factory says which it understands and checks every value before a device
+exists (a typo, a 4,301-digit number, a rate of 0, NaN or 1e308 is refused when the port opens, never in a server
+thread later).
 """
 from __future__ import annotations
 
+import argparse
+import dataclasses
 from typing import Callable
 
 from calib.errors import RobocalError
 
-from .world import World, demo_world
+from .world import World
+
+_TRUE, _FALSE = ("1", "true", "yes", "on"), ("0", "false", "no", "off")
 
 
-def _take(options: dict[str, str], allowed: dict[str, type], kind: str) -> dict:
+def parse_bool(raw: str) -> bool:
+    """A switch: 1/true/yes/on or 0/false/no/off (anything else is an error, not a silent False)."""
+    text = raw.strip().lower()
+    if text in _TRUE or text in _FALSE:
+        return text in _TRUE
+    raise argparse.ArgumentTypeError(f"must be one of {'/'.join(_TRUE + _FALSE)}, got {raw!r}")
+
+
+def _types() -> dict[str, Callable[[str], object]]:
+    """Option name -> checking converter (the command line's own types, so both say the same)."""
+    from acq import argtypes as at
+
+    from .gsi_device import MAX_STREAM_HZ
+    from .tap_device import MAX_RATE_HZ
+    return {
+        "seed": at.seed_int, "station": str, "noise": parse_bool, "motorised": parse_bool, "name": str,
+        "serial": at.int_range(0, 2 ** 31 - 1), "scenario": str, "wordlen": at.int_range(8, 16),
+        "unit": str, "stream_hz": at.float_range(0.0, MAX_STREAM_HZ),
+        "rate_hz": at.float_range(0.0, MAX_RATE_HZ, low_open=True),
+    }
+
+
+def _take(options: dict[str, str], allowed: tuple[str, ...], kind: str) -> dict:
     unknown = set(options) - set(allowed)
     if unknown:
         raise RobocalError(f"emulator {kind}: unknown option(s) {', '.join(sorted(unknown))} "
                            f"(known: {', '.join(allowed)})")
+    types = _types()
     out = {}
-    for key, typ in allowed.items():
+    for key in allowed:
         if key in options:
-            text = options[key]
             try:
-                out[key] = (text.lower() in ("1", "true", "yes", "on")) if typ is bool else typ(text)
-            except ValueError:
-                raise RobocalError(f"emulator {kind}: option {key}={text!r} is not a {typ.__name__}") from None
+                out[key] = types[key](options[key])
+            except (argparse.ArgumentTypeError, ValueError) as exc:
+                raise RobocalError(f"emulator {kind}: option {key} {exc}") from None
     return out
 
 
-#: how URL-made devices get their world: (seed, noise) -> World.  The twin replaces it with set_world_factory().
-_WORLD_FACTORY: Callable[[int, bool], World] = lambda seed, noise: demo_world(seed=seed, noise=noise)
+def make_world(scenario: str | None = None, seed: int = 0, noise: bool = True, q0_deg=None):
+    """The one world of every emulated instrument: a TwinWorld on the twin of ``scenario`` (None: the default).
+
+    ``noise=False`` gives the same scenario without reading noise and gross errors (tests compare readings with
+    ``true_sight``); ``q0_deg`` is the pose the robot holds (default READY).
+    """
+    from calib.twin import Twin, load_scenario
+
+    from .twin_world import READY_DEG, TwinWorld
+    sc = load_scenario(scenario or None)
+    if not noise:
+        sc = dataclasses.replace(sc, angle_noise=False, gross_rate=0.0)
+    return TwinWorld(Twin(sc, seed=seed), READY_DEG if q0_deg is None else q0_deg, seed=seed)
 
 
-def set_world_factory(factory: Callable[[int, bool], World]) -> None:
-    """Make ``robocal://geocom?seed=3`` (and the other kinds) build their world with ``factory(seed, noise)``."""
-    global _WORLD_FACTORY
-    _WORLD_FACTORY = factory
+_WORLD = ("seed", "noise", "scenario")
 
 
 def _world(o: dict, world: World | None) -> World:
-    return world if world is not None else _WORLD_FACTORY(o.get("seed", 0), o.get("noise", True))
+    if world is not None:
+        return world
+    return make_world(o.get("scenario"), seed=o.get("seed", 0), noise=o.get("noise", True))
 
 
 def geocom(options: dict[str, str], world: World | None = None):
     from .geocom_device import GeoComDevice
-    o = _take(options, {"seed": int, "station": str, "noise": bool, "motorised": bool, "name": str,
-                        "serial": int}, "geocom")
+    o = _take(options, _WORLD + ("station", "motorised", "name", "serial"), "geocom")
     kw = {}
     if "name" in o:
         kw["instrument_name"] = o["name"]
@@ -57,8 +97,9 @@ def geocom(options: dict[str, str], world: World | None = None):
 
 def gsi(options: dict[str, str], world: World | None = None):
     from .gsi_device import GsiDevice
-    o = _take(options, {"seed": int, "station": str, "noise": bool, "wordlen": int, "unit": str,
-                        "stream_hz": float, "serial": int}, "gsi")
+    o = _take(options, _WORLD + ("station", "wordlen", "unit", "stream_hz", "serial"), "gsi")
+    if o.get("wordlen", 16) not in (8, 16):
+        raise RobocalError(f"emulator gsi: option wordlen must be 8 or 16, got {options['wordlen']!r}")
     kw = {}
     if "serial" in o:
         kw["serial_no"] = o["serial"]
@@ -68,21 +109,13 @@ def gsi(options: dict[str, str], world: World | None = None):
 
 def serial_tap(options: dict[str, str], world: World | None = None):
     from .tap_device import SerialTapDevice
-    o = _take(options, {"seed": int, "noise": bool, "rate_hz": float}, "serialtap")
+    o = _take(options, _WORLD + ("rate_hz",), "serialtap")
     w = _world(o, world)
-    return SerialTapDevice(w, _robot(w), rate_hz=o.get("rate_hz", 500.0))
+    return SerialTapDevice(w, w.robot, rate_hz=o.get("rate_hz", 500.0))
 
 
 def slcan_tap(options: dict[str, str], world: World | None = None):
     from .slcan_device import SlcanTapDevice
-    o = _take(options, {"seed": int, "noise": bool, "rate_hz": float}, "slcan")
+    o = _take(options, _WORLD + ("rate_hz",), "slcan")
     w = _world(o, world)
-    return SlcanTapDevice(w, _robot(w), rate_hz=o.get("rate_hz", 100.0))
-
-
-def _robot(world: World):
-    robot = getattr(world, "robot", None)
-    if robot is None:
-        from calib.robot import load_robot
-        robot = load_robot()
-    return robot
+    return SlcanTapDevice(w, w.robot, rate_hz=o.get("rate_hz", 100.0))

@@ -24,10 +24,8 @@ from typing import Callable
 
 import numpy as np
 
-from calib.errors import RobocalError
-
 from .device import DeviceBase
-from .world import World
+from .world import World, check_station
 
 TWO_PI = 2 * math.pi
 _REQ = re.compile(rb"%R1Q,(\d{1,5})(?:,(\d{1,5})(?:,(\d{1,5}))?)?:(.*)\Z")
@@ -68,14 +66,6 @@ def _int(s: str) -> int:
     if not -2 ** 31 <= n < 2 ** 32:
         raise _BadParam(s)
     return n
-
-
-def check_station(world: World, station: str, device: str) -> None:
-    """Refuse at start a station the world does not have (instead of failing on the first request)."""
-    stations = getattr(world, "stations", None)
-    if stations is not None and station not in stations:
-        raise RobocalError(f"emulator {device}: no station {station!r} in the world "
-                           f"(stations: {', '.join(map(str, stations))})")
 
 
 class GeoComDevice(DeviceBase):

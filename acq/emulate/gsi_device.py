@@ -12,12 +12,16 @@ import re
 import time
 from typing import Callable
 
+from calib.errors import RobocalError
+
 from .device import DeviceBase
-from .world import World
+from .world import World, check_station
 
 _GET = re.compile(rb"GET/([MI])((?:/WI\d{2,3})+)\Z")
 _SET = re.compile(rb"SET/(\d{1,4})/(\d{1,6})\Z")
 _CONF = re.compile(rb"CONF/(\d{1,4})\Z")
+#: fastest block stream the emulator offers (a GSI-16 block is ~100 bytes: 20 blocks/s fill 19200 baud)
+MAX_STREAM_HZ = 100.0
 _UNIT = {"gon": ("2", 200.0 / math.pi, 5), "deg": ("3", 180.0 / math.pi, 5), "dms": ("4", None, 5)}
 
 
@@ -29,7 +33,10 @@ class GsiDevice(DeviceBase):
                  clock: Callable[[], float] = time.monotonic):
         super().__init__(clock)
         if angle_unit not in _UNIT:
-            raise ValueError(f"angle unit {angle_unit!r} not one of {', '.join(_UNIT)}")
+            raise RobocalError(f"emulator gsi: angle unit {angle_unit!r} is not one of {', '.join(_UNIT)}")
+        if not 0.0 <= stream_hz <= MAX_STREAM_HZ:          # also refuses NaN
+            raise RobocalError(f"emulator gsi: stream rate {stream_hz!r} Hz is not 0 (off) .. {MAX_STREAM_HZ:g}")
+        check_station(world, station, "gsi")
         self.world = world
         self.station = station
         self.gsi16 = gsi16

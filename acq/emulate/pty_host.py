@@ -14,15 +14,22 @@ import pty
 import select
 import threading
 import tty
+from typing import Callable
 
 from .device import ByteDevice
+
+#: called with (host, exception) when a host's server thread dies of an exception: the owner decides (the
+#: ``robocal emulate`` command stops the process with one line and a non-zero exit)
+FailureHook = Callable[[object, BaseException], None]
 
 
 class PtyHost:
     """``PtyHost(device).path`` is a device path (``/dev/pts/N``) that behaves like the instrument."""
 
-    def __init__(self, device: ByteDevice, *, start: bool = True):
+    def __init__(self, device: ByteDevice, *, start: bool = True, on_failure: FailureHook | None = None):
         self.device = device
+        self.on_failure = on_failure
+        self.failure: BaseException | None = None
         self._master, self._slave = pty.openpty()
         tty.setraw(self._slave)
         tty.setraw(self._master)
@@ -37,13 +44,18 @@ class PtyHost:
             self._thread.start()
 
     def _run(self) -> None:
+        run_guarded(self, self._serve)
+
+    def _serve(self) -> None:
         period = self.device.tick_period_s or 0.05
         pending = b""
         while not self._stop.is_set():
             try:
                 r, _, _ = select.select([self._master], [], [], min(period, 0.05))
             except (OSError, ValueError):
-                return
+                if self._stop.is_set():             # closed by close()/unplug(): the normal end
+                    return
+                raise
             if r:
                 try:
                     data = os.read(self._master, 65536)
@@ -76,6 +88,9 @@ class PtyHost:
             rest = b""
         return rest
 
+    def describe(self) -> str:
+        return f"the pty server of {self.device.label} on {self.path}"
+
     def unplug(self) -> None:
         """Pull the cable: the thread stops and both ends close; clients get an I/O error."""
         self.close()
@@ -97,3 +112,18 @@ class PtyHost:
 
     def __exit__(self, *exc) -> None:
         self.close()
+
+
+def run_guarded(host, serve: Callable[[], None]) -> None:
+    """Run a host's serving loop; an exception is kept on ``host.failure`` and reported to ``host.on_failure``
+    instead of dying silently in its thread while the process goes on."""
+    try:
+        serve()
+    except BaseException as exc:            # noqa: BLE001 -- reported to the owner, never swallowed
+        if host._stop.is_set():             # the owner is closing the host: its fds go away under the loop
+            return
+        host.failure = exc
+        if host.on_failure is not None:
+            host.on_failure(host, exc)
+        else:
+            raise

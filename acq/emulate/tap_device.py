@@ -20,12 +20,15 @@ from typing import Callable
 
 import numpy as np
 
+from calib.errors import RobocalError
 from calib.robot import Robot
 
 from .device import DeviceBase
 from .world import World
 
 STATUS_ID, DATA_IDS = 0x103, (0x100, 0x101, 0x102)
+#: fastest sample rate the emulated tap offers (4 CAN frames a sample: ~2,000 samples/s fill a 1 Mbit/s bus)
+MAX_RATE_HZ = 10_000.0
 _STATUS = struct.Struct("<HIBB")
 _PAIR = struct.Struct("<ii")
 _PAYLOAD = struct.Struct("<BHI6i")
@@ -50,6 +53,8 @@ class TapModel:
     def __init__(self, world: World, robot: Robot, *, rate_hz: float = 500.0,
                  clock: Callable[[], float] = time.monotonic, count_offset: np.ndarray | int = 0, seq0: int = 0,
                  max_backlog_s: float = 0.25):
+        if not 0.0 < rate_hz <= MAX_RATE_HZ:                 # also refuses NaN
+            raise RobocalError(f"emulated tap: rate {rate_hz!r} samples/s is not in (0, {MAX_RATE_HZ:g}]")
         self.world = world
         self.robot = robot
         self.rate_hz = float(rate_hz)

@@ -8,11 +8,15 @@ import socket
 import threading
 
 from .device import ByteDevice
+from .pty_host import FailureHook, run_guarded
 
 
 class TcpHost:
-    def __init__(self, device: ByteDevice, host: str = "127.0.0.1", port: int = 0):
+    def __init__(self, device: ByteDevice, host: str = "127.0.0.1", port: int = 0, *,
+                 on_failure: FailureHook | None = None):
         self.device = device
+        self.on_failure = on_failure
+        self.failure: BaseException | None = None
         self._srv = socket.create_server((host, port))
         self.host, self.port = self._srv.getsockname()[:2]
         self.url = f"socket://{self.host}:{self.port}"
@@ -20,7 +24,13 @@ class TcpHost:
         self._thread = threading.Thread(target=self._run, name=f"tcp-{device.label}", daemon=True)
         self._thread.start()
 
+    def describe(self) -> str:
+        return f"the TCP server of {self.device.label} on {self.url}"
+
     def _run(self) -> None:
+        run_guarded(self, self._serve)
+
+    def _serve(self) -> None:
         period = min(self.device.tick_period_s or 0.05, 0.05)
         while not self._stop.is_set():
             r, _, _ = select.select([self._srv], [], [], 0.1)
@@ -29,7 +39,9 @@ class TcpHost:
             try:
                 conn, _ = self._srv.accept()
             except OSError:
-                return
+                if self._stop.is_set():
+                    return
+                raise
             with conn:
                 self.device.read_output()                 # a new client does not get the last one's leftovers
                 while not self._stop.is_set():

@@ -102,11 +102,13 @@ def repeat_spread(readings: list[dict], limit_arcsec: float) -> list[Check]:
 
 
 def intersect_targets(readings: list[dict], stations: dict[str, Station]) -> dict[str, tuple]:
-    """Target name -> (point_mm, cov_mm2, miss_mm) from face-averaged readings of stations A and B."""
+    """Target name -> (point_mm, cov_mm2, miss_mm) from face-averaged readings of the two stations (named as in
+    ``stations``: the set-up names them)."""
     out = {}
+    names = list(stations)[:2]
     for tg in sorted({r["target"] for r in readings}):
         pair = []
-        for st in ("A", "B"):
+        for st in names:
             rs = [r for r in readings if r["station"] == st and r["target"] == tg]
             if not rs:
                 break
@@ -114,7 +116,7 @@ def intersect_targets(readings: list[dict], stations: dict[str, Station]) -> dic
                                   np.array([r["face"] for r in rs])))
         if len(pair) < 2:
             continue
-        sts = [stations["A"], stations["B"]]
+        sts = [stations[n] for n in names]
         x = intersect(sts, [(np.array([h]), np.array([v])) for h, v in pair])
         out[tg] = (x.point_mm[0], x.cov_mm2[0], float(x.miss_mm[0]))
     return out
@@ -124,7 +126,7 @@ def miss_sigma_mm(readings: list[dict], stations: dict[str, Station], point_mm: 
     """1-sigma miss distance the reading noise explains at ``point_mm``: each station's vertical sigma times its
     distance to the point, over the square root of the readings averaged (faces and repeats)."""
     var = 0.0
-    for name in ("A", "B"):
+    for name in list(stations)[:2]:
         st = stations[name]
         n = max(1, sum(1 for r in readings if r["station"] == name and r["target"] == target))
         d = float(np.linalg.norm(np.asarray(point_mm) - st.position))

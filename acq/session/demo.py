@@ -25,7 +25,8 @@ from calib.twin import Twin, load_scenario
 from calib.units import ARCSEC, DEG
 
 from .headless import ScriptedOperator
-from .setup import predictor, setup_stations
+from .preflight import Preflight
+from .setup import predictor, session_setup, setup_stations
 from .procedures import READY_DEG, all_steps
 from .rig import EmulatedBench, Rig
 from .runner import Runner
@@ -38,6 +39,9 @@ DEMO_TITLE = "robocal demo: emulated Puma 560 (twin) and two GeoCOM theodolites"
 DEMO_POSES = 48
 #: wait after each move before recording encoders (the tap's frames in flight carry the previous pose)
 DEMO_SETTLE_S = 0.02
+#: transmission-error runs: joint 4 inside its -110..170 deg limits (with the pre-flight's 2 deg margin), joint 6 over
+#: most of its +-266 deg
+TE_RANGE_DEG = {"4": [-105.0, 165.0], "6": [-150.0, 150.0]}
 
 
 def demo_setup(twin: Twin) -> dict:
@@ -92,7 +96,7 @@ def demo_plan(twin: Twin, seed: int, n_poses: int = DEMO_POSES, quick: bool = Tr
         "ruler": {"repeats": 2},
         "sweeps": {"points": 5, "span_deg": 60.0, "joints": [1, 2, 3, 4, 5, 6]},
         "poses": {"q_deg": np.round(q, 3).tolist()},
-        "transmission": {"joints": [4, 6], "points": 25, "repeats": 2, "range_deg": {"4": [-150.0, 150.0], "6": [-150.0, 150.0]}},
+        "transmission": {"joints": [4, 6], "points": 25, "repeats": 2, "range_deg": TE_RANGE_DEG},
         "compliance": {"joints": [3, 4], "repeats": 3},
         "coupling": {"angle_deg": 10.0, "pairs": [[5, 6], [4, 6], [4, 5]]},
         "seed": seed,
@@ -164,7 +168,7 @@ def build_demo(db: str | Path, seed: int = 0, resume: bool = False, script: dict
         seed_offset = 0
     twin = Twin(load_scenario(scenario or None), seed=seed)
     if not resume:
-        setup = demo_setup(twin)
+        setup = session_setup(demo_setup(twin), twin.robot)
         plan_d = plan or demo_plan(twin, seed)
         store = SessionStore.create(db, DEMO_TITLE, plan_d, setup, operator="scripted demo operator",
                                     metadata={"emulated": True, "scenario": "default" if not scenario else "file",
@@ -194,6 +198,7 @@ def build_demo(db: str | Path, seed: int = 0, resume: bool = False, script: dict
                                                     {"emulated": True, "channel": channel} if role == "encoder tap"
                                                     else {"emulated": True})
     bench = EmulatedBench(world)
+    setup = session_setup(setup, twin.robot)           # a resumed session's set-up may use the old keys
     steps = all_steps(plan_d, setup)
     if steps_filter is not None:
         steps = [s for s in steps if steps_filter(s)]
@@ -206,7 +211,8 @@ def build_demo(db: str | Path, seed: int = 0, resume: bool = False, script: dict
     # settle_s: frames already on the bus when the robot "moves" carry the old counts; real cells wait for the servo
     runner = Runner(store, rig, steps, op, bench=bench, stations=setup_stations(setup),
                     predict=predictor(twin.robot, setup), settle_s=DEMO_SETTLE_S,
-                    refit_stations=lambda st: stations_from_store(st, setup))
+                    refit_stations=lambda st: stations_from_store(st, setup),
+                    preflight=Preflight(twin.robot, setup))
     d = DemoRig(runner, world, twin, store, names)
     d._nodes = [node]
     return d

@@ -104,7 +104,8 @@ def pose_arrays(db: str) -> dict:
         P.append(p)
         C.append(cov)
         keys.append(s["key"])
-        ua, ub = p - stations["A"].position, p - stations["B"].position
+        sa, sb = list(stations.values())[:2]
+        ua, ub = p - sa.position, p - sb.position
         angle.append(np.degrees(np.arccos(np.clip(ua @ ub / (np.linalg.norm(ua) * np.linalg.norm(ub)), -1, 1))))
     if not q:
         raise RobocalError(f"{db}: no pose-set steps")

@@ -73,6 +73,7 @@ class ProgressPrinter:
         self.saved = 0
         self.total = 0
         self.failed_checks = 0
+        self.preflight_lines: list[str] = []
 
     def __call__(self, ev: Event) -> None:
         if ev.kind == "session":
@@ -82,5 +83,7 @@ class ProgressPrinter:
             self.saved += 1
             if self.update:
                 self.update(self.saved, self.total, ev.data["key"])
+        elif ev.kind == "preflight":
+            self.preflight_lines = list(ev.data["lines"])
         elif ev.kind == "check" and not ev.data["passed"]:
             self.failed_checks += 1

@@ -8,6 +8,7 @@ Units: poses in degrees (what the operator types into the teach pendant), length
 """
 from __future__ import annotations
 
+from dataclasses import dataclass
 from typing import Callable, Iterator
 
 import numpy as np
@@ -30,6 +31,14 @@ def _pose(j: int, angle_deg: float, base=READY_DEG) -> tuple[float, ...]:
 
 def tool_target(setup: dict) -> TargetSpec:
     return TargetSpec("P", tool_mm=tuple(setup["tool_target_mm"]))
+
+
+def sweep_target(setup: dict, j: int) -> TargetSpec:
+    """Target P_j of joint j's sweep: the set-up's designed one (``sweep_targets``), else the tool target."""
+    cfg = setup.get("sweep_targets", {}).get(str(j))
+    if cfg is None:
+        return tool_target(setup)
+    return TargetSpec("P", tool_mm=tuple(cfg["point_mm"]), link=cfg.get("link"))
 
 
 def extended_targets(setup: dict) -> tuple[TargetSpec, TargetSpec]:
@@ -69,8 +78,8 @@ def sweeps(plan: dict, setup: dict) -> Iterator[Step]:
                 key=f"sweep/j{j}/{i:02d}", procedure="sweep", title=f"Joint {j} sweep, position {i + 1}/{n}",
                 instruction=(f"Other joints at READY. Rotate joint {j} to about {q[j - 1]:+.1f} deg (always in "
                              f"the positive direction), sight target P with theodolite A, then with B."),
-                pose_deg=q, targets=(tool_target(setup),), repeats=p.get("repeats", 1),
-                meta={"joint": j, "index": i})
+                pose_deg=q, targets=(sweep_target(setup, j),), repeats=p.get("repeats", 1),
+                meta={"joint": j, "index": i, "swept_joint": j})
 
 
 # -- Chapter 6 pose set ----------------------------------------------------------------------------------------------
@@ -91,7 +100,7 @@ def transmission(plan: dict, setup: dict) -> Iterator[Step]:
     p = plan.get("transmission", {})
     a1, a2 = extended_targets(setup)
     for j in p.get("joints", [4, 6]):
-        lo, hi = p.get("range_deg", {}).get(str(j), (-150.0, 150.0))
+        lo, hi = p.get("range_deg", {}).get(str(j), (-100.0, 100.0))
         n = p.get("points", 9)
         for i, a in enumerate(np.linspace(lo, hi, n)):
             q = _pose(j, float(a))
@@ -100,6 +109,16 @@ def transmission(plan: dict, setup: dict) -> Iterator[Step]:
                 instruction=(f"Extended tool fitted. Rotate joint {j} to {q[j - 1]:+.1f} deg (positive direction "
                              f"only, no load), sight A1 then A2 with theodolite A, then with B."),
                 pose_deg=q, targets=(a1, a2), repeats=p.get("repeats", 1), meta={"joint": j, "index": i})
+
+
+def _hung(cfg: dict, load_n: float) -> dict:
+    """The step's hung mass in the step vocabulary (a mass at a point on a link), when the set-up gives the point
+    (:func:`acq.session.setup.session_setup` maps old set-ups); ``tested_joint``: the joint it must turn."""
+    if cfg.get("point_mm") is None or not cfg.get("loads_n"):
+        return {}
+    kg = dict(zip(cfg["loads_n"], cfg.get("masses_kg", [v / 9.80665 for v in cfg["loads_n"]])))
+    return {"loads": [{"link": int(cfg["link"]), "point_mm": list(cfg["point_mm"]), "mass_kg": kg[load_n]}],
+            "tested_joint": int(cfg["link"])}
 
 
 # -- 4.5 joint compliance --------------------------------------------------------------------------------------------
@@ -126,7 +145,8 @@ def compliance(plan: dict, setup: dict) -> Iterator[Step]:
                         InputSpec("theta_i_deg", "deg", "Lever angle from the horizontal",
                                   cfg.get("theta_i_deg", 0.0))),
                 setup={"joint": j, "load_n": load, "lever_mm": cfg["lever_mm"],
-                       "theta_i_deg": cfg.get("theta_i_deg", 0.0), "load_direction": direction},
+                       "theta_i_deg": cfg.get("theta_i_deg", 0.0), "load_direction": direction,
+                       **_hung(cfg, load)},
                 meta={"joint": j, "index": i, "phase": phase})
 
 
@@ -145,7 +165,9 @@ def link_compliance(plan: dict, setup: dict) -> Iterator[Step]:
             inputs=(InputSpec("load_n", "N", "Load hung", load),
                     *[InputSpec(f"gauge{g + 1}_mm", "mm", f"Dial gauge {g + 1} at {x:g} mm")
                       for g, x in enumerate(xs)]),
-            setup={"joint": j, "load_n": load, "load_x_mm": cfg["load_x_mm"], "gauges_x_mm": list(xs)},
+            setup={"joint": j, "load_n": load, "load_x_mm": cfg["load_x_mm"], "gauges_x_mm": list(xs),
+                   **_hung({"link": j, "point_mm": cfg.get("load_point_mm"), **cfg}, load),
+                   **({"gauges": cfg["gauges"]} if "gauges" in cfg else {})},
             meta={"joint": j, "index": i})
 
 
@@ -169,10 +191,46 @@ def coupling(plan: dict, setup: dict) -> Iterator[Step]:
                 meta={"j": j, "k": k, "phase": name, "angle_deg": th})
 
 
-PROCEDURES: dict[str, Callable[[dict, dict], Iterator[Step]]] = {
-    "ruler": ruler, "sweeps": sweeps, "poses": poses, "transmission": transmission, "compliance": compliance,
-    "link_compliance": link_compliance, "coupling": coupling,
-}
+@dataclass(frozen=True)
+class ProcedureInfo:
+    """What the rest of the session needs to know about a procedure, found by name instead of name branches:
+    its step generator, extra acceptance checks ``(step, readings, runner) -> list[Check]`` and whether its accepted
+    steps refit the stations (the ruler)."""
+
+    steps: Callable[[dict, dict], Iterator[Step]]
+    checks: tuple = ()
+    refits_stations: bool = False
+
+
+REGISTRY: dict[str, ProcedureInfo] = {}
+#: plan name -> step generator (kept for callers that list the procedures)
+PROCEDURES: dict[str, Callable[[dict, dict], Iterator[Step]]] = {}
+#: step.procedure -> plan name (a procedure's steps may carry a shorter name: sweeps -> sweep)
+_STEP_NAMES: dict[str, str] = {}
+
+
+def register_procedure(name: str, steps: Callable, step_name: str | None = None, checks: tuple = (),
+                       refits_stations: bool = False) -> None:
+    REGISTRY[name] = ProcedureInfo(steps, tuple(checks), refits_stations)
+    PROCEDURES[name] = steps
+    _STEP_NAMES[step_name or name] = name
+
+
+_DEFAULT_INFO = ProcedureInfo(lambda plan, setup: iter(()))
+
+
+def procedure_info(step_procedure: str) -> ProcedureInfo:
+    """The registry entry of a step's procedure (an unknown one -- an imported step -- has no extras)."""
+    return REGISTRY.get(_STEP_NAMES.get(step_procedure, step_procedure), _DEFAULT_INFO)
+
+
+register_procedure("ruler", ruler, refits_stations=True)
+register_procedure("sweeps", sweeps, step_name="sweep")
+register_procedure("poses", poses)
+register_procedure("transmission", transmission)
+register_procedure("compliance", compliance)
+register_procedure("link_compliance", link_compliance)
+register_procedure("coupling", coupling)
 
 
 def all_steps(plan: dict, setup: dict) -> list[Step]:

@@ -25,6 +25,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from calib.errors import RobocalError
+from calib.provenance import provenance
 from calib.robot import load_robot
 from calib.units import ARCSEC, DEG
 
@@ -183,9 +184,12 @@ def reprocess(path: str, n_mc: int = 0, progress=None) -> dict:
     return {
         "session": {"guid": data.session["guid"], "title": data.session["title"], "path": path,
                     "exit_status": data.session["exit_status"], "steps_accepted": len(data.steps)},
-        "provenance": {"code_version": code_version(), "reprocessed_unix_s": time.time(), "input_session":
+        "provenance": {**provenance(data.setup.get("robot") or None, twin.scenario.source if twin else None),
+                       "code_version": code_version(), "reprocessed_unix_s": time.time(), "input_session":
                        data.session["guid"], "n_mc": n_mc, "elapsed_s": time.perf_counter() - t0},
         "estimates": est.items,
+        "accuracy": {k: v for k, v in figs.get("accuracy", {}).items() if not k.endswith(("_err_mm", "_index"))}
+        or None,
         "problems": problems,
         "robot": ident_doc,
         "figures": figs,
@@ -395,8 +399,22 @@ def _poses(steps, points, robot, setup, est, twin, figs, running=None, problems=
     pred = model.points(q, theta=ident.theta[:model.P])
     figs["poses"] = {"residual_mm": np.linalg.norm(P - pred, axis=1).tolist(),
                      "rms_mm": float(ident.residual_rms), "held": [n for n in wanted if n not in ident.free],
-                     "running_errors": list(specs)}
+                     "points_mm": P.tolist(), "running_errors": list(specs)}
+    _accuracy(model, obs, ident.free, theta0, priors, figs, problems)
     return model_document(model, ident, truth)
+
+
+def _accuracy(model, obs, free, theta0, priors, figs, problems) -> None:
+    """Before/after accuracy on held-out poses (:mod:`calib.accuracy`) into ``figs['accuracy']``; a pose set too
+    small to split is said in ``problems``, not guessed."""
+    from calib.accuracy import before_after
+    try:
+        acc = before_after(model, obs, free, theta0=theta0, priors=priors)
+    except RobocalError as exc:
+        problems.append(f"poses: accuracy before/after not computed: {exc}")
+        return
+    figs["accuracy"] = {**acc.as_dict(), "test_index": acc.test_index.tolist(),
+                        "before_err_mm": acc.before_err_mm.tolist(), "after_err_mm": acc.after_err_mm.tolist()}
 
 
 def _unit(name: str) -> str:

@@ -4,7 +4,10 @@ API for front ends (the headless one in :mod:`acq.session.headless`, the Textual
 =================================================================================================
 
 Build: ``runner = Runner(store, rig, steps, operator, bench=ManualBench(), stations=..., predict=..., limits=...,
-refit_stations=...)`` (:func:`acq.session.demo.build_demo` shows a complete wiring).  ``refit_stations(store)`` (e.g.
+refit_stations=..., preflight=...)`` (:func:`acq.session.demo.build_demo` shows a complete wiring).  With
+``preflight`` (:class:`acq.session.preflight.Preflight`) the runner refuses to start while any remaining step fails
+it (state ``refused``, a ``preflight`` event with one line per step), and checks each step again with the current
+stations before asking for it (a failing step can only be skipped).  ``refit_stations(store)`` (e.g.
 :func:`acq.session.stations.stations_from_store` with the setup bound) is called at start and after every saved
 ruler step; once it returns stations, later miss-distance checks use them with the noise-based limit (see
 :mod:`acq.session.checks`).  Then either ``runner.run()`` (blocking, in the
@@ -20,7 +23,8 @@ objects.  Every event is an :class:`Event` with ``kind`` and ``data`` (a JSON-ab
 kind                   data
 =====================  ==================================================================================
 ``state``              ``{"old", "new"}``; states: idle, running, waiting (for the operator), paused, finished,
-                       aborted, failed
+                       aborted, failed, refused (the pre-flight failed: nothing ran, nothing was written)
+``preflight``          ``{"lines"}``: one line per step that fails the pre-flight (:mod:`acq.session.preflight`)
 ``session``            ``{"guid", "path", "resumed", "done", "total"}`` once at start
 ``step_started``       ``{"key", "procedure", "title", "instruction", "index", "total", "attempt", "pose_deg",
                        "targets", "inputs"}``
@@ -64,6 +68,8 @@ from calib.units import DEG
 from ..errors import DeviceError
 
 from . import checks as ck
+from .preflight import failing_lines
+from .procedures import procedure_info
 from .rig import Bench, ManualBench, Rig
 from .steps import Step
 from .store import SessionStore, StepRecord
@@ -72,6 +78,38 @@ log = logging.getLogger(__name__)
 
 ACTIONS_SETUP = ("continue", "skip", "pause", "abort")
 ACTIONS_DECISION = ("accept", "repeat", "skip", "pause", "abort")
+ACTIONS_FAULT = ("skip", "pause", "abort")
+
+
+@dataclass
+class _StepLog:
+    """What a step has gathered over its attempts (every attempt is stored; the last one is the step's data)."""
+
+    started: float
+    attempt: int = 0
+    readings: list = field(default_factory=list)
+    chunks: list = field(default_factory=list)
+    inputs: list = field(default_factory=list)
+    checks: list = field(default_factory=list)
+
+    def add_inputs(self, step: Step, ans: "Answer") -> dict:
+        """The operator's values for the step's inputs (stored with the attempt); returns them by name."""
+        values = {i.name: float(ans.values[i.name]) for i in step.inputs if i.name in ans.values}
+        for spec in step.inputs:
+            if spec.name in values:
+                self.inputs.append({"attempt": self.attempt, "name": spec.name, "value": values[spec.name],
+                                    "unit": spec.unit, "t_wall_s": time.time()})
+        if ans.note:
+            self.inputs.append({"attempt": self.attempt, "name": "note", "value": None, "text": ans.note,
+                                "t_wall_s": time.time()})
+        return values
+
+    def add_acquisition(self, rows: list, cap, tap_device_id: int) -> None:
+        self.readings += rows
+        if cap is not None:
+            self.chunks.append({"attempt": self.attempt, "device_id": tap_device_id, "phase": "settle",
+                                "seq": cap.seq, "t_device_us": cap.t_device_us, "t_mono_s": cap.t_mono_s,
+                                "counts_wire": cap.counts_wire, "counts": cap.counts})
 
 
 @dataclass
@@ -105,7 +143,7 @@ class Runner:
                  bench: Bench | None = None, stations: dict | None = None,
                  predict: Callable[[Step], dict] | None = None, limits: dict | None = None,
                  capture_s: float = 0.02, settle_s: float = 0.0,
-                 refit_stations: Callable[[SessionStore], dict | None] | None = None):
+                 refit_stations: Callable[[SessionStore], dict | None] | None = None, preflight=None):
         self.store = store
         self.rig = rig
         self.steps = steps
@@ -117,6 +155,7 @@ class Runner:
         self.capture_s = capture_s
         self.settle_s = settle_s
         self.refit_stations = refit_stations
+        self.preflight = preflight          # acq.session.preflight.Preflight (or anything with check/check_step)
         self.stations_fitted = False        # True once the stations come from the session's own ruler sightings
         self.events: queue.Queue = queue.Queue()
         self.state = "idle"
@@ -162,6 +201,10 @@ class Runner:
         """Run every step not yet committed; returns the final state (finished, paused, aborted, failed)."""
         self._pause.clear()
         done = self.store.done_keys()
+        if self.preflight is not None:
+            lines = failing_lines(self.preflight.check([s for s in self.steps if s.key not in done]))
+            if lines:
+                return self._refuse(lines)
         row = self.store.session_row()
         resumed = bool(done) or row["exit_status"] is not None
         if row["exit_status"] is not None or done:
@@ -188,6 +231,17 @@ class Runner:
             self.emit("log", text=traceback.format_exc())
             return self._end("failed", "fail", f"{type(exc).__name__}: {exc}")
 
+    def _refuse(self, lines: list[str]) -> str:
+        """The pre-flight failed: say why, one line per step, and leave the session as it is (nothing recorded is
+        touched, a resumed session keeps its state)."""
+        self.emit("preflight", lines=lines)
+        for ln in lines:
+            self.emit("log", text=f"pre-flight: {ln}")
+        self._set_state("refused")
+        error = f"pre-flight failed for {len(lines)} step(s), first {lines[0]}"
+        self.emit("finished", exit_status="refused", error=error)
+        return "refused"
+
     def _end(self, state: str, exit_status: str, error: str | None) -> str:
         self.store.finish(exit_status, error)
         self._set_state(state)
@@ -195,82 +249,91 @@ class Runner:
         return state
 
     def _run_step(self, index: int, step: Step) -> str:
-        started = time.time()
-        attempt = 0
-        readings: list[dict] = []
-        chunks: list[dict] = []
-        inputs: list[dict] = []
-        checks_rows: list[dict] = []
-        note = ""
+        """One step: setup prompt, acquisition, checks, decision -- repeated until accepted, skipped, paused or
+        aborted -- then the step is committed.  Returns the outcome (accepted, skipped, pause, abort)."""
+        rec = _StepLog(time.time())
+        blocked = self._preflight_step(step)
         while True:
-            attempt += 1
-            self.emit("step_started", key=step.key, procedure=step.procedure, title=step.title,
-                      instruction=step.instruction, index=index, total=len(self.steps), attempt=attempt,
-                      pose_deg=step.pose_deg, targets=[t.name for t in step.targets],
-                      inputs=[i.name for i in step.inputs])
-            self._set_state("waiting")
-            ans = self.operator.ask(Request("setup", step, attempt, ACTIONS_SETUP))
-            self._set_state("running")
+            rec.attempt += 1
+            self._emit_started(index, step, rec.attempt)
+            if blocked:
+                action, note = self._decide(step, rec, blocked, ACTIONS_FAULT)
+                if action in ("pause", "abort"):
+                    return action
+                if action == "repeat":              # the operator changed something: check again
+                    blocked = self._preflight_step(step)
+                    continue
+                status = "skipped"
+                break
+            ans = self._ask(Request("setup", step, rec.attempt, ACTIONS_SETUP))
             if ans.action in ("pause", "abort"):
                 return ans.action
             if ans.action == "skip":
-                status = "skipped"
-                note = ans.note
+                status, note = "skipped", ans.note
                 break
-            values = {i.name: float(ans.values[i.name]) for i in step.inputs if i.name in ans.values}
-            for spec in step.inputs:
-                if spec.name in values:
-                    inputs.append({"attempt": attempt, "name": spec.name, "value": values[spec.name],
-                                   "unit": spec.unit, "t_wall_s": time.time()})
-            if ans.note:
-                inputs.append({"attempt": attempt, "name": "note", "value": None, "text": ans.note,
-                               "t_wall_s": time.time()})
+            values = rec.add_inputs(step, ans)
             self.bench.prepare(step, values)
             try:
-                got, cap = self._acquire(step, attempt)
+                got, cap = self._acquire(step, rec.attempt)
             except DeviceError as exc:
                 # an unplugged or silent device fails this attempt, not the session: the operator fixes the cause
                 # and repeats (the drivers reconnect), or skips, or pauses; nothing of this attempt is recorded
-                fault = ck.Check("device", False, None, None, "",
-                                 f"{exc} — check the cable and power of that device, then repeat (r)")
                 self.emit("log", text=f"device fault at {step.key}: {exc}")
-                self.emit("check", key=step.key, name=fault.name, passed=False, value=None, limit=None, unit="",
-                          message=fault.message)
-                checks_rows.append(fault.as_row(attempt))
-                self._set_state("waiting")
-                ans = self.operator.ask(Request("decision", step, attempt, ("repeat", "skip", "pause", "abort"),
-                                                [fault]))
-                self._set_state("running")
-                if ans.action in ("pause", "abort"):
-                    return ans.action
-                if ans.action == "repeat":
-                    continue
-                status, note = "skipped", ans.note
+                results = [ck.Check("device", False, None, None, "",
+                                    f"{exc} — check the cable and power of that device, then repeat (r)")]
+                choices = ("repeat", "skip", "pause", "abort")
+                self._emit_checks(step, results)
+            else:
+                rec.add_acquisition(got, cap, self.rig.device_ids.get("encoder tap", 0))
+                results = self._check(step, got, cap)
+                choices = ACTIONS_DECISION
+            action, note = self._decide(step, rec, results, choices)
+            if action in ("pause", "abort"):
+                return action
+            if action != "repeat":
+                status = "skipped" if action == "skip" else "accepted"
                 break
-            readings += got
-            if cap is not None:
-                chunks.append({"attempt": attempt, "device_id": self.rig.device_ids.get("encoder tap", 0),
-                               "phase": "settle", "seq": cap.seq, "t_device_us": cap.t_device_us,
-                               "t_mono_s": cap.t_mono_s, "counts_wire": cap.counts_wire, "counts": cap.counts})
-            results = self._check(step, got, cap)
-            checks_rows += [c.as_row(attempt) for c in results]
-            self._set_state("waiting")
-            ans = self.operator.ask(Request("decision", step, attempt, ACTIONS_DECISION, results))
-            self._set_state("running")
-            if ans.action in ("pause", "abort"):
-                return ans.action
-            if ans.action == "repeat":
-                continue
-            status = "skipped" if ans.action == "skip" else "accepted"
-            note = ans.note
-            break
-        rec = StepRecord(step.key, step.procedure, step.title, step.instruction, status, attempt, started,
-                         time.time(), step.spec(), note, readings, chunks, inputs, checks_rows)
-        self.store.write_step(rec)
-        self.emit("step_saved", key=step.key, status=status, attempts=attempt)
-        if step.procedure == "ruler" and status == "accepted":
-            self._refit()
+        self._commit(step, rec, status, note)
         return status
+
+    def _emit_started(self, index: int, step: Step, attempt: int) -> None:
+        self.emit("step_started", key=step.key, procedure=step.procedure, title=step.title,
+                  instruction=step.instruction, index=index, total=len(self.steps), attempt=attempt,
+                  pose_deg=step.pose_deg, targets=[t.name for t in step.targets],
+                  inputs=[i.name for i in step.inputs])
+
+    def _ask(self, request: Request) -> Answer:
+        self._set_state("waiting")
+        ans = self.operator.ask(request)
+        self._set_state("running")
+        return ans
+
+    def _decide(self, step: Step, rec: "_StepLog", results: list, choices: tuple[str, ...]) -> tuple[str, str]:
+        """Record the attempt's checks and ask the operator what to do with them: (action, note)."""
+        rec.checks += [c.as_row(rec.attempt) for c in results]
+        ans = self._ask(Request("decision", step, rec.attempt, choices, results))
+        return ans.action, ans.note
+
+    def _commit(self, step: Step, rec: "_StepLog", status: str, note: str) -> None:
+        self.store.write_step(StepRecord(step.key, step.procedure, step.title, step.instruction, status, rec.attempt,
+                                         rec.started, time.time(), step.spec(), note, rec.readings, rec.chunks,
+                                         rec.inputs, rec.checks))
+        self.emit("step_saved", key=step.key, status=status, attempts=rec.attempt)
+        if status == "accepted" and procedure_info(step.procedure).refits_stations:
+            self._refit()
+
+    def _preflight_step(self, step: Step) -> list:
+        """The pre-flight of this step with the stations as they are now (the ruler refit changes them): failing
+        checks block the step (the operator can skip it, pause or abort)."""
+        if self.preflight is None:
+            return []
+        self.preflight.stations = self.stations or self.preflight.stations
+        out = [ck.Check(f"pre-flight {f.check}", False, f.value, f.limit, f.unit, f.detail)
+               for f in self.preflight.check_step(step)]
+        for c in out:
+            self.emit("log", text=f"pre-flight {step.key}: {c.name[11:]}: {c.message}")
+        self._emit_checks(step, out)
+        return out
 
     def _refit(self) -> None:
         """Stations from the ruler steps saved so far (when the hook can fit them): tighter miss-distance checks."""
@@ -295,7 +358,7 @@ class Runner:
             self.bench.aim(tg)
             for rep in range(step.repeats):
                 for face in step.faces:
-                    for st in ("A", "B"):
+                    for st in self.rig.theodolites:
                         self.rig.face(st, face)
                         r = self.rig.sight(st)
                         rows.append({"attempt": attempt, "device_id": self.rig.device_ids.get(f"theodolite {st}", 0),
@@ -305,8 +368,8 @@ class Runner:
                                      "raw": r.raw})
                         self.emit("reading", key=step.key, station=st, target=tg.name, face=face, repeat=rep,
                                   hz_deg=r.hz_rad / DEG, v_deg=r.v_rad / DEG)
-        for st in ("A", "B"):
-            if st in self.rig.theodolites and step.faces:
+        for st in self.rig.theodolites:
+            if step.faces:
                 self.rig.face(st, 1)
         return rows, cap
 
@@ -320,7 +383,12 @@ class Runner:
                 out += ck.miss_and_plausibility(rows, self.stations, pred, self.limits, fitted=self.stations_fitted)
         if cap is not None:
             out += ck.encoders_settled(cap, step.pose_deg, self.limits)
-        for c in out:
+        for extra in procedure_info(step.procedure).checks:
+            out += extra(step, rows, self)
+        self._emit_checks(step, out)
+        return out
+
+    def _emit_checks(self, step: Step, results: list) -> None:
+        for c in results:
             self.emit("check", key=step.key, name=c.name, passed=c.passed, value=c.value, limit=c.limit, unit=c.unit,
                       message=c.message)
-        return out

@@ -3,20 +3,42 @@ refit them) and where the nominal model expects each tool target, with the toler
 Used by every session, real or emulated (not only the demo)."""
 from __future__ import annotations
 
+import json
+from dataclasses import replace
+
 import numpy as np
 
 from calib.model import MeasurementModel
 from calib.theodolite import thesis_stations
 from calib.units import ARCSEC, DEG
 
+from .procedures import READY_DEG
 from .steps import Step
+
+
+def station_names(setup: dict) -> tuple[str, str]:
+    """The two stations' names as the set-up gives them (``stations.names``; default A and B)."""
+    names = setup.get("stations", {}).get("names") or ["A", "B"]
+    return str(names[0]), str(names[1])
 
 
 def setup_stations(setup: dict) -> dict:
     """Approximate stations from the setup (for the acquisition checks; reprocessing uses the ruler's)."""
     s = setup["stations"]
-    a, b = thesis_stations(s["L_mm"], s["gamma1_deg"] * DEG, s["gamma2_deg"] * DEG, s["sigma_arcsec"] * ARCSEC)
-    return {"A": a, "B": b}
+    a, b = thesis_stations(s["L_mm"], s["gamma1_deg"] * DEG, s["gamma2_deg"] * DEG, s.get("sigma_arcsec", 3.0) * ARCSEC)
+    na, nb = station_names(setup)
+    return {na: replace(a, name=na), nb: replace(b, name=nb)}
+
+
+def nominal_theta(model: MeasurementModel, setup: dict) -> np.ndarray:
+    """The model's nominal parameters with the robot base where the set-up puts it (position and roll-pitch-yaw)."""
+    th = model.nominal.copy()
+    for k, v in zip(("x_mm", "y_mm", "z_mm"), setup.get("base_xyz_mm", [0.0, 0.0, 0.0])):
+        th[model.index[f"base.{k}"]] = v
+    roll, pitch, yaw = np.asarray(setup.get("base_rpy_deg", [0.0, 0.0, 0.0]), float) * DEG
+    for k, v in (("yaw_rad", yaw), ("pitch_rad", pitch), ("roll_rad", roll)):
+        th[model.index[f"base.{k}"]] = v
+    return th
 
 
 #: 1-sigma gap between a robot description and the real robot, before calibration: link lengths (a Puma's a3 can be
@@ -45,9 +67,7 @@ def predictor(robot, setup: dict, tolerances: dict | None = None):
     sigma is the root of the trace of J S J^T, J the point's Jacobian in the geometric parameters and S the
     description's tolerances (:data:`DESCRIPTION_TOLERANCES`): a point far from the base gets a wider limit."""
     m = MeasurementModel(robot)
-    th = m.nominal.copy()
-    for k, v in zip(("x_mm", "y_mm", "z_mm"), setup["base_xyz_mm"]):
-        th[m.index[f"base.{k}"]] = v
+    th = nominal_theta(m, setup)
     sd = _prior_sigmas(list(m.kin.names), {**DESCRIPTION_TOLERANCES, **(tolerances or {})})
 
     def predict(step: Step) -> dict:
@@ -62,3 +82,103 @@ def predictor(robot, setup: dict, tolerances: dict | None = None):
                 out[t.name] = (ev.point_mm[0], float(np.sqrt(np.sum(J * J))))
         return out
     return predict
+
+
+# -- the session set-up: old keys onto new ones ----------------------------------------------------------------------
+def _frame_point(fp, link: int, p_world: np.ndarray) -> list[float]:
+    """A measurement-frame point in frame ``link`` coordinates at the pose of ``fp`` (one pose)."""
+    return [round(float(v), 3) for v in fp.frame_R[0, link].T @ (p_world - fp.frame_t[0, link])]
+
+
+def up_direction(fp, robot) -> np.ndarray:
+    """Unit vector against the description's gravity, in the measurement frame (the base carries gravity along)."""
+    g = fp.frame_R[0, 0] @ np.asarray(robot.gravity_m_s2, float)
+    return -g / np.linalg.norm(g)
+
+
+def lever_of(fp, joint: int, p_world: np.ndarray, up: np.ndarray) -> tuple[float, float]:
+    """(distance from joint ``joint``'s axis in mm, angle of that lever above the horizontal in deg) of a point."""
+    z, o = fp.joint_axis[0, joint - 1], fp.joint_origin[0, joint - 1]
+    r = p_world - o
+    r = r - (r @ z) * z
+    L = float(np.linalg.norm(r))
+    return L, float(np.degrees(np.arcsin(np.clip(r @ up / L, -1, 1)))) if L > 0 else 0.0
+
+
+def _lever_point(fp, joint: int, lever_mm: float, theta_deg: float, up: np.ndarray) -> np.ndarray:
+    """The point ``lever_mm`` from joint ``joint``'s axis, level across it, raised ``theta_deg`` (old set-ups)."""
+    z, o = fp.joint_axis[0, joint - 1], fp.joint_origin[0, joint - 1]
+    h = np.cross(z, up)
+    if np.linalg.norm(h) < 1e-9:                      # axis vertical: any horizontal direction (and no torque)
+        h = np.cross(z, [1.0, 0.0, 0.0]) if abs(z[0]) < 0.9 else np.cross(z, [0.0, 1.0, 0.0])
+    h = h / np.linalg.norm(h)
+    t = np.radians(theta_deg)
+    return o + lever_mm * (np.cos(t) * h + np.sin(t) * up)
+
+
+#: the thesis's suggested radius of rotation of a swept target (section 5.3: about 600 mm; limits 100-1200 mm)
+SWEEP_RADIUS_MM = 600.0
+
+
+def design_sweep_targets(model: MeasurementModel, setup: dict, robot, radius_mm: float | dict | None = None) -> dict:
+    """Per-joint sweep targets at ``radius_mm`` (default the set-up's ``sweep_radius_mm`` or 600 mm) about each
+    joint's axis at READY, on the side facing the theodolites (see :func:`calib.setup_plan.sweep_targets`)."""
+    from calib.setup_plan import sweep_targets
+    r = radius_mm if radius_mm is not None else setup.get("sweep_radius_mm", SWEEP_RADIUS_MM)
+    radii = {int(k): float(v) for k, v in r.items()} if isinstance(r, dict) else \
+        {j: float(r) for j in range(1, robot.n + 1)}
+    mid = np.mean([st.position for st in setup_stations(setup).values()], axis=0)
+    return sweep_targets(model, nominal_theta(model, setup), np.asarray(READY_DEG) * DEG, radii, mid)
+
+
+def session_setup(setup: dict, robot) -> dict:
+    """The set-up with every old key mapped onto the step vocabulary's (contract C3), old keys kept.
+
+    Old set-up files describe a compliance load as ``lever_mm`` from the joint's centre at ``theta_i_deg`` above the
+    horizontal with ``loads_n``; the link-compliance gauges as ``gauges_x_mm`` and the load as ``load_x_mm`` along
+    link ``joint``.  The steps speak of masses at points on links (``link``, ``point_mm`` in frame j, ``masses_kg``)
+    and gauges as points with an axis; this adds those (and the old keys for set-ups that give only the new ones).
+    """
+    out = json.loads(json.dumps(setup))
+    m = MeasurementModel(robot)
+    th = nominal_theta(m, out)[: m.n_geometric]
+    g = float(np.linalg.norm(robot.gravity_m_s2))
+
+    def chain(q_deg):
+        return m.kin.forward(np.asarray(q_deg, float)[None] * DEG, th)
+
+    for key, cfg in out.get("compliance", {}).items():
+        j = int(key)
+        fp = chain(cfg.get("pose_deg", READY_DEG))
+        cfg.setdefault("link", j)
+        if "point_mm" not in cfg and "lever_mm" in cfg:
+            p = _lever_point(fp, j, float(cfg["lever_mm"]), float(cfg.get("theta_i_deg", 0.0)),
+                             up_direction(fp, robot))
+            cfg["point_mm"] = _frame_point(fp, cfg["link"], p)
+        p = fp.frame_R[0, cfg["link"]] @ np.asarray(cfg["point_mm"], float) + fp.frame_t[0, cfg["link"]]
+        lever, theta = lever_of(fp, j, p, up_direction(fp, robot))
+        cfg.setdefault("lever_mm", round(lever, 3))
+        cfg.setdefault("theta_i_deg", round(theta, 3))
+        if "masses_kg" not in cfg:
+            cfg["masses_kg"] = [round(v / g, 4) for v in cfg["loads_n"]]
+        cfg.setdefault("loads_n", [round(v * g, 3) for v in cfg["masses_kg"]])
+    if "sweep_targets" not in out:
+        out["sweep_targets"] = design_sweep_targets(m, out, robot)
+    link = out.get("link")
+    if link:
+        j = int(link.setdefault("link", link.get("joint", 2)))
+        link.setdefault("joint", j)
+        a = float(robot.a_mm[j - 1])
+        down = -up_direction(chain(link.get("pose_deg", READY_DEG)), robot)
+        if "load_point_mm" not in link:
+            link["load_point_mm"] = [link["load_x_mm"] - a, 0.0, 0.0]
+        link.setdefault("load_x_mm", link["load_point_mm"][0] + a)
+        if "gauges" not in link:
+            link["gauges"] = [{"name": f"gauge{i + 1}", "link": j, "point_mm": [x - a, 0.0, 0.0],
+                               "axis": [round(float(v), 6) for v in down]}
+                              for i, x in enumerate(link["gauges_x_mm"])]
+        link.setdefault("gauges_x_mm", [gg["point_mm"][0] + a for gg in link["gauges"]])
+        if "masses_kg" not in link:
+            link["masses_kg"] = [round(v / g, 4) for v in link["loads_n"]]
+        link.setdefault("loads_n", [round(v * g, 3) for v in link["masses_kg"]])
+    return out

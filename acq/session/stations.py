@@ -9,6 +9,7 @@ miss-distance check can then be held to what the reading noise explains (see :mo
 from __future__ import annotations
 
 import json
+from dataclasses import replace
 
 import numpy as np
 
@@ -16,14 +17,17 @@ from calib.errors import RobocalError
 from calib.theodolite import Station, thesis_stations
 from calib.units import ARCSEC
 
+from .setup import station_names
 
-def ruler_rows(steps: list[dict]) -> np.ndarray:
-    """(placement, mark, station 0/1, face, hz, v) per reading of accepted ruler steps (``spec`` and ``readings``)."""
+
+def ruler_rows(steps: list[dict], names: tuple[str, str] = ("A", "B")) -> np.ndarray:
+    """(placement, mark, station 0/1, face, hz, v) per reading of accepted ruler steps (``spec`` and ``readings``);
+    station 0 is the first of ``names`` (the set-up's, :func:`acq.session.setup.station_names`)."""
     rows = []
     for st in steps:
         m = st["spec"]["meta"]
         for r in st["readings"]:
-            rows.append((m["placement"], m["mark"], 0 if r["station"] == "A" else 1, r["face"], r["hz_rad"],
+            rows.append((m["placement"], m["mark"], 0 if r["station"] == names[0] else 1, r["face"], r["hz_rad"],
                          r["v_rad"]))
     return np.array(rows, float).reshape(-1, 6)
 
@@ -40,7 +44,8 @@ def fit_ruler(rows: np.ndarray, setup: dict):
     L, g1, g2 = (res[n].value for n in ("L_mm", "gamma1_rad", "gamma2_rad"))
     hb = res["hB_mm"].value if "hB_mm" in res.names else 0.0
     A, B = thesis_stations(L, g1, g2, sigma, hb)
-    return res, {"A": A, "B": B}
+    na, nb = station_names(setup)
+    return res, {na: replace(A, name=na), nb: replace(B, name=nb)}
 
 
 def stations_from_store(store, setup: dict, min_marks: int = 6) -> dict[str, Station] | None:
@@ -61,6 +66,6 @@ def stations_from_store(store, setup: dict, min_marks: int = 6) -> dict[str, Sta
     if len(steps) < min_marks:
         return None
     try:
-        return fit_ruler(ruler_rows(steps), setup)[1]
+        return fit_ruler(ruler_rows(steps, station_names(setup)), setup)[1]
     except (RobocalError, KeyError, ValueError, np.linalg.LinAlgError):
         return None

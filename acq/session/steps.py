@@ -22,12 +22,13 @@ class InputSpec:
 
 @dataclass(frozen=True)
 class TargetSpec:
-    """A target to sight: on the tool (``tool_mm`` in frame 6) or fixed in the measurement frame (``point_mm``,
-    known only for emulated setups: a real ruler mark is simply "mark C")."""
+    """A target to sight: on the robot (``tool_mm`` in frame ``link``; default the flange frame n) or fixed in the
+    measurement frame (``point_mm``, known only for emulated setups: a real ruler mark is simply "mark C")."""
 
     name: str
     tool_mm: tuple[float, float, float] | None = None
     point_mm: tuple[float, float, float] | None = None
+    link: int | None = None
 
 
 @dataclass(frozen=True)

@@ -8,7 +8,6 @@
 * :mod:`.validate`    the withheld-effect study on twin data (confusion matrix, false alarms, shrink);
 * :mod:`.render`      the terminal tables;
 * :mod:`.report`      HTML report with PNG figures;
-* :mod:`.tiago`       loader of the public TIAGo mocap data set (FIGAROH examples).
 """
 from .data import DiagnosisData, from_arrays, load_data
 from .engine import Diagnosis, diagnose

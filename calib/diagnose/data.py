@@ -124,8 +124,9 @@ def from_session_arrays(robot: Robot, arrays: dict, source: str) -> DiagnosisDat
     return d
 
 
-def load_data(path: str | Path, robot: Robot | None = None, noise_mm: float | None = None) -> DiagnosisData:
-    """Read DATA: the TIAGo mocap CSV (recognised by its header) or a pose-measurement CSV.  (Session databases come
+def load_data(path: str | Path, robot: Robot | None = None, noise_mm: float | None = None, *,
+              angle_unit: str | None = None, length_unit: str | None = None) -> DiagnosisData:
+    """Read DATA: a pose-measurement CSV (units: see :func:`calib.posecsv.read_pose_csv`).  (Session databases come
     through the session layer as arrays: :func:`from_session_arrays`.)"""
     from calib.posecsv import read_pose_csv
     from calib.robot import load_robot
@@ -136,14 +137,12 @@ def load_data(path: str | Path, robot: Robot | None = None, noise_mm: float | No
     if is_session_db(path):
         raise RobocalError(f"{path}: a session database reaches the diagnosis through the session layer "
                            f"(robocal diagnose reads it); load_data reads pose CSVs")
-    from .tiago import is_tiago_mocap, load_tiago_mocap
-    if is_tiago_mocap(path):
-        return load_tiago_mocap(path, robot, noise_mm)
     robot = robot or load_robot()
     import warnings
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        table = read_pose_csv(path, robot.n, robot.prismatic)
+        table = read_pose_csv(path, robot.n, robot.prismatic, robot=robot, angle_unit=angle_unit,
+                              length_unit=length_unit)
     if table.points_mm is None:
         raise RobocalError(f"{path}: columns x, y, z (measured tool points, mm) are needed to diagnose")
     cov = None

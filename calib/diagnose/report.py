@@ -26,8 +26,9 @@ def _dir(path) -> Path:
     return p
 
 
-def write_report(d, out_dir) -> Path:
-    """index.html + PNGs: residual vs each joint, the breakdown factors, the shrink curve."""
+def write_report(d, out_dir, provenance: dict | None = None) -> Path:
+    """index.html + PNGs: residual vs each joint, the breakdown factors, the shrink curve; ``provenance``
+    (:func:`calib.provenance.provenance`) goes into the JSON and a footer."""
     from calib.units import DEG
 
     plt = _plt()
@@ -93,6 +94,10 @@ def write_report(d, out_dir) -> Path:
     from .render import render
     body = [f"<h1>robocal diagnose: {html.escape(j['source'])}</h1>", "<pre>" + html.escape(render(d)) + "</pre>"]
     body += [f"<h2>{html.escape(t)}</h2><img src='{f}'>" for t, f in figs]
+    if provenance is not None:
+        from calib.provenance import provenance_html
+        body.append(provenance_html(provenance))
+        j["provenance"] = provenance
     (out / "index.html").write_text("<!doctype html><meta charset='utf-8'><title>robocal diagnose</title>"
                                     + "\n".join(body), encoding="utf-8")
     (out / "diagnosis.json").write_text(json.dumps(j, indent=1, default=float), encoding="utf-8")

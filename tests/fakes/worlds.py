@@ -1,18 +1,19 @@
-"""Worlds for tests: the demo world with or without noise, and a world whose truth a test can move."""
+"""Worlds for tests: the one world (the twin of the default scenario) with or without reading noise."""
 from __future__ import annotations
 
 import uuid
 
-from acq.emulate.world import KinematicWorld, demo_world
+from acq.emulate.factories import make_world
 
 
-def quiet_world(seed: int = 0) -> KinematicWorld:
-    """Demo world without reading noise: emulator readings equal ``true_sight`` to the reply's precision."""
-    return demo_world(seed=seed, noise=False)
+def quiet_world(seed: int = 0):
+    """The default scenario without reading noise or gross errors: emulator readings equal ``true_sight`` to the
+    reply's precision."""
+    return make_world(None, seed=seed, noise=False)
 
 
-def noisy_world(seed: int = 0) -> KinematicWorld:
-    return demo_world(seed=seed, noise=True)
+def noisy_world(seed: int = 0):
+    return make_world(None, seed=seed, noise=True)
 
 
 def channel() -> str:

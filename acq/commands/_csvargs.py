@@ -1,0 +1,19 @@
+"""Options every command reading a pose CSV shares (not a command: the scanner skips ``_`` modules)."""
+from __future__ import annotations
+
+from calib.posecsv import ANGLE_UNITS, LENGTH_UNITS
+
+
+def add_unit_arguments(p) -> None:
+    """``--angle-unit`` / ``--length-unit``: the units of the CSV's joint and position columns (default deg, mm)."""
+    p.add_argument("--angle-unit", choices=list(ANGLE_UNITS), default=None,
+                   help="unit of the CSV's revolute joint columns (default: the file's '# angle_unit = ...' line, "
+                        "else deg)")
+    p.add_argument("--length-unit", choices=list(LENGTH_UNITS), default=None,
+                   help="unit of the CSV's x, y, z and prismatic joint columns (default: the file's "
+                        "'# length_unit = ...' line, else mm)")
+
+
+def units(args) -> dict:
+    """Keyword arguments for :func:`calib.posecsv.read_pose_csv`."""
+    return {"angle_unit": getattr(args, "angle_unit", None), "length_unit": getattr(args, "length_unit", None)}

@@ -1,0 +1,352 @@
+"""Pre-flight of a session plan: every step checked against the robot description and the set-up before the robot
+moves, so the operator is never asked for something a real cell cannot do.
+
+Why: the emulated bench will happily drive a joint past its stop, hang a weight that produces no torque or sight a
+target through the robot's own arm; a real cell cannot.  Each check below computes what the step would physically do
+from the one forward model (:class:`calib.model.MeasurementModel`, nominal parameters with the set-up's base) and the
+set-up's stations, and compares it with a limit.  The operator's guide (docs/operator-guide.md, "Pre-flight") says
+what each check means and what to change when it fails.
+
+Checks (registered in :data:`CHECKS`, each a function ``(Preflight, StepGeometry) -> list[Finding]``):
+
+* ``joint limit``: every joint of ``pose_deg`` inside the description's limits less ``joint_margin_deg``;
+* ``reach``: a target on the robot no farther from the base than the arm and its tool can reach, above the floor
+  (``floor_z_mm`` of the set-up, when given);
+* ``sight``: for each station and target, the sight line's elevation within +-``max_elevation_deg``, the range between
+  the instruments' focus distance (``min_focus_mm``) and ``max_range_mm``, and -- when the set-up gives the links'
+  thickness (``link_radius_mm``; the description has no link geometry) -- no link of the robot across the line;
+* ``intersection``: the angle between the two stations' sight lines at the target within ``intersection_deg``;
+* ``sweep radius``: a swept target's distance from the swept joint's axis within ``sweep_radius_mm`` (thesis: 100 to
+  1200 mm, about 600 suggested);
+* ``load torque``: a hung mass's torque about the tested joint at that pose, from the point, gravity and the joint
+  axis through the model's loads, at least ``load_lever_fraction`` of mass x g x its distance from the axis (a weight
+  hung where the axis is vertical turns nothing).
+
+Limits: :data:`PREFLIGHT_LIMITS`, overridden by the set-up's ``preflight`` table.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Callable
+
+import numpy as np
+
+from calib.model import MeasurementModel
+from calib.units import DEG
+
+from .setup import nominal_theta, setup_stations
+from .steps import Step, TargetSpec
+
+PREFLIGHT_LIMITS = {
+    "joint_margin_deg": 2.0,              # stay this far inside every joint limit
+    "max_elevation_deg": 45.0,            # theodolite sight lines steeper than this are not readable
+    "min_focus_mm": 900.0,                # closest distance the telescopes focus (the set-up's min_focus_mm wins)
+    "max_range_mm": 12000.0,              # farthest a 30x telescope resolves a target
+    "intersection_deg": [20.0, 160.0],    # angle of the two sight lines at the target
+    "sweep_radius_mm": [100.0, 1200.0],   # radius of a swept target about its joint (thesis section 5.3)
+    "load_lever_fraction": 0.5,           # torque at least this fraction of m g r (lever within 60 deg of level)
+    "reach_margin": 1.1,                  # targets no farther from the base than this x the arm's reach
+    "link_radius_mm": None,               # thickness of the links for the line of sight (None: not checked)
+}
+
+
+@dataclass(frozen=True)
+class Finding:
+    """One failed check of one step: what, where, the value against its limit."""
+
+    check: str
+    key: str
+    value: float
+    limit: float
+    unit: str
+    detail: str
+
+    def line(self) -> str:
+        return f"{self.key}: {self.check}: {self.detail}"
+
+
+@dataclass
+class StepGeometry:
+    """What the nominal model says a step does physically: the chain at its pose and where its targets are."""
+
+    step: Step
+    fp: object | None                        # calib.kinematics.ChainPass at the pose (one pose), or None
+    points: dict[str, np.ndarray]            # target name -> point in the measurement frame (mm)
+
+
+CHECKS: dict[str, Callable[["Preflight", StepGeometry], list[Finding]]] = {}
+
+
+def preflight_check(name: str):
+    """Register a check under ``name`` (runs on every step; a check that does not apply returns [])."""
+    def deco(fn):
+        CHECKS[name] = fn
+        return fn
+    return deco
+
+
+class Preflight:
+    """Checks steps against ``robot`` and ``setup``; ``stations`` default to the set-up's (name -> Station)."""
+
+    def __init__(self, robot, setup: dict, stations: dict | None = None, limits: dict | None = None):
+        self.robot = robot
+        self.setup = setup
+        self.model = MeasurementModel(robot)
+        self.theta = nominal_theta(self.model, setup)
+        self.stations = stations if stations is not None else setup_stations(setup)
+        lim = {**PREFLIGHT_LIMITS, **({"min_focus_mm": setup["min_focus_mm"]} if "min_focus_mm" in setup else {})}
+        self.limits = {**lim, **setup.get("preflight", {}), **(limits or {})}
+        g = np.asarray(robot.gravity_m_s2, float)
+        self.g_m_s2 = float(np.linalg.norm(g))
+
+    # -- geometry ------------------------------------------------------------------------------------------------
+    def geometry(self, step: Step) -> StepGeometry:
+        fp = None
+        if step.pose_deg is not None and len(step.pose_deg) == self.robot.n:
+            fp = self.model.kin.forward(np.asarray(step.pose_deg, float)[None] * DEG, self.theta[: self.model.n_geometric])
+        pts = {}
+        for t in step.targets:
+            p = self.target_point(fp, t)
+            if p is not None:
+                pts[t.name] = p
+        return StepGeometry(step, fp, pts)
+
+    def target_point(self, fp, t: TargetSpec) -> np.ndarray | None:
+        """A target's point in the measurement frame: fixed (``point_mm``) or carried by link ``t.link``."""
+        if t.point_mm is not None:
+            return np.asarray(t.point_mm, float)
+        if t.tool_mm is None or fp is None:
+            return None
+        j = self.robot.n if getattr(t, "link", None) is None else int(t.link)
+        return fp.frame_R[0, j] @ np.asarray(t.tool_mm, float) + fp.frame_t[0, j]
+
+    def gravity_world(self, fp) -> np.ndarray:
+        """Gravity (m/s^2) in the measurement frame: the description's, carried by the base's orientation."""
+        return fp.frame_R[0, 0] @ np.asarray(self.robot.gravity_m_s2, float)
+
+    # -- running -------------------------------------------------------------------------------------------------
+    def check_step(self, step: Step) -> list[Finding]:
+        geo = self.geometry(step)
+        out: list[Finding] = []
+        for fn in CHECKS.values():
+            out += fn(self, geo)
+        return out
+
+    def check(self, steps: list[Step]) -> list[Finding]:
+        out: list[Finding] = []
+        for s in steps:
+            out += self.check_step(s)
+        return out
+
+
+def failing_lines(findings: list[Finding]) -> list[str]:
+    """One line per failing step (its failed checks joined), in step order."""
+    by_key: dict[str, list[Finding]] = {}
+    for f in findings:
+        by_key.setdefault(f.key, []).append(f)
+    return [f"{k}: " + "; ".join(f"{f.check}: {f.detail}" for f in fs) for k, fs in by_key.items()]
+
+
+# -- the checks --------------------------------------------------------------------------------------------------
+@preflight_check("joint limit")
+def _joint_limits(pf: Preflight, geo: StepGeometry) -> list[Finding]:
+    q = geo.step.pose_deg
+    if q is None:
+        return []
+    r = pf.robot
+    margin = pf.limits["joint_margin_deg"]
+    out = []
+    for j in range(min(len(q), r.n)):
+        scale = 1.0 if r.prismatic[j] else DEG
+        lo, hi = r.limits_rad[j] / scale
+        m = 0.0 if r.prismatic[j] else margin
+        for bound, beyond in ((lo + m, q[j] < lo + m), (hi - m, q[j] > hi - m)):
+            if beyond:
+                unit = "mm" if r.prismatic[j] else "deg"
+                out.append(Finding("joint limit", geo.step.key, float(q[j]), float(bound), unit,
+                                   f"joint {j + 1} at {q[j]:.1f} {unit}, limit {bound:.1f} {unit} "
+                                   f"({lo if bound == lo + m else hi:.1f} with a {m:g} {unit} margin)"))
+    return out
+
+
+def arm_reach_mm(robot) -> float:
+    """Farthest a point on the arm can be from the base origin: the links' lengths in a row."""
+    return float(np.sum(np.hypot(robot.a_mm, robot.d_mm)))
+
+
+def _on_robot(geo: StepGeometry):
+    for t in geo.step.targets:
+        if t.point_mm is None and t.name in geo.points:
+            yield t, geo.points[t.name]
+
+
+@preflight_check("reach")
+def _reach(pf: Preflight, geo: StepGeometry) -> list[Finding]:
+    if geo.fp is None:
+        return []
+    out = []
+    base = geo.fp.frame_t[0, 0]
+    for t, p in _on_robot(geo):
+        j = pf.robot.n if t.link is None else t.link
+        reach = pf.limits["reach_margin"] * (arm_reach_mm(pf.robot) + float(np.linalg.norm(t.tool_mm)))
+        d = float(np.linalg.norm(p - base))
+        if d > reach:
+            out.append(Finding("reach", geo.step.key, d, reach, "mm", f"target {t.name} (link {j}) {d:.0f} mm "
+                               f"from the base, the arm with that target reaches {reach:.0f} mm"))
+    floor = pf.setup.get("floor_z_mm")
+    if floor is not None:
+        lowest = min([float(np.min(geo.fp.frame_t[0, :, 2]))] + [float(p[2]) for _, p in _on_robot(geo)])
+        if lowest < floor:
+            out.append(Finding("reach", geo.step.key, lowest, float(floor), "mm",
+                               f"the arm goes down to z {lowest:.0f} mm, below the floor at {floor:.0f} mm"))
+    return out
+
+
+def _segment_distance(a0, a1, b0, b1, n: int = 40) -> float:
+    """Shortest distance between segments a0-a1 and b0-b1 (sampled along b, exact along a)."""
+    u = a1 - a0
+    uu = float(u @ u)
+    s = np.linspace(0.0, 1.0, n)[:, None]
+    pts = b0 + s * (b1 - b0)
+    t = np.clip((pts - a0) @ u / uu, 0.0, 1.0) if uu > 0 else np.zeros(n)
+    return float(np.min(np.linalg.norm(pts - (a0 + t[:, None] * u), axis=1)))
+
+
+@preflight_check("sight")
+def _sight(pf: Preflight, geo: StepGeometry) -> list[Finding]:
+    lim = pf.limits
+    out = []
+    for name, p in geo.points.items():
+        for sname, st in pf.stations.items():
+            d = p - st.position
+            rng = float(np.linalg.norm(d))
+            el = float(np.degrees(np.arctan2(d[2], np.hypot(d[0], d[1]))))
+            if abs(el) > lim["max_elevation_deg"]:
+                out.append(Finding("sight", geo.step.key, el, lim["max_elevation_deg"], "deg",
+                                   f"station {sname} sees {name} at {el:+.1f} deg elevation, limit "
+                                   f"+-{lim['max_elevation_deg']:g} deg"))
+            if rng < lim["min_focus_mm"]:
+                out.append(Finding("sight", geo.step.key, rng, lim["min_focus_mm"], "mm",
+                                   f"{name} is {rng:.0f} mm from station {sname}, closer than its focus distance "
+                                   f"{lim['min_focus_mm']:.0f} mm"))
+            elif rng > lim["max_range_mm"]:
+                out.append(Finding("sight", geo.step.key, rng, lim["max_range_mm"], "mm",
+                                   f"{name} is {rng:.0f} mm from station {sname}, beyond {lim['max_range_mm']:.0f} mm"))
+            blocked = _blocking_link(pf, geo, st.position, p)
+            if blocked is not None:
+                j, dist = blocked
+                out.append(Finding("sight", geo.step.key, dist, float(pf.limits["link_radius_mm"]), "mm",
+                                   f"link {j} passes {dist:.0f} mm from the line of sight of station {sname} to "
+                                   f"{name} (link radius {pf.limits['link_radius_mm']:g} mm): the robot hides it"))
+    return out
+
+
+def _blocking_link(pf: Preflight, geo: StepGeometry, station_mm: np.ndarray, p: np.ndarray):
+    """(link, distance) of the first link crossing the sight line (frame origin to frame origin, thickened by the
+    set-up's ``link_radius_mm``), or None; the last ``2 r`` before the target are left out (the target's own mount)."""
+    r = pf.limits.get("link_radius_mm")
+    if not r or geo.fp is None:
+        return None
+    d = p - station_mm
+    L = float(np.linalg.norm(d))
+    end = station_mm + d * max(0.0, 1.0 - 2.0 * float(r) / L)
+    org = geo.fp.frame_t[0]
+    for j in range(1, len(org)):
+        if np.linalg.norm(org[j] - org[j - 1]) < 1e-6:
+            continue
+        dist = _segment_distance(station_mm, end, org[j - 1], org[j])
+        if dist < r:
+            return j, dist
+    return None
+
+
+@preflight_check("intersection")
+def _intersection(pf: Preflight, geo: StepGeometry) -> list[Finding]:
+    lo, hi = pf.limits["intersection_deg"]
+    sts = list(pf.stations.values())
+    if len(sts) < 2:
+        return []
+    out = []
+    for name, p in geo.points.items():
+        u, v = p - sts[0].position, p - sts[1].position
+        ang = float(np.degrees(np.arccos(np.clip(u @ v / (np.linalg.norm(u) * np.linalg.norm(v)), -1, 1))))
+        if not lo <= ang <= hi:
+            bound = lo if ang < lo else hi
+            out.append(Finding("intersection", geo.step.key, ang, bound, "deg",
+                               f"sight lines meet at {ang:.1f} deg on {name}, limits {lo:g}-{hi:g} deg"))
+    return out
+
+
+def _axis_distance(fp, joint: int, p: np.ndarray) -> float:
+    """Distance (mm) of point p from joint ``joint``'s axis (1-based) at the pose."""
+    z, o = fp.joint_axis[0, joint - 1], fp.joint_origin[0, joint - 1]
+    r = p - o
+    return float(np.linalg.norm(r - (r @ z) * z))
+
+
+@preflight_check("sweep radius")
+def _sweep_radius(pf: Preflight, geo: StepGeometry) -> list[Finding]:
+    j = geo.step.meta.get("swept_joint")
+    if j is None or geo.fp is None:
+        return []
+    lo, hi = pf.limits["sweep_radius_mm"]
+    out = []
+    for t, p in _on_robot(geo):
+        r = _axis_distance(geo.fp, j, p)
+        if not lo <= r <= hi:
+            out.append(Finding("sweep radius", geo.step.key, r, lo if r < lo else hi, "mm",
+                               f"target {t.name} turns on a {r:.0f} mm radius about joint {j}, limits "
+                               f"{lo:g}-{hi:g} mm"))
+    return out
+
+
+def load_points(pf: Preflight, fp, loads: list[dict]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(links (K,), points in the measurement frame (K, 3) mm, forces (K, 3) N) of hung masses."""
+    links = np.array([int(ld["link"]) for ld in loads], int)
+    pts = np.array([fp.frame_R[0, j] @ np.asarray(ld["point_mm"], float) + fp.frame_t[0, j]
+                    for j, ld in zip(links, loads)])
+    g = pf.gravity_world(fp)
+    F = np.array([float(ld["mass_kg"]) * g for ld in loads])
+    return links, pts, F
+
+
+def load_torques_nm(pf: Preflight, fp, q_rad: np.ndarray, loads: list[dict]) -> np.ndarray:
+    """Torque (N m) about every joint from the hung masses alone, through ``MeasurementModel.loads``.
+
+    Each mass is a force at its point: the torque is the model's with the force less the model's without it (the
+    arm's own weight cancels).  Joints beyond a mass's link do not carry it."""
+    m, geo = pf.model, pf.theta[: pf.model.n_geometric]
+    links, pts, F = load_points(pf, fp, loads)
+    n = pf.robot.n
+    tau = np.zeros(n)
+    base = m.loads(fp, m.context(1)).joint_torque_nm[0]
+    for j, p, f in zip(links, pts, F):
+        # the point as a tool point (frame n) of this pose: the model's tool force then acts exactly there
+        tool = fp.frame_R[0, n].T @ (p - fp.frame_t[0, n])
+        fpt = m.kin.forward(q_rad[None], m.kin.params_with_tool(tool, geo))
+        t = m.loads(fpt, m.context(1, tool_force_n=f[None])).joint_torque_nm[0] - base
+        t[j:] = 0.0
+        tau += t
+    return tau
+
+
+@preflight_check("load torque")
+def _load_torque(pf: Preflight, geo: StepGeometry) -> list[Finding]:
+    s = geo.step.setup
+    loads = [ld for ld in s.get("loads", []) if float(ld.get("mass_kg", 0.0)) > 0]
+    j = s.get("tested_joint", s.get("joint"))
+    if not loads or j is None or geo.fp is None:
+        return []
+    q = np.asarray(geo.step.pose_deg, float) * DEG
+    tau = load_torques_nm(pf, geo.fp, q, loads)[j - 1]
+    _, pts, F = load_points(pf, geo.fp, loads)
+    full = float(sum(np.linalg.norm(f) * _axis_distance(geo.fp, j, p) * 1e-3 for p, f in zip(pts, F)))
+    frac = abs(tau) / full if full > 0 else 0.0
+    need = pf.limits["load_lever_fraction"]
+    if frac >= need:
+        return []
+    mass = sum(float(ld["mass_kg"]) for ld in loads)
+    return [Finding("load torque", geo.step.key, float(abs(tau)), need * full, "N m",
+                    f"{mass:.2f} kg hung there gives {abs(tau):.2f} N m about joint {j}, "
+                    f"{100 * frac:.0f}% of m g r = {full:.2f} N m (limit {100 * need:.0f}%): "
+                    f"load joint {j} where its axis is horizontal and the lever level")]

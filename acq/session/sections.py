@@ -1,0 +1,221 @@
+"""What the results say, per procedure: the estimates in the units a metrologist reads, a verdict for each, the thesis's
+own numbers beside them, and what to do when a stage failed.  The terminal summary and the HTML report are two views
+of these sections (a registry: a new procedure adds one entry, no branch elsewhere).
+
+Units at this edge: lengths in mm; angles in degrees, or arc seconds where they are small instrument angles; joint
+stiffness in N m/rad with lb in/rad beside it (the thesis's unit); everything else as estimated.
+
+Verdicts (per estimate, then per section: the worst of its estimates):
+* ``determined``: the stated 1-sigma error is small against the quantity (under 10 % of a magnitude such as a
+  stiffness or a length; under 0.5 mm / 0.01 deg for a deviation that may be near zero);
+* ``weakly determined``: under 50 % / 2 mm / 0.05 deg;
+* ``not determined``: anything larger, a zero or non-finite error on an estimated quantity, or a parameter held at its
+  design value.
+"""
+from __future__ import annotations
+
+import math
+import re
+from dataclasses import dataclass, field
+
+from calib.units import DEG, NM_PER_LBIN
+
+DETERMINED, WEAK, UNDETERMINED = "determined", "weakly determined", "not determined"
+_RANK = {DETERMINED: 0, WEAK: 1, UNDETERMINED: 2}
+
+#: estimate-name endings whose value is a magnitude (its error is judged against the value itself)
+MAGNITUDES = ("L_mm", "K1_Nm_per_rad", "K2_Nm_per_rad", "EI_Nmm2", "amplitude1_rad", "omega", "sigma45", "sigma46",
+              "sigma56")
+
+
+@dataclass
+class Shown:
+    """An estimate as shown: display name, value and error in display units, unit, truth, verdict, note."""
+
+    name: str
+    value: float
+    error: float | None
+    unit: str
+    truth: float | None
+    verdict: str
+    note: str = ""
+    extra: str = ""          # e.g. the lb in/rad equivalent
+
+
+def _angle_scale(unit: str) -> tuple[float, str]:
+    """Radians are shown in degrees; every other unit as estimated."""
+    if unit == "1":
+        return 1.0, ""
+    return (1.0 / DEG, "deg") if unit == "rad" else (1.0, unit)
+
+
+def verdict_of(e: dict) -> str:
+    """The verdict of one estimate (see the module docstring)."""
+    if e.get("held"):
+        return UNDETERMINED
+    err, val = e.get("error"), e.get("value")
+    if err is None or not math.isfinite(err) or err <= 0 or val is None or not math.isfinite(val):
+        return UNDETERMINED
+    name, unit = e["name"], e.get("unit", "")
+    if name.endswith(MAGNITUDES):
+        rel = err / abs(val) if val else math.inf
+        return DETERMINED if rel < 0.10 else WEAK if rel < 0.5 else UNDETERMINED
+    if unit == "mm":
+        return DETERMINED if err < 0.5 else WEAK if err < 2.0 else UNDETERMINED
+    if unit == "rad":
+        return DETERMINED if err < 0.01 * DEG else WEAK if err < 0.05 * DEG else UNDETERMINED
+    return DETERMINED if err < 0.1 * max(abs(val), 1e-12) else WEAK if err < 0.5 * abs(val) else UNDETERMINED
+
+
+def shown(e: dict) -> Shown:
+    """One estimate in display units."""
+    name, unit = e["name"], e.get("unit", "")
+    scale, du = _angle_scale(unit)
+    err = None if e.get("held") else e.get("error")
+    extra = ""
+    if unit == "N m/rad":
+        extra = f"{e['value'] / NM_PER_LBIN:.4g} lb in/rad"
+    truth = e.get("truth")
+    pretty = re.sub(r"_(rad|mm|deg|Nm_per_rad|Nmm2|Nm|rad_per_nm|per_nmm2)$", "", name)
+    return Shown(pretty, e["value"] * scale, None if err is None else err * scale, du,
+                 None if truth is None else truth * scale, verdict_of(e), e.get("note", ""), extra)
+
+
+@dataclass
+class ThesisRow:
+    """One of the thesis's numbers beside robocal's estimate: ``estimate`` names the estimate, ``thesis`` and
+    ``thesis_error`` are in display units."""
+
+    label: str
+    estimate: str
+    thesis: float
+    unit: str
+    thesis_error: float | None = None
+    note: str = ""
+
+
+@dataclass
+class Section:
+    key: str                         # procedure name in the session (steps' ``procedure``)
+    title: str
+    prefixes: tuple[str, ...]        # estimate names that belong here
+    what: str                        # what was done, in words
+    problem_prefixes: tuple[str, ...] = ()
+    advice: str = ""                 # what the operator can do when the stage failed or is weak
+    thesis: list[ThesisRow] = field(default_factory=list)
+    figures: tuple[str, ...] = ()    # keys of the figure registry (acq.session.report)
+
+
+SECTIONS: list[Section] = []
+
+
+def section(s: Section) -> Section:
+    SECTIONS.append(s)
+    return s
+
+
+LB = 1.0 / NM_PER_LBIN
+section(Section(
+    "ruler", "Theodolite pre-calibration (ruler, §4.2)", ("ruler.",),
+    "Marks C, D, E of a ruler sighted from both theodolites, both faces, at several placements; L, γ1, γ2 by least "
+    "squares over every placement.", ("ruler",),
+    "Repeat the ruler series with the ruler placed farther apart (vary R between 500 and 3000 mm, as the thesis does).",
+    [ThesisRow("L (Fig 5.4)", "ruler.L_mm", 1609.9, "mm", 0.3),
+     ThesisRow("γ1 (Fig 5.4)", "ruler.gamma1_rad", -1.489, "deg", 0.013),
+     ThesisRow("γ2 (Fig 5.4)", "ruler.gamma2_rad", 1.358, "deg", 0.010)], ("ruler",)))
+section(Section(
+    "sweep", "Joint axes and DH parameters (circle point analysis, §4.3)", ("dh.",),
+    "Each joint swept alone while a target on its link is sighted; a circle and its axis fitted per joint; the DH "
+    "parameters follow from successive axes.", ("sweeps", "sweep"),
+    "Widen the sweep of a joint whose axis is weakly determined, or put its target farther from the axis "
+    "(100-1200 mm, about 600 mm suggested).",
+    [ThesisRow("a1 (Fig 5.10)", "dh.j2.a_mm", 431.0, "mm"),
+     ThesisRow("a2 (Fig 5.10)", "dh.j3.a_mm", -29.7, "mm"),
+     ThesisRow("d2 (Fig 5.10)", "dh.j4.d_mm", 432.2, "mm")], ("sweeps", "dh_lengths", "dh_angles")))
+section(Section(
+    "transmission", "Transmission error (§4.4)", ("te.",),
+    "The joint angle from two targets on an extended tool, against the encoder, over the joint's range; a harmonic "
+    "fit of the difference.", ("transmission",),
+    "Repeat with more positions over a wider range of the joint (within its limits), moving one way only.",
+    [ThesisRow("K_θ4 amplitude (§5.4.2)", "te.j4.amplitude1_rad", 0.050, "deg"),
+     ThesisRow("K_θ4 order", "te.j4.omega", 0.9, "1"),
+     ThesisRow("K_θ6 amplitude (§5.4.2)", "te.j6.amplitude1_rad", 0.047, "deg"),
+     ThesisRow("K_θ6 order", "te.j6.omega", 1.8, "1")], ("transmission",)))
+section(Section(
+    "compliance", "Joint stiffness (§4.5)", ("compliance.",),
+    "Weights hung at a known point of the link, loading then unloading; the deflection of the joint against the "
+    "torque the weights produce about its axis.", ("compliance",),
+    "Load the joint at a pose where its axis is horizontal, with more and larger weights; a load that produces no "
+    "torque about the joint measures nothing.",
+    [ThesisRow("K3 below 100 lb in (§5.5)", "compliance.j3.K1_Nm_per_rad", 1.156e5 * NM_PER_LBIN, "N m/rad"),
+     ThesisRow("K3 above", "compliance.j3.K2_Nm_per_rad", 1.223e5 * NM_PER_LBIN, "N m/rad"),
+     ThesisRow("K4 below 45 lb in", "compliance.j4.K1_Nm_per_rad", 2.275e5 * NM_PER_LBIN, "N m/rad"),
+     ThesisRow("K4 above", "compliance.j4.K2_Nm_per_rad", 1.698e5 * NM_PER_LBIN, "N m/rad")], ("compliance",)))
+section(Section(
+    "link_compliance", "Link compliance (§4.6)", ("link.",),
+    "Dial gauges along a link, loads at its end; the flexural rigidity from the gauge readings.", ("link",),
+    "Repeat with larger loads or gauges farther from the joint.", [], ("link",)))
+section(Section(
+    "coupling", "Wrist cross coupling (§4.7)", ("coupling.",),
+    "A wrist joint moved alone, then with its neighbour; the tapped encoder counts give σ_jk.", ("coupling",),
+    "Repeat the pair with a larger angle.",
+    [ThesisRow("σ56 (§5.6)", "coupling.sigma56", 0.1802, "1", note="maker 0.1806"),
+     ThesisRow("σ46", "coupling.sigma46", 0.0131, "1"),
+     ThesisRow("σ45", "coupling.sigma45", 0.0139, "1",
+               note="the thesis prints 0.0141; its own readings give 0.0139")], ("coupling",)))
+section(Section(
+    "poses", "Identification from the pose set (Chapter 6)", ("ident.",),
+    "The tool target sighted at every pose of the designed set; the geometry and the running errors identified "
+    "together, a quarter of the poses held out to measure the accuracy.", ("poses",),
+    "Add poses where the weak parameters move (the identifiability note names the joint), or free fewer parameters.",
+    [ThesisRow("a1 (Fig 5.10)", "ident.j2.a_mm", 431.0, "mm"),
+     ThesisRow("a2 (Fig 5.10)", "ident.j3.a_mm", -29.7, "mm"),
+     ThesisRow("d2 (Fig 5.10)", "ident.j4.d_mm", 432.2, "mm"),
+     ThesisRow("d3 (Fig 5.10)", "ident.j6.d_mm", 56.4, "mm")], ("poses",)))
+
+
+def section_estimates(sec: Section, estimates: list[dict]) -> list[dict]:
+    return [e for e in estimates if e["name"].startswith(sec.prefixes)]
+
+
+def section_problems(sec: Section, problems: list[str]) -> list[str]:
+    keys = sec.problem_prefixes or (sec.key,)
+    return [p for p in problems if p.split(":", 1)[0].strip().lower() in keys]
+
+
+def section_verdict(sec: Section, estimates: list[dict], problems: list[str]) -> tuple[str, str]:
+    """(verdict, reason) of a whole section: the worst of its estimates, or not determined when it failed."""
+    mine = section_estimates(sec, estimates)
+    probs = section_problems(sec, problems)
+    if not mine:
+        return UNDETERMINED, (probs[0].split(":", 1)[1].strip() if probs else "no data for this procedure")
+    worst = max(mine, key=lambda e: _RANK[verdict_of(e)])
+    v = verdict_of(worst)
+    if v == DETERMINED:
+        return v, "every estimate's error is small against its value"
+    why = worst.get("note") or ("held at its design value" if worst.get("held") else
+                                f"{shown(worst).name}: error {_fmt_err(worst)}")
+    return v, why
+
+
+def _fmt_err(e: dict) -> str:
+    s = shown(e)
+    return "none" if s.error is None else f"{s.error:.3g} {s.unit} on {s.value:.6g} {s.unit}"
+
+
+def thesis_rows(sec: Section, estimates: list[dict]) -> list[dict]:
+    """robocal's value beside the thesis's, and their difference in units of robocal's stated error."""
+    by_name = {e["name"]: e for e in estimates}
+    out = []
+    for row in sec.thesis:
+        e = by_name.get(row.estimate)
+        if e is None:
+            continue
+        s = shown(e)
+        diff = s.value - row.thesis
+        z = diff / s.error if s.error else None
+        out.append({"label": row.label, "robocal": s.value, "error": s.error, "thesis": row.thesis,
+                    "thesis_error": row.thesis_error, "unit": row.unit if row.unit != "N m/rad" else "N m/rad",
+                    "difference": diff, "sigmas": z, "note": row.note,
+                    "lbin": (s.value * LB, row.thesis * LB) if row.unit == "N m/rad" else None})
+    return out

@@ -1,0 +1,92 @@
+"""The terminal summary of a reprocessed session: the accuracy before and after, then a few lines per procedure (full
+names, degrees for angles, a verdict), so an operator on an 80-column terminal reads the answer at a glance.  The full
+table of every estimate goes to the JSON and the report, or to the terminal with ``--verbose``."""
+from __future__ import annotations
+
+from rich.console import Console
+from rich.table import Table
+
+from .sections import DETERMINED, SECTIONS, UNDETERMINED, WEAK, section_estimates, section_problems, \
+    section_verdict, shown, verdict_of
+
+#: a section with at most this many estimates lists them all; a larger one shows its counts and weakest few
+LIST_UP_TO = 6
+WEAKEST = 3
+_COLOUR = {DETERMINED: "green", WEAK: "yellow", UNDETERMINED: "red"}
+
+
+def _short_name(e: dict) -> str:
+    """The name within its section (the section's heading says the procedure): ``ruler.L`` -> ``L``."""
+    return shown(e).name.split(".", 1)[-1]
+
+
+def _value_text(e: dict) -> str:
+    s = shown(e)
+    err = "held" if s.error is None else f"± {s.error:.2g}"
+    text = f"{s.value:.6g} {err} {s.unit}".rstrip()
+    if s.extra:
+        text += f" ({s.extra})"
+    if s.truth is not None and s.error:
+        text += f"  truth {s.truth:.6g} ({(s.value - s.truth) / s.error:+.1f}σ)"
+    return text
+
+
+def accuracy_lines(acc: dict | None, tolerance_mm: float | None = None) -> list[str]:
+    if not acc:
+        return ["accuracy: not measured (no pose set, or too few poses to hold some out)"]
+    lines = [f"accuracy on {acc['n_test']} held-out poses: before {acc['before_rms_mm']:.3f} mm RMS, after "
+             f"{acc['after_rms_mm']:.3f} mm RMS (95 % {acc['after_p95_mm']:.3f}, max {acc['after_max_mm']:.3f} mm); "
+             f"instrument floor {acc['floor_mm']:.3f} mm"]
+    if tolerance_mm is not None:
+        ok = acc["after_max_mm"] <= tolerance_mm
+        lines.append(f"tolerance {tolerance_mm:g} mm: {'met' if ok else 'NOT met'} on every held-out pose"
+                     if ok else f"tolerance {tolerance_mm:g} mm: NOT met (max {acc['after_max_mm']:.3f} mm)")
+    return lines
+
+
+def summary_lines(res: dict) -> list[tuple[str, str]]:
+    """(style, text) lines of the compact summary."""
+    out: list[tuple[str, str]] = [("bold", f"{res['session']['title']}")]
+    out += [("bold", line) for line in accuracy_lines(res.get("accuracy"))]
+    est, probs = res.get("estimates", []), res.get("problems", [])
+    for sec in SECTIONS:
+        mine = section_estimates(sec, est)
+        sp = section_problems(sec, probs)
+        if not mine and not sp:
+            continue
+        v, why = section_verdict(sec, est, probs)
+        out.append((f"bold {_COLOUR[v]}", f"{sec.title}: {v}" + ("" if v == DETERMINED else f" — {why}")))
+        if len(mine) <= LIST_UP_TO:
+            out += [("", f"  {_short_name(e):<12} {_value_text(e)}") for e in mine]
+        else:
+            counts = {k: sum(verdict_of(e) == k for e in mine) for k in (DETERMINED, WEAK, UNDETERMINED)}
+            out.append(("", f"  {len(mine)} estimates: " + ", ".join(f"{n} {k}" for k, n in counts.items() if n)))
+            rank = {DETERMINED: 0, WEAK: 1, UNDETERMINED: 2}
+            weakest = sorted((e for e in mine if not e.get("held")), key=lambda e: -rank[verdict_of(e)])
+            for e in [e for e in weakest if verdict_of(e) != DETERMINED][:WEAKEST]:
+                out.append(("", f"  weakest: {_short_name(e)} {_value_text(e)}"))
+            held = [_short_name(e) for e in mine if e.get("held")]
+            if held:
+                out.append(("", "  held at design values: " + ", ".join(held)))
+        if v != DETERMINED and sec.advice:
+            out.append(("dim", f"  what to do: {sec.advice}"))
+        out += [("yellow", f"  note: {p.split(':', 1)[1].strip()}") for p in sp]
+    known = {p for sec in SECTIONS for p in section_problems(sec, probs)}
+    out += [("yellow", f"note: {p}") for p in probs if p not in known]
+    return out
+
+
+def print_summary(res: dict, verbose: bool = False, console: Console | None = None) -> None:
+    """The compact summary (default) or every estimate in one table (``verbose``)."""
+    console = console or Console(stderr=False)
+    if verbose:
+        t = Table(title=f"estimates from {res['session']['title']}")
+        for c in ("name", "value", "error (1 sigma)", "unit", "truth", "verdict"):
+            t.add_column(c, overflow="fold")
+        for e in res["estimates"]:
+            s = shown(e)
+            t.add_row(e["name"], f"{s.value:.6g}", "held" if s.error is None else f"{s.error:.2g}", s.unit,
+                      "" if s.truth is None else f"{s.truth:.6g}", s.verdict)
+        console.print(t)
+    for style, text in summary_lines(res):
+        console.print(text, style=style or None, highlight=False, markup=False, soft_wrap=False)
