@@ -53,6 +53,19 @@ class ChainPass:
         """(N, n, 3) origin of frame j-1, a point on joint j's axis."""
         return self.frame_t[:, :-1, :]
 
+    def link_beam(self, j: int) -> tuple[np.ndarray, np.ndarray]:
+        """(start, end) (N, 3) each: the body of link j as a beam for bending, clamped at joint j's axis.
+
+        Frame j-1 to frame j is an offset d_j along joint j's axis then the link's length a_j across it; the beam is
+        the part across the axis (from the foot of frame j's origin on the axis) -- the part along the axis is the
+        joint's own offset -- unless the link has no length across (a_j ~ 0: then the whole offset is the body)."""
+        start, end = self.frame_t[:, j - 1], self.frame_t[:, j]
+        z = self.frame_R[:, j - 1, :, 2]
+        seg = end - start
+        perp = seg - np.einsum("nc,nc->n", seg, z)[:, None] * z
+        across = np.linalg.norm(perp, axis=-1) > 1.0
+        return np.where(across[:, None], end - perp, start), end
+
     @property
     def flange_R(self) -> np.ndarray:
         return self.frame_R[:, -1]

@@ -94,6 +94,8 @@ def test_gauges_read_the_cantilever_deflection_of_their_points(bench):
     pose = np.array([0.0, 0.0, 90.0, 0.0, 0.0, 0.0])
     T = frames(bench.world.robot, pose * DEG)
     o1, o2, R2 = T[1][:3, 3], T[2][:3, 3], T[2][:3, :3]
+    z1 = T[1][:3, 2]
+    o1 = o1 + ((o2 - o1) @ z1) * z1                                      # the link leaves joint 2's axis here
     L = np.linalg.norm(o2 - o1)
     u = (o2 - o1) / L
     on = lambda x: (R2.T @ (o1 + u * x - o2)).tolist()            # noqa: E731  frame-2 coordinates

@@ -137,6 +137,8 @@ def test_link_bending_under_a_mass_on_the_link(puma):
     q = np.array([0.0, -20.0, 60.0, 0.0, 0.0, 0.0]) * DEG
     T = frames(puma, q)
     o1, o2, R2 = T[1][:3, 3], T[2][:3, 3], T[2][:3, :3]
+    z1 = T[1][:3, 2]
+    o1 = o1 + ((o2 - o1) @ z1) * z1                                      # the link leaves joint 2's axis here
     L = np.linalg.norm(o2 - o1)
     u = (o2 - o1) / L
     on_link = lambda x: R2.T @ (o1 + u * x - o2)                         # noqa: E731 frame-2 coordinates

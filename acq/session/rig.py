@@ -188,8 +188,6 @@ def c3_setup(setup: dict, pose_deg, inputs: dict, kin) -> dict:
         if "lever_mm" in s:                                                  # joint compliance
             lever = float(inputs.get("lever_mm", s["lever_mm"]))
             s["loads"] = [{"link": j, "point_mm": [lever, 0.0, 0.0], "mass_kg": load_n / g}]
-            if not isinstance(s.get("load_direction"), dict):
-                s["load_direction"] = {str(j): s.get("load_direction", 0)}
         elif "load_x_mm" in s:                                               # link compliance
             along = _along_link(kin, pose_deg, j)
             s["loads"] = [{"link": j, "point_mm": along(s["load_x_mm"]), "mass_kg": load_n / g}]
@@ -206,17 +204,22 @@ def c3_setup(setup: dict, pose_deg, inputs: dict, kin) -> dict:
 def load_directions(setup: dict, n: int) -> np.ndarray:
     """(n,) +1 loading / -1 unloading / 0 per joint from ``setup["load_direction"]`` ({"3": 1})."""
     d = np.zeros(n)
-    for j, v in (setup.get("load_direction") or {}).items():
+    ld = setup.get("load_direction") or {}
+    if not isinstance(ld, dict):                      # older steps: one number for the step's joint
+        j = setup.get("tested_joint", setup.get("joint"))
+        ld = {str(j): ld} if j is not None else {}
+    for j, v in ld.items():
         d[int(j) - 1] = float(v)
     return d
 
 
 def _along_link(kin, pose_deg, j: int):
-    """x mm -> the point (frame j coordinates) at x from joint j's centre on the segment frame j-1 -> frame j."""
+    """x mm -> the point (frame j coordinates) at x from joint j's axis along link j's body (the beam that bends)."""
     from calib.units import DEG
     q = np.zeros(kin.n) if pose_deg is None else np.asarray(pose_deg, float) * DEG
     fp = kin.forward(q[None])
-    start, end, R = fp.frame_t[0, j - 1], fp.frame_t[0, j], fp.frame_R[0, j]
+    (start,), (end,) = fp.link_beam(j)
+    R = fp.frame_R[0, j]
     L = np.linalg.norm(end - start)
 
     def at(x_mm: float) -> list[float]:

@@ -1,6 +1,7 @@
-"""Cantilever bending of link j (frame j-1 to frame j) under the loads it carries (section 4.6).
+"""Cantilever bending of link j under the loads it carries (section 4.6).
 
-The segment is a cantilever with flexural rigidity EI clamped at frame j-1, loaded at its end by the weight of
+The link's body (:meth:`calib.kinematics.ChainPass.link_beam`: its length across joint j's axis, up to frame j) is a
+cantilever with flexural rigidity EI clamped at frame j-1, loaded at its end by the weight of
 everything beyond it plus the payload and the external tool force, and along its length by the forces at points fixed
 on link j (hung masses; each acts at its projection on the segment).  A force P at a bends the beam at x by
 P x^2 (3a - x) / (6 EI) (x <= a) or P a^2 (3x - a) / (6 EI) (x > a), with slope P x (2a - x) / (2 EI) or
@@ -37,11 +38,11 @@ class LinkCompliance(Effect):
         return cls(c["joint"], c["ei_nmm2"])
 
     def point_delta(self, fp, point, loads: Loads, values):
-        j = self.joint                          # link j spans frame j-1 -> frame j
+        j = self.joint                          # link j: from joint j's axis to frame j
         where = fp.point_link                   # frame the point is fixed in (None: the tool, beyond frame n)
         if where is not None and where < j:
             return np.zeros_like(point), np.zeros(point.shape + (1,))
-        start, end = fp.frame_t[:, j - 1], fp.frame_t[:, j]
+        start, end = fp.link_beam(j)
         seg = end - start
         L = np.linalg.norm(seg, axis=-1)
         u = seg / np.where(L > 0, L, 1.0)[:, None]
