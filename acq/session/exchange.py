@@ -35,6 +35,7 @@ from calib.errors import RobocalError
 from calib.fileio import atomic_write_text
 from calib.units import DEG
 
+from .procedures import mark_index
 from .reprocess import load_session
 from .store import SessionStore, StepRecord, connect_readonly
 
@@ -215,7 +216,7 @@ def _meta_from_key(key: str) -> dict:
     meta: dict = {}
     try:
         if parts[0] == "ruler":
-            meta = {"placement": int(parts[1][1:]), "mark": "CDE".index(parts[2])}
+            meta = {"placement": int(parts[1][1:]), "mark": mark_index(parts[2])}
         elif parts[0] in ("sweep", "te", "compliance"):
             meta = {"joint": int(parts[1][1:]), "index": int(parts[2])}
         elif parts[0] == "poses":
