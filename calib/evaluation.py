@@ -21,6 +21,24 @@ from .model import MeasurementModel
 from .posecsv import PoseTable
 
 
+def with_polar_points(table: PoseTable, noise=None) -> PoseTable:
+    """A table whose polar readings (hz_deg, v_deg, dist_mm) are turned into points with their covariance
+    (:mod:`calib.polar`) when it has no x, y, z; the table itself otherwise."""
+    from .polar import PolarNoise, polar_points
+    if table.points_mm is None and table.polar is not None:
+        table.points_mm, table.cov_mm2 = polar_points(table.polar, noise or PolarNoise())
+    return table
+
+
+def point_covariance(table: PoseTable) -> np.ndarray | None:
+    """(N, 3, 3) covariance of the measured points: polar noise, else the sigma_*_mm columns, else None."""
+    if table.cov_mm2 is not None:
+        return table.cov_mm2
+    if table.sigma_mm is not None:
+        return np.einsum("ni,ij->nij", table.sigma_mm ** 2, np.eye(3))
+    return None
+
+
 def tool_per_row(robot, table: PoseTable) -> np.ndarray | None:
     """(N, 3) tool point in frame n for each row's ``target``; None when the file names no targets."""
     if table.target is None:

@@ -52,14 +52,23 @@ def test_findings_carry_stability_and_aliases():
     assert f["excess_share"] > 0.8
 
 
-def test_an_effect_outside_the_library_is_reported_unexplained_with_where_it_lies():
-    """The instrument moved 0.6 mm half way through the session: no candidate describes it (no temperature change
-    drives it), so the gap is left unexplained, and the breakdown points at time."""
+def test_the_instrument_moving_half_way_is_named():
     d, _ = make_case_data(Case(None, None, None, 0.0, seed=33, n_poses=100))
     late = d.ctx.time_s > np.median(d.ctx.time_s)
     d.points_mm[late] += [0.6, 0.0, 0.0]
     j = diagnose(d, level="full", outliers="off").to_json()
-    assert all(f["doubtful"] for f in j["findings"]) or j["findings"] == []
+    f = j["findings"][0]
+    assert f["effect"] == "instrument_drift" and abs(f["parameters"]["x_mm"] - 0.6) < 0.1
+    assert j["unexplained"] is None
+
+
+def test_an_effect_outside_the_library_is_reported_unexplained_with_where_it_lies():
+    """The base rocks: 0.5 mm sideways whenever joint 1 is past zero (no candidate describes a step in a joint
+    angle), so the gap is left unexplained, and the breakdown points at joint 1."""
+    d, _ = make_case_data(Case(None, None, None, 0.0, seed=34, n_poses=100))
+    d.points_mm[d.q_rad[:, 0] > 0] += [0.0, 0.5, 0.0]
+    j = diagnose(d, level="full", outliers="off").to_json()
+    assert all(f["doubtful"] for f in j["findings"]) or j["findings"] == [], j["findings"]
     u = j["unexplained"]
     assert u is not None and u["excess_mm"] > 0
-    assert any(w["factor"] == "time" for w in u["where"])
+    assert any(w["factor"] == "joint 1 angle" for w in u["where"]), u

@@ -145,3 +145,24 @@ def test_weak_data_with_priors_does_not_make_the_robot_worse(world, capsys):
     assert doc["test_rms_mm"] < nominal_rms
     names = {p["name"]: p for p in doc["parameters"]}
     assert not names["base.z_mm"]["estimated"] and names["j3.a_mm"]["estimated"]
+
+
+def test_total_station_rows_identify_with_their_own_noise_model(world, capsys):
+    """hz_deg, v_deg, dist_mm rows (a total station at the measurement origin) instead of x, y, z."""
+    tmp, truth, q, T1, data = world
+    p = _measure(truth, q, T1, 7, noise=0.0)
+    rng = np.random.default_rng(8)
+    hz = np.mod(np.arctan2(-p[:, 1], p[:, 0]), 2 * np.pi) + rng.normal(0, 1e-6, len(p))
+    v = np.arctan2(np.hypot(p[:, 0], p[:, 1]), p[:, 2]) + rng.normal(0, 1e-6, len(p))
+    d = np.linalg.norm(p, axis=1) + rng.normal(0, 0.01, len(p))
+    lines = [",".join(NAMES + ["hz_deg", "v_deg", "dist_mm", "split"])]
+    for i in range(len(q)):
+        lines.append(",".join([f"{x:.9f}" for x in np.degrees(q[i])] + [f"{np.degrees(hz[i]):.9f}",
+                               f"{np.degrees(v[i]):.9f}", f"{d[i]:.5f}", "fit" if i < 40 else "test"]))
+    f = tmp / "ts.csv"
+    f.write_text("\n".join(lines) + "\n")
+    doc = json.loads(_run(capsys, ["identify", str(f), "--robot", str(EX / "urdf" / "ur10_robot.urdf"), "--json",
+                                   "--polar-noise", "0.2,0.01,0"]))
+    assert doc["n_test"] == 20 and doc["test_rms_mm"] < 0.05
+    # the noise model is the instrument's: a reduced chi-square near 1, not the default point noise's
+    assert 0.5 < doc["reduced_chi2"] < 2.0

@@ -24,7 +24,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from calib.errors import RobocalError
-from calib.theodolite import Station, intersect
+from calib.theodolite import Station, face_mean, intersect  # noqa: F401 (face_mean: re-exported)
 from calib.units import ARCSEC, DEG
 
 DEFAULT_LIMITS = {
@@ -58,14 +58,6 @@ class Check:
 
 def _wrap(a):
     return (np.asarray(a) + np.pi) % (2 * np.pi) - np.pi
-
-
-def face_mean(hz: np.ndarray, v: np.ndarray, face: np.ndarray) -> tuple[float, float]:
-    """Face-I-equivalent mean of readings (face II reduced: Hz - 180 deg, 360 deg - V): removes c and k."""
-    hz1 = np.where(face == 2, hz - np.pi, hz)
-    v1 = np.where(face == 2, 2 * np.pi - v, v)
-    ref = hz1[0]
-    return float(np.mod(ref + np.mean(_wrap(hz1 - ref)), 2 * np.pi)), float(np.mean(v1))
 
 
 def face_agreement(readings: list[dict], limit_arcsec: float) -> list[Check]:
