@@ -24,7 +24,7 @@ from .effects import PoseContext, effect_from_spec, effect_spec
 from .errors import RobocalError
 from .fileio import atomic_write_text
 from .identify import Identification
-from .jsonfile import read_json
+from .jsonfile import FINITE, check_schema, read_json
 from .model import MeasurementModel
 from .robot import Robot, parse_robot, robot_to_toml
 from .units import DEG
@@ -41,7 +41,8 @@ def unit_of(name: str) -> str:
 
 
 def robot_from_theta(model: MeasurementModel, theta: np.ndarray) -> Robot:
-    """The robot description with the geometric part of ``theta`` written into it."""
+    """The robot description with the geometric part of ``theta`` written into it (every target's tool point)."""
+    from .targets import identified_tool_points
     kin = model.kin
     r = model.robot
     g = theta[: kin.P]
@@ -51,10 +52,10 @@ def robot_from_theta(model: MeasurementModel, theta: np.ndarray) -> Robot:
 
     base = [g[kin.index[f"base.{k}"]] for k in ("x_mm", "y_mm", "z_mm")]
     rpy = [g[kin.index["base.roll_rad"]], g[kin.index["base.pitch_rad"]], g[kin.index["base.yaw_rad"]]]
-    tool = np.array([g[kin.index[f"tool.{k}"]] for k in ("x_mm", "y_mm", "z_mm")])
     return replace(r, a_mm=per_joint("a_mm"), d_mm=per_joint("d_mm"), alpha_rad=per_joint("alpha_rad"),
                    theta_offset_rad=per_joint("theta_offset_rad"), beta_rad=per_joint("beta_rad"),
-                   base_xyz_mm=np.array(base), base_rpy_rad=np.array(rpy), tool_points_mm={"P": tool},
+                   base_xyz_mm=np.array(base), base_rpy_rad=np.array(rpy),
+                   tool_points_mm=identified_tool_points(model, theta),
                    name=f"{r.name} (identified)")
 
 
@@ -77,7 +78,7 @@ def model_document(model: MeasurementModel, ident: Identification, truth: dict[s
         "parameters": params,
         "effects": [effect_spec(e) for e in model.effects],
         "covariance": {"names": free, "matrix": ident.cov[np.ix_(idx, idx)].tolist()},
-        "identifiability": ident.identifiability.report(),
+        "identifiability": ident.identifiability.report(model.robot.description_joint_names),
         "residual_rms": ident.residual_rms,
         "reduced_chi2": ident.reduced_chi2,
         "outliers": ident.outliers,
@@ -103,17 +104,53 @@ class IdentifiedModel:
     nominal_robot: Robot            # the description the identification started from (what the controller uses)
 
 
+#: the model JSON's structure (checked whole before anything is built from it)
+MODEL_SCHEMA = {
+    "type": "object",
+    "required": ["format", "robot_toml", "nominal_robot_toml", "parameters", "effects", "covariance"],
+    "properties": {
+        "format": {"const": FORMAT},
+        "robot_toml": {"type": "string", "maxLength": 1_000_000},
+        "nominal_robot_toml": {"type": "string", "maxLength": 1_000_000},
+        "parameters": {"type": "array", "maxItems": 100_000, "items": {
+            "type": "object", "required": ["name", "value"],
+            # +Infinity is a value some effects use for "none" (a compliance breakpoint); NaN and -Infinity are not
+            "properties": {"name": {"type": "string", "minLength": 1},
+                           "value": {"type": "number", "notNaN": True, "minimum": -1e30},
+                           "error": {"type": ["number", "null"], "minimum": 0, "maximum": 1e12},
+                           "estimated": {"type": "boolean"}}}},
+        "effects": {"type": "array", "maxItems": 1000, "items": {
+            "type": "object", "required": ["type"],
+            "properties": {"type": {"type": "string"}, "joint": {"type": ["integer", "null"], "minimum": 1,
+                                                                 "maximum": 64}},
+            "additionalProperties": FINITE}},
+        "covariance": {"type": "object", "required": ["names", "matrix"], "properties": {
+            "names": {"type": "array", "items": {"type": "string"}, "uniqueItems": True},
+            "matrix": {"type": "array", "items": {"type": "array", "items": FINITE}}}},
+    },
+}
+
+
 def load_model(path: str | Path) -> IdentifiedModel:
-    """Rebuild the identified model from its JSON (checked: a clear error names what is missing)."""
+    """Rebuild the identified model from its JSON.  The whole document is checked first (structure by
+    :data:`MODEL_SCHEMA`, then the descriptions, the effects, the covariance and a trial prediction), so a damaged
+    file is one line naming the key, never a crash deep in the arithmetic."""
     src = str(path)
-    doc = read_json(path)
+    doc = read_json(path, allow_nonfinite=True)
     if not isinstance(doc, dict) or doc.get("format") != FORMAT:
         raise RobocalError(f"{src}: not a robocal model file (format {FORMAT!r} expected)")
-    doc = read_json(path, ("robot_toml", "nominal_robot_toml", "parameters", "effects", "covariance"))
+    check_schema(doc, MODEL_SCHEMA, src)
     robot = parse_robot(doc["robot_toml"], f"{src}: robot_toml")
     nominal_robot = parse_robot(doc["nominal_robot_toml"], f"{src}: nominal_robot_toml")
+    if nominal_robot.n != robot.n:
+        raise RobocalError(f"{src}: nominal_robot_toml has {nominal_robot.n} joints, robot_toml {robot.n}")
     values = {p["name"]: float(p["value"]) for p in doc["parameters"]}
-    effects = [effect_from_spec(s, values, f"{src}: effects[{i}]") for i, s in enumerate(doc["effects"])]
+    effects = []
+    for i, spec in enumerate(doc["effects"]):
+        where = f"{src}: effects[{i}]"
+        if spec.get("joint") is not None and spec["joint"] > robot.n:
+            raise RobocalError(f"{where}.joint: must be a joint number 1..{robot.n}, got {spec['joint']}")
+        effects.append(effect_from_spec(spec, values, where))
     model = MeasurementModel(robot, effects)
     theta = model.nominal.copy()
     for i, name in enumerate(model.names):
@@ -121,13 +158,36 @@ def load_model(path: str | Path) -> IdentifiedModel:
             theta[i] = values[name]
     cov = np.zeros((model.P, model.P))
     names = doc["covariance"]["names"]
-    C = np.asarray(doc["covariance"]["matrix"], float)
+    rows = doc["covariance"]["matrix"]
     unknown = [n for n in names if n not in model.index]
-    if unknown or C.shape != (len(names), len(names)):
-        raise RobocalError(f"{src}: covariance does not match the parameters")
+    if unknown:
+        raise RobocalError(f"{src}: covariance.names: {unknown[0]!r} is not a parameter of the model")
+    if len(rows) != len(names) or any(len(r) != len(names) for r in rows):
+        raise RobocalError(f"{src}: covariance.matrix: must be {len(names)}x{len(names)} (one row and column per "
+                           "name)")
+    C = np.asarray(rows, float).reshape(len(names), len(names))
+    if not np.allclose(C, C.T, rtol=1e-6, atol=1e-12 * max(1.0, float(np.abs(C).max(initial=0.0)))):
+        raise RobocalError(f"{src}: covariance.matrix: is not symmetric")
+    if len(names) and np.linalg.eigvalsh(C).min() < -1e-9 * max(1.0, float(np.abs(C).max())):
+        raise RobocalError(f"{src}: covariance.matrix: is not positive semi-definite")
     idx = [model.index[n] for n in names]
     cov[np.ix_(idx, idx)] = C
-    return IdentifiedModel(model, theta, cov, nominal_robot)
+    im = IdentifiedModel(model, theta, cov, nominal_robot)
+    _trial_prediction(im, src)
+    return im
+
+
+def _trial_prediction(im: IdentifiedModel, src: str) -> None:
+    """Parameters that are finite one by one can still make nonsense together (a compliance of 1e-300, a gear ratio
+    that overflows): predict the tool point at the middle of the joint ranges and refuse a non-finite answer."""
+    q = im.model.robot.limits_rad.mean(axis=1)[None, :]
+    with np.errstate(all="ignore"):
+        try:
+            p, s = predict(im, q)
+        except (ArithmeticError, ValueError, np.linalg.LinAlgError) as exc:
+            raise RobocalError(f"{src}: the parameters give no prediction ({type(exc).__name__}: {exc})") from None
+    if not (np.isfinite(p).all() and np.isfinite(s).all()) or np.abs(p).max() > 1e9:
+        raise RobocalError(f"{src}: the parameters give a non-finite or absurd tool point: a damaged value")
 
 
 def corrected_readings(im: IdentifiedModel, q_read_rad: np.ndarray, ctx: PoseContext | None = None) -> np.ndarray:

@@ -1,28 +1,93 @@
-"""Reading a JSON file the operator gave us: one clear line for a missing file or broken JSON, never a traceback."""
+"""Reading a JSON file the operator gave us: one clear line for a missing file, broken JSON or a document that does
+not follow its schema -- never a traceback.
+
+The whole document is checked before anything uses it.  The structure is a JSON Schema (the ``jsonschema`` library:
+declarative, and its error paths name the exact key), and a message reads ``FILE: parameters[3].value: what is
+wrong``.  NaN and Infinity (which Python's json module accepts) are refused, and so is a document nested too deeply for the
+parser (a RecursionError).
+"""
 from __future__ import annotations
 
 import json
+import math
 from pathlib import Path
 from typing import Any
 
 from .errors import RobocalError
+from .textin import read_text
+
+#: a finite JSON number that stays finite through products and squares (the model's arithmetic)
+FINITE = {"type": "number", "finite": True, "minimum": -1e12, "maximum": 1e12}
 
 
-def read_json(path: str | Path, required: tuple[str, ...] = ()) -> Any:
-    """The parsed document; ``required`` keys must be present (the document must then be an object)."""
-    src = str(path)
+def _no_constant(name: str) -> Any:
+    raise ValueError(f"{name} is not a JSON number (write a finite number)")
+
+
+def parse_json(text: str, src: str, allow_nonfinite: bool = False) -> Any:
+    """Parse JSON text (an optional BOM is skipped); errors name ``src`` with the line and column.
+
+    ``allow_nonfinite``: accept NaN/Infinity (robocal's own documents carry them in informative keys, e.g. a
+    condition number); a schema's ``"finite": true`` then refuses them where a value is used."""
+    text = text.removeprefix("\ufeff")
     try:
-        doc = json.loads(Path(path).read_text(encoding="utf-8"))
-    except FileNotFoundError:
-        raise RobocalError(f"{src}: file not found") from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise RobocalError(f"{src}: cannot read: {exc}") from None
+        return json.loads(text, **({} if allow_nonfinite else {"parse_constant": _no_constant}))
     except json.JSONDecodeError as exc:
-        raise RobocalError(f"{src}: not valid JSON: line {exc.lineno}: {exc.msg}") from None
+        raise RobocalError(f"{src}: line {exc.lineno}, column {exc.colno}: not valid JSON: {exc.msg}") from None
+    except RecursionError:
+        raise RobocalError(f"{src}: nested too deeply: not a robocal document") from None
+    except ValueError as exc:  # NaN/Infinity, an integer beyond 4300 digits
+        raise RobocalError(f"{src}: not valid JSON: {' '.join(str(exc).split())[:160]}") from None
+
+
+def json_path(parts) -> str:
+    """``parameters[3].value`` from a schema error's path."""
+    out = ""
+    for p in parts:
+        out += f"[{p}]" if isinstance(p, int) else (f".{p}" if out else str(p))
+    return out
+
+
+def _validator_class():
+    """Draft 2020-12 with two more keywords, ``"finite": true`` and ``"notNaN": true`` (JSON Schema's ``number``
+    lets NaN and Infinity through)."""
+    import jsonschema
+
+    def finite(validator, wanted, instance, schema):
+        if wanted and isinstance(instance, float) and not math.isfinite(instance):
+            yield jsonschema.ValidationError(f"{instance!r} is not a finite number")
+
+    def not_nan(validator, wanted, instance, schema):
+        if wanted and isinstance(instance, float) and math.isnan(instance):
+            yield jsonschema.ValidationError("NaN is not a number")
+
+    return jsonschema.validators.extend(jsonschema.Draft202012Validator, {"finite": finite, "notNaN": not_nan})
+
+
+def check_schema(doc: Any, schema: dict, src: str) -> Any:
+    """``doc`` if it follows ``schema``; otherwise one line naming the first offending key (the deepest first)."""
+    import jsonschema
+    validator = _validator_class()(schema)
+    error = jsonschema.exceptions.best_match(validator.iter_errors(doc))
+    if error is None:
+        return doc
+    where = json_path(error.absolute_path) or "document"
+    message = error.message if len(error.message) <= 160 else error.message[:157] + "..."
+    raise RobocalError(f"{src}: {where}: {message}")
+
+
+def read_json(path: str | Path, required: tuple[str, ...] = (), schema: dict | None = None,
+              allow_nonfinite: bool = False) -> Any:
+    """The parsed document; ``required`` keys must be present (the document must then be an object); ``schema``
+    (a JSON Schema) checks the whole document."""
+    src = str(path)
+    doc = parse_json(read_text(path), src, allow_nonfinite)
     if required:
         if not isinstance(doc, dict):
             raise RobocalError(f"{src}: expected a JSON object")
         for key in required:
             if key not in doc:
                 raise RobocalError(f"{src}: key {key!r} is missing")
+    if schema is not None:
+        check_schema(doc, schema, src)
     return doc

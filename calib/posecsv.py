@@ -35,6 +35,7 @@ malformed row is an error naming the file, the line and the column.
 from __future__ import annotations
 
 import csv
+import io
 import math
 import re
 import warnings
@@ -44,6 +45,8 @@ from pathlib import Path
 import numpy as np
 
 from .errors import RobocalError
+from .fileio import atomic_write_text
+from .textin import read_text
 from .units import DEG
 
 ANGLE_UNITS = {"deg": DEG, "rad": 1.0}
@@ -76,6 +79,7 @@ class PoseTable:
     orientation_rad: np.ndarray | None = None     # (N, 3) roll, pitch, yaw
     line: list[int] = field(default_factory=list)  # source line of each row
     columns: dict[str, list[str]] = field(default_factory=dict)   # other columns, as text (grouping)
+    cov_mm2: np.ndarray | None = None         # (N, 3, 3) covariance of points_mm when it is not sigma_mm's
 
     @property
     def n(self) -> int:
@@ -101,7 +105,7 @@ class PoseTable:
             return [v[i] for i in idx] if v else v
         out = PoseTable(q_rad=self.q_rad[idx], source=self.source, ignored_columns=self.ignored_columns)
         for name in ("points_mm", "pose_id", "time_s", "payload_kg", "temperature_c", "direction", "sigma_mm",
-                     "readings", "target", "split", "station", "polar", "orientation_rad", "line"):
+                     "readings", "target", "split", "station", "polar", "orientation_rad", "line", "cov_mm2"):
             setattr(out, name, pick(getattr(self, name)))
         out.columns = {k: pick(v) for k, v in self.columns.items()}
         return out
@@ -116,12 +120,7 @@ class PoseTable:
 # -- reading ----------------------------------------------------------------------------------------------------
 def _read_lines(path: Path) -> tuple[str, list[tuple[int, str]], dict[str, str]]:
     src = str(path)
-    try:
-        text = path.read_text(encoding="utf-8")
-    except FileNotFoundError:
-        raise RobocalError(f"{src}: file not found") from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise RobocalError(f"{src}: cannot read: {exc}") from None
+    text = read_text(path)  # UTF-8 with or without a BOM; binary or another encoding: one line
     units, lines = {}, []
     for i, ln in enumerate(text.splitlines(), 1):
         m = _UNIT_LINE.match(ln)
@@ -219,7 +218,7 @@ def read_pose_csv(path: str | Path, n_joints: int = 6, prismatic=None, *, robot=
     ascale = _unit(src, "angle_unit", ANGLE_UNITS, file_units, angle_unit)
     lscale = _unit(src, "length_unit", LENGTH_UNITS, file_units, length_unit)
     header_line, header = lines[0]
-    cols = [c.strip() for c in next(csv.reader([header]))]
+    cols = [c.strip() for c in csv_fields(header, src, header_line)]
     dupes = {c for c in cols if cols.count(c) > 1}
     if dupes:
         raise RobocalError(f"{src}: line {header_line}: column {sorted(dupes)[0]} appears twice")
@@ -239,7 +238,7 @@ def read_pose_csv(path: str | Path, n_joints: int = 6, prismatic=None, *, robot=
     ignored = [c for c in cols if c not in known]
     rows = []
     for lineno, raw in lines[1:]:
-        vals = next(csv.reader([raw]))
+        vals = csv_fields(raw, src, lineno)
         if len(vals) != len(cols):
             raise RobocalError(f"{src}: line {lineno}: {len(vals)} fields, the header has {len(cols)}")
         rows.append((lineno, [v.strip() for v in vals]))
@@ -379,6 +378,15 @@ def _check_poses(table: PoseTable) -> None:
                                    f"and {lab!r} here (column {attr})")
 
 
+def csv_fields(line: str, src: str, lineno: int) -> list[str]:
+    """The fields of one CSV line; a malformed line (a field over the csv module's 128 KiB limit, a stray quote)
+    is one error naming the file and the line."""
+    try:
+        return next(csv.reader([line], strict=True), [])
+    except csv.Error as exc:
+        raise RobocalError(f"{src}: line {lineno}: not a CSV row: {exc}") from None
+
+
 def write_pose_csv(path: str | Path, q_rad: np.ndarray, points_mm: np.ndarray | None = None,
                    extra: dict[str, np.ndarray] | None = None, prismatic=None) -> None:
     """Write poses (and optionally points and extra columns) in the pose CSV format, angles in degrees (prismatic
@@ -396,8 +404,9 @@ def write_pose_csv(path: str | Path, q_rad: np.ndarray, points_mm: np.ndarray | 
         cols.append(k)
         data.append(np.asarray(v, float).reshape(len(q), -1))
     arr = np.hstack(data)
-    with open(path, "w", newline="", encoding="utf-8") as fh:
-        w = csv.writer(fh)
-        w.writerow(cols)
-        for row in arr:
-            w.writerow([f"{v:.6f}" for v in row])
+    fh = io.StringIO(newline="")
+    w = csv.writer(fh)
+    w.writerow(cols)
+    for row in arr:
+        w.writerow([f"{v:.6f}" for v in row])
+    atomic_write_text(path, fh.getvalue())

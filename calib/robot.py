@@ -125,6 +125,12 @@ class Robot:
                              for k in range(self.reading_matrix.shape[1])], bool)
             object.__setattr__(self, "reading_prismatic", pris)
 
+    @property
+    def description_joint_names(self) -> tuple[str, ...] | None:
+        """The joint names reports use instead of the thesis's Puma names: those of an imported description (URDF);
+        None for a DH description, which keeps the thesis's vocabulary."""
+        return self.joint_names if self.param_meaning else None
+
     # -- readings -----------------------------------------------------------------------------------------------
     @property
     def n_readings(self) -> int:

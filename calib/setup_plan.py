@@ -252,3 +252,45 @@ def sweep_targets(model, theta: np.ndarray, q_rad: np.ndarray, radius_mm: dict[i
         out[str(j)] = {"link": n, "point_mm": [round(float(v), 2) for v in R6.T @ (p - t6)],
                        "radius_mm": float(R)}
     return out
+
+
+# -- the session set-up file ---------------------------------------------------------------------------------------
+def _ruler_into(v: dict, setup: dict, placements: int = 3, step_mm: float = 30.0) -> None:
+    """The designed ruler (R, r1 at X1, Y1) and baseline L, as a series that varies R as the thesis does (Fig 5.4:
+    R from 1792 to 1860 mm): mark E at ``placements`` distances ``step_mm`` apart ending at the designed R, one of them
+    sighted per placement with C, D and the last; each placement steps back and turns."""
+    setup.setdefault("stations", {})["L_mm"] = round(v["L_mm"], 0)
+    X1, Y1, R = v["X1_mm"], v["Y1_mm"], v["R_mm"]
+    es = [round(R - step_mm * (placements - 1 - i), 1) for i in range(placements)]
+    last = f"E{placements}"
+    setup["ruler"] = {"marks_mm": [0.0, round(v["r1_mm"], 1), *es], "placements": [
+        {"where": f"designed placement {k + 1}: C at X {X1:.0f}, Y {Y1 + 300.0 * k:.0f} mm, R {es[k]:.0f} mm",
+         "C_mm": [round(X1, 1), round(Y1 + 300.0 * k, 1), 0.0], "dir": [1.0, round(0.1 * k, 3), 0.0],
+         "marks": list(dict.fromkeys(["C", "D", f"E{k + 1}", last]))}
+        for k in range(placements)]}
+
+
+def _sweep_into(v: dict, setup: dict) -> None:
+    setup["sweep_radius_mm"] = round(v["Rj_mm"], 0)
+    setup.pop("sweep_targets", None)          # designed again at the new radius when the session starts
+
+
+def _te_into(v: dict, setup: dict) -> None:
+    et = setup.setdefault("extended_tool", {"A1_mm": [0.0, 0.0, 100.0]})
+    a1 = np.asarray(et.get("A1_mm", [0.0, 0.0, 100.0]), float)
+    et["A2_mm"] = [round(float(x), 1) for x in a1 + v["Rd_mm"] * np.array([1.0, 0.0, 1.0]) / np.sqrt(2.0)]
+
+
+#: how each procedure's design enters the session set-up file (``robocal plan setup ... --out``)
+INTO_SETUP: dict[str, Callable[[dict, dict], None]] = {"ruler": _ruler_into, "sweep": _sweep_into, "te": _te_into}
+
+
+def into_setup(plans: list[SetupPlan], setup: dict) -> dict:
+    """A copy of the session ``setup`` with the designed variables of ``plans`` written in."""
+    import json
+    out = json.loads(json.dumps(setup))
+    for p in plans:
+        INTO_SETUP[p.procedure](p.variables, out)
+    out["design"] = {**out.get("design", {}), **{p.procedure: {"variables": p.variables, "errors": p.errors}
+                                                  for p in plans}}
+    return out

@@ -13,6 +13,7 @@ from pathlib import Path
 from typing import Any, Callable
 
 from .errors import ConfigError
+from .textin import read_text
 
 
 @dataclass(frozen=True)
@@ -37,21 +38,18 @@ class Checker:
 
     @classmethod
     def load(cls, path: str | Path) -> tuple["Checker", dict]:
-        path = Path(path)
-        try:
-            text = path.read_text(encoding="utf-8")
-        except FileNotFoundError:
-            raise ConfigError(str(path), None, "file not found") from None
-        except OSError as exc:
-            raise ConfigError(str(path), None, f"cannot read: {exc.strerror}") from None
-        return cls.parse(text, str(path))
+        return cls.parse(read_text(path), str(path))
 
     @classmethod
     def parse(cls, text: str, source: str) -> tuple["Checker", dict]:
         try:
-            data = tomllib.loads(text)
+            data = tomllib.loads(text.removeprefix("\ufeff"))
         except tomllib.TOMLDecodeError as exc:
             raise ConfigError(source, None, f"not valid TOML: {exc}") from None
+        except RecursionError:
+            raise ConfigError(source, None, "not valid TOML: arrays or tables nested too deeply") from None
+        except ValueError as exc:  # e.g. an integer beyond Python's 4300-digit conversion limit
+            raise ConfigError(source, None, f"not valid TOML: {' '.join(str(exc).split())[:120]}") from None
         return cls(source), data
 
     def fail(self, key: str | None, problem: str) -> None:
@@ -82,26 +80,32 @@ class Checker:
             return self._number(raw, field, key)
         if kind == "int":
             if isinstance(raw, bool) or not isinstance(raw, int):
-                self.fail(key, f"must be a whole number, got {raw!r}")
+                self.fail(key, f"must be a whole number, got {_short(raw)}")
+            if abs(raw) > 2 ** 53:
+                self.fail(key, f"must be a whole number of magnitude at most 2**53, got {_short(raw)}")
             self._range(float(raw), field, key)
             return raw
         if kind == "bool":
             if not isinstance(raw, bool):
-                self.fail(key, f"must be true or false, got {raw!r}")
+                self.fail(key, f"must be true or false, got {_short(raw)}")
             return raw
         if kind == "str":
             if not isinstance(raw, str):
-                self.fail(key, f"must be a string, got {raw!r}")
+                self.fail(key, f"must be a string, got {_short(raw)}")
             return raw
         if kind == "vector":
             if not isinstance(raw, list):
-                self.fail(key, f"must be a list of numbers, got {raw!r}")
+                self.fail(key, f"must be a list of numbers, got {_short(raw)}")
             if field.length is not None and len(raw) != field.length:
                 self.fail(key, f"must have {field.length} numbers, got {len(raw)}")
             return [self._number(v, field, f"{key}[{i}]") for i, v in enumerate(raw)]
         if kind == "matrix":
-            if not isinstance(raw, list) or not all(isinstance(r, list) for r in raw):
+            if not isinstance(raw, list) or not raw or not all(isinstance(r, list) for r in raw):
                 self.fail(key, "must be a list of rows (lists of numbers)")
+            ragged = [i for i, r in enumerate(raw) if len(r) != len(raw[0])]
+            if ragged:
+                self.fail(f"{key}[{ragged[0]}]", f"has {len(raw[ragged[0]])} numbers, row 0 has {len(raw[0])}: "
+                                                  "every row needs the same length")
             n = field.length
             if n is not None and (len(raw) != n or any(len(r) != n for r in raw)):
                 self.fail(key, f"must be a {n}x{n} matrix")
@@ -112,10 +116,13 @@ class Checker:
 
     def _number(self, raw: Any, field: Field, key: str) -> float:
         if isinstance(raw, bool) or not isinstance(raw, (int, float)):
-            self.fail(key, f"must be a number, got {raw!r}")
-        value = float(raw)
+            self.fail(key, f"must be a number, got {_short(raw)}")
+        try:
+            value = float(raw)
+        except OverflowError:
+            value = math.inf
         if not math.isfinite(value):
-            self.fail(key, f"must be a finite number, got {raw!r}")
+            self.fail(key, f"must be a finite number, got {_short(raw)}")
         self._range(value, field, key)
         return value
 
@@ -130,6 +137,12 @@ class Checker:
     @staticmethod
     def _join(where: str, name: str) -> str:
         return f"{where}.{name}" if where else name
+
+
+def _short(raw: Any) -> str:
+    """``repr`` cut to a readable length (a fuzzed file may hold a 10,000-digit number or a huge table)."""
+    text = repr(raw) if not isinstance(raw, int) or abs(raw) < 10 ** 30 else f"an integer of {len(str(abs(raw)))} digits"
+    return text if len(text) <= 60 else text[:57] + "..."
 
 
 def check_each(checker: Checker, items: Any, spec: dict[str, Field], where: str,

@@ -81,7 +81,7 @@ def test_bad_model_file(tmp_path):
     with pytest.raises(RobocalError, match="not a robocal model file"):
         load_model(f)
     f.write_text("{not json")
-    with pytest.raises(RobocalError, match="not valid JSON: line 1"):
+    with pytest.raises(RobocalError, match="line 1, column 2: not valid JSON"):
         load_model(f)
 
 

@@ -221,3 +221,21 @@ def test_plan_check_cli(tmp_path, twin, setup):
     # one line per loaded step: 13 steps (7 loading, 6 unloading), of which the first and last hang no weight
     assert len(lines) == 11 and all("load torque" in ln for ln in lines)
     assert "Traceback" not in r.stderr
+
+
+def test_plan_setup_writes_the_session_setup(tmp_path):
+    """``plan setup te --out`` writes the designed extended tool into the set-up; the file passes the pre-flight and
+    keeps the rest of the set-up it started from."""
+    base = tmp_path / "base.json"
+    r = _cli("session", "--write-setup", str(base))
+    assert r.returncode == 0, r.stderr
+    out = tmp_path / "designed.json"
+    r = _cli("plan", "setup", "te", "--setup", str(base), "--out", str(out), "--json")
+    assert r.returncode == 0, r.stderr
+    design = json.loads(r.stdout)
+    doc = json.loads(out.read_text())
+    a1, a2 = np.array(doc["extended_tool"]["A1_mm"]), np.array(doc["extended_tool"]["A2_mm"])
+    assert abs(np.linalg.norm(a2 - a1) - design["variables"]["Rd_mm"]) < 0.2
+    assert doc["ruler"] == json.loads(base.read_text())["ruler"]
+    r = _cli("plan", "check", str(out))
+    assert r.returncode == 0, r.stdout

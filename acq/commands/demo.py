@@ -25,6 +25,9 @@ def add_arguments(p):
     p.add_argument("--json", type=output_file, metavar="OUT", help="write the estimates JSON here ('-' for stdout)")
     p.add_argument("--report", type=output_dir, metavar="DIR", help="write the HTML report here")
     p.add_argument("--overwrite", action="store_true", help="replace an existing --db")
+    p.add_argument("--setup", metavar="SETUP.json",
+                   help="set-up file (robocal plan setup --out): ruler, targets, loads; the emulated cell keeps its "
+                        "own stations and robot base")
     add_report_options(p)
 
 
@@ -49,7 +52,11 @@ def run(args) -> int:
     if db.exists() and not args.resume:
         raise RobocalError(f"{db}: exists already; use --resume to continue it, --overwrite to replace it")
     t0 = time.perf_counter()
-    demo = build_demo(db, seed=args.seed, resume=args.resume)
+    base = None
+    if args.setup and not args.resume:
+        from calib.jsonfile import read_json
+        base = read_json(args.setup, ("ruler",))
+    demo = build_demo(db, seed=args.seed, resume=args.resume, setup=base)
     try:
         with progress_display("recording session", after_s=0.5) as update:
             pp = ProgressPrinter(lambda done, total, key: update(key, done / max(total, 1)))

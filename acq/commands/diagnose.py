@@ -6,6 +6,7 @@ session database (once the session store exports observations).
 from __future__ import annotations
 
 import json
+import sys
 
 from acq.commands._csvargs import add_unit_arguments, units
 from acq.argtypes import float_range, nonneg_int, output_dir, positive_float, positive_int
@@ -117,6 +118,8 @@ def run(args) -> int:
     with progress_display("robocal diagnose") as update:
         diag = diagnose(data, level=args.geometry, n_folds=args.folds, alpha=args.alpha,
                         max_effects=args.max_effects, outliers=args.outliers, loss=args.loss, progress=update)
+    if diag.warning():
+        print(f"warning: {diag.warning()}", file=sys.stderr)
     from calib.provenance import provenance
     prov = provenance(args.robot or data.robot.source)
     if args.report:

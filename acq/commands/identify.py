@@ -3,11 +3,11 @@ from __future__ import annotations
 
 import json
 
-import numpy as np
 
 from calib.errors import RobocalError
 from acq.argtypes import effect_spec, output_file, positive_float
 
+from ._csvargs import add_unit_arguments, units
 from .diagnose import add_outlier_arguments
 
 NAME = "identify"
@@ -29,12 +29,25 @@ def add_arguments(p):
     p.add_argument("--out-robot", type=output_file, metavar="ROBOT.toml", help="write the identified robot description")
     p.add_argument("--json", action="store_true", help="print the model document as JSON")
     add_outlier_arguments(p)
+    add_unit_arguments(p)
+    p.add_argument("--polar-noise", metavar="ARCSEC,MM[,PPM]",
+                   help="noise of hz_deg/v_deg/dist_mm rows (laser tracker, total station): angle 1-sigma in arc "
+                        "seconds, distance 1-sigma in mm, plus ppm of the distance (default 1,0.01,1)")
+    p.add_argument("--free", action="append", default=[], metavar="PATTERN",
+                   help="estimate only the parameters matching these shell patterns (comma-separated or repeated; "
+                        "joint names allowed: 'base.*,tool.*,arm_*_joint.a_mm'); the rest keep their design values")
+    p.add_argument("--prior", action="append", default=[], metavar="NAME=VALUE±SIGMA",
+                   help="a prior on one parameter (unit of its name; *_deg for angles in degrees); the "
+                        "description's [tolerances] are priors around the design values already")
 
 
 def run(args) -> int:
     from calib.compensate import model_document, save_model, unit_of
     from calib.effects import THESIS_RUNNING_ERRORS, effect_from_text
-    from calib.identify import PointObservations, identify
+    from calib.evaluation import context_of, fit_rows, point_covariance, split_metrics, with_polar_points
+    from calib.polar import PolarNoise
+    from calib.identify import PointObservations, default_free, identify
+    from calib.priors import free_from_patterns, priors_for
     from calib.model import MeasurementModel
     from calib.posecsv import read_pose_csv
     from calib.provenance import provenance
@@ -42,21 +55,25 @@ def run(args) -> int:
     from calib.units import DEG
 
     robot = load_robot(args.robot)
-    table = read_pose_csv(args.data, robot.n, robot.prismatic)
+    full = read_pose_csv(args.data, robot.n, robot.prismatic, robot=robot, **units(args))
+    full = with_polar_points(full, PolarNoise.from_text(args.polar_noise) if args.polar_noise else None)
+    table, robot, target_offsets = fit_rows(full, robot)
     if table.points_mm is None:
         raise RobocalError(f"{args.data}: columns x, y, z (measured tool points, mm) are needed to identify")
     if not args.noise_mm > 0:
         raise RobocalError(f"identify: --noise-mm must be positive, got {args.noise_mm}")
     specs = list(args.effect) + (list(THESIS_RUNNING_ERRORS) if args.thesis_effects else [])
     effects = [effect_from_text(s, robot.n) for s in specs]
-    model = MeasurementModel(robot, effects)
-    ctx = model.context(table.n, direction=table.direction, payload_kg=table.payload_kg,
-                        temperature_c=table.temperature_c, time_s=table.time_s)
-    cov = None
-    if table.sigma_mm is not None:
-        cov = np.einsum("ni,ij->nij", table.sigma_mm ** 2, np.eye(3))
+    model = MeasurementModel(robot, effects + target_offsets)
+    ctx = context_of(model, table)
+    cov = point_covariance(table)
     obs = PointObservations(table.q_rad, table.points_mm, cov, sigma_mm=args.noise_mm, ctx=ctx)
-    ident = identify(model, obs, outliers=args.outliers, loss=args.loss)
+    free = free_from_patterns(model, args.free) if args.free else None
+    priors = priors_for(model, args.prior, free or default_free(model))
+    # the rigid-fit start moves the base: only when the whole base is estimated (else it keeps its design value)
+    start = free is None or all(n in free for n in model.names if n.startswith("base."))
+    ident = identify(model, obs, free=free, priors=priors, start=start, outliers=args.outliers, loss=args.loss)
+    held_out = split_metrics(model, ident.theta[:model.P], full) if full.split is not None else {}
     prov = provenance(args.robot)
     if args.out:
         save_model(args.out, model, ident, args.out_robot, provenance=prov)
@@ -66,11 +83,14 @@ def run(args) -> int:
         from calib.fileio import atomic_write_text
         atomic_write_text(args.out_robot, robot_to_toml(robot_from_theta(model, ident.theta)))
     if args.json:
-        print(json.dumps(model_document(model, ident, provenance=prov), indent=1))
+        print(json.dumps({**model_document(model, ident, provenance=prov), **held_out}, indent=1))
         return 0
     print(f"robocal identify {args.data}: {table.n} poses, {len(ident.free)} parameters estimated, "
           f"residual RMS {ident.residual_rms:.4f} mm, reduced chi-square {ident.reduced_chi2:.2f}")
-    for line in ident.identifiability.report():
+    if held_out:
+        print(f"  data's own split: {held_out['n_fit']} fit rows (RMS {held_out['fit_rms_mm']:.4f} mm), "
+              f"{held_out['n_test']} test rows: RMS {held_out['test_rms_mm']:.4f} mm, max {held_out['test_max_mm']:.4f} mm")
+    for line in ident.identifiability.report(robot.description_joint_names):
         print("  " + line)
     for line in ident.outlier_report.lines():
         print("  " + line)

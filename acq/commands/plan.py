@@ -35,8 +35,9 @@ def add_arguments(p):
     poses.add_argument("--seed", type=seed_int, default=0)
     poses.add_argument("--json", action="store_true", help="print the result as JSON")
     setup = sub.add_parser("setup", help="set-up geometry of a Chapter 4 procedure for minimum estimation error")
-    setup.add_argument("procedure", choices=("ruler", "sweep", "te"),
-                       help="ruler pre-calibration, joint sweep (circle point analysis), transmission-error run")
+    setup.add_argument("procedure", choices=("ruler", "sweep", "te", "all"),
+                       help="ruler pre-calibration, joint sweep (circle point analysis), transmission-error run, or "
+                            "all three")
     setup.add_argument("--room-x", nargs=2, type=finite_float, metavar=("MIN", "MAX"), default=(-1500.0, 3500.0),
                        help="room extent along the baseline from theodolite A (mm)")
     setup.add_argument("--room-y", type=positive_float, default=4000.0, help="room depth in front of the baseline (mm)")
@@ -44,6 +45,11 @@ def add_arguments(p):
     setup.add_argument("--sigma-arcsec", type=positive_float, default=3.0, help="1-sigma reading noise (arc seconds)")
     setup.add_argument("--seed", type=seed_int, default=0)
     setup.add_argument("--json", action="store_true", help="print the result as JSON")
+    setup.add_argument("--out", type=output_file, metavar="SETUP.json",
+                       help="write the session set-up file with the design in it (read by robocal session --setup "
+                            "and robocal demo --setup)")
+    setup.add_argument("--setup", dest="base_setup", metavar="SETUP.json",
+                       help="the set-up file to start from (default: the standard template)")
     check = sub.add_parser("check", help="pre-flight of a session's plan or of a set-up file against the robot "
                                          "(exit 2 when a step fails)")
     check.add_argument("target", metavar="SESSION_OR_SETUP",
@@ -83,14 +89,14 @@ def _poses(args) -> int:
     with progress_display("plan poses") as update:
         plan = select_poses(model, args.count, names, args.index, args.noise_mm, args.seed, progress=update)
     if args.out:
-        write_pose_csv(args.out, plan.q_rad)
+        write_pose_csv(args.out, plan.q_rad, prismatic=model.robot.prismatic)
     if args.json:
         print(json.dumps({"count": len(plan.q_rad), "index": plan.index, "parameters": plan.names,
                           "held": plan.identifiability.fixed, "indices": plan.indices,
                           "random_indices": plan.random_indices,
                           "predicted_position_sigma_mm": plan.predicted_sigma_mm,
                           "random_position_sigma_mm": plan.random_sigma_mm,
-                          "poses_deg": (plan.q_rad / DEG).round(4).tolist(), "out": args.out}, indent=2))
+                          "poses_deg": (plan.q_rad / model.robot.edge_scale).round(4).tolist(), "out": args.out}, indent=2))
         return 0
     print(f"robocal plan poses: {len(plan.q_rad)} poses chosen for {len(plan.names)} identifiable parameters "
           f"({args.pset} set), index {plan.index}, point noise {args.noise_mm} mm")
@@ -107,7 +113,7 @@ def _poses(args) -> int:
         print(f"  written: {args.out}")
     else:
         print("  " + "q1..q6 (deg)")
-        for row in plan.q_rad / DEG:
+        for row in plan.q_rad / model.robot.edge_scale:
             print("  " + "  ".join(f"{v:8.2f}" for v in row))
     return 0
 
@@ -151,12 +157,38 @@ def _setup(args) -> int:
                            "positive")
     c = Constraints(room_x_mm=(lo, hi), room_y_mm=args.room_y, min_focus_mm=args.min_focus_mm,
                     sigma_arcsec=args.sigma_arcsec)
-    with progress_display(f"plan setup {args.procedure}") as update:
-        plan = PROCEDURES[args.procedure](c, seed=args.seed, progress=update)
+    names = list(PROCEDURES) if args.procedure == "all" else [args.procedure]
+    plans = []
+    for name in names:
+        with progress_display(f"plan setup {name}") as update:
+            plans.append(PROCEDURES[name](c, seed=args.seed, progress=update))
+    if args.out:
+        _write_setup(args, plans)
     if args.json:
-        print(json.dumps({"procedure": plan.procedure, "variables": plan.variables, "errors": plan.errors,
-                          "objective": plan.objective, "trend": plan.trend}, indent=2, default=float))
+        docs = [{"procedure": p.procedure, "variables": p.variables, "errors": p.errors, "objective": p.objective,
+                 "trend": p.trend} for p in plans]
+        print(json.dumps(docs[0] if len(docs) == 1 else docs, indent=2, default=float))
         return 0
+    for plan in plans:
+        _print_setup(plan)
+    if args.out:
+        print(f"  set-up written: {args.out} (check it with: robocal plan check {args.out})")
+    return 0
+
+
+def _write_setup(args, plans) -> None:
+    from acq.session.setup import standard_setup
+    from calib.fileio import atomic_write_text
+    from calib.jsonfile import read_json
+    from calib.setup_plan import into_setup
+
+    base = read_json(args.base_setup, ("stations", "ruler")) if args.base_setup else standard_setup()
+    base["stations"]["sigma_arcsec"] = args.sigma_arcsec
+    base["min_focus_mm"] = args.min_focus_mm
+    atomic_write_text(args.out, json.dumps(into_setup(plans, base), indent=2, default=float))
+
+
+def _print_setup(plan) -> None:
     print(f"robocal plan setup {plan.procedure}: minimising the {plan.objective}")
     print("  set-up:  " + "  ".join(f"{k} {v:.1f}" for k, v in plan.variables.items()))
     print("  errors (1 sigma):  " + "  ".join(f"{k} {v:.4g}" for k, v in plan.errors.items()))
@@ -166,7 +198,6 @@ def _setup(args) -> int:
         print("  " + "".join(f"{k:>18}" for k in keys))
         for row in plan.trend:
             print("  " + "".join(f"{row[k]:>18.4g}" for k in keys))
-    return 0
 
 
 def _check(args) -> int:
@@ -200,13 +231,8 @@ def _plan_and_setup(args):
     if not path.is_file():
         raise RobocalError(f"{args.target}: no such file")
     if path.read_bytes()[:16] == b"SQLite format 3\x00":
-        from acq.session.store import connect_readonly
-        conn = connect_readonly(str(path))
-        try:
-            plan_json, setup_json = conn.execute("SELECT plan_json, setup_json FROM session").fetchone()
-        finally:
-            conn.close()
-        plan, setup = json.loads(plan_json), json.loads(setup_json)
+        from acq.commands.session import _stored_plan_setup
+        plan, setup = _stored_plan_setup(str(path))
     else:
         from acq.commands.session import default_plan
         from calib.jsonfile import read_json

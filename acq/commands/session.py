@@ -87,7 +87,8 @@ def default_plan(poses_deg=None) -> dict:
     """The standard plan for a real cell (the demo's, with the operator's pose set when given)."""
     from acq.session.demo import TE_RANGE_DEG
     plan = {
-        "procedures": ["ruler", "sweeps", "transmission", "compliance", "link_compliance", "coupling"],
+        "procedures": ["levelling", "instrument_check", "ruler", "sweeps", "transmission", "compliance",
+                       "link_compliance", "coupling"],
         "ruler": {"repeats": 2},
         "sweeps": {"points": 8, "span_deg": 90.0, "joints": [1, 2, 3, 4, 5, 6]},
         "transmission": {"joints": [4, 6], "points": 25, "repeats": 2, "range_deg": dict(TE_RANGE_DEG)},
@@ -96,21 +97,22 @@ def default_plan(poses_deg=None) -> dict:
         "seed": 0,
     }
     if poses_deg is not None:
-        plan["procedures"].insert(2, "poses")
+        plan["procedures"].insert(plan["procedures"].index("sweeps") + 1, "poses")
         plan["poses"] = {"q_deg": [[round(float(v), 4) for v in row] for row in poses_deg]}
     return plan
 
 
 def setup_template() -> dict:
-    from acq.session.demo import demo_setup
-    from calib.twin import Twin
+    from acq.session.setup import standard_setup
 
-    setup = demo_setup(Twin())
+    setup = standard_setup()
     setup["_comment"] = ("Bench geometry for robocal session. Lengths in mm, angles in degrees. stations: baseline L "
                          "and the circle offsets gamma1, gamma2 as first measured (the ruler procedure refines them);"
                          " base_xyz_mm: robot frame 0 in the theodolite frame, roughly; tool_target_mm: the target "
                          "on the flange (frame 6); extended_tool: targets A1, A2 for transmission errors; ruler: "
-                         "mark positions along the ruler and where it is placed; compliance/link: levers, loads.")
+                         "mark positions along the ruler and where it is placed; compliance/link: levers, loads (old keys) or "
+                         "link, point_mm in frame j, masses_kg; sweep_radius_mm: radius of the sweep targets P_j; "
+                         "far_target_mm: the instrument check's far target; robocal plan setup --out designs it.")
     return setup
 
 
@@ -119,7 +121,9 @@ def real_builder(db: str, theodolites: list[str], tap: str | None, setup_path: s
     """A TUI builder on real devices (or any device URL): opens them, creates or resumes the session."""
     from acq.drivers import open_theodolite
     from acq.encoders import open_tap
-    from acq.session.setup import predictor, setup_stations
+    from acq.session.preflight import Preflight
+    from acq.session.setup import predictor, session_setup, setup_stations, station_names
+    from acq.session.stations import stations_from_store
     from acq.session.procedures import all_steps
     from acq.session.rig import ManualBench, Rig
     from acq.session.runner import Runner
@@ -130,20 +134,25 @@ def real_builder(db: str, theodolites: list[str], tap: str | None, setup_path: s
     from calib.units import DEG
 
     specs = [parse_theodolite(t) for t in theodolites]
-    names = [s[0] for s in specs]
-    if sorted(names) != ["A", "B"]:
-        raise RobocalError("session: give two theodolites, stations A and B (--theodolite A=... --theodolite B=...)")
     tap_spec = parse_tap(tap) if tap else None
-    robot = load_robot(robot_path)
     resume = Path(db).exists() and Path(db).stat().st_size > 0
-    if not resume:
+    if resume:
+        plan, setup = _stored_plan_setup(db)
+    else:
         if not setup_path:
-            raise RobocalError("session: a new session needs --setup SETUP.json (robocal session --write-setup FILE "
-                               "writes a template)")
+            raise RobocalError("session: a new session needs --setup SETUP.json (robocal plan setup all --out FILE "
+                               "designs one, robocal session --write-setup FILE writes a template)")
         from calib.jsonfile import read_json
         setup = read_json(setup_path, ("stations", "base_xyz_mm", "tool_target_mm", "ruler"))
+    robot = load_robot(robot_path or setup.get("robot") or None)
+    if not resume:
         q = read_pose_csv(poses, robot.n).q_rad / DEG if poses else None
         plan = default_plan(q)
+    setup = session_setup(setup, robot)
+    want = sorted(station_names(setup))
+    if sorted(s[0] for s in specs) != want:
+        raise RobocalError(f"session: give two theodolites, stations {' and '.join(want)} as the set-up names them "
+                           f"(--theodolite {want[0]}=... --theodolite {want[1]}=...)")
     keep = _only(only)
 
     def build(operator):
@@ -160,12 +169,10 @@ def real_builder(db: str, theodolites: list[str], tap: str | None, setup_path: s
             raise
         rig = Rig(drivers, tap_dev)
         rig.start()
+        plan_d, setup_d = plan, setup
         if resume:
             store = SessionStore.open(db)
-            row = store.session_row()
-            plan_d, setup_d = json.loads(row["plan_json"]), json.loads(row["setup_json"])
         else:
-            plan_d, setup_d = plan, setup
             store = SessionStore.create(db, "robocal session", plan_d, setup_d, operator="operator",
                                         metadata={"emulated": False})
         identities = rig.identities()
@@ -174,8 +181,11 @@ def real_builder(db: str, theodolites: list[str], tap: str | None, setup_path: s
         steps = all_steps(plan_d, setup_d)
         if keep is not None:
             steps = [s for s in steps if keep(s)]
+        # the same wiring as the demo's: stations refitted from the session's own ruler steps, the pre-flight
         runner = Runner(store, rig, steps, operator, bench=ManualBench(), stations=setup_stations(setup_d),
-                        predict=predictor(robot, setup_d))
+                        predict=predictor(robot, setup_d),
+                        refit_stations=lambda st: stations_from_store(st, setup_d),
+                        preflight=Preflight(robot, setup_d))
 
         def close():
             rig.close()
@@ -184,6 +194,17 @@ def real_builder(db: str, theodolites: list[str], tap: str | None, setup_path: s
         return SessionHandle(runner, close, f"{db}", db, identities=identities)
 
     return build
+
+
+def _stored_plan_setup(db: str) -> tuple[dict, dict]:
+    """The plan and set-up a session database was created with (read-only: nothing is touched)."""
+    from acq.session.store import connect_readonly
+    conn = connect_readonly(db)
+    try:
+        plan_json, setup_json = conn.execute("SELECT plan_json, setup_json FROM session").fetchone()
+    finally:
+        conn.close()
+    return json.loads(plan_json), json.loads(setup_json)
 
 
 def run(args) -> int:

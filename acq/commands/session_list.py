@@ -11,12 +11,16 @@ def add_arguments(p):
 
 def run(args) -> int:
     from acq.session.store import connect_readonly
+    from calib.errors import RobocalError
     for path in args.db:
         conn = connect_readonly(path)
         try:
-            guid, title, status, created = conn.execute(
+            row = conn.execute(
                 "SELECT guid, title, coalesce(exit_status, 'running or interrupted'), created_unix_s FROM session"
             ).fetchone()
+            if row is None:
+                raise RobocalError(f"{path}: holds no session (a database left by a crash while it was created)")
+            guid, title, status, created = row
             print(f"{path}: {title} [{guid}] {status}")
             for proc, n, sk in conn.execute("SELECT procedure, count(*), sum(status='skipped') FROM step "
                                             "GROUP BY procedure ORDER BY min(seq)"):

@@ -14,6 +14,7 @@ than a real session, but every procedure is present.
 """
 from __future__ import annotations
 
+import json
 import uuid
 from dataclasses import dataclass
 from pathlib import Path
@@ -26,7 +27,7 @@ from calib.units import ARCSEC, DEG
 
 from .headless import ScriptedOperator
 from .preflight import Preflight
-from .setup import predictor, session_setup, setup_stations
+from .setup import predictor, session_setup, setup_stations, standard_setup
 from .procedures import READY_DEG, all_steps
 from .rig import EmulatedBench, Rig
 from .runner import Runner
@@ -44,34 +45,22 @@ DEMO_SETTLE_S = 0.02
 TE_RANGE_DEG = {"4": [-105.0, 165.0], "6": [-150.0, 150.0]}
 
 
-def demo_setup(twin: Twin) -> dict:
-    """The bench geometry a technician would write down (nominal, rounded: not the twin's truth)."""
+def demo_setup(twin: Twin, base: dict | None = None) -> dict:
+    """The bench geometry a technician would write down for the emulated cell: ``base`` (a set-up file from
+    ``robocal plan setup``; default :func:`acq.session.setup.standard_setup`) with the stations and the robot's base
+    as measured on the twin's cell (rounded like a tape and mutual sighting give them: not the twin's truth)."""
     tp = twin.true_parameters()
-    base = [round(tp[f"base.{k}_mm"], 0) for k in "xyz"]
     a, b = twin.stations
-    return {
-        "robot": "",                                     # the shipped description
-        "scenario": "",                                  # the twin scenario (emulated sessions only)
-        "base_xyz_mm": base, "base_rpy_deg": [0.0, 0.0, 0.0],
-        # L from a tape, gammas from mutual sighting of the instruments (to about 0.01 deg)
-        "stations": {"L_mm": round(b.x_mm - a.x_mm, -1), "gamma1_deg": round(-a.yaw_rad / DEG, 2),
-                     "gamma2_deg": round((b.yaw_rad - np.pi) / DEG, 2),
-                     "sigma_arcsec": a.sigma_hz_rad / ARCSEC},
-        "tool_target_mm": [50.0, 0.0, 100.0],
-        "extended_tool": {"A1_mm": [0.0, 0.0, 100.0], "A2_mm": [200.0, 0.0, 300.0]},
-        "ruler": {"marks_mm": [0.0, 930.0, 1860.0],
-                  "placements": [{"where": "1.2 m in front, left", "C_mm": [-300.0, 1200.0, 0.0], "dir": [1, 0, 0]},
-                                 {"where": "1.8 m in front, turned", "C_mm": [-200.0, 1800.0, 0.0],
-                                  "dir": [1, 0.15, 0]}]},
-        "compliance": {"3": {"lever_mm": 500.0, "loads_n": [0, 10, 20, 30, 45, 60, 75], "theta_i_deg": 0.0,
-                             "pose_deg": list(READY_DEG)},
-                       # joint 4 loaded with the forearm level: its axis horizontal, the lever across it level
-                       "4": {"lever_mm": 500.0, "loads_n": [0, 5, 10, 15, 25, 35, 45], "theta_i_deg": 0.0,
-                             "pose_deg": [0.0, -90.0, 0.0, 0.0, 0.0, 0.0]}},
-        # the upper arm level (at READY it stands vertical and a weight only compresses it)
-        "link": {"joint": 2, "gauges_x_mm": [150.0, 280.0, 400.0], "load_x_mm": 430.0, "loads_n": [0, 50, 100, 150],
-                 "second_moment_mm4": None, "pose_deg": [0.0, 0.0, 90.0, 0.0, 0.0, 0.0]},
-    }
+    setup = json.loads(json.dumps(base)) if base is not None else standard_setup()
+    setup.update({
+        "robot": setup.get("robot", ""), "scenario": setup.get("scenario", ""),
+        "base_xyz_mm": [round(tp[f"base.{k}_mm"], 0) for k in "xyz"], "base_rpy_deg": [0.0, 0.0, 0.0],
+    })
+    # L from a tape, gammas from mutual sighting of the instruments (to about 0.01 deg)
+    setup["stations"] = {**setup.get("stations", {}),
+                         "L_mm": round(b.x_mm - a.x_mm, -1), "gamma1_deg": round(-a.yaw_rad / DEG, 2),
+                         "gamma2_deg": round((b.yaw_rad - np.pi) / DEG, 2), "sigma_arcsec": a.sigma_hz_rad / ARCSEC}
+    return setup
 
 
 def demo_plan(twin: Twin, seed: int, n_poses: int = DEMO_POSES, quick: bool = True) -> dict:
@@ -87,7 +76,8 @@ def demo_plan(twin: Twin, seed: int, n_poses: int = DEMO_POSES, quick: bool = Tr
         rng = np.random.default_rng(seed)
         q = (lim[:, 0] + 0.2 * np.ptp(lim, 1) + 0.6 * np.ptp(lim, 1) * rng.random((n_poses, twin.robot.n))) / DEG
     return {
-        "procedures": ["ruler", "sweeps", "poses", "transmission", "compliance", "link_compliance", "coupling"],
+        "procedures": ["levelling", "instrument_check", "ruler", "sweeps", "poses", "transmission", "compliance",
+                       "link_compliance", "coupling"],
         "ruler": {"repeats": 2},
         "sweeps": {"points": 5, "span_deg": 60.0, "joints": [1, 2, 3, 4, 5, 6]},
         "poses": {"q_deg": np.round(q, 3).tolist()},
@@ -135,8 +125,11 @@ class DemoRig:
 
 
 def build_demo(db: str | Path, seed: int = 0, resume: bool = False, script: dict | None = None,
-               plan: dict | None = None, steps_filter=None, operator=None) -> DemoRig:
-    """Open (or create) the demo session in ``db`` and wire emulated devices, bench, operator and runner."""
+               plan: dict | None = None, steps_filter=None, operator=None, setup: dict | None = None) -> DemoRig:
+    """Open (or create) the demo session in ``db`` and wire emulated devices, bench, operator and runner.
+
+    ``setup``: a set-up file's content (``robocal plan setup --out``) for a new session; its stations and base are
+    replaced by the emulated cell's (:func:`demo_setup`)."""
     import can
 
     from acq.drivers import open_theodolite
@@ -161,7 +154,7 @@ def build_demo(db: str | Path, seed: int = 0, resume: bool = False, script: dict
         seed_offset = 0
     twin = Twin(load_scenario(), seed=seed)
     if not resume:
-        setup = session_setup(demo_setup(twin), twin.robot)
+        setup = session_setup(demo_setup(twin, setup), twin.robot)
         plan_d = plan or demo_plan(twin, seed)
         store = SessionStore.create(db, DEMO_TITLE, plan_d, setup, operator="scripted demo operator",
                                     metadata={"emulated": True, "scenario": "default", "seed": seed})
@@ -195,7 +188,13 @@ def build_demo(db: str | Path, seed: int = 0, resume: bool = False, script: dict
         steps = [s for s in steps if steps_filter(s)]
 
     def inputs(step: Step) -> dict:
-        return bench.read_gauges(step) if step.setup.get("gauges") else {}
+        """What the scripted operator reads off the bench: dial gauges, the instrument's electronic level."""
+        out = bench.read_gauges(step) if step.setup.get("gauges") else {}
+        drv = drivers.get(step.setup.get("station"))
+        if drv is not None and any(i.name == "tilt_cross_arcsec" for i in step.inputs):
+            r = drv.angles_with_inclination()
+            out.update(tilt_cross_arcsec=r.incline_cross_rad / ARCSEC, tilt_length_arcsec=r.incline_length_rad / ARCSEC)
+        return out
 
     op = operator or ScriptedOperator(script, inputs=inputs)
     from .stations import stations_from_store

@@ -25,6 +25,8 @@ from __future__ import annotations
 import csv
 import io
 import json
+import math
+import os
 import time
 import warnings
 from pathlib import Path
@@ -33,8 +35,10 @@ import numpy as np
 
 from calib.errors import RobocalError
 from calib.fileio import atomic_write_text
+from calib.textin import read_text
 from calib.units import DEG
 
+from .procedures import mark_index
 from .reprocess import load_session
 from .store import SessionStore, StepRecord, connect_readonly
 
@@ -79,19 +83,22 @@ def pose_arrays(db: str) -> dict:
     stations the session's own ruler steps give) and their covariances, step keys and sighting geometry."""
     from calib.robot import load_robot
 
-    from .checks import intersect_targets
+    from calib.estimators.points import StationFit, locate_targets
+
     from .reprocess import _Est, _encoder_q, _ruler
     from .setup import setup_stations
     d = load_session(db)
     robot = load_robot(d.setup.get("robot") or None)
     ruler = [s for s in d.steps if s["procedure"] == "ruler"]
     sigma = d.setup["stations"].get("sigma_arcsec", 3.0) * 4.84813681109536e-06
-    stations = (_ruler(ruler, d.setup, sigma, _Est(None), None, {}) if ruler else None) or setup_stations(d.setup)
+    fit = (_ruler(ruler, d.setup, sigma, _Est(None), None, {}) if ruler else None) \
+        or StationFit.exact(setup_stations(d.setup))
+    stations = fit.stations
     q, P, C, keys, angle = [], [], [], [], []
     for s in d.steps:
         if s["procedure"] != "poses":
             continue
-        pts = intersect_targets(s["readings"], stations) if s["readings"] else {}
+        pts = locate_targets(s["readings"], fit) if s["readings"] else {}
         if "P" in pts:
             p, cov = pts["P"][0], pts["P"][1]
         elif all(k in s["inputs"] for k in ("x_mm", "y_mm", "z_mm")):
@@ -124,90 +131,154 @@ def export_poses_csv(db: str, out: str) -> int:
 
 
 def _detect(path: str) -> str:
-    with open(path, encoding="utf-8") as f:
-        for line in f:
-            if line.strip() and not line.startswith("#"):
-                cols = [c.strip() for c in line.strip().split(",")]
-                if "hz_deg" in cols:
-                    return "readings"
-                if "q1" in cols:
-                    return "poses"
-                raise RobocalError(f"{path}: line 1: neither a raw-readings CSV (needs hz_deg) nor a pose CSV "
-                                   f"(needs q1)")
+    for lineno, line in enumerate(read_text(path).splitlines(), 1):
+        if line.strip() and not line.startswith("#"):
+            cols = [c.strip() for c in line.strip().split(",")]
+            if "hz_deg" in cols:
+                return "readings"
+            if "q1" in cols:
+                return "poses"
+            raise RobocalError(f"{path}: line {lineno}: neither a raw-readings CSV (needs hz_deg) nor a pose CSV "
+                               f"(needs q1)")
     raise RobocalError(f"{path}: empty file")
 
 
-def import_file(path: str, db: str, setup_json: str | None = None) -> tuple[str, int]:
-    """A new session in ``db`` from a readings or pose CSV; returns (kind, steps)."""
+def partial_path(db: str | Path) -> Path:
+    """Where ``robocal import`` builds ``db`` until it is complete (``--resume`` continues it)."""
+    p = Path(db)
+    return p.with_name(p.name + ".importing")
+
+
+def import_file(path: str, db: str, setup_json: str | None = None, resume: bool = False) -> tuple[str, int]:
+    """A new session in ``db`` from a readings or pose CSV; returns (kind, steps).
+
+    Nothing half-made: the whole input is read and checked first, the database is built in ``DB.importing`` and
+    renamed to ``db`` only when every step is in.  An interrupted import leaves ``DB.importing``; ``resume`` continues
+    it (steps already in are kept), a new import without ``resume`` starts it afresh."""
+    from acq.session.setup_file import read_setup
+    if Path(db).exists():
+        raise RobocalError(f"{db}: exists already: import writes a new session database (choose another --db)")
     kind = _detect(path)
-    setup = json.loads(Path(setup_json).read_text()) if setup_json else _default_setup()
+    setup = read_setup(setup_json) if setup_json else _default_setup()
+    steps = _pose_steps(path) if kind == "poses" else _reading_steps(path)
+    part = partial_path(db)
+    if resume and not part.exists():
+        raise RobocalError(f"{db}: no unfinished import to resume ({part} does not exist)")
+    if not resume:
+        for stale in (part, Path(f"{part}-wal"), Path(f"{part}-shm")):
+            stale.unlink(missing_ok=True)
     plan = {"procedures": [], "imported_from": str(path), "kind": kind}
-    store = SessionStore.create(db, f"imported {kind} from {Path(path).name}", plan, setup,
-                                metadata={"emulated": False, "imported": True})
+    if resume:
+        store = SessionStore.open(part)
+        if json.loads(store.session_row()["plan_json"]).get("imported_from") != str(path):
+            store.close()
+            raise RobocalError(f"{part}: is the unfinished import of another file; resume with that file, or "
+                               "import without --resume to start afresh")
+    else:
+        store = SessionStore.create(part, f"imported {kind} from {Path(path).name}", plan, setup,
+                                    metadata={"emulated": False, "imported": True})
     try:
-        n = _import_poses(path, store) if kind == "poses" else _import_readings(path, store)
+        done = store.done_keys()
+        device = None
+        for rec in steps:
+            if rec.key in done:
+                continue
+            if rec.readings:
+                device = device or store.add_device("imported theodolites", "csv", str(path), {})
+                for r in rec.readings:
+                    r["device_id"] = device
+            store.write_step(rec)
         store.finish("success")
+        store.conn.execute("PRAGMA wal_checkpoint(TRUNCATE)")
     finally:
         store.close()
-    return kind, n
+    if Path(db).exists():
+        raise RobocalError(f"{db}: appeared while importing; the import is kept in {part}")
+    os.replace(part, db)
+    return kind, len(steps)
 
 
 def _default_setup() -> dict:
-    from calib.twin import Twin
-    from .demo import demo_setup
-    return demo_setup(Twin())
+    from .setup import standard_setup
+    return standard_setup()
 
 
-def _import_poses(path: str, store: SessionStore) -> int:
+def _pose_steps(path: str) -> list[StepRecord]:
     from calib.posecsv import read_pose_csv
     t = read_pose_csv(path)
     if t.points_mm is None:
         raise RobocalError(f"{path}: a pose CSV to import needs the measured x, y, z columns")
     now = time.time()
+    out = []
     for i in range(t.n):
         pid = t.pose_id[i] if t.pose_id else f"{i:03d}"
         q = (t.q_rad[i] / DEG).tolist()
         spec = {"pose_deg": q, "meta": {"index": i}, "targets": [], "setup": {}}
         inputs = [{"attempt": 1, "name": f"{k}_mm", "value": float(v), "unit": "mm", "t_wall_s": now}
                   for k, v in zip("xyz", t.points_mm[i])]
-        store.write_step(StepRecord(f"poses/{pid}", "poses", f"imported pose {pid}", "imported", "accepted", 1,
-                                    now, now, spec, "", [], [], inputs, []))
-    return t.n
+        out.append(StepRecord(f"poses/{pid}", "poses", f"imported pose {pid}", "imported", "accepted", 1,
+                              now, now, spec, "", [], [], inputs, []))
+    _unique_keys(path, out)
+    return out
 
 
-def _import_readings(path: str, store: SessionStore) -> int:
-    did = store.add_device("imported theodolites", "csv", str(path), {})
+def _unique_keys(path: str, steps: list[StepRecord]) -> None:
+    seen: set[str] = set()
+    for rec in steps:
+        if rec.key in seen:
+            raise RobocalError(f"{path}: step {rec.key!r} appears twice (pose ids must be unique)")
+        seen.add(rec.key)
+
+
+def _finite(text: str, what: str) -> float:
+    v = float(text)
+    if not math.isfinite(v):
+        raise ValueError(f"{what} {text!r} is not a finite number")
+    return v
+
+
+def _reading_steps(path: str) -> list[StepRecord]:
+    from calib.posecsv import csv_fields
     steps: dict[str, dict] = {}
-    with open(path, newline="", encoding="utf-8") as f:
-        lines = (ln for ln in f if not ln.startswith("#"))
-        rd = csv.DictReader(lines)
-        unknown = set(rd.fieldnames or []) - set(READING_COLUMNS)
-        if unknown:
-            warnings.warn(f"{path}: ignoring unknown column(s) {', '.join(sorted(unknown))}")
-        for need in ("step", "procedure", "station", "target", "face", "hz_deg", "v_deg"):
-            if need not in (rd.fieldnames or []):
-                raise RobocalError(f"{path}: line 1: missing column {need!r}")
-        for lineno, row in enumerate(rd, start=2):
-            try:
-                face = int(row["face"])
-                hz, v = float(row["hz_deg"]) * DEG, float(row["v_deg"]) * DEG
-                if row["station"] not in ("A", "B") or face not in (1, 2):
-                    raise ValueError("station must be A or B and face 1 or 2")
-                q = [float(row[f"q{j}_deg"]) for j in range(1, 7)] if row.get("q1_deg") else None
-                raw = bytes.fromhex(row.get("raw_hex") or "")
-            except (ValueError, TypeError) as exc:
-                raise RobocalError(f"{path}: line {lineno}: {exc}") from None
-            s = steps.setdefault(row["step"], {"procedure": row["procedure"], "q": q, "readings": []})
-            s["readings"].append({"attempt": 1, "device_id": did, "station": row["station"], "target": row["target"],
-                                  "face": face, "repeat": 0, "hz_rad": hz, "v_rad": v, "t_wall_s": 0.0,
-                                  "t_mono_s": 0.0, "command": "imported", "raw": raw})
+    lines = [(n, ln) for n, ln in enumerate(read_text(path).splitlines(), 1) if not ln.startswith("#")]
+    if not lines:
+        raise RobocalError(f"{path}: empty file")
+    header_line, header = lines[0]
+    cols = [c.strip() for c in csv_fields(header, path, header_line)]
+    unknown = set(cols) - set(READING_COLUMNS)
+    if unknown:
+        warnings.warn(f"{path}: ignoring unknown column(s) {', '.join(sorted(unknown))}")
+    for need in ("step", "procedure", "station", "target", "face", "hz_deg", "v_deg"):
+        if need not in cols:
+            raise RobocalError(f"{path}: line {header_line}: missing column {need!r}")
+    for lineno, line in lines[1:]:
+        if not line.strip():
+            continue
+        fields = csv_fields(line, path, lineno)
+        if len(fields) != len(cols):
+            raise RobocalError(f"{path}: line {lineno}: {len(fields)} fields, the header has {len(cols)}")
+        row = dict(zip(cols, fields))
+        try:
+            face = int(row["face"])
+            hz, v = _finite(row["hz_deg"], "hz_deg") * DEG, _finite(row["v_deg"], "v_deg") * DEG
+            if row["station"] not in ("A", "B") or face not in (1, 2):
+                raise ValueError("station must be A or B and face 1 or 2")
+            q = [_finite(row[f"q{j}_deg"], f"q{j}_deg") for j in range(1, 7)] if row.get("q1_deg") else None
+            raw = bytes.fromhex(row.get("raw_hex") or "")
+            _meta_from_key(row["step"])
+        except (ValueError, TypeError, KeyError, RobocalError) as exc:
+            raise RobocalError(f"{path}: line {lineno}: {exc}") from None
+        s = steps.setdefault(row["step"], {"procedure": row["procedure"], "q": q, "readings": []})
+        s["readings"].append({"attempt": 1, "device_id": None, "station": row["station"], "target": row["target"],
+                              "face": face, "repeat": 0, "hz_rad": hz, "v_rad": v, "t_wall_s": 0.0,
+                              "t_mono_s": 0.0, "command": "imported", "raw": raw})
     now = time.time()
+    out = []
     for key, s in steps.items():
-        meta = _meta_from_key(key)
-        spec = {"pose_deg": s["q"], "meta": meta, "targets": [], "setup": {}}
-        store.write_step(StepRecord(key, s["procedure"], key, "imported", "accepted", 1, now, now, spec, "",
-                                    s["readings"], [], [], []))
-    return len(steps)
+        spec = {"pose_deg": s["q"], "meta": _meta_from_key(key), "targets": [], "setup": {}}
+        out.append(StepRecord(key, s["procedure"], key, "imported", "accepted", 1, now, now, spec, "",
+                              s["readings"], [], [], []))
+    return out
 
 
 def _meta_from_key(key: str) -> dict:
@@ -216,7 +287,7 @@ def _meta_from_key(key: str) -> dict:
     meta: dict = {}
     try:
         if parts[0] == "ruler":
-            meta = {"placement": int(parts[1][1:]), "mark": "CDE".index(parts[2])}
+            meta = {"placement": int(parts[1][1:]), "mark": mark_index(parts[2])}
         elif parts[0] in ("sweep", "te", "compliance"):
             meta = {"joint": int(parts[1][1:]), "index": int(parts[2])}
         elif parts[0] == "poses":

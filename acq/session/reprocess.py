@@ -18,7 +18,6 @@ still run.
 """
 from __future__ import annotations
 
-import json
 import time
 from dataclasses import dataclass, field
 
@@ -29,7 +28,8 @@ from calib.provenance import provenance
 from calib.robot import load_robot
 from calib.units import ARCSEC, DEG
 
-from .store import code_version, connect_readonly, from_npy
+from .setup_file import setup_from_text
+from .store import StoreError, code_version, connect_readonly, from_npy, json_column
 
 
 @dataclass
@@ -60,7 +60,7 @@ def load_session(path: str) -> SessionData:
                       (s["session_id"],))
         for st in steps:
             a = st["attempts"]
-            st["spec"] = json.loads(st["spec_json"])
+            st["spec"] = json_column(st["spec_json"], f"{path}: step {st['key']!r}: spec_json")
             st["readings"] = _rows(conn, "SELECT station, target, face, repeat, hz_rad, v_rad FROM reading "
                                          "WHERE step_id=? AND attempt=? ORDER BY reading_id", (st["step_id"], a))
             st["inputs"] = {r["name"]: r["value"] for r in _rows(
@@ -68,11 +68,22 @@ def load_session(path: str) -> SessionData:
                 (st["step_id"], a))}
             ch = _rows(conn, "SELECT counts FROM encoder_chunk WHERE step_id=? AND attempt=? ORDER BY chunk_id",
                        (st["step_id"], a))
-            st["counts"] = np.concatenate([from_npy(c["counts"]) for c in ch]) if ch else None
+            st["counts"] = _counts(ch, f"{path}: step {st['key']!r}: encoder counts")
         devices = _rows(conn, "SELECT role, driver, url, identity_json FROM device")
-        return SessionData(path, s, json.loads(s["plan_json"]), json.loads(s["setup_json"]), steps, devices)
+        return SessionData(path, s, json_column(s["plan_json"], f"{path}: session plan_json"),
+                           setup_from_text(s["setup_json"], f"{path}: session setup_json"), steps, devices)
     finally:
         conn.close()
+
+
+def _counts(chunks: list[dict], where: str) -> np.ndarray | None:
+    """The encoder counts of a step's chunks, one (samples, joints) array; damaged blobs are one line."""
+    if not chunks:
+        return None
+    arrays = [from_npy(c["counts"], where) for c in chunks]
+    if any(a.ndim != 2 or a.shape[1] != arrays[0].shape[1] for a in arrays):
+        raise StoreError(f"{where}: damaged array data (chunks of different shapes)")
+    return np.concatenate(arrays)
 
 
 class _Est:
@@ -104,7 +115,7 @@ class _Est:
 
 
 def _twin_for(data: SessionData):
-    meta = json.loads(data.session.get("metadata_json") or "{}")
+    meta = json_column(data.session.get("metadata_json") or "{}", f"{data.path}: session metadata_json")
     if not meta.get("emulated"):
         return None
     from calib.twin import Twin, load_scenario
@@ -134,14 +145,25 @@ def reprocess(path: str, n_mc: int = 0, progress=None) -> dict:
     except (RobocalError, KeyError, ValueError, IndexError) as exc:
         problems.append(f"ruler: {exc}")
     if stations is None:
+        from calib.estimators.points import StationFit
         from .setup import setup_stations
-        stations = setup_stations(data.setup)
+        stations = StationFit.exact(setup_stations(data.setup))
         problems.append("ruler: no estimate; points use the setup's stations")
     step("ruler", 0.1)
+    located: dict[int, dict] = {}
 
     def points(st):
-        from .checks import intersect_targets
-        return intersect_targets(st["readings"], stations)
+        """Targets of a step with covariances that carry the ruler fit's uncertainty (every step located in one
+        batch on the first call)."""
+        from calib.estimators.points import locate_targets
+        if not located:
+            rows = [{**r, "target": f"{i}/{r['target']}"} for i, s in enumerate(data.steps) for r in s["readings"]]
+            located[-1] = {}
+            for key, tp in locate_targets(rows, stations).items():
+                i, tg = key.split("/", 1)
+                located.setdefault(id(data.steps[int(i)]), {})[tg] = tp
+        return located.get(id(st), {})
+    points.station_fit = stations
 
     # 3. sweeps -> axes -> DH ---------------------------------------------------------------------------------------
     axes = {}
@@ -175,6 +197,7 @@ def reprocess(path: str, n_mc: int = 0, progress=None) -> dict:
     except (RobocalError, KeyError, ValueError, IndexError) as exc:
         problems.append(f"coupling: {exc}")
     step("done", 1.0)
+    problems += figs.pop("problems", [])          # what a stage could not do for part of its data
     return {
         "session": {"guid": data.session["guid"], "title": data.session["title"], "path": path,
                     "exit_status": data.session["exit_status"], "steps_accepted": len(data.steps)},
@@ -193,7 +216,7 @@ def reprocess(path: str, n_mc: int = 0, progress=None) -> dict:
 # -- stages ------------------------------------------------------------------------------------------------------
 def _ruler(steps, setup, sigma, est, twin, figs):
     """The same ruler fit the runner uses live (:mod:`acq.session.stations`), recorded with its estimates."""
-    from .stations import fit_ruler, ruler_rows
+    from .stations import fit_ruler, ruler_rows, ruler_station_fit
     if not steps:
         return None
     res, stations = fit_ruler(ruler_rows(steps), {**setup, "stations": {**setup["stations"],
@@ -207,15 +230,13 @@ def _ruler(steps, setup, sigma, est, twin, figs):
     L, g1, g2 = (res[n].value for n in ("L_mm", "gamma1_rad", "gamma2_rad"))
     figs["ruler"] = {"L_mm": L, "gamma1_deg": g1 / DEG, "gamma2_deg": g2 / DEG,
                      "residual_arcsec": (np.asarray(res.extras.get("residual", [])) / ARCSEC).tolist()}
-    return stations
+    return ruler_station_fit(res, stations)
 
 
-def _block(covs):
-    n = len(covs)
-    U = np.zeros((3 * n, 3 * n))
-    for i, c in enumerate(covs):
-        U[3 * i:3 * i + 3, 3 * i:3 * i + 3] = c
-    return U
+def _block(pts, points):
+    """Joint covariance of located targets (the stations' common term included)."""
+    from calib.estimators.points import points_covariance
+    return points_covariance(pts, points.station_fit)
 
 
 def _sweeps(steps, points, robot, setup, est, truth, figs, n_mc):
@@ -233,7 +254,7 @@ def _sweeps(steps, points, robot, setup, est, truth, figs, n_mc):
         sts.sort(key=lambda s: s["spec"]["meta"]["index"])
         pts = [points(s)["P"] for s in sts]
         P = np.array([p[0] for p in pts])
-        U = _block([p[1] for p in pts])
+        U = _block(pts, points)
         res = fit_axis(P, U, n_mc=n_mc, joint=f"j{j}")
         axes[j] = res
         v = res.value
@@ -411,24 +432,23 @@ def _gauge_truth(twin, model, ident, q) -> dict[str, float]:
     return {n: g.value(n) for n in g.free}
 
 
-def _joint_angles(steps, points, axis_n):
-    """Angle turned about ``axis_n`` from the first step, per step, from A1 -> A2 (and its sigma)."""
-    from calib.estimators.transmission import joint_angle
-    ref = None
-    out, sig = [], []
-    for st in steps:
-        p = points(st)
-        if "A1" not in p or "A2" not in p:
-            out.append(np.nan)
-            sig.append(np.nan)
-            continue
-        x = np.concatenate([p["A1"][0], p["A2"][0]])
-        if ref is None:
-            ref = x
-        out.append(float(joint_angle(np.concatenate([ref, x])[None], axis_n)[0, 0]))
-        d = np.linalg.norm(x[3:] - x[:3])
-        sig.append(float(np.sqrt(np.trace(p["A1"][1]) + np.trace(p["A2"][1])) / d))
-    return np.array(out), np.array(sig)
+def _joint_angles(steps, points, axis_n, full: bool = False):
+    """Angle turned about ``axis_n`` from the first step, per step, from A1 -> A2, and each one's 1-sigma
+    (:func:`calib.estimators.transmission.joint_angles`); NaN where a step lacks A1 or A2.  ``full``: also the
+    angles' covariance (the stations' errors are common to every step)."""
+    from calib.estimators.transmission import joint_angles
+    out, cov = np.full(len(steps), np.nan), np.full((len(steps), len(steps)), np.nan)
+    ok = [i for i, st in enumerate(steps) if {"A1", "A2"} <= set(points(st))]
+    if ok:
+        pairs = [(points(steps[i])["A1"], points(steps[i])["A2"]) for i in ok]
+        read = np.array([np.block([[a.cov_reading_mm2, np.zeros((3, 3))], [np.zeros((3, 3)), b.cov_reading_mm2]])
+                         for a, b in pairs])
+        D = np.array([np.concatenate([a.d_station, b.d_station]) for a, b in pairs])
+        out[ok], cov[np.ix_(ok, ok)] = joint_angles(np.array([a.point_mm for a, _ in pairs]),
+                                                    np.array([b.point_mm for _, b in pairs]), read, axis_n, D,
+                                                    points.station_fit.cov)
+    sig = np.sqrt(np.diag(cov))
+    return (out, sig, cov) if full else (out, sig)
 
 
 def _own_axis(sts, points, j, n_mc):
@@ -438,10 +458,13 @@ def _own_axis(sts, points, j, n_mc):
     pts = [p for p in pts if p is not None]
     P = np.array([p[0] for p in pts])
     # points more than 180 deg apart are fine for a circle fit, but keep the sweep order for the normal's sign
-    return fit_axis(P, _block([p[1] for p in pts]), n_mc=0, joint=f"j{j}").value[3:6]
+    return fit_axis(P, _block(pts, points), n_mc=0, joint=f"j{j}").value[3:6]
 
 
 def _transmission(steps, points, robot, axes, est, twin, figs, n_mc):
+    """Per joint: the angle from A1, A2 about the joint's own axis against the encoder, and the harmonic fit (with
+    the angles' full covariance).  A joint whose fit fails, or whose order is not determined, is said so in the
+    figures and left out of the running errors; the other joints still count."""
     from calib.estimators.transmission import fit_transmission_error
     from calib.effects import TransmissionError
     if not steps:
@@ -450,18 +473,23 @@ def _transmission(steps, points, robot, axes, est, twin, figs, n_mc):
     for st in steps:
         by_joint.setdefault(st["spec"]["meta"]["joint"], []).append(st)
     figs["transmission"] = {}
-    fits = {}
+    fits, failed = {}, []
     for j, sts in sorted(by_joint.items()):
         if j not in axes:
-            raise RobocalError(f"joint {j}: no swept axis to measure the angle about")
+            failed.append(f"joint {j}: no swept axis to measure the angle about")
+            continue
         sts.sort(key=lambda s: s["spec"]["meta"]["index"])
         n = _own_axis(sts, points, j, n_mc) if len(sts) >= 4 else axes[j].value[3:6]
-        meas, sig = _joint_angles(sts, points, n)
+        meas, sig, cov = _joint_angles(sts, points, n, full=True)
         enc = np.array([(_encoder_q(s, robot) if _encoder_q(s, robot) is not None
                          else np.asarray(s["spec"]["pose_deg"]) * DEG)[j - 1] for s in sts])
         err = np.angle(np.exp(1j * (meas - (enc - enc[0]))))      # both sides wrap differently past 180 deg
         ok = np.isfinite(err)
-        res = fit_transmission_error(enc[ok], err[ok], float(np.nanmean(sig)), n_mc=n_mc)
+        try:
+            res = fit_transmission_error(enc[ok], err[ok], cov[np.ix_(ok, ok)], n_mc=n_mc)
+        except RobocalError as exc:
+            failed.append(f"joint {j}: {exc}")
+            continue
         tv = {}
         if twin is not None:
             for e in twin.scenario.effects:
@@ -469,10 +497,15 @@ def _transmission(steps, points, robot, axes, est, twin, figs, n_mc):
                     tv = {"omega": e.order, "amplitude1_rad": float(np.hypot(e.values[0], e.values[len(e.values) // 2]))
                           if len(e.values) > 1 else abs(float(e.values[0]))}
         est.add_set(f"te.j{j}.", res, tv, only=("omega", "amplitude1_rad"))
-        fits[j] = res
+        nd = res.extras.get("not_determined") or {}
+        if "omega" not in nd:
+            fits[j] = res
         figs["transmission"][j] = {"encoder_deg": (enc / DEG).tolist(), "error_deg": (err / DEG).tolist(),
                                    "sigma_deg": (sig / DEG).tolist(),
-                                   "fit": {k: float(res[k].value) for k in res.names}}
+                                   "fit": {k: float(res[k].value) for k in res.names}, "not_determined": nd}
+    if failed and not fits:
+        raise RobocalError("; ".join(failed))
+    figs.setdefault("problems", []).extend(f"transmission: {f}" for f in failed)
     return fits
 
 
@@ -490,12 +523,16 @@ def _compliance(steps, points, robot, axes, est, twin, figs, n_mc):
         if j not in axes:
             raise RobocalError(f"joint {j}: no swept axis to measure the deflection about")
         sts.sort(key=lambda s: s["spec"]["meta"]["index"])
-        defl, sig = _joint_angles(sts, points, axes[j].value[3:6])
+        defl, sig, dcov = _joint_angles(sts, points, axes[j].value[3:6], full=True)
         T = np.array([torque_Nm(s["inputs"].get("load_n", s["spec"]["setup"]["load_n"]),
                                 s["inputs"].get("lever_mm", s["spec"]["setup"]["lever_mm"]),
                                 s["inputs"].get("theta_i_deg", 0.0) * DEG) for s in sts])
         unload = np.array([s["spec"]["meta"]["phase"] == "unload" for s in sts])
-        res = two_slope_fit(T, defl, unload, float(np.nanmean(sig)), n_mc=n_mc)
+        try:
+            res = two_slope_fit(T, defl, unload, dcov, n_mc=n_mc)
+        except RobocalError as exc:                 # e.g. "not determined": the other joints still count
+            figs.setdefault("problems", []).append(f"compliance: joint {j}: {exc}")
+            continue
         tv = {}
         if twin is not None:
             for e in twin.scenario.effects:

@@ -188,8 +188,24 @@ def to_npy(a: np.ndarray) -> bytes:
     return buf.getvalue()
 
 
-def from_npy(b: bytes) -> np.ndarray:
-    return np.load(io.BytesIO(b), allow_pickle=False)
+def from_npy(b: bytes, where: str = "array blob") -> np.ndarray:
+    """An array stored by :func:`to_npy`; a damaged blob is one line naming ``where`` (file, table, row)."""
+    try:
+        a = np.load(io.BytesIO(b), allow_pickle=False)
+    except Exception as exc:  # noqa: BLE001 -- numpy raises ValueError, EOFError, OSError, TypeError ... on garbage
+        raise StoreError(f"{where}: damaged array data ({type(exc).__name__}: {' '.join(str(exc).split())[:80]})") \
+            from None
+    if not isinstance(a, np.ndarray) or a.dtype.kind not in "iuf":
+        raise StoreError(f"{where}: damaged array data (not a numeric array)")
+    return a
+
+
+def json_column(text, where: str):
+    """A JSON column (plan, set-up, step spec); damaged JSON is one line naming ``where``."""
+    from calib.jsonfile import parse_json
+    if not isinstance(text, str):
+        raise StoreError(f"{where}: damaged: not JSON text")
+    return parse_json(text, where)
 
 
 # -- opening -----------------------------------------------------------------------------------------------------
@@ -202,6 +218,8 @@ def _probe(conn: sqlite3.Connection, path: str) -> tuple[int, int]:
         raise StoreError(f"{path}: not a robocal session database ({exc})") from None
     if app != APPLICATION_ID and (tables or ver):
         raise StoreError(f"{path}: not a robocal session database (SQLite file of another application)")
+    if app != APPLICATION_ID and os.path.exists(path) and os.path.getsize(path) == 0:
+        app = -1  # an empty file: not ours (the caller decides whether it may create a session in it)
     if ver > SCHEMA_VERSION:
         raise StoreError(f"{path}: made by a newer robocal (schema version {ver}; this one reads up to "
                          f"{SCHEMA_VERSION}); upgrade robocal to open it")
@@ -233,7 +251,10 @@ def connect(path: str | Path, *, create: bool = False, target_version: int = SCH
         raise StoreError(f"{p}: no such session database")
     conn = sqlite3.connect(p, isolation_level=None, timeout=10.0, check_same_thread=False)
     try:
-        _probe(conn, p)
+        app, _ = _probe(conn, p)
+        if app != APPLICATION_ID and not create:
+            # never write robocal's schema into a file that is not a robocal database (an empty or foreign file)
+            raise StoreError(f"{p}: not a robocal session database (an empty file or an empty SQLite database)")
         conn.execute("PRAGMA journal_mode=WAL")
         conn.execute("PRAGMA synchronous=FULL")
         conn.execute("PRAGMA foreign_keys=ON")
@@ -259,7 +280,10 @@ def connect_readonly(path: str | Path) -> sqlite3.Connection:
     uri = Path(p).resolve().as_uri() + "?mode=ro"
     try:
         conn = sqlite3.connect(uri, uri=True, isolation_level=None, check_same_thread=False)
-        _, ver = _probe(conn, p)
+        app, ver = _probe(conn, p)
+        if app != APPLICATION_ID:
+            conn.close()
+            raise StoreError(f"{p}: not a robocal session database (an empty file or an empty SQLite database)")
         if ver < SCHEMA_VERSION:
             conn.close()
             raise StoreError(f"{p}: schema version {ver} is older than {SCHEMA_VERSION}; open it once with "

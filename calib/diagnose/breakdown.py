@@ -105,7 +105,9 @@ def breakdown(data: DiagnosisData, res_before_mm: np.ndarray, res_after_mm: np.n
     before = np.linalg.norm(res_before_mm, axis=1)
     after = np.linalg.norm(res_after_mm, axis=1)
     r = data.robot
-    tests: Stats = [("residual length", before)]
+    # signed components too: a shift of part of the poses (the instrument moved) is half absorbed by the fit and
+    # leaves residuals of equal length but opposite sign
+    tests: Stats = [("residual length", before)] + [(f"residual {c}", res_before_mm[:, i]) for i, c in enumerate("xyz")]
     if joint_jacobian is not None:
         for j in range(r.n):
             Jj = joint_jacobian[:, :, j]

@@ -17,9 +17,14 @@ from calib.outliers import OutlierReport, check_mode
 
 from .breakdown import Factor, breakdown
 from .candidates import EFFECT_NAMES, TE_ORDERS, build_library
+from . import noise
 from .data import DiagnosisData
 from .gap import CVResult, auto_level, cv_fit, geometric_free, heldout_floor_mm, make_folds, noise_floor_mm
 from .select import Selection, forward_select
+
+
+#: a final held-out RMS above this multiple of the floor is reported as an unexplained gap
+UNEXPLAINED_RATIO = 1.1
 
 
 @dataclass
@@ -36,6 +41,8 @@ class Diagnosis:
     outliers: list[int] = field(default_factory=list)
     level_note: str = ""
     outlier_report: OutlierReport = field(default_factory=lambda: OutlierReport("off"))
+    noise: noise.NoiseEstimate | None = None
+    judged_floor_mm: float = float("nan")      # the floor the acceptance rule used (see calib.diagnose.noise)
 
     @property
     def baseline_rms_mm(self) -> float:
@@ -59,8 +66,29 @@ class Diagnosis:
                         "rms_after_mm": f.rms_after_mm, "max_after_mm": f.max_after_mm,
                         "p_value": f.p_value, "test": f"nested F on instrument-whitened residuals, Bonferroni over "
                                                       f"{f.n_tested} candidates",
-                        "f_statistic": f.f_statistic, "delta_bic": f.delta_bic, "parameters": f.parameters})
+                        "f_statistic": f.f_statistic, "delta_bic": f.delta_bic, "parameters": f.parameters,
+                        "stability": f.stability, "aliases": f.aliases, "doubtful": f.doubtful,
+                        "excess_share": f.shrink_share})
         return out
+
+    def unexplained(self) -> dict | None:
+        """What is left above the floor after the accepted effects: where it lies and what came closest."""
+        floor = self.judged_floor_mm if self.judged_floor_mm > 0 else self.heldout_floor_mm
+        final = self.final_rms_mm
+        if not final > UNEXPLAINED_RATIO * floor:
+            return None
+        base_excess = self.baseline_rms_mm - floor
+        where = sorted((f for f in self.factors if f.p_value == f.p_value and f.p_value < 0.01),
+                       key=lambda f: f.p_value)[:3]
+        near, seen = [], set()
+        for m in sorted(self.selection.near, key=lambda m: m.rms_mm):
+            if m.group not in seen and len(near) < 3:
+                near.append(m)
+                seen.add(m.group)
+        return {"rms_mm": final, "floor_mm": floor, "excess_mm": final - floor,
+                "share_of_baseline_excess": (final - floor) / base_excess if base_excess > 0 else None,
+                "where": [{"factor": f.name, "p_value": f.p_value, "statistic": f.statistic} for f in where],
+                "closest_candidates": [m.as_dict() for m in near]}
 
     def to_json(self) -> dict:
         d = self.data
@@ -82,7 +110,15 @@ class Diagnosis:
             "gross_errors_flagged": [i + 1 for i in self.outliers],
             "outliers": self.outlier_report.as_dict(),
             "notes": d.notes + ([self.level_note] if self.level_note else []),
+            "noise_estimated_mm": self.noise.estimated_mm if self.noise else None,
+            "noise_estimate": self.noise.as_dict() if self.noise else None,
+            "judged_floor_mm": self.judged_floor_mm,
+            "unexplained": self.unexplained(),
         }
+
+    def warning(self) -> str:
+        """The one-line noise warning ("" when the given noise agrees with the data)."""
+        return self.noise.warning(f"robocal diagnose {self.data.source}") if self.noise else ""
 
 
 def _outlier_step(data: DiagnosisData, model: MeasurementModel, level: str, mode: str,
@@ -128,14 +164,20 @@ def diagnose(data: DiagnosisData, level: str = "auto", n_folds: int | None = Non
     level, geo, note = _geometric(data, model, level, folds, loss)
     geo_free = geometric_free(model, level)
     lib = build_library(data, kinds, te_orders)
+    hfloor = heldout_floor_mm(geo, data)
+    judged = hfloor * noise.estimate(data, geo.rms_mm).floor_scale()
     prog("effect selection", 0.2)
     sel = forward_select(data, geo, geo_free, lib.candidates, alpha, max_effects,
-                         (lambda s, f: prog(s, 0.2 + 0.75 * f)))
+                         (lambda s, f: prog(s, 0.2 + 0.75 * f)), floor_mm=judged, loss=loss)
+    prog("done", 1.0)
+    return Diagnosis(data, level, len(folds), noise_floor_mm(data), hfloor, geo, sel,
+                     _breakdown(data, model, geo, sel), lib.skipped, out_rep.flagged, note, out_rep,
+                     noise.estimate(data, sel.final.rms_mm), judged)
+
+
+def _breakdown(data: DiagnosisData, model: MeasurementModel, geo: CVResult, sel: Selection) -> list[Factor]:
     ev = model.evaluate(data.q_rad, data.ctx, geo.all_fit.theta[: model.P], jacobian=True)
     base = ev.chain.frame_t[0, 0]
     g = data.robot.gravity_m_s2
     up = ev.chain.frame_R[0, 0] @ (-g / np.linalg.norm(g)) if np.linalg.norm(g) > 0 else None
-    factors = breakdown(data, geo.residual_mm, sel.final.residual_mm, base, up, ev.joint_jacobian)
-    prog("done", 1.0)
-    return Diagnosis(data, level, len(folds), noise_floor_mm(data), heldout_floor_mm(geo, data), geo, sel, factors,
-                     lib.skipped, out_rep.flagged, note, out_rep)
+    return breakdown(data, geo.residual_mm, sel.final.residual_mm, base, up, ev.joint_jacobian)

@@ -40,6 +40,10 @@ def render(d: Diagnosis, max_factor_rows: int = 40) -> str:
                          if isinstance(v, (int, float)) and "sigma_" not in k and not k.endswith("_sigma"))
         out.append(f"   {i}. {f['label']}: held-out RMS -> {f['rms_after_mm']:.4f} mm, p = {_p(f['p_value'])}; "
                    f"{pars}")
+        flags = [f"fold spread {100 * f['stability']:.0f} %"]
+        if f["aliases"]:
+            flags.append("looks like " + ", ".join(f["aliases"]))
+        out.append(f"      {'DOUBTFUL: ' if f['doubtful'] else ''}" + "; ".join(flags))
     out.append(f"   stopped: {j['stop_reason']}")
     if j["not_tested"]:
         out.append("   not tested:")
@@ -57,9 +61,18 @@ def render(d: Diagnosis, max_factor_rows: int = 40) -> str:
     out.append(f"   final held-out RMS {j['final_rms_mm']:.4f} mm (max {j['final_max_mm']:.4f}) against the floor "
                f"{j['noise_floor_mm']:.4f} mm" + (f"; {100 * shrink:.0f} % of the excess gap removed"
                                                   if shrink == shrink else ""))
-    if j["final_rms_mm"] > 1.2 * j["heldout_floor_mm"]:
-        out.append("   the remaining gap is above the floor: something none of the candidates describes is left "
-                   "(or the noise model is optimistic)")
+    u = j["unexplained"]
+    if u:
+        out.append(f"   unexplained: {u['excess_mm']:.4f} mm above the floor {u['floor_mm']:.4f} mm -- something none "
+                   f"of the accepted effects describes is left (or the noise model is optimistic)")
+        if u["where"]:
+            out.append("     where: " + "; ".join(f"{w['factor']} (p = {_p(w['p_value'])})" for w in u["where"]))
+        for c in u["closest_candidates"]:
+            out.append(f"     closest: {c['candidate']} (held-out {c['rms_mm']:.4f} mm): {c['reason']}")
+    if j["noise_estimated_mm"] is not None:
+        ne = j["noise_estimate"]
+        out.append(f"   noise per coordinate: given {ne['given_mm']:.4f} mm, from the data {ne['estimated_mm']:.4f} mm "
+                   f"({ne['from']})")
     out += [f"   note: {line}" for line in d.outlier_report.lines()]
     for n in j["notes"]:
         out.append(f"   note: {n}")

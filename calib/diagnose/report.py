@@ -77,7 +77,7 @@ def write_report(d, out_dir, provenance: dict | None = None) -> Path:
         plt.close(fig)
         figs.append(("Held-out RMS by condition", "breakdown.png"))
 
-    steps = ["geometric"] + [f["label"] for f in j["findings"]]
+    steps = ["geometric"] + [f["label"] + (" (doubtful)" if f["doubtful"] else "") for f in j["findings"]]
     vals = [j["baseline_rms_mm"]] + [f["rms_after_mm"] for f in j["findings"]]
     fig, ax = plt.subplots(figsize=(max(4, 1.6 * len(steps)), 3))
     ax.plot(range(len(steps)), vals, "o-")

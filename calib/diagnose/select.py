@@ -1,24 +1,27 @@
-"""Greedy forward selection of unmodelled effects, scored on held-out poses, with a nested F-test and a guard.
+"""Greedy forward selection of unmodelled effects, scored on held-out poses, accepted only when it is honest.
 
 Each round:
 
 1. **Linearise** once: one model holding the accepted effects *and every remaining candidate* (at zero magnitude)
    is evaluated with its Jacobian at the current all-pose estimate.  Effects add, so each candidate's columns are
-   exactly its own Jacobian; no effect math is repeated here.
-2. **Guard** (per candidate, all poses): a column that the data cannot drive (zero signal) is skipped; the augmented
-   whitened Jacobian goes through :func:`calib.identifiability.analyse` (the same guard identify uses) and a
-   candidate any of whose parameters it would hold is skipped; so is one whose signature the current model absorbs
-   almost entirely (less than :data:`MIN_INDEPENDENT` of its whitened column norm left after projecting out the
-   current columns).
+   exactly its own Jacobian; no effect math is repeated here, and the one Jacobian serves every candidate.
+2. **Guard** (per candidate, all poses): a column that the data cannot drive (zero signal) is skipped; so is one
+   whose signature the current model absorbs almost entirely (less than :data:`MIN_INDEPENDENT` of its whitened
+   column norm left after projecting out the current columns); the best one also goes through
+   :func:`calib.identifiability.analyse` (the guard identify uses).
 3. **Score**: in every fold, one Gauss-Newton step on the training poses with the fold's current free parameters
    plus the candidate's (projected least squares, vectorised over candidates), then the whitened held-out sum of
-   squares.  The best candidate is the one that shrinks the held-out gap most.
+   squares: the linearised score.  Candidates are ranked by it.
 4. **Test**: nested F-test on all poses (whitened by the instrument covariance, as §9 of the anchors asks), with a
    Bonferroni correction for every candidate tried in the round (every order of the transmission-error grid counts).
-   Accepted when the corrected p-value is below ``alpha`` *and* the held-out gap shrinks.
-5. **Refit** the accepted set fully with :func:`calib.identify.identify` in every fold (warm start) and on all poses;
-   the held-out RMS after it is the finding's ``rms_after_mm``.  Should the full refit not shrink the held-out gap
-   (the linearisation misled), the effect is dropped and selection stops.
+   The same projected fits give each candidate's **aliases**: other candidates whose fitted signature is nearly the
+   same (correlation above :data:`ALIAS_CORR`) and explains nearly as much (:data:`ALIAS_SHARE`).
+5. **Refit and accept** the best few significant candidates (:data:`REFIT_BEST`), in rank order, fully with
+   :func:`calib.identify.identify` in every fold (warm start) and on all poses.  A candidate is accepted only when
+   it shrinks the held-out gap by at least :data:`MATERIAL_SHARE` of the baseline's excess over the floor (the same
+   share for a second effect on the same joint or the next link) *and* its parameters are stable across the folds
+   (jackknife relative spread below :data:`STABLE_MAX`).  Otherwise the next is tried; when none passes, selection
+   stops and what is left is the unexplained gap, with the candidates that came closest.
 """
 from __future__ import annotations
 
@@ -38,6 +41,19 @@ from .gap import CVResult, cv_fit
 #: a candidate must keep at least this share of its whitened signature once the current model's columns are
 #: projected out (else the geometry absorbs it: the guard of §9, "O1/O4 not collapsing")
 MIN_INDEPENDENT = 0.02
+#: an accepted effect must shrink the held-out RMS by this share of the baseline excess (baseline - floor)
+MATERIAL_SHARE = 0.10
+#: jackknife relative spread of the parameters across folds above which a candidate is not accepted
+STABLE_MAX = 0.5
+#: ... and above which an accepted finding is marked doubtful
+DOUBTFUL_SPREAD = 0.25
+#: aliases: fitted signatures this correlated, explaining at least this share of the best one's reduction
+ALIAS_CORR = 0.9
+ALIAS_SHARE = 0.8
+#: significant candidates refitted fully per round, in the order of their linearised score
+REFIT_BEST = 3
+#: candidates looked at per round, in the order of their linearised score
+SCAN_BEST = 10
 
 
 @dataclass
@@ -51,6 +67,13 @@ class Finding:
     heldout_chi2: float
     parameters: dict[str, float]
     n_tested: int
+    stability: float = 0.0          # jackknife relative spread of the parameters across folds
+    aliases: list[str] = field(default_factory=list)
+    shrink_share: float = float("nan")   # share of the baseline excess this effect removed
+
+    @property
+    def doubtful(self) -> bool:
+        return self.stability > DOUBTFUL_SPREAD or bool(self.aliases)
 
 
 @dataclass
@@ -62,12 +85,26 @@ class Round:
 
 
 @dataclass
+class NearMiss:
+    """A candidate that was refitted or tested but not accepted, and why (the "closest candidates")."""
+    label: str
+    rms_mm: float                   # held-out RMS with it (refitted, or the linearised prediction)
+    p_value: float
+    reason: str
+    group: tuple = ()               # the candidate's group (one per joint and kind)
+
+    def as_dict(self) -> dict:
+        return {"candidate": self.label, "rms_mm": self.rms_mm, "p_value": self.p_value, "reason": self.reason}
+
+
+@dataclass
 class Selection:
     findings: list[Finding]
     rounds: list[Round]
     final: CVResult
     skipped: list[str] = field(default_factory=list)   # guard notes
     stop_reason: str = ""
+    near: list[NearMiss] = field(default_factory=list)
 
 
 def _white_rows(W: np.ndarray, A: np.ndarray) -> np.ndarray:
@@ -84,166 +121,287 @@ def _project(Q: np.ndarray, A: np.ndarray) -> np.ndarray:
     return A - Q @ (Q.T @ A)
 
 
-def _param_report(cand: Candidate, model: MeasurementModel, cv: CVResult) -> dict[str, float]:
+@dataclass
+class _Linear:
+    """Step 1: the shared linearisation of one round."""
+    big: MeasurementModel
+    Jw: np.ndarray                  # (3N, P_big) whitened
+    Jmm: np.ndarray                 # (3N, P_big) in mm
+    base_idx: list[int]             # the current model's free columns
+    Qa: np.ndarray                  # orthonormal basis of them (all poses)
+    cols: list[list[int]]           # per remaining candidate, its columns
+
+
+def _linearise(data: DiagnosisData, cur: CVResult, remaining: list[Candidate]) -> _Linear:
+    eff_cur = list(cur.model.effects)
+    big = MeasurementModel(data.robot, eff_cur + [c.make() for c in remaining])
+    theta = np.concatenate([cur.all_fit.theta[: cur.model.P], big.nominal[cur.model.P:]])
+    ev = big.evaluate(data.q_rad, data.ctx, theta, jacobian=True)
+    Jw = _white_rows(data.whitening, ev.jacobian)
+    cols = []
+    for i, c in enumerate(remaining):
+        s = big.effect_slices[len(eff_cur) + i]
+        names = big.effects[len(eff_cur) + i].param_names
+        cols.append([s.start + names.index(p) for p in c.free])
+    base_idx = [big.index[n] for n in cur.all_fit.free if n in big.index]
+    Qa, _ = np.linalg.qr(Jw[:, base_idx])
+    return _Linear(big, Jw, ev.jacobian.reshape(3 * data.n, -1), base_idx, Qa, cols)
+
+
+def _guard(lin: _Linear, remaining: list[Candidate], note: Callable[[str], None]) -> list[tuple[Candidate, list[int]]]:
+    """Step 2: candidates the data can drive and the current model does not absorb."""
+    ok = []
+    for c, cols in zip(remaining, lin.cols):
+        C = lin.Jw[:, cols]
+        norm = np.linalg.norm(C, axis=0)
+        if np.any(norm < 1e-6):
+            note(f"{c.label}: no signal in these data (its driver does not vary over the poses)")
+            continue
+        indep = float(np.linalg.svd(_project(lin.Qa, C) / norm, compute_uv=False)[-1])
+        if indep < MIN_INDEPENDENT:
+            if c.kind != "transmission_error":
+                note(f"{c.label}: absorbed by the current model (only {100 * indep:.1f} % of its signature is "
+                     f"independent of it)")
+            continue
+        ok.append((c, cols))
+    return ok
+
+
+def _heldout_scores(data: DiagnosisData, cur: CVResult, lin: _Linear, ok) -> tuple[np.ndarray, np.ndarray]:
+    """Step 3: linearised held-out chi-square and sum of squares (mm^2) per candidate, all folds."""
+    W = data.whitening
+    M = len(ok)
+    allcols = [k for _, cols in ok for k in cols]
+    slices, pos = [], 0
+    for _, cols in ok:
+        slices.append(slice(pos, pos + len(cols)))
+        pos += len(cols)
+    chi2, sse = np.zeros(M), np.zeros(M)
+    Jw, Jmm, big = lin.Jw, lin.Jmm, lin.big
+    for f in cur.folds:
+        tr, te = _rows(f.train), _rows(f.test)
+        r3 = data.points_mm - cur.model.points(data.q_rad, data.ctx, f.theta)
+        r_mm = r3.ravel()
+        r_w = _white_rows(W, r3[:, :, None])[:, 0]
+        bidx = [big.index[n] for n in f.free if n in big.index]
+        Q, R = np.linalg.qr(Jw[tr][:, bidx])
+        Ctr = Jw[tr][:, allcols]
+        Cp = _project(Q, Ctr)
+        rp = r_w[tr] - Q @ (Q.T @ r_w[tr])
+        # base update db = g0 - G dc; held-out prediction = h0 + H dc (whitened and in mm)
+        G = np.linalg.solve(R, Q.T @ Ctr)
+        g0 = np.linalg.solve(R, Q.T @ r_w[tr])
+        Hw = Jw[te][:, bidx] @ G - Jw[te][:, allcols]
+        Hm = Jmm[te][:, bidx] @ G - Jmm[te][:, allcols]
+        h0w = r_w[te] - Jw[te][:, bidx] @ g0
+        h0m = r_mm[te] - Jmm[te][:, bidx] @ g0
+        for k, sl in enumerate(slices):
+            dc, *_ = np.linalg.lstsq(Cp[:, sl], rp, rcond=None)
+            pw = h0w + Hw[:, sl] @ dc
+            pm = h0m + Hm[:, sl] @ dc
+            chi2[k] += pw @ pw
+            sse[k] += pm @ pm
+    return chi2, sse
+
+
+@dataclass
+class _Tests:
+    """Step 4: per candidate, the corrected p-value, F, delta BIC and the fitted whitened signature."""
+    p: np.ndarray
+    F: np.ndarray
+    dbic: np.ndarray
+    signature: list[np.ndarray]
+
+
+def _nested_tests(data: DiagnosisData, cur: CVResult, lin: _Linear, ok) -> _Tests:
+    m = 3 * data.n
+    r_all = _white_rows(data.whitening, (data.points_mm - cur.model.points(
+        data.q_rad, data.ctx, cur.all_fit.theta[: cur.model.P]))[:, :, None])[:, 0]
+    r0 = _project(lin.Qa, r_all[:, None])[:, 0]
+    rss0 = float(r0 @ r0)
+    M = len(ok)
+    p, F, dbic, sig = np.ones(M), np.zeros(M), np.zeros(M), []
+    for k, (_, cols) in enumerate(ok):
+        Cp = _project(lin.Qa, lin.Jw[:, cols])
+        dc, *_ = np.linalg.lstsq(Cp, r0, rcond=None)
+        fitted = Cp @ dc
+        rss1 = float((r0 - fitted) @ (r0 - fitted))
+        q = len(cols)
+        dof = m - len(lin.base_idx) - q
+        F[k] = ((rss0 - rss1) / q) / (rss1 / dof) if rss1 > 0 else np.inf
+        p[k] = min(1.0, float(stats.f.sf(F[k], q, dof)) * M)
+        dbic[k] = rss1 - rss0 + q * np.log(m)       # whitened -2 log L difference + penalty (sigma known)
+        sig.append(fitted)
+    return _Tests(p, F, dbic, sig)
+
+
+def _aliases(k: int, ok, tests: _Tests) -> list[str]:
+    """Other candidates (another group) whose fitted signature is nearly the same as candidate ``k``'s."""
+    s = tests.signature[k]
+    n2 = float(s @ s)
+    out = []
+    if n2 <= 0:
+        return out
+    for i, (c, _) in enumerate(ok):
+        if i == k or c.group == ok[k][0].group:
+            continue
+        t = tests.signature[i]
+        t2 = float(t @ t)
+        if t2 >= ALIAS_SHARE * n2 and abs(float(s @ t)) / np.sqrt(n2 * t2) >= ALIAS_CORR:
+            out.append((t2, c.label))
+    return [lab for _, lab in sorted(out, reverse=True)[:3]]
+
+
+def _stability(model: MeasurementModel, cv: CVResult, cand: Candidate) -> tuple[float, np.ndarray]:
+    """Jackknife spread of the newest effect's estimated parameters over the folds: (relative spread, per-parameter
+    sigma of the whole effect's parameters, zero for the ones not estimated)."""
+    s = model.effect_slices[len(model.effects) - 1]
+    names = model.effects[-1].param_names
+    idx = [s.start + names.index(p) for p in cand.free]
+    vals = np.array([f.theta[idx] for f in cv.folds])
+    k = len(vals)
+    se = np.sqrt((k - 1) / k * np.sum((vals - vals.mean(0)) ** 2, axis=0))
+    ref = float(np.linalg.norm(cv.all_fit.theta[idx]))
+    full = np.zeros(s.stop - s.start)
+    full[[names.index(p) for p in cand.free]] = se
+    return (float(np.linalg.norm(se)) / ref if ref > 0 else float("inf")), full
+
+
+def _param_report(cand: Candidate, model: MeasurementModel, cv: CVResult, fold_sigma: np.ndarray) -> dict:
+    """Parameters in edge units; the 1-sigma is the larger of the Jacobian's and the folds' spread."""
     e_i = len(model.effects) - 1
     s = model.effect_slices[e_i]
     names = model.effects[e_i].param_names
     theta = cv.all_fit.theta
-    sig = cv.all_fit.sigma
+    sig = np.maximum(cv.all_fit.sigma[s], fold_sigma)
     vals = {n: float(theta[s][k]) for k, n in enumerate(names)}
-    sigs = {n: float(sig[s][k]) for k, n in enumerate(names)}
+    sigs = {n: float(sig[k]) for k, n in enumerate(names)}
     return cand.parameters(vals, sigs)
+
+
+def _refit(data: DiagnosisData, cur: CVResult, cand: Candidate, geo_free: list[str],
+           loss: str) -> tuple[MeasurementModel, CVResult]:
+    """Step 5: the current model plus ``cand`` fitted fully in every fold (warm start) and on all poses."""
+    new_eff = cand.make()
+    model = MeasurementModel(data.robot, list(cur.model.effects) + [new_eff])
+    qual = [f"{new_eff.label}.{p}" for p in cand.free]
+    th0 = [np.concatenate([f.theta, new_eff.values]) for f in cur.folds]
+    th0_all = np.concatenate([cur.all_fit.theta[: cur.model.P], new_eff.values])
+    folds = [(f.train, f.test) for f in cur.folds]
+    free_all = list(dict.fromkeys(geo_free + [n for n in cur.model.names[cur.model.n_geometric:]
+                                              if n in cur.all_fit.free] + qual))
+    return model, cv_fit(model, data, free_all, folds, theta0=th0, theta0_all=th0_all, start=False, loss=loss)
+
+
+@dataclass
+class _Context:
+    """What the rounds share."""
+    data: DiagnosisData
+    geo_free: list[str]
+    alpha: float
+    floor_mm: float
+    excess_mm: float                # baseline held-out RMS - floor
+    loss: str
+    notes: list[str] = field(default_factory=list)
+    noted: set[str] = field(default_factory=set)
+    near: list[NearMiss] = field(default_factory=list)
+
+    def note(self, text: str) -> None:
+        if text not in self.noted:
+            self.notes.append(text)
+            self.noted.add(text)
+
+
+def _try_accept(cx: _Context, cur: CVResult, ok, tests: _Tests, k: int,
+                n_tested: int) -> tuple[Finding, CVResult] | str:
+    """Refit candidate ``k`` and apply the acceptance rule; a Finding and the new fit, or why not."""
+    cand = ok[k][0]
+    model, new = _refit(cx.data, cur, cand, cx.geo_free, cx.loss)
+    gain = cur.rms_mm - new.rms_mm
+    spread, fold_sigma = _stability(model, new, cand)
+    why = ""
+    if new.chi2 >= cur.chi2:
+        why = "does not shrink the held-out gap once refitted fully"
+    elif gain < MATERIAL_SHARE * cx.excess_mm:
+        why = (f"shrinks the held-out RMS by {1000 * gain:.1f} um only, less than {100 * MATERIAL_SHARE:.0f} % "
+               f"of the excess gap ({1000 * cx.excess_mm:.1f} um)")
+    elif spread > STABLE_MAX:
+        why = f"its parameters are not stable across the folds (relative spread {spread:.2f})"
+    if why:
+        cx.near.append(NearMiss(cand.label, new.rms_mm, float(tests.p[k]), why, cand.group))
+        return why
+    f = Finding(cand, new.rms_mm, new.max_mm, float(tests.p[k]), float(tests.F[k]), float(tests.dbic[k]), new.chi2,
+                _param_report(cand, model, new, fold_sigma), n_tested, spread, _aliases(k, ok, tests),
+                gain / cx.excess_mm if cx.excess_mm > 0 else float("nan"))
+    return f, new
+
+
+def _round(cx: _Context, cur: CVResult, remaining: list[Candidate], rounds: list[Round]):
+    """One round: a (Finding, new fit) pair, or the reason to stop, plus candidates the guard held."""
+    lin = _linearise(cx.data, cur, remaining)
+    ok = _guard(lin, remaining, cx.note)
+    if not ok:
+        return "no identifiable candidate left", []
+    chi2, sse = _heldout_scores(cx.data, cur, lin, ok)
+    tests = _nested_tests(cx.data, cur, lin, ok)
+    order = [int(k) for k in np.argsort(chi2)]
+    rnd = Round(cur.rms_mm, [(ok[k][0].label, float(np.sqrt(sse[k] / cx.data.n)), float(tests.p[k]))
+                             for k in order[:8]], None)
+    rounds.append(rnd)
+    held, tried, why = [], 0, ""
+    for k in order[:SCAN_BEST]:
+        if tried >= REFIT_BEST or chi2[k] >= cur.chi2:
+            break
+        cand = ok[k][0]
+        if tests.p[k] >= cx.alpha:
+            cx.near.append(NearMiss(cand.label, float(np.sqrt(sse[k] / cx.data.n)), float(tests.p[k]),
+                                    f"not significant (corrected p = {tests.p[k]:.3g})", cand.group))
+            why = why or f"best remaining candidate {cand.label} is not significant (corrected p = {tests.p[k]:.3g})"
+            continue
+        ida = analyse(np.hstack([lin.Jw[:, lin.base_idx], lin.Jw[:, ok[k][1]]]),
+                      [lin.big.names[i] for i in lin.base_idx] + [f"candidate.{p}" for p in cand.free])
+        if any(n.startswith("candidate.") for n in ida.fixed):
+            cx.note(f"{cand.label}: held by the identifiability guard ("
+                    + "; ".join(c.words() for c in ida.unidentifiable) + ")")
+            held.append(cand)
+            continue
+        tried += 1
+        res = _try_accept(cx, cur, ok, tests, k, len(ok))
+        if isinstance(res, tuple):
+            rnd.accepted = cand.label
+            return res, held
+        why = why or f"best remaining candidate {cand.label} {res}"
+    return why or "no candidate shrinks the held-out gap", held
 
 
 def forward_select(data: DiagnosisData, base: CVResult, geo_free: list[str], candidates: list[Candidate],
                    alpha: float = 0.01, max_effects: int = 6,
-                   progress: Callable[[str, float], None] | None = None) -> Selection:
-    """Greedy forward selection from the geometric fit ``base`` (see the module docstring)."""
-    robot = data.robot
-    W = data.whitening
-    N = data.n
-    m = 3 * N
-    cur = base
-    accepted: list[Candidate] = []
-    findings: list[Finding] = []
-    rounds: list[Round] = []
-    notes: list[str] = []
-    noted: set[str] = set()
-    stop = "no candidate left"
-    while len(accepted) < max_effects:
-        groups = {c.group for c in accepted}
+                   progress: Callable[[str, float], None] | None = None, floor_mm: float | None = None,
+                   loss: str = "linear") -> Selection:
+    """Greedy forward selection from the geometric fit ``base`` (see the module docstring).  ``floor_mm``: the
+    held-out RMS a perfect model would reach (default: :func:`calib.diagnose.gap.heldout_floor_mm`)."""
+    from .gap import heldout_floor_mm
+
+    floor = heldout_floor_mm(base, data) if floor_mm is None else floor_mm
+    cx = _Context(data, geo_free, alpha, floor, base.rms_mm - floor, loss)
+    cur, findings, rounds = base, [], []
+    stop = f"reached the limit of {max_effects} effects"
+    while len(findings) < max_effects:
+        if cx.excess_mm <= 0 or cur.rms_mm <= floor:
+            stop = "the held-out gap is at the noise floor"
+            break
+        groups = {f.candidate.group for f in findings}
         remaining = [c for c in candidates if c.group not in groups]
         if not remaining:
+            stop = "no candidate left"
             break
         if progress:
-            progress(f"round {len(accepted) + 1}", len(accepted) / max_effects)
-        eff_cur = list(cur.model.effects)
-        big = MeasurementModel(robot, eff_cur + [c.make() for c in remaining])
-        theta = np.concatenate([cur.all_fit.theta[: cur.model.P], big.nominal[cur.model.P:]])
-        ev = big.evaluate(data.q_rad, data.ctx, theta, jacobian=True)
-        Jw = _white_rows(W, ev.jacobian)                                   # (3N, P_big)
-        Jmm = ev.jacobian.reshape(m, -1)
-        ccols = []
-        for i, c in enumerate(remaining):
-            s = big.effect_slices[len(eff_cur) + i]
-            names = big.effects[len(eff_cur) + i].param_names
-            ccols.append([s.start + names.index(p) for p in c.free])
-        # -- guard on all poses: signal, then independence from the current model (column-scaled)
-        base_idx = [big.index[n] for n in cur.all_fit.free if n in big.index]
-        Qa, _ = np.linalg.qr(Jw[:, base_idx])
-        ok = []
-        for c, cols in zip(remaining, ccols):
-            C = Jw[:, cols]
-            norm = np.linalg.norm(C, axis=0)
-            if np.any(norm < 1e-6):
-                key = f"{c.label}: no signal in these data (its driver does not vary over the poses)"
-                if key not in noted:
-                    notes.append(key)
-                    noted.add(key)
-                continue
-            indep = float(np.linalg.svd(_project(Qa, C) / norm, compute_uv=False)[-1])
-            if indep < MIN_INDEPENDENT:
-                key = (f"{c.label}: absorbed by the current model (only {100 * indep:.1f} % of its signature "
-                       f"is independent of it)")
-                if c.kind != "transmission_error" and key not in noted:
-                    notes.append(key)
-                    noted.add(key)
-                continue
-            ok.append((c, cols))
-        if not ok:
-            stop = "no identifiable candidate left"
+            progress(f"round {len(findings) + 1}", len(findings) / max(1, max_effects))
+        res, held = _round(cx, cur, remaining, rounds)
+        candidates = [c for c in candidates if c not in held]
+        if isinstance(res, str):
+            stop = res
             break
-        M = len(ok)
-        allcols = [k for _, cols in ok for k in cols]
-        pos, slices = 0, []
-        for _, cols in ok:
-            slices.append(slice(pos, pos + len(cols)))
-            pos += len(cols)
-        # -- held-out score: one projected Gauss-Newton step per fold, vectorised over candidates
-        chi2 = np.zeros(M)
-        sse = np.zeros(M)
-        for f in cur.folds:
-            tr, te = _rows(f.train), _rows(f.test)
-            r3 = data.points_mm - cur.model.points(data.q_rad, data.ctx, f.theta)
-            r_mm = r3.ravel()
-            r_w = _white_rows(W, r3[:, :, None])[:, 0]
-            bidx = [big.index[n] for n in f.free if n in big.index]
-            Q, R = np.linalg.qr(Jw[tr][:, bidx])
-            Ctr = Jw[tr][:, allcols]
-            Cp = _project(Q, Ctr)
-            rp = r_w[tr] - Q @ (Q.T @ r_w[tr])
-            # base update db = g0 - G dc; held-out prediction = h0 + H dc (whitened and in mm)
-            G = np.linalg.solve(R, Q.T @ Ctr)
-            g0 = np.linalg.solve(R, Q.T @ r_w[tr])
-            Hw = Jw[te][:, bidx] @ G - Jw[te][:, allcols]
-            Hm = Jmm[te][:, bidx] @ G - Jmm[te][:, allcols]
-            h0w = r_w[te] - Jw[te][:, bidx] @ g0
-            h0m = r_mm[te] - Jmm[te][:, bidx] @ g0
-            for k, sl in enumerate(slices):
-                dc, *_ = np.linalg.lstsq(Cp[:, sl], rp, rcond=None)
-                pw = h0w + Hw[:, sl] @ dc
-                pm = h0m + Hm[:, sl] @ dc
-                chi2[k] += pw @ pw
-                sse[k] += pm @ pm
-        order = np.argsort(chi2)
-        best = int(order[0])
-        # -- nested F-test on all poses for every candidate (reported for the top ones; decides for the best)
-        r_all = _white_rows(W, (data.points_mm - cur.model.points(data.q_rad, data.ctx,
-                                                                  cur.all_fit.theta[: cur.model.P]))[:, :, None])[:, 0]
-        rss0_vec = _project(Qa, r_all[:, None])[:, 0]
-        rss0 = float(rss0_vec @ rss0_vec)
-        p_base = len(base_idx)
-
-        def ftest(k: int) -> tuple[float, float, float]:
-            cols = ok[k][1]
-            Cp = _project(Qa, Jw[:, cols])
-            dc, *_ = np.linalg.lstsq(Cp, rss0_vec, rcond=None)
-            r1 = rss0_vec - Cp @ dc
-            rss1 = float(r1 @ r1)
-            q = len(cols)
-            dof = m - p_base - q
-            F = ((rss0 - rss1) / q) / (rss1 / dof) if rss1 > 0 else np.inf
-            p = float(stats.f.sf(F, q, dof))
-            dbic = rss1 - rss0 + q * np.log(m)       # whitened -2 log L difference + penalty (sigma known)
-            return min(1.0, p * M), float(F), float(dbic)
-
-        ranking = []
-        for k in order[:8]:
-            pk, _, _ = ftest(int(k))
-            ranking.append((ok[int(k)][0].label, float(np.sqrt(sse[int(k)] / N)), pk))
-        p_adj, F, dbic = ftest(best)
-        cand = ok[best][0]
-        ida = analyse(np.hstack([Jw[:, base_idx], Jw[:, ok[best][1]]]),
-                      [big.names[i] for i in base_idx] + [f"candidate.{p}" for p in cand.free])
-        if any(n.startswith("candidate.") for n in ida.fixed):
-            notes.append(f"{cand.label}: held by the identifiability guard ("
-                         + "; ".join(c.words() for c in ida.unidentifiable) + ")")
-            candidates = [c for c in candidates if c is not cand]
-            continue
-        rnd = Round(cur.rms_mm, ranking, None)
-        rounds.append(rnd)
-        if not (p_adj < alpha and chi2[best] < cur.chi2):
-            stop = (f"best remaining candidate {cand.label} is not significant (corrected p = {p_adj:.3g})"
-                    if p_adj >= alpha else f"best remaining candidate {cand.label} does not shrink the held-out gap")
-            break
-        # -- full refit with the accepted effect
-        new_eff = cand.make()
-        model = MeasurementModel(robot, eff_cur + [new_eff])
-        qual = [f"{new_eff.label}.{p}" for p in cand.free]
-        th0 = [np.concatenate([f.theta, new_eff.values]) for f in cur.folds]
-        th0_all = np.concatenate([cur.all_fit.theta[: cur.model.P], new_eff.values])
-        folds = [(f.train, f.test) for f in cur.folds]
-        free_all = list(dict.fromkeys(geo_free + [n for n in cur.model.names[cur.model.n_geometric:]
-                                                  if n in cur.all_fit.free] + qual))
-        new = cv_fit(model, data, free_all, folds, theta0=th0, theta0_all=th0_all, start=False)
-        if new.chi2 >= cur.chi2:
-            stop = f"{cand.label} did not shrink the held-out gap once refitted fully"
-            break
-        rnd.accepted = cand.label
-        accepted.append(cand)
-        findings.append(Finding(cand, new.rms_mm, new.max_mm, p_adj, F, dbic, new.chi2,
-                                _param_report(cand, model, new), M))
-        cur = new
-    else:
-        stop = f"reached the limit of {max_effects} effects"
-    return Selection(findings, rounds, cur, notes, stop)
+        findings.append(res[0])
+        cur = res[1]
+    return Selection(findings, rounds, cur, cx.notes, stop, cx.near)

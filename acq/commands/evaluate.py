@@ -1,0 +1,48 @@
+"""``robocal evaluate``: how well a calibrated model predicts measured poses it was not fitted to."""
+from __future__ import annotations
+
+import json
+
+from acq.commands._csvargs import add_unit_arguments, units
+
+NAME = "evaluate"
+HELP = "predict the test rows of a pose CSV with a calibrated model: RMS, max, 95th percentile, per station/group"
+
+
+def add_arguments(p):
+    p.add_argument("model", metavar="MODEL.json", help="model written by robocal identify --out")
+    p.add_argument("data", metavar="DATA.csv", help="pose CSV with measured x, y, z (test rows, or all rows)")
+    p.add_argument("--locate", action="store_true",
+                   help="re-station first: fit each station's transform (its fit rows if it has 3 or more, else "
+                        "its rows) with the model held fixed")
+    p.add_argument("--json", action="store_true", help="print the evaluation as JSON")
+    add_unit_arguments(p)
+
+
+def _fmt(v) -> str:
+    return "-" if v is None else f"{v:.3f}"
+
+
+def run(args) -> int:
+    from calib.compensate import load_model
+    from calib.evaluation import with_polar_points, evaluate_table
+    from calib.posecsv import read_pose_csv
+
+    im = load_model(args.model)
+    robot = im.model.robot
+    table = with_polar_points(read_pose_csv(args.data, robot.n, robot.prismatic, robot=robot, **units(args)))
+    doc = evaluate_table(im.model, im.theta, table, with_locate=args.locate)
+    if args.json:
+        print(json.dumps(doc, indent=1))
+        return 0
+    print(f"robocal evaluate {args.data}: {doc['n']} {doc['rows']} rows: RMS {_fmt(doc['rms_mm'])} mm, "
+          f"max {_fmt(doc['max_mm'])} mm, 95th percentile {_fmt(doc['p95_mm'])} mm")
+    for st in doc.get("stations", []):
+        print(f"  station {st['station']} located from {st['n_rows']} rows (RMS there {st['rms_mm']:.3f} mm): "
+              f"xyz_mm {', '.join(f'{v:.2f}' for v in st['xyz_mm'])}, "
+              f"rpy_deg {', '.join(f'{v:.4f}' for v in st['rpy_deg'])}")
+    for col, groups in doc["by"].items():
+        for g, s in groups.items():
+            print(f"  {col} {g}: {s['n']} rows, RMS {_fmt(s['rms_mm'])} mm, max {_fmt(s['max_mm'])} mm, "
+                  f"p95 {_fmt(s['p95_mm'])} mm")
+    return 0

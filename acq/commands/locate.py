@@ -1,0 +1,37 @@
+"""``robocal locate``: re-station an instrument: the transform from the calibrated robot to each station set-up."""
+from __future__ import annotations
+
+import json
+
+from acq.commands._csvargs import add_unit_arguments, units
+
+NAME = "locate"
+HELP = "fit only the instrument-to-robot transform (per station) with the calibrated model held fixed"
+
+
+def add_arguments(p):
+    p.add_argument("model", metavar="MODEL.json", help="model written by robocal identify --out")
+    p.add_argument("data", metavar="DATA.csv", help="pose CSV with measured x, y, z (and a station column)")
+    p.add_argument("--json", action="store_true", help="print the stations as JSON")
+    add_unit_arguments(p)
+
+
+def run(args) -> int:
+    from calib.compensate import load_model
+    from calib.evaluation import with_polar_points, locate, predict_rows
+    from calib.posecsv import read_pose_csv
+
+    im = load_model(args.model)
+    robot = im.model.robot
+    table = with_polar_points(read_pose_csv(args.data, robot.n, robot.prismatic, robot=robot, **units(args)))
+    locs = locate(predict_rows(im.model, im.theta, table), table)
+    doc = {"source": table.source, "stations": [loc.as_dict() for loc in locs.values()]}
+    if args.json:
+        print(json.dumps(doc, indent=1))
+        return 0
+    print(f"robocal locate {args.data}: measured = R predicted + t, per station")
+    for st in doc["stations"]:
+        print(f"  station {st['station']}: {st['n_rows']} rows, RMS {st['rms_mm']:.3f} mm, "
+              f"t = ({', '.join(f'{v:.3f}' for v in st['xyz_mm'])}) mm, "
+              f"roll/pitch/yaw = ({', '.join(f'{v:.5f}' for v in st['rpy_deg'])}) deg")
+    return 0

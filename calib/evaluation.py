@@ -1,0 +1,203 @@
+"""Held-out evaluation and re-stationing of a calibrated model against a pose CSV (``robocal evaluate`` / ``locate``).
+
+* **Prediction** of every row through the one forward model (:class:`calib.model.MeasurementModel`), each row with
+  the tool point its ``target`` names.
+* **Locate** (re-stationing): per ``station`` group, the rigid transform from the model's measurement frame to that
+  instrument set-up, fitted by least squares to the rows with the calibrated model held fixed (Kabsch, via scipy's
+  ``Rotation.align_vectors``).  A located station absorbs 6 degrees of freedom, so its residual is computed from rows
+  that did not locate it where there are any (the station's ``fit`` rows locate it, its ``test`` rows are scored).
+* **Summary**: RMS, max and 95th percentile of the 3-D residual length, overall and per group (station, target and any
+  text column of the file).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+from .errors import RobocalError
+from .model import MeasurementModel
+from .effects.target_offset import TargetOffset
+from .posecsv import PoseTable
+from .targets import TargetContext, order_targets, reference_name, target_effects, target_index
+
+
+def with_polar_points(table: PoseTable, noise=None) -> PoseTable:
+    """A table whose polar readings (hz_deg, v_deg, dist_mm) are turned into points with their covariance
+    (:mod:`calib.polar`) when it has no x, y, z; the table itself otherwise."""
+    from .polar import PolarNoise, polar_points
+    if table.points_mm is None and table.polar is not None:
+        table.points_mm, table.cov_mm2 = polar_points(table.polar, noise or PolarNoise())
+    return table
+
+
+def point_covariance(table: PoseTable) -> np.ndarray | None:
+    """(N, 3, 3) covariance of the measured points: polar noise, else the sigma_*_mm columns, else None."""
+    if table.cov_mm2 is not None:
+        return table.cov_mm2
+    if table.sigma_mm is not None:
+        return np.einsum("ni,ij->nij", table.sigma_mm ** 2, np.eye(3))
+    return None
+
+
+def tool_per_row(robot, table: PoseTable) -> np.ndarray | None:
+    """(N, 3) tool point in frame n for each row's ``target``; None when the file names no targets."""
+    if table.target is None:
+        return None
+    out = np.empty((table.n, 3))
+    for i, t in enumerate(table.target):
+        if t not in robot.tool_points_mm:
+            known = ", ".join(robot.tool_points_mm) or "none"
+            raise RobocalError(f"{table.source}: line {table.line[i] if table.line else i + 1}: target {t!r} names "
+                               f"no tool point of the model (tool points: {known})")
+        out[i] = robot.tool_points_mm[t]
+    return out
+
+
+def context_of(model: MeasurementModel, table: PoseTable) -> TargetContext:
+    """The pose conditions of every row, with the index of the tool point it measures."""
+    tool_per_row(model.robot, table)                          # names every target, or fails naming the line
+    return TargetContext(table.n, model.robot.n, direction=table.direction, payload_kg=table.payload_kg,
+                         temperature_c=table.temperature_c, time_s=table.time_s,
+                         target=target_index(model.robot, table.target, table.n))
+
+
+def predict_rows(model: MeasurementModel, theta: np.ndarray, table: PoseTable) -> np.ndarray:
+    """Predicted positions (N, 3) of every row's target in the model's measurement frame.
+
+    The reference target and those with an offset effect come from ``theta``; any other named target from the
+    model's tool points."""
+    ctx = context_of(model, table)
+    tool = None
+    if table.target is not None:
+        names = list(model.robot.tool_points_mm)
+        ref = names.index(reference_name(names))
+        in_theta = {ref} | {e.target for e in model.effects if isinstance(e, TargetOffset)}
+        if not set(ctx.target) <= in_theta:
+            i = model.kin.index["tool.x_mm"]
+            own = np.asarray(theta[i:i + 3], float)
+            tool = np.array([own if k in in_theta else model.robot.tool_points_mm[names[k]] for k in ctx.target])
+    return model.points(table.q_rad, ctx, theta, tool)
+
+
+@dataclass
+class Location:
+    """One station's set-up: measured = R @ predicted + t."""
+
+    station: str
+    R: np.ndarray
+    t_mm: np.ndarray
+    n_rows: int
+    rms_mm: float
+
+    def apply(self, p: np.ndarray) -> np.ndarray:
+        return p @ self.R.T + self.t_mm
+
+    def as_dict(self) -> dict:
+        # R = Rz(yaw) Ry(pitch) Rx(roll), the base convention: scipy's extrinsic "xyz"
+        roll, pitch, yaw = Rotation.from_matrix(self.R).as_euler("xyz", degrees=True)
+        return {"station": self.station, "xyz_mm": [float(v) for v in self.t_mm],
+                "rpy_deg": [float(roll), float(pitch), float(yaw)], "n_rows": self.n_rows, "rms_mm": self.rms_mm}
+
+
+def fit_location(station: str, pred: np.ndarray, meas: np.ndarray) -> Location:
+    """The rigid transform taking predicted points onto measured ones (least squares)."""
+    if len(pred) < 3:
+        raise RobocalError(f"locate: station {station!r} has {len(pred)} measured points; at least 3 are needed")
+    cp, cm = pred.mean(axis=0), meas.mean(axis=0)
+    rot, _ = Rotation.align_vectors(meas - cm, pred - cp)
+    R = rot.as_matrix()
+    t = cm - R @ cp
+    res = meas - (pred @ R.T + t)
+    return Location(station, R, t, len(pred), float(np.sqrt(np.mean(np.sum(res ** 2, axis=1)))))
+
+
+def stations_of(table: PoseTable) -> list[str]:
+    return table.station if table.station is not None else ["(all)"] * table.n
+
+
+def locate(pred: np.ndarray, table: PoseTable, rows: np.ndarray | None = None) -> dict[str, Location]:
+    """One :class:`Location` per station from the rows ``rows`` (default: all) of ``table``."""
+    if table.points_mm is None:
+        raise RobocalError(f"{table.source}: columns x, y, z (measured points) are needed to locate")
+    st = np.array(stations_of(table))
+    use = np.ones(table.n, bool) if rows is None else rows
+    out = {}
+    for s in dict.fromkeys(st):
+        m = (st == s) & use
+        out[str(s)] = fit_location(str(s), pred[m], table.points_mm[m])
+    return out
+
+
+def summary(res: np.ndarray) -> dict:
+    """RMS, max and 95th percentile of residual lengths (mm)."""
+    d = np.linalg.norm(res, axis=1)
+    if d.size == 0:
+        return {"n": 0, "rms_mm": None, "max_mm": None, "p95_mm": None}
+    return {"n": int(d.size), "rms_mm": float(np.sqrt(np.mean(d ** 2))), "max_mm": float(d.max()),
+            "p95_mm": float(np.percentile(d, 95))}
+
+
+def breakdown(res: np.ndarray, table: PoseTable) -> dict[str, dict[str, dict]]:
+    """Summary per label of every grouping column present (station, target, then the file's text columns)."""
+    out = {}
+    for name in ["station", "target", *table.columns]:
+        labels = table.groups(name)
+        if labels is None:
+            continue
+        lab = np.array(labels)
+        groups = list(dict.fromkeys(labels))
+        if len(groups) > 50:                 # a per-row column (a time stamp, an id) is no grouping
+            continue
+        out[name] = {g: summary(res[lab == g]) for g in groups}
+    return out
+
+
+def evaluate_table(model: MeasurementModel, theta: np.ndarray, table: PoseTable, with_locate: bool = False) -> dict:
+    """Residuals of the ``test`` rows (all rows without a split), optionally after re-stationing each station."""
+    if table.points_mm is None:
+        raise RobocalError(f"{table.source}: columns x, y, z (measured points) are needed to evaluate")
+    pred = predict_rows(model, theta, table)
+    test = table.split_mask("test")
+    doc: dict = {"source": table.source, "rows": "test" if table.split is not None else "all"}
+    if with_locate:
+        fit = table.split_mask("fit") if table.split is not None else np.ones(table.n, bool)
+        st = np.array(stations_of(table))
+        locs = {}
+        for s in dict.fromkeys(st):
+            own_fit = (st == s) & fit & (~test if table.split is not None else True)
+            rows = own_fit if own_fit.sum() >= 3 else (st == s)
+            locs[str(s)] = fit_location(str(s), pred[rows], table.points_mm[rows])
+        for s, loc in locs.items():
+            m = st == s
+            pred[m] = loc.apply(pred[m])
+        doc["stations"] = [loc.as_dict() for loc in locs.values()]
+    res = table.points_mm[test] - pred[test]
+    doc.update(summary(res))
+    doc["by"] = breakdown(res, table.subset(test))
+    return doc
+
+
+def split_metrics(model: MeasurementModel, theta: np.ndarray, table: PoseTable) -> dict:
+    """``fit_rms_mm``, ``test_rms_mm``, ``test_max_mm``, ``n_fit``, ``n_test`` of an identification (data with a
+    split)."""
+    pred = predict_rows(model, theta, table)
+    res = table.points_mm - pred
+    fit, test = table.split_mask("fit"), table.split_mask("test")
+    f, t = summary(res[fit]), summary(res[test])
+    return {"fit_rms_mm": f["rms_mm"], "test_rms_mm": t["rms_mm"], "test_max_mm": t["max_mm"],
+            "n_fit": int(fit.sum()), "n_test": int(test.sum())}
+
+
+def fit_rows(table: PoseTable, robot):
+    """The rows an identification fits (``fit`` rows when the data has a split), the robot whose tool points are the
+    targets those rows measure (the reference first) and the offset effects of the other targets (fitted jointly)."""
+    fit = table.subset(table.split_mask("fit")) if table.split is not None else table
+    if fit.n == 0:
+        raise RobocalError(f"{table.source}: no fit rows (column split)")
+    if fit.target is None:
+        return fit, robot, []
+    used = list(dict.fromkeys(table.target))
+    robot = order_targets(robot, used)
+    return fit, robot, target_effects(robot, used)
