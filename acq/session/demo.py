@@ -76,7 +76,8 @@ def demo_plan(twin: Twin, seed: int, n_poses: int = DEMO_POSES, quick: bool = Tr
         rng = np.random.default_rng(seed)
         q = (lim[:, 0] + 0.2 * np.ptp(lim, 1) + 0.6 * np.ptp(lim, 1) * rng.random((n_poses, twin.robot.n))) / DEG
     return {
-        "procedures": ["ruler", "sweeps", "poses", "transmission", "compliance", "link_compliance", "coupling"],
+        "procedures": ["levelling", "instrument_check", "ruler", "sweeps", "poses", "transmission", "compliance",
+                       "link_compliance", "coupling"],
         "ruler": {"repeats": 2},
         "sweeps": {"points": 5, "span_deg": 60.0, "joints": [1, 2, 3, 4, 5, 6]},
         "poses": {"q_deg": np.round(q, 3).tolist()},
@@ -187,7 +188,13 @@ def build_demo(db: str | Path, seed: int = 0, resume: bool = False, script: dict
         steps = [s for s in steps if steps_filter(s)]
 
     def inputs(step: Step) -> dict:
-        return bench.read_gauges(step) if step.setup.get("gauges") else {}
+        """What the scripted operator reads off the bench: dial gauges, the instrument's electronic level."""
+        out = bench.read_gauges(step) if step.setup.get("gauges") else {}
+        drv = drivers.get(step.setup.get("station"))
+        if drv is not None and any(i.name == "tilt_cross_arcsec" for i in step.inputs):
+            r = drv.angles_with_inclination()
+            out.update(tilt_cross_arcsec=r.incline_cross_rad / ARCSEC, tilt_length_arcsec=r.incline_length_rad / ARCSEC)
+        return out
 
     op = operator or ScriptedOperator(script, inputs=inputs)
     from .stations import stations_from_store

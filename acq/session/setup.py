@@ -12,8 +12,7 @@ from calib.model import MeasurementModel
 from calib.theodolite import thesis_stations
 from calib.units import ARCSEC, DEG
 
-from .procedures import READY_DEG
-from .steps import Step
+from .steps import READY_DEG, Step
 
 
 def standard_setup() -> dict:
@@ -32,7 +31,7 @@ def standard_setup() -> dict:
         "tool_target_mm": [50.0, 0.0, 100.0],
         "sweep_radius_mm": 600.0,
         "extended_tool": {"A1_mm": [0.0, 0.0, 100.0], "A2_mm": [200.0, 0.0, 300.0]},
-        "far_target_mm": [805.0, 8000.0, 300.0],
+        "far_target_mm": [-1000.0, 3000.0, 300.0],        # a mark on the wall left of the robot, 3-4 m away
         "ruler": {"marks_mm": [0.0, 930.0, 1860.0],
                   "placements": [{"where": "1.2 m in front, left", "C_mm": [-300.0, 1200.0, 0.0], "dir": [1, 0, 0]},
                                  {"where": "1.8 m in front, turned", "C_mm": [-200.0, 1800.0, 0.0],
