@@ -44,7 +44,7 @@ def add_arguments(p):
 def run(args) -> int:
     from calib.compensate import model_document, save_model, unit_of
     from calib.effects import THESIS_RUNNING_ERRORS, effect_from_text
-    from calib.evaluation import fit_rows, point_covariance, split_metrics, with_polar_points
+    from calib.evaluation import context_of, fit_rows, point_covariance, split_metrics, with_polar_points
     from calib.polar import PolarNoise
     from calib.identify import PointObservations, default_free, identify
     from calib.priors import free_from_patterns, priors_for
@@ -57,16 +57,15 @@ def run(args) -> int:
     robot = load_robot(args.robot)
     full = read_pose_csv(args.data, robot.n, robot.prismatic, robot=robot, **units(args))
     full = with_polar_points(full, PolarNoise.from_text(args.polar_noise) if args.polar_noise else None)
-    table, robot = fit_rows(full, robot)
+    table, robot, target_offsets = fit_rows(full, robot)
     if table.points_mm is None:
         raise RobocalError(f"{args.data}: columns x, y, z (measured tool points, mm) are needed to identify")
     if not args.noise_mm > 0:
         raise RobocalError(f"identify: --noise-mm must be positive, got {args.noise_mm}")
     specs = list(args.effect) + (list(THESIS_RUNNING_ERRORS) if args.thesis_effects else [])
     effects = [effect_from_text(s, robot.n) for s in specs]
-    model = MeasurementModel(robot, effects)
-    ctx = model.context(table.n, direction=table.direction, payload_kg=table.payload_kg,
-                        temperature_c=table.temperature_c, time_s=table.time_s)
+    model = MeasurementModel(robot, effects + target_offsets)
+    ctx = context_of(model, table)
     cov = point_covariance(table)
     obs = PointObservations(table.q_rad, table.points_mm, cov, sigma_mm=args.noise_mm, ctx=ctx)
     free = free_from_patterns(model, args.free) if args.free else None
