@@ -38,6 +38,7 @@ from calib.fileio import atomic_write_text
 from calib.textin import read_text
 from calib.units import DEG
 
+from .procedures import mark_index
 from .reprocess import load_session
 from .store import SessionStore, StepRecord, connect_readonly
 
@@ -286,7 +287,7 @@ def _meta_from_key(key: str) -> dict:
     meta: dict = {}
     try:
         if parts[0] == "ruler":
-            meta = {"placement": int(parts[1][1:]), "mark": "CDE".index(parts[2])}
+            meta = {"placement": int(parts[1][1:]), "mark": mark_index(parts[2])}
         elif parts[0] in ("sweep", "te", "compliance"):
             meta = {"joint": int(parts[1][1:]), "index": int(parts[2])}
         elif parts[0] == "poses":
