@@ -45,6 +45,9 @@ def add_arguments(p):
                    help="family-wise significance level of the nested F-test (default 0.01)")
     p.add_argument("--max-effects", type=nonneg_int, default=6, metavar="N", help="stop after N accepted effects")
     add_outlier_arguments(p)
+    p.add_argument("--confirm", metavar="OTHER.csv",
+                   help="independent data (another day or set-up): refit only the base per station group and say, per "
+                        "finding, whether it shrinks the gap there too")
     p.add_argument("--validate", action="store_true",
                    help="run the withheld-effect validation on twin data instead of diagnosing DATA")
     p.add_argument("--seeds", type=positive_int, default=3, metavar="N", help="seeds per case for --validate (default 3)")
@@ -118,6 +121,9 @@ def run(args) -> int:
     with progress_display("robocal diagnose") as update:
         diag = diagnose(data, level=args.geometry, n_folds=args.folds, alpha=args.alpha,
                         max_effects=args.max_effects, outliers=args.outliers, loss=args.loss, progress=update)
+    if args.confirm:
+        from calib.diagnose.confirm import confirm
+        diag.confirmation = confirm(diag, _read(args.confirm, data.robot, args.noise_mm, units(args)))
     if diag.warning():
         print(f"warning: {diag.warning()}", file=sys.stderr)
     from calib.provenance import provenance
