@@ -550,14 +550,9 @@ def _setup_model(robot, setup):
     """The description's model with the bench's base pose from the set-up: what the operator knows of the geometry
     (nominal, no effects), for torques and joint axes at a step's pose."""
     from calib.model import MeasurementModel
+    from .setup import nominal_theta
     model = MeasurementModel(robot)
-    theta = model.nominal.copy()
-    for k, val in zip(("x_mm", "y_mm", "z_mm"), setup.get("base_xyz_mm", [0.0, 0.0, 0.0])):
-        theta[model.index[f"base.{k}"]] = val
-    roll, pitch, yaw = np.asarray(setup.get("base_rpy_deg", [0, 0, 0]), float) * DEG
-    for k, val in (("yaw_rad", yaw), ("pitch_rad", pitch), ("roll_rad", roll)):
-        theta[model.index[f"base.{k}"]] = val
-    return model, theta
+    return model, nominal_theta(model, setup)
 
 
 def _step_loads(st, robot, model, theta):
@@ -613,23 +608,52 @@ def _compliance(steps, points, robot, axes, est, twin, figs, n_mc, setup=None, p
         except RobocalError as exc:                 # e.g. "not determined": the other joints still count
             problems.append(f"compliance: joint {j}: {exc}")
             continue
-        tv = {}
+        raw, tv = {}, {}
         if twin is not None:
             for e in twin.scenario.effects:
                 if isinstance(e, JointCompliance) and e.joint == j:
                     c1, c2, tb, h = e.values
-                    tv = {"K1_Nm_per_rad": 1 / c1, "K2_Nm_per_rad": 1 / c2, "breakpoint_Nm": tb, "offset_rad": h}
+                    raw = {"K1_Nm_per_rad": 1 / c1, "K2_Nm_per_rad": 1 / c2, "breakpoint_Nm": tb, "offset_rad": h}
+                    tv = _compliance_truth(e, j, T, sign, unload, dcov, raw)
         K = res["K1_Nm_per_rad"]
         if not (np.isfinite(K.value) and np.isfinite(K.error) and K.value > 0 and K.error < K.value):
             problems.append(f"compliance: joint {j}: not determined: K1 = {K.value:.4g} +- {K.error:.2g} N m/rad "
                             f"(torque range {applied:.3g} N m, deflection sigma {np.nanmean(sig):.2g} rad)")
             continue
-        est.add_set(f"compliance.j{j}.", res, tv, only=("K1_Nm_per_rad", "K2_Nm_per_rad", "breakpoint_Nm",
-                                                         "offset_rad"))
+        for e in res.estimates():
+            if e.name not in ("K1_Nm_per_rad", "K2_Nm_per_rad", "breakpoint_Nm", "offset_rad"):
+                continue
+            t, r = tv.get(e.name), raw.get(e.name)
+            extra = {}
+            if t is not None and r is not None and abs(t - r) > 0.1 * e.error:
+                extra = {"truth_raw": float(r), "note": "truth as this fit would give it from the twin's noise-free "
+                                                        "deflections at the same torques (the slopes the data resolve)"}
+            est.add(f"compliance.j{j}.{e.name}", e.value, e.error, e.unit, truth_value=t, **extra)
         fits[j] = res
         figs["compliance"][j] = {"torque_nm": T.tolist(), "deflection_deg": (defl / DEG).tolist(),
                                  "unloading": unload.tolist(), "fit": {k: float(res[k].value) for k in res.names}}
     return fits
+
+
+def _compliance_truth(effect, j, T, sign, unload, dcov, raw: dict) -> dict:
+    """The twin's stiffness in the estimator's terms: the same fit on the deflections the twin's compliance effect
+    makes at the same torques, without noise.  Why: when the data cannot place the breakpoint the fit reports one
+    slope over every load, and the twin's two slopes are then not what it estimates (as ``_gauge_truth`` for the
+    pose set)."""
+    from calib.effects import Loads, PoseContext
+    from calib.estimators.compliance import two_slope_fit
+    n = max(effect.joint, j)
+    tau = np.zeros((len(T), n))
+    tau[:, j - 1] = T
+    ctx_dir = np.zeros((len(T), n))
+    ctx_dir[:, j - 1] = np.where(unload, -1.0, 1.0)
+    ctx = PoseContext(len(T), n, load_direction=ctx_dir)
+    d, _ = effect.joint_delta(np.zeros((len(T), n)), ctx, Loads(tau, np.zeros((len(T), n, 3))), effect.values)
+    try:
+        clean = two_slope_fit(sign * T, sign * d[:, j - 1], unload, dcov, n_mc=0)
+    except RobocalError:
+        return raw
+    return {**raw, **{e.name: float(e.value) for e in clean.estimates() if e.name in raw}}
 
 
 def _link(steps, setup, est, twin, figs, n_mc, robot=None):
