@@ -298,7 +298,36 @@ def _sweeps(steps, points, robot, setup, est, truth, figs, n_mc):
     nominal = dict(zip(kin.names, kin.nominal))
     figs["dh"] = [{"name": n, "value": float(dh[n].value), "error": float(dh[n].error),
                    "nominal": float(nominal.get(n, np.nan)), "truth": tv.get(n)} for n in dh.names]
+    _misalignment(axes, kin, p, q0, robot, est, truth, figs, n_mc)
     return axes
+
+
+def _misalignment(axes, kin, p_design, q0, robot, est, truth, figs, n_mc):
+    """Fig 5.10's misalignment rows (eqs 4.3.10-4.3.13): each measured axis against its design direction at the
+    reference pose, with errors from the axes' covariances; truth from the twin's own frames at that pose."""
+    from calib.estimators.misalignment import ROW, misalignment_table
+    n = robot.n
+    design = kin.forward(q0[None], p_design)
+    zd = np.array([design.frame_R[0, j][:, 2] for j in range(n)])
+    xf = np.array([design.frame_R[0, j + 1][:, 0] for j in range(n)])
+    N = np.array([axes[j + 1].value[3:6] for j in range(n)])
+    U = np.zeros((3 * n, 3 * n))
+    for j in range(n):
+        U[3 * j:3 * j + 3, 3 * j:3 * j + 3] = axes[j + 1].cov[3:6, 3:6]
+    res = misalignment_table(N, U, zd, xf, n_mc=n_mc)
+    tv = {}
+    if truth is not None:
+        from calib.estimators.dh import misalignments
+        pt = np.array([truth.get(nm, v) for nm, v in zip(kin.names, p_design)])
+        tr = kin.forward(q0[None], pt)
+        zt = np.array([tr.frame_R[0, j][:, 2] for j in range(n)])
+        full = [f"j{k + 1}.{r}" for k in range(n) for r in ROW]
+        tv = {k: v for k, v in zip(full, misalignments(zt, zd, xf).ravel()) if k in res.names}
+    est.add_set("misalign.", res, tv)
+    figs["misalignment"] = [{"joint": j + 1, **{r: float(res[f"j{j + 1}.{r}"].value) / DEG for r in
+                                                ("dtheta_x_rad", "dtheta_y_rad", "dtheta_z_rad")},
+                             "error_deg": float(max(res[f"j{j + 1}.dtheta_{c}_rad"].error for c in "xyz")) / DEG}
+                            for j in range(n)]
 
 
 def _reference_pose(sweep_steps, setup) -> np.ndarray:
