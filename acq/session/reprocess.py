@@ -298,7 +298,10 @@ def _sweeps(steps, points, robot, setup, est, truth, figs, n_mc):
     nominal = dict(zip(kin.names, kin.nominal))
     figs["dh"] = [{"name": n, "value": float(dh[n].value), "error": float(dh[n].error),
                    "nominal": float(nominal.get(n, np.nan)), "truth": tv.get(n)} for n in dh.names]
-    _misalignment(axes, kin, p, q0, robot, est, truth, figs, n_mc)
+    try:
+        _misalignment(axes, kin, p, q0, robot, est, truth, figs, n_mc)
+    except (RobocalError, KeyError, ValueError) as exc:             # the axes and DH stand without it
+        figs.setdefault("problems", []).append(f"misalignment: {exc}")
     return axes
 
 
@@ -324,10 +327,10 @@ def _misalignment(axes, kin, p_design, q0, robot, est, truth, figs, n_mc):
         full = [f"j{k + 1}.{r}" for k in range(n) for r in ROW]
         tv = {k: v for k, v in zip(full, misalignments(zt, zd, xf).ravel()) if k in res.names}
     est.add_set("misalign.", res, tv)
-    figs["misalignment"] = [{"joint": j + 1, **{r: float(res[f"j{j + 1}.{r}"].value) / DEG for r in
-                                                ("dtheta_x_rad", "dtheta_y_rad", "dtheta_z_rad")},
-                             "error_deg": float(max(res[f"j{j + 1}.dtheta_{c}_rad"].error for c in "xyz")) / DEG}
-                            for j in range(n)]
+    figs["misalignment"] = [{"joint": j + 1, **{r.replace("_rad", "_deg"): float(res[f"j{j + 1}.{r}"].value) / DEG
+                                                for r in ROW if f"j{j + 1}.{r}" in res.names},
+                             "error_deg": float(max(res[k].error for k in res.names if k.startswith(f"j{j + 1}.")))
+                             / DEG} for j in range(n)]
 
 
 def _reference_pose(sweep_steps, setup) -> np.ndarray:
