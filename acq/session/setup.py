@@ -32,7 +32,7 @@ def standard_setup() -> dict:
         "min_focus_mm": 900.0,
         "tool_target_mm": [50.0, 0.0, 100.0],
         "sweep_radius_mm": 600.0,
-        "extended_tool": {"A1_mm": [0.0, 0.0, 100.0], "A2_mm": [200.0, 0.0, 300.0]},
+        "extended_tool": {"A1_mm": [0.0, 0.0, 100.0], "A2_mm": [500.0, 0.0, 600.0]},      # 707 mm apart
         "far_target_mm": [-1000.0, 3000.0, 300.0],        # a mark on the wall left of the robot, 3-4 m away
         "ruler": {"marks_mm": [0.0, 930.0, 1860.0],
                   "placements": [{"where": "1.2 m in front, left", "C_mm": [-300.0, 1200.0, 0.0], "dir": [1, 0, 0]},
@@ -111,7 +111,7 @@ def predictor(robot, setup: dict, tolerances: dict | None = None):
         for t in step.targets:
             if t.tool_mm is not None:
                 ev = m.evaluate(np.asarray(step.pose_deg)[None] * DEG, theta=th, jacobian=True,
-                                tool_mm=np.asarray(t.tool_mm))
+                                tool_mm=np.asarray(t.tool_mm), link=t.link)
                 J = ev.jacobian[0][:, : m.n_geometric] * sd[None, :]
                 out[t.name] = (ev.point_mm[0], float(np.sqrt(np.sum(J * J))))
         return out
