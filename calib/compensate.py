@@ -41,7 +41,8 @@ def unit_of(name: str) -> str:
 
 
 def robot_from_theta(model: MeasurementModel, theta: np.ndarray) -> Robot:
-    """The robot description with the geometric part of ``theta`` written into it."""
+    """The robot description with the geometric part of ``theta`` written into it (every target's tool point)."""
+    from .targets import identified_tool_points
     kin = model.kin
     r = model.robot
     g = theta[: kin.P]
@@ -51,11 +52,10 @@ def robot_from_theta(model: MeasurementModel, theta: np.ndarray) -> Robot:
 
     base = [g[kin.index[f"base.{k}"]] for k in ("x_mm", "y_mm", "z_mm")]
     rpy = [g[kin.index["base.roll_rad"]], g[kin.index["base.pitch_rad"]], g[kin.index["base.yaw_rad"]]]
-    tool = np.array([g[kin.index[f"tool.{k}"]] for k in ("x_mm", "y_mm", "z_mm")])
     return replace(r, a_mm=per_joint("a_mm"), d_mm=per_joint("d_mm"), alpha_rad=per_joint("alpha_rad"),
                    theta_offset_rad=per_joint("theta_offset_rad"), beta_rad=per_joint("beta_rad"),
                    base_xyz_mm=np.array(base), base_rpy_rad=np.array(rpy),
-                   tool_points_mm={next(iter(r.tool_points_mm)) if len(r.tool_points_mm) == 1 else "P": tool},
+                   tool_points_mm=identified_tool_points(model, theta),
                    name=f"{r.name} (identified)")
 
 
@@ -78,7 +78,7 @@ def model_document(model: MeasurementModel, ident: Identification, truth: dict[s
         "parameters": params,
         "effects": [effect_spec(e) for e in model.effects],
         "covariance": {"names": free, "matrix": ident.cov[np.ix_(idx, idx)].tolist()},
-        "identifiability": ident.identifiability.report(),
+        "identifiability": ident.identifiability.report(model.robot.description_joint_names),
         "residual_rms": ident.residual_rms,
         "reduced_chi2": ident.reduced_chi2,
         "outliers": ident.outliers,

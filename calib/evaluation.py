@@ -18,7 +18,27 @@ from scipy.spatial.transform import Rotation
 
 from .errors import RobocalError
 from .model import MeasurementModel
+from .effects.target_offset import TargetOffset
 from .posecsv import PoseTable
+from .targets import TargetContext, order_targets, reference_name, target_effects, target_index
+
+
+def with_polar_points(table: PoseTable, noise=None) -> PoseTable:
+    """A table whose polar readings (hz_deg, v_deg, dist_mm) are turned into points with their covariance
+    (:mod:`calib.polar`) when it has no x, y, z; the table itself otherwise."""
+    from .polar import PolarNoise, polar_points
+    if table.points_mm is None and table.polar is not None:
+        table.points_mm, table.cov_mm2 = polar_points(table.polar, noise or PolarNoise())
+    return table
+
+
+def point_covariance(table: PoseTable) -> np.ndarray | None:
+    """(N, 3, 3) covariance of the measured points: polar noise, else the sigma_*_mm columns, else None."""
+    if table.cov_mm2 is not None:
+        return table.cov_mm2
+    if table.sigma_mm is not None:
+        return np.einsum("ni,ij->nij", table.sigma_mm ** 2, np.eye(3))
+    return None
 
 
 def tool_per_row(robot, table: PoseTable) -> np.ndarray | None:
@@ -35,14 +55,30 @@ def tool_per_row(robot, table: PoseTable) -> np.ndarray | None:
     return out
 
 
-def context_of(model: MeasurementModel, table: PoseTable):
-    return model.context(table.n, direction=table.direction, payload_kg=table.payload_kg,
-                         temperature_c=table.temperature_c, time_s=table.time_s)
+def context_of(model: MeasurementModel, table: PoseTable) -> TargetContext:
+    """The pose conditions of every row, with the index of the tool point it measures."""
+    tool_per_row(model.robot, table)                          # names every target, or fails naming the line
+    return TargetContext(table.n, model.robot.n, direction=table.direction, payload_kg=table.payload_kg,
+                         temperature_c=table.temperature_c, time_s=table.time_s,
+                         target=target_index(model.robot, table.target, table.n))
 
 
 def predict_rows(model: MeasurementModel, theta: np.ndarray, table: PoseTable) -> np.ndarray:
-    """Predicted positions (N, 3) of every row's target in the model's measurement frame."""
-    return model.points(table.q_rad, context_of(model, table), theta, tool_per_row(model.robot, table))
+    """Predicted positions (N, 3) of every row's target in the model's measurement frame.
+
+    The reference target and those with an offset effect come from ``theta``; any other named target from the
+    model's tool points."""
+    ctx = context_of(model, table)
+    tool = None
+    if table.target is not None:
+        names = list(model.robot.tool_points_mm)
+        ref = names.index(reference_name(names))
+        in_theta = {ref} | {e.target for e in model.effects if isinstance(e, TargetOffset)}
+        if not set(ctx.target) <= in_theta:
+            i = model.kin.index["tool.x_mm"]
+            own = np.asarray(theta[i:i + 3], float)
+            tool = np.array([own if k in in_theta else model.robot.tool_points_mm[names[k]] for k in ctx.target])
+    return model.points(table.q_rad, ctx, theta, tool)
 
 
 @dataclass
@@ -155,15 +191,13 @@ def split_metrics(model: MeasurementModel, theta: np.ndarray, table: PoseTable) 
 
 
 def fit_rows(table: PoseTable, robot):
-    """The rows an identification fits (``fit`` rows when the data has a split) and the robot whose tool point is the
-    target those rows measure."""
+    """The rows an identification fits (``fit`` rows when the data has a split), the robot whose tool points are the
+    targets those rows measure (the reference first) and the offset effects of the other targets (fitted jointly)."""
     fit = table.subset(table.split_mask("fit")) if table.split is not None else table
     if fit.n == 0:
         raise RobocalError(f"{table.source}: no fit rows (column split)")
-    if fit.target is not None:
-        names = list(dict.fromkeys(fit.target))
-        if len(names) > 1:
-            raise RobocalError(f"{table.source}: rows measure {len(names)} targets ({', '.join(names)}); "
-                               "identify them one target at a time (filter the rows) for now")
-        robot = robot.with_tool({names[0]: robot.tool_points_mm[names[0]]})
-    return fit, robot
+    if fit.target is None:
+        return fit, robot, []
+    used = list(dict.fromkeys(table.target))
+    robot = order_targets(robot, used)
+    return fit, robot, target_effects(robot, used)

@@ -42,9 +42,14 @@ _STATION = {"x_mm": "position X", "y_mm": "position Y", "z_mm": "height", "yaw_r
             "trunnion_rad": "trunnion axis error", "index_rad": "vertical index error"}
 
 
-def describe(name: str) -> str:
-    """A parameter in words, with its code name: ``shoulder offset d1 (j2.d_mm)``."""
-    if name in THESIS_NAMES:
+def describe(name: str, joint_names: tuple[str, ...] | None = None) -> str:
+    """A parameter in words, with its code name: ``shoulder offset d1 (j2.d_mm)``; with the description's
+    ``joint_names`` (a robot that is not the thesis's Puma): ``joint 3 (elbow_joint) length a (j3.a_mm)``."""
+    head, _, tail = name.partition(".")
+    if joint_names and head.startswith("j") and head[1:].isdigit() and tail in _WHAT \
+            and int(head[1:]) <= len(joint_names):
+        return f"joint {head[1:]} ({joint_names[int(head[1:]) - 1]}) {_WHAT[tail]} ({name})"
+    if name in THESIS_NAMES and not joint_names:
         return f"{THESIS_NAMES[name]} ({name})"
     head, _, tail = name.partition(".")
     if name == "B.x_mm":
@@ -68,9 +73,9 @@ class Combination:
     ratio: float                          # singular value / largest singular value
     because: str = ""
 
-    def words(self) -> str:
+    def words(self, joint_names: tuple[str, ...] | None = None) -> str:
         items = sorted(self.coefficients.items(), key=lambda kv: -abs(kv[1]))
-        big = [describe(n) for n, c in items if abs(c) >= 0.25 * abs(items[0][1])][:5]
+        big = [describe(n, joint_names) for n, c in items if abs(c) >= 0.25 * abs(items[0][1])][:5]
         if len(big) == 1:
             text = (f"{big[0]} has no effect on the measurements" if self.ratio <= RANK_RTOL
                     else f"{big[0]} is poorly determined")
@@ -95,14 +100,14 @@ class Identifiability:
     weakest: list[Combination] = field(default_factory=list)   # the three smallest directions kept
     kept_condition: float = float("nan")
 
-    def report(self) -> list[str]:
+    def report(self, joint_names: tuple[str, ...] | None = None) -> list[str]:
         lines = [f"{len(self.names)} parameters, rank {self.rank}, condition number {self.condition:.3g} "
                  f"(column-scaled)"]
         for c in self.unidentifiable:
             what = "not identifiable" if c.ratio <= RANK_RTOL else f"not identifiable in practice (ratio {c.ratio:.1e})"
-            lines.append(f"{what}: " + c.words())
+            lines.append(f"{what}: " + c.words(joint_names))
         for c in self.weak:
-            lines.append(f"weakly identifiable (singular value ratio {c.ratio:.1e}): " + c.words())
+            lines.append(f"weakly identifiable (singular value ratio {c.ratio:.1e}): " + c.words(joint_names))
         if self.fixed:
             lines.append("held at their design values: " + ", ".join(self.fixed))
             lines.append(f"remaining {len(self.kept)} parameters: condition number {self.kept_condition:.3g}")

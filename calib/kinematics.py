@@ -41,6 +41,7 @@ class ChainPass:
     frame_t: np.ndarray        # (N, n+1, 3)
     elem_axis: np.ndarray      # (N, E, 3) world direction of each elementary motion's axis
     elem_origin: np.ndarray    # (N, E, 3) a point on that axis (the frame origin before the motion)
+    point_link: int | None = None   # frame the evaluated point is fixed in (None: the tool point, beyond frame n)
 
     @property
     def joint_axis(self) -> np.ndarray:
@@ -51,6 +52,19 @@ class ChainPass:
     def joint_origin(self) -> np.ndarray:
         """(N, n, 3) origin of frame j-1, a point on joint j's axis."""
         return self.frame_t[:, :-1, :]
+
+    def link_beam(self, j: int) -> tuple[np.ndarray, np.ndarray]:
+        """(start, end) (N, 3) each: the body of link j as a beam for bending, clamped at joint j's axis.
+
+        Frame j-1 to frame j is an offset d_j along joint j's axis then the link's length a_j across it; the beam is
+        the part across the axis (from the foot of frame j's origin on the axis) -- the part along the axis is the
+        joint's own offset -- unless the link has no length across (a_j ~ 0: then the whole offset is the body)."""
+        start, end = self.frame_t[:, j - 1], self.frame_t[:, j]
+        z = self.frame_R[:, j - 1, :, 2]
+        seg = end - start
+        perp = seg - np.einsum("nc,nc->n", seg, z)[:, None] * z
+        across = np.linalg.norm(perp, axis=-1) > 1.0
+        return np.where(across[:, None], end - perp, start), end
 
     @property
     def flange_R(self) -> np.ndarray:
@@ -95,6 +109,12 @@ class Kinematics:
         self.index = {name: i for i, name in enumerate(names)}
         self.n = n
         self.joint_elements = np.flatnonzero(self.joint >= 0)     # in joint order (one element per joint)
+        # the frame each elementary motion belongs to: base 0, link j -> j, tool n + 1.  A point fixed in frame b is
+        # moved by exactly the elements with link_of <= b.
+        self.link_of = np.zeros(self.P, int)
+        for j, first in enumerate(self.link_first_element):
+            self.link_of[first:first + len(LINK_PARAMS)] = j + 1
+        self.link_of[self.index["tool.x_mm"]:] = n + 1
 
     @property
     def P(self) -> int:
@@ -152,13 +172,36 @@ class Kinematics:
         """Tool points (N, 3) in the measurement frame."""
         return self.forward(q_rad, params).point
 
+    def check_link(self, link: int) -> int:
+        """``link`` as a frame index 0..n (0 base, j = link j); a ValueError otherwise."""
+        if int(link) != link or not 0 <= link <= self.n:
+            raise ValueError(f"frame index must be 0..{self.n}, got {link!r}")
+        return int(link)
+
+    @staticmethod
+    def point_on(fp: ChainPass, link, point_mm) -> np.ndarray:
+        """Points fixed in frames ``link`` (K,) at ``point_mm`` ((K, 3) or (N, K, 3), frame coordinates), in the
+        measurement frame (N, K, 3): ``t_j + R_j p``.  Why here: the one place a point on a link is placed."""
+        link = np.asarray(link, int)
+        R, t = fp.frame_R[:, link], fp.frame_t[:, link]                      # (N, K, 3, 3), (N, K, 3)
+        p = np.broadcast_to(np.asarray(point_mm, float), t.shape)
+        return t + np.einsum("nkij,nkj->nki", R, p)
+
     # -- Jacobians ------------------------------------------------------------------------------------------------
-    def element_jacobian(self, fp: ChainPass, point: np.ndarray | None = None) -> np.ndarray:
-        """(N, 3, E) derivative of ``point`` (default the tool point) with respect to each elementary motion."""
+    def element_jacobian(self, fp: ChainPass, point: np.ndarray | None = None, link: int | None = None) -> np.ndarray:
+        """(N, 3, E) derivative of ``point`` (default the tool point) with respect to each elementary motion.
+
+        With ``link=j`` the point is fixed in frame j: the motions beyond frame j do not move it, and the tool columns
+        hold its derivative with respect to its own coordinates in frame j (the tool point's role for such a point).
+        """
         p = fp.point if point is None else point
         J = fp.elem_axis.copy()
         rot = self.kinds >= RX
         J[:, rot] = np.cross(fp.elem_axis[:, rot], p[:, None, :] - fp.elem_origin[:, rot])
+        if link is not None:
+            J[:, self.link_of > link] = 0.0
+            tool = slice(self.index["tool.x_mm"], self.index["tool.z_mm"] + 1)
+            J[:, tool] = fp.frame_R[:, link].transpose(0, 2, 1)           # row c = d p / d p_c = column c of R_j
         return J.transpose(0, 2, 1)
 
     def jacobians(self, q_rad: np.ndarray, params: np.ndarray | None = None):

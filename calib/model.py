@@ -75,59 +75,75 @@ class MeasurementModel:
         return PoseContext(n_poses, self.robot.n, **kw)
 
     # -- loads ---------------------------------------------------------------------------------------------------
-    def loads(self, fp: ChainPass, ctx: PoseContext, derivative: bool = False) -> Loads:
-        """Torque about every joint axis (N m) and the force carried at the end of every link (N), per pose.
+    def gravity_n_per_kg(self, theta: np.ndarray | None = None) -> np.ndarray:
+        """(3,) the weight of one kilogram in the measurement frame (the description's gravity carried by the base):
+        a hung mass m pulls ``m * gravity_n_per_kg()`` at its point."""
+        geo = (self.nominal if theta is None else np.asarray(theta, float))[: self.n_geometric]
+        fp = self.kin.forward(np.zeros((1, self.robot.n)), geo)
+        return fp.frame_R[0, 0] @ self.robot.gravity_m_s2
 
-        With ``derivative``, also d(torque)/d(geometric parameter) (N, n, P_geometric): each elementary motion of the
-        chain moves rigidly what lies beyond it (the link centres of mass, the tool point and the joint axes), while
-        gravity and the external forces keep their direction.
-        """
+    def _bodies(self, fp: ChainPass, ctx: PoseContext):
+        """Every force acting on the chain, with the frame it is fixed in: the links' weights at their centres of
+        mass (frame j), the payload and tool force at the tool point (beyond frame n: n + 1), and the point forces of
+        ``ctx`` (frame ``point_force_link``).  Returns positions (N, B, 3) m, forces (N, B, 3) N, frames (B,)."""
         r = self.robot
         n = r.n
         g_world = fp.frame_R[:, 0] @ r.gravity_m_s2                                   # (N, 3)
-        com = fp.frame_t[:, 1:] + np.einsum("nkij,kj->nki", fp.frame_R[:, 1:], r.com_mm)   # (N, n, 3)
+        com = self.kin.point_on(fp, np.arange(1, n + 1), r.com_mm)                    # (N, n, 3)
         F_tool = ctx.payload_kg[:, None] * g_world + ctx.tool_force_n                 # (N, 3)
-        # bodies: the n links' centres of mass, then the tool point
-        pos = np.concatenate([com, fp.point[:, None, :]], axis=1) * 1e-3              # (N, n+1, 3) m
-        F = np.concatenate([r.mass_kg[None, :, None] * g_world[:, None, :], F_tool[:, None, :]], axis=1)
+        pos = [com, fp.point[:, None, :]]
+        F = [r.mass_kg[None, :, None] * g_world[:, None, :], F_tool[:, None, :]]
+        link = [np.arange(1, n + 1), [n + 1]]
+        if len(ctx.point_force_link):
+            pos.append(self.kin.point_on(fp, ctx.point_force_link, ctx.point_force_mm))
+            F.append(ctx.point_force_n)
+            link.append(ctx.point_force_link)
+        return np.concatenate(pos, axis=1) * 1e-3, np.concatenate(F, axis=1), np.concatenate(link).astype(int)
+
+    def loads(self, fp: ChainPass, ctx: PoseContext, derivative: bool = False) -> Loads:
+        """Torque about every joint axis (N m) and the force carried at the end of every link (N), per pose.
+
+        Joint j carries every force fixed in frame j or beyond (``sum (p_i - o_j) x F_i . z_j``); the end of link j
+        carries those fixed beyond frame j.  With ``derivative``, also d(torque)/d(geometric parameter)
+        (N, n, P_geometric): each elementary motion of the chain moves rigidly what lies beyond it (the points where
+        the forces act and the joint axes), while gravity and the external forces keep their direction.
+        """
+        n = self.robot.n
+        pos, F, link = self._bodies(fp, ctx)
+        carried = (link[None, :] >= np.arange(1, n + 1)[:, None]).astype(float)     # (n, B) joint j carries body b
         z, o = fp.joint_axis, fp.joint_origin * 1e-3                                  # (N, n, 3)
-        # moment about each joint origin of every body at or beyond it: sum_{i >= j} (pos_i - o_j) x F_i
-        mom = np.cross(pos, F)                                                        # (N, n+1, 3)
-        tail_mom = np.cumsum(mom[:, ::-1], axis=1)[:, ::-1][:, :n]                    # sum over bodies i >= j
-        tail_F = np.cumsum(F[:, ::-1], axis=1)[:, ::-1][:, :n]
+        mom = np.cross(pos, F)                                                        # (N, B, 3)
+        tail_mom = np.einsum("jb,nbc->njc", carried, mom)
+        tail_F = np.einsum("jb,nbc->njc", carried, F)
         M = tail_mom - np.cross(o, tail_F)                                            # (N, n, 3)
         tau = np.einsum("njc,njc->nj", M, z) + ctx.joint_torque_nm
-        tip = np.concatenate([tail_F[:, 1:], F[:, -1:]], axis=1)                      # force beyond link j's end
-        loads = Loads(joint_torque_nm=tau, tip_force_n=tip)
+        beyond = (link[None, :] > np.arange(1, n + 1)[:, None]).astype(float)
+        tip = np.einsum("jb,nbc->njc", beyond, F)                                     # force beyond link j's end
+        loads = Loads(joint_torque_nm=tau, tip_force_n=tip, point_force_n=F[:, n + 1:],
+                      point_at_mm=pos[:, n + 1:] * 1e3, point_link=link[n + 1:])
         if derivative:
-            loads.dtau_dgeo = self._torque_derivative(fp, pos, F, z, o, M, tail_F)
+            loads.dtau_dgeo = self._torque_derivative(fp, pos, F, link, carried, z, o, M, tail_F)
         return loads
 
-    def _torque_derivative(self, fp, pos, F, z, o, M, tail_F):
+    def _torque_derivative(self, fp, pos, F, link, carried, z, o, M, tail_F):
         kin = self.kin
         n = self.robot.n
-        # which link each elementary motion belongs to: base 0, link k -> k, tool n + 1
-        link_of = np.zeros(kin.P, int)
-        for j, first in enumerate(kin.link_first_element):
-            link_of[first:first + 5] = j + 1
-        link_of[kin.index["tool.x_mm"]:] = n + 1
+        link_of = kin.link_of                                                         # base 0, link k, tool n + 1
         rot = kin.kinds >= 3
         ax = fp.elem_axis                                                             # (N, E, 3)
         oe = fp.elem_origin * 1e-3
-        body_link = np.arange(1, n + 2)                                               # link i's COM on frame i
-        body_link[-1] = n + 1                                                         # tool point beyond all
-        distal_b = (link_of[:, None] <= body_link[None, :]).astype(float)             # (E, n+1)
+        distal_b = (link_of[:, None] <= link[None, :]).astype(float)                  # (E, B) element e moves body b
         distal_f = (link_of[:, None] <= np.arange(n)[None, :]).astype(float)          # frame j-1 beyond e
         def motion(p):                                                                # (N, E, K, 3) per unit motion
             rel = p[:, None, :, :] - oe[:, :, None, :]
             d = np.cross(ax[:, :, None, :], rel)
             return np.where(rot[None, :, None, None], d, ax[:, :, None, :] * 1e-3)
-        dpos = motion(pos) * distal_b[None, :, :, None]                               # (N, E, n+1, 3)
+        dpos = motion(pos) * distal_b[None, :, :, None]                               # (N, E, B, 3)
         do = motion(o) * distal_f[None, :, :, None]                                   # (N, E, n, 3)
         dz = np.where(rot[None, :, None, None], np.cross(ax[:, :, None, :], z[:, None, :, :]), 0.0)
         dz = dz * distal_f[None, :, :, None]
         dmom = np.cross(dpos, F[:, None, :, :])
-        tail_dmom = np.cumsum(dmom[:, :, ::-1], axis=2)[:, :, ::-1][:, :, :n]
+        tail_dmom = np.einsum("jb,nebc->nejc", carried, dmom)
         dM = tail_dmom - np.cross(do, tail_F[:, None, :, :])
         dtau = np.einsum("nejc,njc->nje", dz, M) + np.einsum("nejc,njc->nje", dM, z)
         dtau[:, :, link_of == 0] = 0.0      # gravity is given in frame 0: the base carries it along
@@ -135,17 +151,23 @@ class MeasurementModel:
 
     # -- evaluation ----------------------------------------------------------------------------------------------
     def evaluate(self, q_rad, ctx: PoseContext | None = None, theta: np.ndarray | None = None,
-                 jacobian: bool = False, tool_mm=None) -> Evaluation:
+                 jacobian: bool = False, tool_mm=None, link: int | None = None) -> Evaluation:
         """Predict tool points for joint readings ``q_rad`` (N, n); optionally the Jacobian w.r.t. ``theta``.
 
         ``tool_mm`` overrides the tool point: (3,) for all poses or (N, 3) per pose (targets A1/A2, ruler points).
+        With ``link=j`` (0..n), ``tool_mm`` is a point fixed in frame j instead: it moves with link j, the joints
+        beyond j do not move it, and the tool columns of the Jacobian are its derivative w.r.t. its own coordinates.
         """
         q = np.atleast_2d(np.asarray(q_rad, float))
         N, n = q.shape
         ctx = ctx or self.context(N)
         theta = self.nominal if theta is None else np.asarray(theta, float)
         geo = theta[: self.n_geometric]
-        if tool_mm is not None:
+        if link is not None:
+            link = self.kin.check_link(link)
+            if tool_mm is None:
+                raise ValueError("evaluate(link=...) needs tool_mm, the point in that frame")
+        elif tool_mm is not None:
             geo = self.kin.params_with_tool(tool_mm, geo)
         vals = [theta[s] for s in self.effect_slices]
         geo_pose = np.broadcast_to(geo, (N, self.n_geometric)).copy()
@@ -167,6 +189,9 @@ class MeasurementModel:
                 th += d
                 joint_grads.append(g)
         fp = self.kin.forward(th, geo_pose)
+        if link is not None:
+            fp.point_link = link
+            fp.point = self.kin.point_on(fp, [link], np.reshape(tool_mm, (-1, 1, 3)))[:, 0]
         point = fp.point.copy()
         point_grads = []
         for e, v in zip(self.effects, vals):
@@ -176,7 +201,7 @@ class MeasurementModel:
                 point_grads.append(g)
         if not jacobian:
             return Evaluation(point, th, None, None, loads, fp)
-        Je = self.kin.element_jacobian(fp)                      # (N, 3, Pg)
+        Je = self.kin.element_jacobian(fp, link=link)           # (N, 3, Pg)
         J = np.zeros((N, 3, self.P))
         J[:, :, : self.n_geometric] = Je
         Jq = Je[:, :, self.kin.joint_elements]
@@ -196,8 +221,8 @@ class MeasurementModel:
                 J[:, :, s] = point_grads[pi]; pi += 1
         return Evaluation(point, th, J, Jq, loads, fp)
 
-    def points(self, q_rad, ctx: PoseContext | None = None, theta=None, tool_mm=None) -> np.ndarray:
-        return self.evaluate(q_rad, ctx, theta, False, tool_mm).point_mm
+    def points(self, q_rad, ctx: PoseContext | None = None, theta=None, tool_mm=None, link=None) -> np.ndarray:
+        return self.evaluate(q_rad, ctx, theta, False, tool_mm, link).point_mm
 
     # -- instruments ---------------------------------------------------------------------------------------------
     def readings(self, q_rad, stations: list[Station], ctx: PoseContext | None = None, theta=None,

@@ -79,6 +79,7 @@ class PoseTable:
     orientation_rad: np.ndarray | None = None     # (N, 3) roll, pitch, yaw
     line: list[int] = field(default_factory=list)  # source line of each row
     columns: dict[str, list[str]] = field(default_factory=dict)   # other columns, as text (grouping)
+    cov_mm2: np.ndarray | None = None         # (N, 3, 3) covariance of points_mm when it is not sigma_mm's
 
     @property
     def n(self) -> int:
@@ -104,7 +105,7 @@ class PoseTable:
             return [v[i] for i in idx] if v else v
         out = PoseTable(q_rad=self.q_rad[idx], source=self.source, ignored_columns=self.ignored_columns)
         for name in ("points_mm", "pose_id", "time_s", "payload_kg", "temperature_c", "direction", "sigma_mm",
-                     "readings", "target", "split", "station", "polar", "orientation_rad", "line"):
+                     "readings", "target", "split", "station", "polar", "orientation_rad", "line", "cov_mm2"):
             setattr(out, name, pick(getattr(self, name)))
         out.columns = {k: pick(v) for k, v in self.columns.items()}
         return out

@@ -255,13 +255,18 @@ def sweep_targets(model, theta: np.ndarray, q_rad: np.ndarray, radius_mm: dict[i
 
 
 # -- the session set-up file ---------------------------------------------------------------------------------------
-def _ruler_into(v: dict, setup: dict, placements: int = 3) -> None:
-    """The designed ruler (R, r1 at X1, Y1) and baseline L; further placements step back and turn (thesis 4.2)."""
+def _ruler_into(v: dict, setup: dict, placements: int = 3, step_mm: float = 30.0) -> None:
+    """The designed ruler (R, r1 at X1, Y1) and baseline L, as a series that varies R as the thesis does (Fig 5.4:
+    R from 1792 to 1860 mm): mark E at ``placements`` distances ``step_mm`` apart ending at the designed R, one of them
+    sighted per placement with C, D and the last; each placement steps back and turns."""
     setup.setdefault("stations", {})["L_mm"] = round(v["L_mm"], 0)
-    X1, Y1 = v["X1_mm"], v["Y1_mm"]
-    setup["ruler"] = {"marks_mm": [0.0, round(v["r1_mm"], 1), round(v["R_mm"], 1)], "placements": [
-        {"where": f"designed placement {k + 1}: C at X {X1:.0f}, Y {Y1 + 300.0 * k:.0f} mm",
-         "C_mm": [round(X1, 1), round(Y1 + 300.0 * k, 1), 0.0], "dir": [1.0, round(0.1 * k, 3), 0.0]}
+    X1, Y1, R = v["X1_mm"], v["Y1_mm"], v["R_mm"]
+    es = [round(R - step_mm * (placements - 1 - i), 1) for i in range(placements)]
+    last = f"E{placements}"
+    setup["ruler"] = {"marks_mm": [0.0, round(v["r1_mm"], 1), *es], "placements": [
+        {"where": f"designed placement {k + 1}: C at X {X1:.0f}, Y {Y1 + 300.0 * k:.0f} mm, R {es[k]:.0f} mm",
+         "C_mm": [round(X1, 1), round(Y1 + 300.0 * k, 1), 0.0], "dir": [1.0, round(0.1 * k, 3), 0.0],
+         "marks": list(dict.fromkeys(["C", "D", f"E{k + 1}", last]))}
         for k in range(placements)]}
 
 

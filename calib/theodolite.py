@@ -35,6 +35,42 @@ def _wrap(a):
     return np.angle(np.exp(1j * np.asarray(a)))
 
 
+def station_rotation(yaw_rad, tilt_x_rad=0.0, tilt_y_rad=0.0) -> np.ndarray:
+    """World <- instrument rotation ``Ry(tilt_y) Rx(tilt_x) Rz(yaw)``, batched over the angles' shapes -> (..., 3, 3).
+
+    The one yaw convention: ``yaw`` is the world direction (counter-clockwise from +X) of the circle's zero."""
+    yaw, tx, ty = np.broadcast_arrays(*(np.asarray(a, float) for a in (yaw_rad, tilt_x_rad, tilt_y_rad)))
+    cz, sz, cx, sx, cy, sy = np.cos(yaw), np.sin(yaw), np.cos(tx), np.sin(tx), np.cos(ty), np.sin(ty)
+    o, z = np.ones_like(yaw), np.zeros_like(yaw)
+    Rz = np.stack([np.stack([cz, -sz, z], -1), np.stack([sz, cz, z], -1), np.stack([z, z, o], -1)], -2)
+    Rx = np.stack([np.stack([o, z, z], -1), np.stack([z, cx, -sx], -1), np.stack([z, sx, cx], -1)], -2)
+    Ry = np.stack([np.stack([cy, z, sy], -1), np.stack([z, o, z], -1), np.stack([-sy, z, cy], -1)], -2)
+    return Ry @ Rx @ Rz
+
+
+def _readings_local(d, collimation_rad, trunnion_rad, index_rad, face):
+    """(Hz, V) of instrument-frame vectors ``d (..., 3)``: the instrument errors and the face, see the module."""
+    dx, dy, dz = d[..., 0], d[..., 1], d[..., 2]
+    hz0 = np.arctan2(-dy, dx)
+    v0 = np.arctan2(np.hypot(dx, dy), dz)
+    sv = np.sin(v0)
+    corr = collimation_rad / sv + trunnion_rad * np.cos(v0) / sv
+    face2 = np.asarray(face) == 2
+    hz = np.where(face2, hz0 + np.pi - corr, hz0 + corr)
+    v = np.where(face2, TWO_PI - v0, v0) + index_rad
+    return np.mod(hz, TWO_PI), v
+
+
+def observe_params(params: np.ndarray, points_mm: np.ndarray, face=1):
+    """:meth:`Station.observe` vectorised over the station parameters too: ``params (..., 9)`` in the order of
+    :attr:`Station.PARAMS`, points ``(..., 3)``, face (...) -> ``(Hz, V)``.  Why: a fit of the stations (the ruler)
+    needs the readings for a batch of parameter vectors, and must use the same instrument model as everything else."""
+    p = np.asarray(params, float)
+    R = station_rotation(p[..., 3], p[..., 4], p[..., 5])
+    d = np.einsum("...i,...ij->...j", np.asarray(points_mm, float) - p[..., :3], R)
+    return _readings_local(d, p[..., 6], p[..., 7], p[..., 8], face)
+
+
 @dataclass(frozen=True)
 class Station:
     """One theodolite: pose, levelling and instrument errors.  Units mm and rad."""
@@ -62,13 +98,7 @@ class Station:
     @property
     def rotation(self) -> np.ndarray:
         """World <- instrument rotation: Ry(tilt_y) Rx(tilt_x) Rz(yaw)."""
-        cz, sz = np.cos(self.yaw_rad), np.sin(self.yaw_rad)
-        cx, sx = np.cos(self.tilt_x_rad), np.sin(self.tilt_x_rad)
-        cy, sy = np.cos(self.tilt_y_rad), np.sin(self.tilt_y_rad)
-        Rz = np.array([[cz, -sz, 0], [sz, cz, 0], [0, 0, 1]])
-        Rx = np.array([[1, 0, 0], [0, cx, -sx], [0, sx, cx]])
-        Ry = np.array([[cy, 0, sy], [0, 1, 0], [-sy, 0, cy]])
-        return Ry @ Rx @ Rz
+        return station_rotation(self.yaw_rad, self.tilt_x_rad, self.tilt_y_rad)
 
     def params(self) -> np.ndarray:
         return np.array([getattr(self, k) for k in self.PARAMS])
@@ -94,16 +124,12 @@ class Station:
             i = int(np.flatnonzero(rho < 1e-9)[0])
             raise GeometryError(f"station {self.name}: point {i} is at the station or on its vertical axis; "
                                 f"no horizontal direction")
-        hz0 = np.arctan2(-dy, dx)
-        v0 = np.arctan2(rho, dz)
-        sv = np.sin(v0)
-        corr = self.collimation_rad / sv + self.trunnion_rad * np.cos(v0) / sv
-        face2 = np.asarray(face) == 2
-        hz = np.where(face2, hz0 + np.pi - corr, hz0 + corr)
-        v = np.where(face2, TWO_PI - v0, v0) + self.index_rad
-        hz = np.mod(hz, TWO_PI)
+        hz, v = _readings_local(d, self.collimation_rad, self.trunnion_rad, self.index_rad, face)
         if not with_jacobian:
             return hz, v
+        v0 = np.arctan2(rho, dz)
+        sv = np.sin(v0)
+        face2 = np.asarray(face) == 2
         r2 = rho2 + dz * dz
         dhz_dd = np.stack([dy / rho2, -dx / rho2, np.zeros_like(dx)], -1)
         dv_dd = np.stack([dz * dx / (rho * r2), dz * dy / (rho * r2), -rho / r2], -1)
@@ -126,6 +152,15 @@ class Station:
         hz0 = np.where(face2, hz - np.pi + corr, hz - corr)
         d = np.stack([np.sin(v0) * np.cos(hz0), -np.sin(v0) * np.sin(hz0), np.cos(v0)], -1)
         return d @ self.rotation.T
+
+
+def face_mean(hz: np.ndarray, v: np.ndarray, face: np.ndarray) -> tuple[float, float]:
+    """Face-I-equivalent mean of readings (face II reduced: Hz - 180 deg, 360 deg - V): removes c, i and k."""
+    hz, v, face = (np.asarray(a, float) for a in (hz, v, face))
+    hz1 = np.where(face == 2, hz - np.pi, hz)
+    v1 = np.where(face == 2, 2 * np.pi - v, v)
+    ref = hz1[0]
+    return float(np.mod(ref + np.mean(_wrap(hz1 - ref)), 2 * np.pi)), float(np.mean(v1))
 
 
 @dataclass
@@ -248,8 +283,15 @@ def thesis_point(alpha_p, beta_p, phi, L_mm, gamma1_rad, gamma2_rad) -> np.ndarr
         a_i, b_i = np.degrees(np.atleast_1d(al)[i]), np.degrees(np.atleast_1d(be)[i])
         raise GeometryError(f"sightings of point {i} do not intersect in front of both stations "
                             f"(alpha {a_i:.4f} deg, beta {b_i:.4f} deg)")
-    # the sine form of eq 4.3.1: identical to L tan b / (tan a + tan b), but finite at 90 deg
+    return thesis_xyz(al, be, phi, L_mm)
+
+
+def thesis_xyz(alpha_rad, beta_rad, phi_rad, L_mm) -> np.ndarray:
+    """Eq 4.3.1 itself, unchecked and vectorised (the one copy): interior angles alpha, beta, A's elevation phi and
+    the baseline L -> ``(..., 3)`` mm.  The sine form: identical to ``L tan b / (tan a + tan b)``, finite at 90 deg."""
+    al, be = np.asarray(alpha_rad, float), np.asarray(beta_rad, float)
+    s = np.sin(al + be)
     X = L_mm * np.sin(be) * np.cos(al) / s
     Y = L_mm * np.sin(be) * np.sin(al) / s
-    Z = np.hypot(X, Y) * np.tan(phi)
+    Z = np.hypot(X, Y) * np.tan(phi_rad)
     return np.stack([X, Y, Z], -1)

@@ -81,7 +81,10 @@ def test_library_skips_candidates_whose_driver_is_missing():
     assert any(s.startswith("thermal_drift") for s in lib.skipped)
     full = build_library(d)
     assert {c.kind for c in full.candidates} == {"transmission_error", "joint_compliance", "backlash",
-                                                 "cross_coupling", "link_compliance", "thermal_drift"}
+                                                 "cross_coupling", "link_compliance", "thermal_drift", "joint_scale",
+                                                 "axis_tilt", "instrument_drift", "tool_flex"}
+    # the Puma's parallel pair (joints 2, 3) already carries the Hayati term: nothing to add
+    assert any(s.startswith("parallel_axes: no pair") for s in full.skipped)
     # joint compliance of the vertical waist joint can not be driven by gravity: no signal, held back
     assert any(c.kind == "joint_compliance" and c.joint == 1 for c in full.candidates)
 

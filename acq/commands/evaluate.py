@@ -25,12 +25,12 @@ def _fmt(v) -> str:
 
 def run(args) -> int:
     from calib.compensate import load_model
-    from calib.evaluation import evaluate_table
+    from calib.evaluation import with_polar_points, evaluate_table
     from calib.posecsv import read_pose_csv
 
     im = load_model(args.model)
     robot = im.model.robot
-    table = read_pose_csv(args.data, robot.n, robot.prismatic, robot=robot, **units(args))
+    table = with_polar_points(read_pose_csv(args.data, robot.n, robot.prismatic, robot=robot, **units(args)))
     doc = evaluate_table(im.model, im.theta, table, with_locate=args.locate)
     if args.json:
         print(json.dumps(doc, indent=1))

@@ -36,7 +36,8 @@ def run(args) -> int:
         if not math.isfinite(v):
             raise RobocalError(f"fk: joint {i} reading {text!r} is not finite")
         q.append(v)
-    robot.check_readings(np.array(q), "fk")
+    theta = robot.joints_from_readings(np.array([q]) * robot.reading_edge_scale)
+    robot.check_readings(theta / robot.edge_scale, "fk")
     kin = Kinematics(robot)
     # the description's own base frame (frame 0 of a DH description, a URDF's base link), whatever the base pose in
     # the measurement frame
@@ -44,7 +45,6 @@ def run(args) -> int:
     F0 = robot.frame0_in_base
     base = [*F0[:3, 3], *rpy_from_matrix(F0[:3, :3])[::-1]]
     params[[kin.index[f"base.{k}"] for k in ("x_mm", "y_mm", "z_mm", "yaw_rad", "pitch_rad", "roll_rad")]] = base
-    theta = robot.joints_from_readings(np.array([q]) * robot.reading_edge_scale)
     x, y, z = kin.points(theta, params)[0]
     if args.json:
         print(json.dumps({"x_mm": round(float(x), 6), "y_mm": round(float(y), 6), "z_mm": round(float(z), 6)}))

@@ -3,7 +3,6 @@ from __future__ import annotations
 
 import json
 
-import numpy as np
 
 from calib.errors import RobocalError
 from acq.argtypes import add_force_argument, effect_spec, output_file, positive_float
@@ -32,6 +31,9 @@ def add_arguments(p):
     add_outlier_arguments(p)
     add_unit_arguments(p)
     add_force_argument(p)
+    p.add_argument("--polar-noise", metavar="ARCSEC,MM[,PPM]",
+                   help="noise of hz_deg/v_deg/dist_mm rows (laser tracker, total station): angle 1-sigma in arc "
+                        "seconds, distance 1-sigma in mm, plus ppm of the distance (default 1,0.01,1)")
     p.add_argument("--free", action="append", default=[], metavar="PATTERN",
                    help="estimate only the parameters matching these shell patterns (comma-separated or repeated; "
                         "joint names allowed: 'base.*,tool.*,arm_*_joint.a_mm'); the rest keep their design values")
@@ -43,7 +45,8 @@ def add_arguments(p):
 def run(args) -> int:
     from calib.compensate import model_document, save_model, unit_of
     from calib.effects import THESIS_RUNNING_ERRORS, effect_from_text
-    from calib.evaluation import fit_rows, split_metrics
+    from calib.evaluation import context_of, fit_rows, point_covariance, split_metrics, with_polar_points
+    from calib.polar import PolarNoise
     from calib.identify import PointObservations, default_free, identify
     from calib.priors import free_from_patterns, priors_for
     from calib.model import MeasurementModel
@@ -54,19 +57,17 @@ def run(args) -> int:
 
     robot = load_robot(args.robot)
     full = read_pose_csv(args.data, robot.n, robot.prismatic, robot=robot, **units(args))
-    table, robot = fit_rows(full, robot)
+    full = with_polar_points(full, PolarNoise.from_text(args.polar_noise) if args.polar_noise else None)
+    table, robot, target_offsets = fit_rows(full, robot)
     if table.points_mm is None:
         raise RobocalError(f"{args.data}: columns x, y, z (measured tool points, mm) are needed to identify")
     if not args.noise_mm > 0:
         raise RobocalError(f"identify: --noise-mm must be positive, got {args.noise_mm}")
     specs = list(args.effect) + (list(THESIS_RUNNING_ERRORS) if args.thesis_effects else [])
     effects = [effect_from_text(s, robot.n) for s in specs]
-    model = MeasurementModel(robot, effects)
-    ctx = model.context(table.n, direction=table.direction, payload_kg=table.payload_kg,
-                        temperature_c=table.temperature_c, time_s=table.time_s)
-    cov = None
-    if table.sigma_mm is not None:
-        cov = np.einsum("ni,ij->nij", table.sigma_mm ** 2, np.eye(3))
+    model = MeasurementModel(robot, effects + target_offsets)
+    ctx = context_of(model, table)
+    cov = point_covariance(table)
     obs = PointObservations(table.q_rad, table.points_mm, cov, sigma_mm=args.noise_mm, ctx=ctx)
     free = free_from_patterns(model, args.free) if args.free else None
     priors = priors_for(model, args.prior, free or default_free(model))
@@ -97,7 +98,7 @@ def run(args) -> int:
     if held_out:
         print(f"  data's own split: {held_out['n_fit']} fit rows (RMS {held_out['fit_rms_mm']:.4f} mm), "
               f"{held_out['n_test']} test rows: RMS {held_out['test_rms_mm']:.4f} mm, max {held_out['test_max_mm']:.4f} mm")
-    for line in ident.identifiability.report():
+    for line in ident.identifiability.report(robot.description_joint_names):
         print("  " + line)
     for line in ident.outlier_report.lines():
         print("  " + line)

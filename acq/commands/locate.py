@@ -18,12 +18,12 @@ def add_arguments(p):
 
 def run(args) -> int:
     from calib.compensate import load_model
-    from calib.evaluation import locate, predict_rows
+    from calib.evaluation import with_polar_points, locate, predict_rows
     from calib.posecsv import read_pose_csv
 
     im = load_model(args.model)
     robot = im.model.robot
-    table = read_pose_csv(args.data, robot.n, robot.prismatic, robot=robot, **units(args))
+    table = with_polar_points(read_pose_csv(args.data, robot.n, robot.prismatic, robot=robot, **units(args)))
     locs = locate(predict_rows(im.model, im.theta, table), table)
     doc = {"source": table.source, "stations": [loc.as_dict() for loc in locs.values()]}
     if args.json:

@@ -89,14 +89,14 @@ def _poses(args) -> int:
     with progress_display("plan poses") as update:
         plan = select_poses(model, args.count, names, args.index, args.noise_mm, args.seed, progress=update)
     if args.out:
-        write_pose_csv(args.out, plan.q_rad)
+        write_pose_csv(args.out, plan.q_rad, prismatic=model.robot.prismatic)
     if args.json:
         print(json.dumps({"count": len(plan.q_rad), "index": plan.index, "parameters": plan.names,
                           "held": plan.identifiability.fixed, "indices": plan.indices,
                           "random_indices": plan.random_indices,
                           "predicted_position_sigma_mm": plan.predicted_sigma_mm,
                           "random_position_sigma_mm": plan.random_sigma_mm,
-                          "poses_deg": (plan.q_rad / DEG).round(4).tolist(), "out": args.out}, indent=2))
+                          "poses_deg": (plan.q_rad / model.robot.edge_scale).round(4).tolist(), "out": args.out}, indent=2))
         return 0
     print(f"robocal plan poses: {len(plan.q_rad)} poses chosen for {len(plan.names)} identifiable parameters "
           f"({args.pset} set), index {plan.index}, point noise {args.noise_mm} mm")
@@ -113,7 +113,7 @@ def _poses(args) -> int:
         print(f"  written: {args.out}")
     else:
         print("  " + "q1..q6 (deg)")
-        for row in plan.q_rad / DEG:
+        for row in plan.q_rad / model.robot.edge_scale:
             print("  " + "  ".join(f"{v:8.2f}" for v in row))
     return 0
 

@@ -87,7 +87,8 @@ def default_plan(poses_deg=None) -> dict:
     """The standard plan for a real cell (the demo's, with the operator's pose set when given)."""
     from acq.session.demo import TE_RANGE_DEG
     plan = {
-        "procedures": ["ruler", "sweeps", "transmission", "compliance", "link_compliance", "coupling"],
+        "procedures": ["levelling", "instrument_check", "ruler", "sweeps", "transmission", "compliance",
+                       "link_compliance", "coupling"],
         "ruler": {"repeats": 2},
         "sweeps": {"points": 8, "span_deg": 90.0, "joints": [1, 2, 3, 4, 5, 6]},
         "transmission": {"joints": [4, 6], "points": 25, "repeats": 2, "range_deg": dict(TE_RANGE_DEG)},
@@ -96,7 +97,7 @@ def default_plan(poses_deg=None) -> dict:
         "seed": 0,
     }
     if poses_deg is not None:
-        plan["procedures"].insert(2, "poses")
+        plan["procedures"].insert(plan["procedures"].index("sweeps") + 1, "poses")
         plan["poses"] = {"q_deg": [[round(float(v), 4) for v in row] for row in poses_deg]}
     return plan
 

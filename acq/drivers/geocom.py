@@ -5,6 +5,11 @@ Why it looks like this: the instrument is strictly synchronous and may lose requ
 earlier timed-out calls.  After a timeout or a garbled reply the link is resynchronised (LF, drain) and only
 idempotent RPCs are repeated (a repeated ChangeFace would turn the telescope back).  A lost port is reopened and
 the handshake repeated.  Every failure is a :class:`~acq.errors.DeviceError` naming device, RPC and cause.
+
+Every call that needs values goes through :meth:`GeoComTheodolite.get`: a warning code sent without values
+(1283-1289 alone) is an :class:`~acq.errors.InstrumentError` naming the code, never an IndexError; a distance sent
+with an angles-only code (1285, 1288, 1289) is never returned; a physical value outside its envelope (an angle
+outside [0, 2 pi], a negative or absurd distance, an impossible temperature) is a ProtocolError, like a garbled reply.
 """
 from __future__ import annotations
 

@@ -1,22 +1,24 @@
-"""The emulated instruments' world driven by the twin: what the demo's theodolites and encoder tap observe.
+"""The emulated instruments' world driven by the twin: what the theodolites, encoder tap and dial gauges observe.
 
-Why a separate World: :class:`~acq.emulate.world.KinematicWorld` is nominal kinematics with perfect joints; the demo
-must show the *twin* (:mod:`calib.twin`: true geometry, transmission errors, compliance, coupling, the scenario's
-stations and noise), so a session recorded from emulated instruments has a known truth to check estimates against.
+Why a separate World: the emulated instruments must show the *twin* (:mod:`calib.twin`: true geometry, transmission
+errors, compliance, coupling, the scenario's stations and noise), so a session recorded from emulated instruments has
+a known truth to check estimates against.
 
 State (all set by the session's "physical" layer, i.e. what a technician does with the robot and the targets):
 
 * the robot's commanded joint readings ``q`` (the encoder tap turns them into counts with the description's gears and
   coupling -- exactly :meth:`calib.twin.Twin.encoder`);
-* the pose context: external joint torques (hung loads) and the loading direction, last-motion directions;
-* the current target: a point on the tool (frame 6, mm: the tool target P, the extended tool's A1/A2) or a fixed point
-  in the measurement frame (ruler marks C, D, E).
+* the loads: masses hung at points fixed on links (:class:`HungMass`), the loading direction per joint, the last-motion
+  directions.  A load is a force (mass x the model's gravity) at its point: the twin's one model turns it into joint
+  torques, joint deflections and link bending (the scenario's compliance effects with their values).  Nothing here
+  knows which procedure hung it;
+* the current target: a point fixed on a link (frame j, mm; by default the flange frame: the tool target P, the
+  extended tool's A1/A2) or a fixed point in the measurement frame (ruler marks C, D, E).
 
-``sight(station, face)`` returns that station's reading of the current target with the scenario's reading noise
-and gross errors (each of Hz and V gets one with probability ``gross_rate``, as in :meth:`calib.twin.Twin.sight`),
-drawn from one seeded generator under a lock: the two theodolites and the tap run in different
-threads.  :meth:`dial_gauge_mm` emulates the dial gauges of the link-compliance procedure (cantilever theory with the
-world's flexural rigidity; no theodolite involved).
+``sight(station, face)`` returns that station's reading of the current target with the scenario's reading noise and
+gross errors, drawn from one seeded generator under a lock: the two theodolites and the tap run in different threads.
+:meth:`gauge_mm` is a dial gauge touching a point on a link: the displacement of that point along the gauge's axis,
+loaded minus unloaded at the same pose, both through the twin's model.
 
 Fault hook: :meth:`inject_sighting_error` adds a given error to a station's next readings -- the operator sighting
 the wrong spot -- so tests can show which acceptance check catches it.
@@ -34,29 +36,37 @@ from calib.twin import Twin
 from calib.units import DEG
 
 READY_DEG = (0.0, -90.0, 90.0, 0.0, 0.0, 0.0)
-#: flexural rigidity used for the emulated dial gauges when the scenario has no enabled link-compliance effect
-DEFAULT_EI_NMM2 = 2.0e11
 
 
 @dataclass(frozen=True)
 class Target:
-    """What the theodolites aim at: a tool point (frame 6) or a fixed point (measurement frame R_f)."""
+    """What the theodolites aim at: a point fixed in frame ``link`` (``tool_mm``; default the flange frame n) or a
+    fixed point in the measurement frame (``point_mm``)."""
 
     name: str
     tool_mm: tuple[float, float, float] | None = None
     point_mm: tuple[float, float, float] | None = None
+    link: int | None = None
+
+
+@dataclass(frozen=True)
+class HungMass:
+    """A mass hung at a point fixed in frame ``link`` (0 base, j = link j): its weight pulls straight down there."""
+
+    link: int
+    point_mm: tuple[float, float, float]
+    mass_kg: float
 
 
 class TwinWorld:
     """World protocol implementation on a :class:`calib.twin.Twin` (thread-safe)."""
 
-    def __init__(self, twin: Twin, q0_deg=READY_DEG, *, seed: int | None = None, ei_nmm2: float = DEFAULT_EI_NMM2,
-                 gauge_sigma_mm: float = 0.001):
+    def __init__(self, twin: Twin, q0_deg=READY_DEG, *, seed: int | None = None, gauge_sigma_mm: float = 0.001):
         self.twin = twin
         self.robot = twin.robot
         self.stations = {s.name: s for s in twin.stations}
-        self.ei_nmm2 = float(ei_nmm2)
         self.gauge_sigma_mm = gauge_sigma_mm
+        self._g = twin.model.gravity_n_per_kg(twin.theta)          # N per kg, measurement frame
         self._rng = np.random.default_rng(twin.scenario.seed if seed is None else seed)
         self._lock = threading.RLock()
         n = self.robot.n
@@ -65,6 +75,7 @@ class TwinWorld:
         self._torque = np.zeros(n)
         self._load_dir = np.zeros(n)
         self._payload = 0.0
+        self._masses: tuple[HungMass, ...] = ()
         tool = twin.true_parameters()
         self._default_tool = tuple(float(tool[f"tool.{k}_mm"]) for k in "xyz")
         self._target = Target("P", tool_mm=self._default_tool)
@@ -84,12 +95,27 @@ class TwinWorld:
             self._cache = None
 
     def set_load(self, joint_torque_nm=None, load_direction=None, payload_kg: float = 0.0) -> None:
-        """External torques on the joints (N m), +1 loading / -1 unloading per joint, payload at the tool (kg)."""
+        """Torques applied directly to the joints (N m; kept for old callers -- the bench hangs masses instead),
+        +1 loading / -1 unloading per joint, payload at the tool (kg)."""
         n = self.robot.n
         with self._lock:
             self._torque = np.zeros(n) if joint_torque_nm is None else np.asarray(joint_torque_nm, float).copy()
             self._load_dir = np.zeros(n) if load_direction is None else np.asarray(load_direction, float).copy()
             self._payload = float(payload_kg)
+            self._cache = None
+
+    def hang(self, masses=(), load_direction=None) -> None:
+        """Replace the hung masses (:class:`HungMass`) and the loading direction per joint (+1 / -1 / 0)."""
+        n = self.robot.n
+        masses = tuple(masses)
+        for m in masses:
+            if not 0 <= m.link <= n or not np.all(np.isfinite(m.point_mm)) or not np.isfinite(m.mass_kg) \
+                    or m.mass_kg < 0:
+                raise RobocalError(f"twin world: a load needs a link 0..{n}, a finite point and a mass >= 0 kg, "
+                                   f"got {m!r}")
+        with self._lock:
+            self._masses = masses
+            self._load_dir = np.zeros(n) if load_direction is None else np.asarray(load_direction, float).copy()
             self._cache = None
 
     def aim(self, target: Target) -> None:
@@ -108,10 +134,23 @@ class TwinWorld:
         with self._lock:
             return self._q.copy()
 
-    def context(self) -> PoseContext:
+    def context(self, loaded: bool = True) -> PoseContext:
+        """The pose context now; ``loaded=False``: the same without the hung masses (what a zeroed gauge saw)."""
         with self._lock:
+            ms = self._masses if loaded else ()
             return PoseContext(1, self.robot.n, direction=self._direction[None], load_direction=self._load_dir[None],
-                               payload_kg=np.array([self._payload]), joint_torque_nm=self._torque[None])
+                               payload_kg=np.array([self._payload]), joint_torque_nm=self._torque[None],
+                               point_force_link=np.array([m.link for m in ms], int),
+                               point_force_mm=np.array([[m.point_mm for m in ms]], float).reshape(1, len(ms), 3),
+                               point_force_n=np.array([[m.mass_kg * self._g for m in ms]]).reshape(1, len(ms), 3))
+
+    def _point(self, link: int | None, point_mm, loaded: bool = True) -> np.ndarray:
+        """True position (3,) of a point fixed in frame ``link`` (None: the flange tool point ``point_mm``) at the
+        encoder's joint readings, through the twin's one model."""
+        _, q_read = self.twin.encoder(self._q[None])
+        ev = self.twin.model.evaluate(q_read, self.context(loaded), self.twin.theta,
+                                      tool_mm=np.asarray(point_mm, float), link=link)
+        return ev.point_mm[0]
 
     def target_mm(self) -> np.ndarray:
         """The current target's true position in the measurement frame (mm)."""
@@ -119,12 +158,7 @@ class TwinWorld:
             if self._cache is not None:
                 return self._cache.copy()
             t = self._target
-            if t.point_mm is not None:
-                p = np.asarray(t.point_mm, float)
-            else:
-                _, q_read = self.twin.encoder(self._q[None])
-                pts, _ = self.twin.true_points(q_read, self.context(), tool_mm=np.asarray(t.tool_mm, float))
-                p = pts[0]
+            p = np.asarray(t.point_mm, float) if t.point_mm is not None else self._point(t.link, t.tool_mm)
             self._cache = p
             return p.copy()
 
@@ -134,19 +168,13 @@ class TwinWorld:
         return float(hz[0]), float(v[0])
 
     def sight(self, station_name: str, face: int) -> tuple[float, float]:
+        """The station's reading of the current target: :meth:`calib.twin.Twin.observe` (the one place reading noise
+        and gross errors are drawn) with this world's generator, plus an injected sighting fault if any."""
         st = self._station(station_name)
-        hz, v = self.true_sight(station_name, face)
-        sc = self.twin.scenario
+        p = self.target_mm()
         with self._lock:
-            if sc.angle_noise:
-                dh, dv = self._rng.normal(0.0, 1.0, 2)
-                hz += dh * st.sigma_hz_rad
-                v += dv * st.sigma_v_rad
-            if sc.gross_rate > 0:
-                if self._rng.random() < sc.gross_rate:
-                    hz += self._rng.choice([-1.0, 1.0]) * sc.gross_rad
-                if self._rng.random() < sc.gross_rate:
-                    v += self._rng.choice([-1.0, 1.0]) * sc.gross_rad
+            out, _ = self.twin.observe(p[None], [st], [face], rng=self._rng)
+            hz, v = float(out[0, 0]), float(out[0, 1])
             f = self._faults.get(station_name)
             if f is not None and f[2] > 0:
                 # a pointing error: face II reads the zenith angle as 360 deg - V, so it flips the sign there
@@ -170,13 +198,17 @@ class TwinWorld:
         return float(np.linalg.norm(self.target_mm() - st.position) / 1000.0)
 
     # -- dial gauges ----------------------------------------------------------------------------------------------
-    def dial_gauge_mm(self, gauge_x_mm: float, load_x_mm: float, load_n: float) -> float:
-        """Deflection a dial gauge at ``x`` reads for a load ``P`` at ``a`` on a clamped cantilever (mm), noisy."""
-        x, a = float(gauge_x_mm), float(load_x_mm)
-        shape = x * x * (3 * a - x) if x <= a else a * a * (3 * x - a)
-        y = load_n * shape / (6.0 * self.ei_nmm2)
+    def gauge_mm(self, link: int, point_mm, axis) -> float:
+        """A dial gauge touching the point ``point_mm`` fixed in frame ``link``, reading its displacement along the
+        measurement-frame ``axis`` (mm): loaded minus unloaded at the same pose, both through the twin's model
+        (joint deflections and link bending with the scenario's values), plus the gauge's reading noise."""
+        u = np.asarray(axis, float)
+        norm = np.linalg.norm(u)
+        if u.shape != (3,) or not np.isfinite(norm) or norm == 0:
+            raise RobocalError(f"twin world: a gauge axis must be a non-zero 3-vector, got {axis!r}")
         with self._lock:
-            y += self._rng.normal(0.0, self.gauge_sigma_mm)
+            d = self._point(link, point_mm, True) - self._point(link, point_mm, False)
+            y = float(d @ u / norm) + self._rng.normal(0.0, self.gauge_sigma_mm)
         return round(y, 4)          # gauges read to 0.1 um at best
 
     def _station(self, name: str):

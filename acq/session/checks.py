@@ -24,7 +24,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from calib.errors import RobocalError
-from calib.theodolite import Station, intersect
+from calib.theodolite import Station, face_mean, intersect  # noqa: F401 (face_mean: re-exported)
 from calib.units import ARCSEC, DEG
 
 DEFAULT_LIMITS = {
@@ -37,6 +37,8 @@ DEFAULT_LIMITS = {
     "encoder_pose_deg": 0.05,          # encoder reading vs commanded pose
     "plausibility_mm": 30.0,           # sighted point vs the nominal model: at least this
     "plausibility_sigmas": 3.0,        # ... or this many sigmas of the description's tolerances at that point
+    "level_arcsec": 10.0,              # residual tilt of a levelled theodolite (a 20"/2 mm plate level: half a mark)
+    "collimation_arcsec": 20.0,        # collimation c and index i of an instrument in adjustment (instrument check)
 }
 
 
@@ -56,14 +58,6 @@ class Check:
 
 def _wrap(a):
     return (np.asarray(a) + np.pi) % (2 * np.pi) - np.pi
-
-
-def face_mean(hz: np.ndarray, v: np.ndarray, face: np.ndarray) -> tuple[float, float]:
-    """Face-I-equivalent mean of readings (face II reduced: Hz - 180 deg, 360 deg - V): removes c and k."""
-    hz1 = np.where(face == 2, hz - np.pi, hz)
-    v1 = np.where(face == 2, 2 * np.pi - v, v)
-    ref = hz1[0]
-    return float(np.mod(ref + np.mean(_wrap(hz1 - ref)), 2 * np.pi)), float(np.mean(v1))
 
 
 def face_agreement(readings: list[dict], limit_arcsec: float) -> list[Check]:
@@ -185,3 +179,45 @@ def encoders_settled(cap, pose_deg, limits: dict) -> list[Check]:
                          "encoders read the requested pose" if ok else
                          f"encoders read {dev:.3f} deg away from the requested pose: move the robot there"))
     return out
+
+
+def levelled(step, readings: list[dict], values: dict, limits: dict) -> list[Check]:
+    """Levelling step: the residual tilt the operator read, across and along, against ``level_arcsec``."""
+    tilt = [abs(float(values[k])) for k in ("tilt_cross_arcsec", "tilt_length_arcsec") if k in values]
+    if not tilt:
+        return [Check("level", False, None, limits["level_arcsec"], "arcsec",
+                      "no tilt entered: read the instrument's level and enter both tilts")]
+    worst = max(tilt)
+    ok = worst <= limits["level_arcsec"]
+    st = step.setup.get("station", "")
+    return [Check(f"level {st}", ok, worst, limits["level_arcsec"], "arcsec",
+                  "levelled" if ok else f"theodolite {st} tilts {worst:.0f}\": level it again (plate level at 90 "
+                  f"deg steps, then the electronic level) -- the analysis needs parallel vertical axes")]
+
+
+def instrument_errors(step, readings: list[dict], values: dict, limits: dict) -> list[Check]:
+    """Instrument check: collimation c = 2c/2 and index i = 2k/2 of each station from its two faces on the far
+    target, each against ``collimation_arcsec``."""
+    out = []
+    lim = limits["collimation_arcsec"]
+    for (st, tg) in sorted({(r["station"], r["target"]) for r in readings}):
+        f1 = [r for r in readings if (r["station"], r["target"], r["face"]) == (st, tg, 1)]
+        f2 = [r for r in readings if (r["station"], r["target"], r["face"]) == (st, tg, 2)]
+        if not f1 or not f2:
+            out.append(Check(f"instrument {st}", False, None, lim, "arcsec", f"{st} did not read both faces on "
+                             f"{tg}: change face and sight it again"))
+            continue
+        hz1, v1 = _circ_mean([r["hz_rad"] for r in f1]), np.mean([r["v_rad"] for r in f1])
+        hz2, v2 = _circ_mean([r["hz_rad"] for r in f2]), np.mean([r["v_rad"] for r in f2])
+        c = float(_wrap(hz1 - (hz2 - np.pi))) / 2 / ARCSEC
+        i = float(v1 + v2 - 2 * np.pi) / 2 / ARCSEC
+        worst = max(abs(c), abs(i))
+        ok = worst <= lim
+        out.append(Check(f"instrument {st}", ok, worst, lim, "arcsec",
+                         f"collimation {c:+.1f}\", index {i:+.1f}\"" + ("" if ok else
+                         f": beyond {lim:g}\" -- two-face means still cancel them, but have {st} adjusted")))
+    return out
+
+
+def _circ_mean(a) -> float:
+    return float(np.angle(np.mean(np.exp(1j * np.asarray(a, float)))))

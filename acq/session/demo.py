@@ -76,12 +76,13 @@ def demo_plan(twin: Twin, seed: int, n_poses: int = DEMO_POSES, quick: bool = Tr
         rng = np.random.default_rng(seed)
         q = (lim[:, 0] + 0.2 * np.ptp(lim, 1) + 0.6 * np.ptp(lim, 1) * rng.random((n_poses, twin.robot.n))) / DEG
     return {
-        "procedures": ["ruler", "sweeps", "poses", "transmission", "compliance", "link_compliance", "coupling"],
+        "procedures": ["levelling", "instrument_check", "ruler", "sweeps", "poses", "transmission", "compliance",
+                       "link_compliance", "coupling"],
         "ruler": {"repeats": 2},
         "sweeps": {"points": 5, "span_deg": 60.0, "joints": [1, 2, 3, 4, 5, 6]},
         "poses": {"q_deg": np.round(q, 3).tolist()},
         "transmission": {"joints": [4, 6], "points": 25, "repeats": 2, "range_deg": TE_RANGE_DEG},
-        "compliance": {"joints": [3, 4]},
+        "compliance": {"joints": [3, 4], "repeats": 3},
         "coupling": {"angle_deg": 10.0, "pairs": [[5, 6], [4, 6], [4, 5]]},
         "seed": seed,
     }
@@ -124,11 +125,13 @@ class DemoRig:
 
 
 def build_demo(db: str | Path, seed: int = 0, resume: bool = False, script: dict | None = None,
-               plan: dict | None = None, steps_filter=None, operator=None, setup: dict | None = None) -> DemoRig:
+               plan: dict | None = None, steps_filter=None, operator=None, setup: dict | None = None,
+               scenario: str | None = None) -> DemoRig:
     """Open (or create) the demo session in ``db`` and wire emulated devices, bench, operator and runner.
 
     ``setup``: a set-up file's content (``robocal plan setup --out``) for a new session; its stations and base are
-    replaced by the emulated cell's (:func:`demo_setup`)."""
+    replaced by the emulated cell's (:func:`demo_setup`).  ``scenario``: a twin scenario TOML (default: the default
+    scenario); a resumed session keeps its own."""
     import can
 
     from acq.drivers import open_theodolite
@@ -148,15 +151,18 @@ def build_demo(db: str | Path, seed: int = 0, resume: bool = False, script: dict
         seed = plan_d.get("seed", seed)
         # a resumed emulated session continues with a fresh noise stream (the twin's truth is the same)
         seed_offset = 1 + len(store.done_keys())
+        scenario = json.loads(meta.get("metadata_json") or "{}").get("scenario_path")
     else:
         plan_d = None
         seed_offset = 0
-    twin = Twin(load_scenario(), seed=seed)
+    twin = Twin(load_scenario(scenario or None), seed=seed)
     if not resume:
         setup = session_setup(demo_setup(twin, setup), twin.robot)
         plan_d = plan or demo_plan(twin, seed)
         store = SessionStore.create(db, DEMO_TITLE, plan_d, setup, operator="scripted demo operator",
-                                    metadata={"emulated": True, "scenario": "default", "seed": seed})
+                                    metadata={"emulated": True, "scenario": "default" if not scenario else "file",
+                                              "scenario_path": str(Path(scenario).resolve()) if scenario else None,
+                                              "seed": seed})
     world = TwinWorld(twin, seed=seed * 1000 + seed_offset)
     tag = uuid.uuid4().hex[:8]
     names = []
@@ -187,7 +193,13 @@ def build_demo(db: str | Path, seed: int = 0, resume: bool = False, script: dict
         steps = [s for s in steps if steps_filter(s)]
 
     def inputs(step: Step) -> dict:
-        return bench.read_gauges(step) if step.setup.get("gauges") else {}
+        """What the scripted operator reads off the bench: dial gauges, the instrument's electronic level."""
+        out = bench.read_gauges(step)               # the step's gauges, if it has any
+        drv = drivers.get(step.setup.get("station"))
+        if drv is not None and any(i.name == "tilt_cross_arcsec" for i in step.inputs):
+            r = drv.angles_with_inclination()
+            out.update(tilt_cross_arcsec=r.incline_cross_rad / ARCSEC, tilt_length_arcsec=r.incline_length_rad / ARCSEC)
+        return out
 
     op = operator or ScriptedOperator(script, inputs=inputs)
     from .stations import stations_from_store

@@ -38,6 +38,7 @@ from calib.fileio import atomic_write_text
 from calib.textin import read_text
 from calib.units import DEG
 
+from .procedures import mark_index
 from .reprocess import load_session
 from .store import SessionStore, StepRecord, connect_readonly
 
@@ -82,19 +83,22 @@ def pose_arrays(db: str) -> dict:
     stations the session's own ruler steps give) and their covariances, step keys and sighting geometry."""
     from calib.robot import load_robot
 
-    from .checks import intersect_targets
+    from calib.estimators.points import StationFit, locate_targets
+
     from .reprocess import _Est, _encoder_q, _ruler
     from .setup import setup_stations
     d = load_session(db)
     robot = load_robot(d.setup.get("robot") or None)
     ruler = [s for s in d.steps if s["procedure"] == "ruler"]
     sigma = d.setup["stations"].get("sigma_arcsec", 3.0) * 4.84813681109536e-06
-    stations = (_ruler(ruler, d.setup, sigma, _Est(None), None, {}) if ruler else None) or setup_stations(d.setup)
+    fit = (_ruler(ruler, d.setup, sigma, _Est(None), None, {}) if ruler else None) \
+        or StationFit.exact(setup_stations(d.setup))
+    stations = fit.stations
     q, P, C, keys, angle = [], [], [], [], []
     for s in d.steps:
         if s["procedure"] != "poses":
             continue
-        pts = intersect_targets(s["readings"], stations) if s["readings"] else {}
+        pts = locate_targets(s["readings"], fit) if s["readings"] else {}
         if "P" in pts:
             p, cov = pts["P"][0], pts["P"][1]
         elif all(k in s["inputs"] for k in ("x_mm", "y_mm", "z_mm")):
@@ -283,7 +287,7 @@ def _meta_from_key(key: str) -> dict:
     meta: dict = {}
     try:
         if parts[0] == "ruler":
-            meta = {"placement": int(parts[1][1:]), "mark": "CDE".index(parts[2])}
+            meta = {"placement": int(parts[1][1:]), "mark": mark_index(parts[2])}
         elif parts[0] in ("sweep", "te", "compliance"):
             meta = {"joint": int(parts[1][1:]), "index": int(parts[2])}
         elif parts[0] == "poses":

@@ -13,9 +13,10 @@ from typing import Callable, Iterator
 
 import numpy as np
 
-from .steps import InputSpec, Step, TargetSpec
+from . import checks as ck
+from .setup import station_names
+from .steps import READY_DEG, InputSpec, Step, TargetSpec
 
-READY_DEG = (0.0, -90.0, 90.0, 0.0, 0.0, 0.0)
 MARKS = ("C", "D", "E")
 
 
@@ -46,22 +47,74 @@ def extended_targets(setup: dict) -> tuple[TargetSpec, TargetSpec]:
     return TargetSpec("A1", tool_mm=tuple(et["A1_mm"])), TargetSpec("A2", tool_mm=tuple(et["A2_mm"]))
 
 
+# -- 4.2 levelling and the instrument check ---------------------------------------------------------------------------
+def levelling(plan: dict, setup: dict) -> Iterator[Step]:
+    """Each theodolite levelled before anything is sighted: the thesis's analysis assumes parallel vertical axes
+    (section 4.2, assumption 1).  The operator enters the residual tilt its level shows (electronic level: the two
+    inclination readings; plate level only: the bubble's offset converted with its sensitivity)."""
+    for name in station_names(setup):
+        yield Step(
+            key=f"level/{name}", procedure="levelling", title=f"Level theodolite {name}",
+            instruction=(f"Level theodolite {name}: plate level parallel to two foot screws, centre it, turn 90 deg, "
+                         f"centre it with the third; repeat until it stays centred all round. Then enter the residual "
+                         f"tilt the instrument shows across and along the telescope (arc seconds)."),
+            targets=(), faces=(), encoders=False,
+            inputs=(InputSpec("tilt_cross_arcsec", "arcsec", f"Theodolite {name}: tilt across the telescope", 0.0),
+                    InputSpec("tilt_length_arcsec", "arcsec", f"Theodolite {name}: tilt along the telescope", 0.0)),
+            setup={"station": name}, meta={"station": name})
+
+
+def instrument_check(plan: dict, setup: dict) -> Iterator[Step]:
+    """Both faces of both instruments on a far target: their collimation and index errors.  Two-face means cancel
+    them, but an instrument far out of adjustment (or a face change that did not happen) shows here first."""
+    p = plan.get("instrument_check", {})
+    far = setup.get("far_target_mm")
+    yield Step(
+        key="instrument/far", procedure="instrument_check", title="Instrument check on the far target",
+        instruction=("Sight the far target F (a sharp mark on the wall, a few metres away) with each theodolite, face "
+                     "I then face II, twice. The check compares the faces: collimation and index error."),
+        targets=(TargetSpec("F", point_mm=None if far is None else tuple(float(v) for v in far)),),
+        faces=(1, 2), repeats=p.get("repeats", 2), encoders=False, meta={})
+
+
 # -- 4.2 ruler -----------------------------------------------------------------------------------------------------
+def mark_names(n_marks: int) -> tuple[str, ...]:
+    """Names of a ruler's marks: C, D, E for three (the thesis's); C, D, E1, E2 ... when E is marked at several
+    distances (the series that varies R)."""
+    return MARKS if n_marks == 3 else ("C", "D", *[f"E{i}" for i in range(1, n_marks - 1)])
+
+
+def mark_index(name: str) -> int:
+    """Index of a mark in ``marks_mm`` from its name (C 0, D 1, E or E1 2, E2 3 ...)."""
+    if name in ("C", "D", "E"):
+        return "CDE".index(name)
+    if name.startswith("E") and name[1:].isdigit() and int(name[1:]) >= 1:
+        return int(name[1:]) + 1
+    raise ValueError(f"unknown ruler mark {name!r} (C, D, E or E1, E2 ...)")
+
+
 def ruler(plan: dict, setup: dict) -> Iterator[Step]:
-    """Theodolite pre-calibration: marks C, D, E of a ruler, levelled in the stations' plane, both faces."""
+    """Theodolite pre-calibration: marks C, D, E of a ruler, levelled in the stations' plane, both faces.
+
+    A placement sights every mark, or those it lists (``marks``: names) -- the series that varies R as the thesis
+    does (Fig 5.4: R from 1792 to 1860 mm) marks E at several distances and sights one of them per placement, with C
+    and the last mark on every placement (the fit starts from the ruler's two ends)."""
     r = setup["ruler"]
     marks = r["marks_mm"]
+    names = mark_names(len(marks))
+    sta, stb = station_names(setup)
     p = plan.get("ruler", {})
     for k, pl in enumerate(r["placements"]):
         c = np.asarray(pl["C_mm"], float) if pl.get("C_mm") is not None else None
         u = np.asarray(pl.get("dir", [1.0, 0.0, 0.0]), float)
-        for m, name in enumerate(MARKS):
+        for name in pl.get("marks", names):
+            m = mark_index(name)
             point = None if c is None else tuple(float(v) for v in c + marks[m] * u / np.linalg.norm(u))
             yield Step(
                 key=f"ruler/p{k}/{name}", procedure="ruler", title=f"Ruler placement {k + 1}: mark {name}",
                 instruction=(f"Ruler placement {k + 1} ({pl.get('where', 'as set up')}), levelled in the plane of "
-                             f"the theodolites. Sight mark {name} ({marks[m]:.1f} mm from C) with theodolite A, "
-                             f"then with B, face I then face II."),
+                             f"the theodolites. Sight mark {name} ({marks[m]:.1f} mm from C) with theodolite {sta}, "
+                             f"then with {stb}, face I then face II."),
                 targets=(TargetSpec(name, point_mm=point),), repeats=p.get("repeats", 1), encoders=False,
                 meta={"placement": k, "mark": m})
 
@@ -194,8 +247,8 @@ def coupling(plan: dict, setup: dict) -> Iterator[Step]:
 @dataclass(frozen=True)
 class ProcedureInfo:
     """What the rest of the session needs to know about a procedure, found by name instead of name branches:
-    its step generator, extra acceptance checks ``(step, readings, runner) -> list[Check]`` and whether its accepted
-    steps refit the stations (the ruler)."""
+    its step generator, extra acceptance checks ``(step, readings, values, limits) -> list[Check]`` (readings as
+    stored, the operator's values by input name) and whether its accepted steps refit the stations (the ruler)."""
 
     steps: Callable[[dict, dict], Iterator[Step]]
     checks: tuple = ()
@@ -224,6 +277,8 @@ def procedure_info(step_procedure: str) -> ProcedureInfo:
     return REGISTRY.get(_STEP_NAMES.get(step_procedure, step_procedure), _DEFAULT_INFO)
 
 
+register_procedure("levelling", levelling, checks=(ck.levelled,))
+register_procedure("instrument_check", instrument_check, checks=(ck.instrument_errors,))
 register_procedure("ruler", ruler, refits_stations=True)
 register_procedure("sweeps", sweeps, step_name="sweep")
 register_procedure("poses", poses)

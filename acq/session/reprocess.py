@@ -145,14 +145,25 @@ def reprocess(path: str, n_mc: int = 0, progress=None) -> dict:
     except (RobocalError, KeyError, ValueError, IndexError) as exc:
         problems.append(f"ruler: {exc}")
     if stations is None:
+        from calib.estimators.points import StationFit
         from .setup import setup_stations
-        stations = setup_stations(data.setup)
+        stations = StationFit.exact(setup_stations(data.setup))
         problems.append("ruler: no estimate; points use the setup's stations")
     step("ruler", 0.1)
+    located: dict[int, dict] = {}
 
     def points(st):
-        from .checks import intersect_targets
-        return intersect_targets(st["readings"], stations)
+        """Targets of a step with covariances that carry the ruler fit's uncertainty (every step located in one
+        batch on the first call)."""
+        from calib.estimators.points import locate_targets
+        if not located:
+            rows = [{**r, "target": f"{i}/{r['target']}"} for i, s in enumerate(data.steps) for r in s["readings"]]
+            located[-1] = {}
+            for key, tp in locate_targets(rows, stations).items():
+                i, tg = key.split("/", 1)
+                located.setdefault(id(data.steps[int(i)]), {})[tg] = tp
+        return located.get(id(st), {})
+    points.station_fit = stations
 
     # 3. sweeps -> axes -> DH ---------------------------------------------------------------------------------------
     axes = {}
@@ -163,16 +174,22 @@ def reprocess(path: str, n_mc: int = 0, progress=None) -> dict:
     step("sweeps", 0.3)
     # 5-6 before the pose set: their running errors enter its model (priors on the effects) -------------------------
     running: dict = {}
-    for name, fn in (("transmission", _transmission), ("compliance", _compliance)):
-        try:
-            running[name] = fn(by_proc.get(name, []), points, robot, axes, est, twin, figs, n_mc)
-        except (RobocalError, KeyError, ValueError, IndexError) as exc:
-            problems.append(f"{name}: {exc}")
+    try:
+        running["transmission"] = _transmission(by_proc.get("transmission", []), points, robot, axes, est, twin,
+                                                figs, n_mc)
+    except (RobocalError, KeyError, ValueError, IndexError) as exc:
+        problems.append(f"transmission: {exc}")
+    try:
+        running["compliance"] = _compliance(by_proc.get("compliance", []), points, robot, axes, est, twin, figs,
+                                            n_mc, data.setup, problems)
+    except (RobocalError, KeyError, ValueError, IndexError) as exc:
+        problems.append(f"compliance: {exc}")
     step("running errors", 0.45)
     # 4. pose set ---------------------------------------------------------------------------------------------------
     ident_doc = None
     try:
-        ident_doc = _poses(by_proc.get("poses", []), points, robot, data.setup, est, twin, figs, running, problems)
+        ident_doc = _poses(by_proc.get("poses", []), points, robot, data.setup, est, twin, figs, running, problems,
+                           by_proc.get("coupling", []))
     except (RobocalError, KeyError, ValueError, IndexError) as exc:
         problems.append(f"poses: {exc}")
     step("poses", 0.8)
@@ -186,6 +203,7 @@ def reprocess(path: str, n_mc: int = 0, progress=None) -> dict:
     except (RobocalError, KeyError, ValueError, IndexError) as exc:
         problems.append(f"coupling: {exc}")
     step("done", 1.0)
+    problems += figs.pop("problems", [])          # what a stage could not do for part of its data
     return {
         "session": {"guid": data.session["guid"], "title": data.session["title"], "path": path,
                     "exit_status": data.session["exit_status"], "steps_accepted": len(data.steps)},
@@ -204,7 +222,7 @@ def reprocess(path: str, n_mc: int = 0, progress=None) -> dict:
 # -- stages ------------------------------------------------------------------------------------------------------
 def _ruler(steps, setup, sigma, est, twin, figs):
     """The same ruler fit the runner uses live (:mod:`acq.session.stations`), recorded with its estimates."""
-    from .stations import fit_ruler, ruler_rows
+    from .stations import fit_ruler, ruler_rows, ruler_station_fit
     if not steps:
         return None
     res, stations = fit_ruler(ruler_rows(steps), {**setup, "stations": {**setup["stations"],
@@ -218,15 +236,13 @@ def _ruler(steps, setup, sigma, est, twin, figs):
     L, g1, g2 = (res[n].value for n in ("L_mm", "gamma1_rad", "gamma2_rad"))
     figs["ruler"] = {"L_mm": L, "gamma1_deg": g1 / DEG, "gamma2_deg": g2 / DEG,
                      "residual_arcsec": (np.asarray(res.extras.get("residual", [])) / ARCSEC).tolist()}
-    return stations
+    return ruler_station_fit(res, stations)
 
 
-def _block(covs):
-    n = len(covs)
-    U = np.zeros((3 * n, 3 * n))
-    for i, c in enumerate(covs):
-        U[3 * i:3 * i + 3, 3 * i:3 * i + 3] = c
-    return U
+def _block(pts, points):
+    """Joint covariance of located targets (the stations' common term included)."""
+    from calib.estimators.points import points_covariance
+    return points_covariance(pts, points.station_fit)
 
 
 def _sweeps(steps, points, robot, setup, est, truth, figs, n_mc):
@@ -244,7 +260,7 @@ def _sweeps(steps, points, robot, setup, est, truth, figs, n_mc):
         sts.sort(key=lambda s: s["spec"]["meta"]["index"])
         pts = [points(s)["P"] for s in sts]
         P = np.array([p[0] for p in pts])
-        U = _block([p[1] for p in pts])
+        U = _block(pts, points)
         res = fit_axis(P, U, n_mc=n_mc, joint=f"j{j}")
         axes[j] = res
         v = res.value
@@ -259,8 +275,7 @@ def _sweeps(steps, points, robot, setup, est, truth, figs, n_mc):
         p[kin.index[f"base.{k}"]] = val
     yaw, pitch, roll = (np.asarray(setup.get("base_rpy_deg", [0, 0, 0]), float) * DEG)[::-1]
     p[kin.index["base.yaw_rad"]], p[kin.index["base.pitch_rad"]], p[kin.index["base.roll_rad"]] = yaw, pitch, roll
-    from .procedures import READY_DEG
-    q0 = np.asarray(READY_DEG) * DEG
+    q0 = _reference_pose(steps, setup)
     fn = kin.forward(q0[None], p)
     vals, covs = [], []
     for j in range(1, robot.n + 1):
@@ -281,6 +296,14 @@ def _sweeps(steps, points, robot, setup, est, truth, figs, n_mc):
     return axes
 
 
+def _reference_pose(sweep_steps, setup) -> np.ndarray:
+    """The pose the joints were swept about (rad): the set-up's ``reference_pose_deg`` when given, else from the
+    session's own sweep steps -- every sweep holds the other joints at it and centres its own joint on it."""
+    if setup.get("reference_pose_deg") is not None:
+        return np.asarray(setup["reference_pose_deg"], float) * DEG
+    return np.median(np.array([st["spec"]["pose_deg"] for st in sweep_steps], float), axis=0) * DEG
+
+
 def _encoder_q(st, robot) -> np.ndarray | None:
     c = st.get("counts")
     if c is None or len(c) == 0:
@@ -288,19 +311,37 @@ def _encoder_q(st, robot) -> np.ndarray | None:
     return robot.joint_from_counts(np.mean(c, 0))
 
 
-def _pose_model(robot, running: dict, problems: list[str]):
-    """The pose set's model: geometry plus the thesis's running errors (:data:`calib.effects.THESIS_RUNNING_ERRORS`),
-    and priors on the effects from the session's own transmission-error and compliance runs.
+def running_error_specs(setup: dict, running: dict, coupling_steps=()) -> list[str]:
+    """The running errors the pose set's model carries, as effect specs (:func:`calib.effects.effect_from_text`).
 
-    Why: the pose set is measured with the gears' transmission error, gravity bending joints 3 and 4 and the
+    From the session, never from one robot: the set-up's ``running_errors`` list when it has one; otherwise the
+    effects the session itself measured -- a transmission error at the order its run found for each joint of the
+    transmission-error run, a joint compliance for each joint whose stiffness was determined, and a cross coupling
+    for each pair of the coupling run.
+    """
+    if setup.get("running_errors") is not None:
+        return [str(t) for t in setup["running_errors"]]
+    specs = [f"transmission_error:{j}:{res['omega'].value:.4g}"
+             for j, res in sorted((running.get("transmission") or {}).items())]
+    specs += [f"joint_compliance:{j}" for j in sorted(running.get("compliance") or {})]
+    pairs = sorted({(st["spec"]["meta"]["j"], st["spec"]["meta"]["k"]) for st in coupling_steps})
+    specs += [f"cross_coupling:{k}:{j}" for j, k in pairs]
+    return specs
+
+
+def _pose_model(robot, running: dict, problems: list[str], specs=None):
+    """The pose set's model: geometry plus the session's running errors (:func:`running_error_specs`), with priors
+    on the effects from the session's own transmission-error and compliance runs.
+
+    Why: the pose set is measured with the gears' transmission error, gravity bending the joints and the
     uncompensated wrist coupling all present; a geometry-only fit folds them into the geometry and misses the true
-    parameters by tens of sigma.  The effects' structure is the thesis's (harmonic orders 0.9 and 1.8, single-slope
-    stiffness, coupling 5 -> 6); their values are identified with the geometry, held near what the dedicated
+    parameters by tens of sigma.  The effects' values are identified with the geometry, held near what the dedicated
     procedures measured (priors with those procedures' errors), so a poorly measured stiffness cannot bias the fit.
     """
-    from calib.effects import THESIS_RUNNING_ERRORS, effect_from_text
+    from calib.effects import effect_from_text
     from calib.model import MeasurementModel
-    effects = [effect_from_text(t, robot.n) for t in THESIS_RUNNING_ERRORS]
+    specs = running_error_specs({}, running) if specs is None else specs
+    effects = [effect_from_text(t, robot.n) for t in specs]
     model = MeasurementModel(robot, effects)
     theta0 = model.nominal.copy()
     priors: dict[str, tuple[float, float]] = {}
@@ -331,7 +372,7 @@ def _pose_model(robot, running: dict, problems: list[str]):
     return model, theta0, priors
 
 
-def _poses(steps, points, robot, setup, est, twin, figs, running=None, problems=None):
+def _poses(steps, points, robot, setup, est, twin, figs, running=None, problems=None, coupling_steps=()):
     from calib.compensate import model_document
     from calib.identify import PointObservations, default_free, identify
     if not steps:
@@ -350,7 +391,8 @@ def _poses(steps, points, robot, setup, est, twin, figs, running=None, problems=
         S.append(pt[1])
     if len(q) < 8:
         raise RobocalError(f"only {len(q)} poses with both sightings; identification needs more")
-    model, theta0, priors = _pose_model(robot, running or {}, problems)
+    specs = running_error_specs(setup, running or {}, coupling_steps)
+    model, theta0, priors = _pose_model(robot, running or {}, problems, specs)
     q, P = np.array(q), np.array(P)
     obs = PointObservations(q, P, cov_mm2=np.array(S))
     # the dead zone needs loading and unloading, which a pose set has not: it stays out
@@ -378,7 +420,7 @@ def _poses(steps, points, robot, setup, est, twin, figs, running=None, problems=
     pred = model.points(q, theta=ident.theta[:model.P])
     figs["poses"] = {"residual_mm": np.linalg.norm(P - pred, axis=1).tolist(),
                      "rms_mm": float(ident.residual_rms), "held": [n for n in wanted if n not in ident.free],
-                     "points_mm": P.tolist()}
+                     "points_mm": P.tolist(), "running_errors": list(specs)}
     _accuracy(model, obs, ident.free, theta0, priors, figs, problems)
     return model_document(model, ident, truth)
 
@@ -422,24 +464,23 @@ def _gauge_truth(twin, model, ident, q) -> dict[str, float]:
     return {n: g.value(n) for n in g.free}
 
 
-def _joint_angles(steps, points, axis_n):
-    """Angle turned about ``axis_n`` from the first step, per step, from A1 -> A2 (and its sigma)."""
-    from calib.estimators.transmission import joint_angle
-    ref = None
-    out, sig = [], []
-    for st in steps:
-        p = points(st)
-        if "A1" not in p or "A2" not in p:
-            out.append(np.nan)
-            sig.append(np.nan)
-            continue
-        x = np.concatenate([p["A1"][0], p["A2"][0]])
-        if ref is None:
-            ref = x
-        out.append(float(joint_angle(np.concatenate([ref, x])[None], axis_n)[0, 0]))
-        d = np.linalg.norm(x[3:] - x[:3])
-        sig.append(float(np.sqrt(np.trace(p["A1"][1]) + np.trace(p["A2"][1])) / d))
-    return np.array(out), np.array(sig)
+def _joint_angles(steps, points, axis_n, full: bool = False):
+    """Angle turned about ``axis_n`` from the first step, per step, from A1 -> A2, and each one's 1-sigma
+    (:func:`calib.estimators.transmission.joint_angles`); NaN where a step lacks A1 or A2.  ``full``: also the
+    angles' covariance (the stations' errors are common to every step)."""
+    from calib.estimators.transmission import joint_angles
+    out, cov = np.full(len(steps), np.nan), np.full((len(steps), len(steps)), np.nan)
+    ok = [i for i, st in enumerate(steps) if {"A1", "A2"} <= set(points(st))]
+    if ok:
+        pairs = [(points(steps[i])["A1"], points(steps[i])["A2"]) for i in ok]
+        read = np.array([np.block([[a.cov_reading_mm2, np.zeros((3, 3))], [np.zeros((3, 3)), b.cov_reading_mm2]])
+                         for a, b in pairs])
+        D = np.array([np.concatenate([a.d_station, b.d_station]) for a, b in pairs])
+        out[ok], cov[np.ix_(ok, ok)] = joint_angles(np.array([a.point_mm for a, _ in pairs]),
+                                                    np.array([b.point_mm for _, b in pairs]), read, axis_n, D,
+                                                    points.station_fit.cov)
+    sig = np.sqrt(np.diag(cov))
+    return (out, sig, cov) if full else (out, sig)
 
 
 def _own_axis(sts, points, j, n_mc):
@@ -449,10 +490,13 @@ def _own_axis(sts, points, j, n_mc):
     pts = [p for p in pts if p is not None]
     P = np.array([p[0] for p in pts])
     # points more than 180 deg apart are fine for a circle fit, but keep the sweep order for the normal's sign
-    return fit_axis(P, _block([p[1] for p in pts]), n_mc=0, joint=f"j{j}").value[3:6]
+    return fit_axis(P, _block(pts, points), n_mc=0, joint=f"j{j}").value[3:6]
 
 
 def _transmission(steps, points, robot, axes, est, twin, figs, n_mc):
+    """Per joint: the angle from A1, A2 about the joint's own axis against the encoder, and the harmonic fit (with
+    the angles' full covariance).  A joint whose fit fails, or whose order is not determined, is said so in the
+    figures and left out of the running errors; the other joints still count."""
     from calib.estimators.transmission import fit_transmission_error
     from calib.effects import TransmissionError
     if not steps:
@@ -461,18 +505,23 @@ def _transmission(steps, points, robot, axes, est, twin, figs, n_mc):
     for st in steps:
         by_joint.setdefault(st["spec"]["meta"]["joint"], []).append(st)
     figs["transmission"] = {}
-    fits = {}
+    fits, failed = {}, []
     for j, sts in sorted(by_joint.items()):
         if j not in axes:
-            raise RobocalError(f"joint {j}: no swept axis to measure the angle about")
+            failed.append(f"joint {j}: no swept axis to measure the angle about")
+            continue
         sts.sort(key=lambda s: s["spec"]["meta"]["index"])
         n = _own_axis(sts, points, j, n_mc) if len(sts) >= 4 else axes[j].value[3:6]
-        meas, sig = _joint_angles(sts, points, n)
+        meas, sig, cov = _joint_angles(sts, points, n, full=True)
         enc = np.array([(_encoder_q(s, robot) if _encoder_q(s, robot) is not None
                          else np.asarray(s["spec"]["pose_deg"]) * DEG)[j - 1] for s in sts])
         err = np.angle(np.exp(1j * (meas - (enc - enc[0]))))      # both sides wrap differently past 180 deg
         ok = np.isfinite(err)
-        res = fit_transmission_error(enc[ok], err[ok], float(np.nanmean(sig)), n_mc=n_mc)
+        try:
+            res = fit_transmission_error(enc[ok], err[ok], cov[np.ix_(ok, ok)], n_mc=n_mc)
+        except RobocalError as exc:
+            failed.append(f"joint {j}: {exc}")
+            continue
         tv = {}
         if twin is not None:
             for e in twin.scenario.effects:
@@ -480,39 +529,96 @@ def _transmission(steps, points, robot, axes, est, twin, figs, n_mc):
                     tv = {"omega": e.order, "amplitude1_rad": float(np.hypot(e.values[0], e.values[len(e.values) // 2]))
                           if len(e.values) > 1 else abs(float(e.values[0]))}
         est.add_set(f"te.j{j}.", res, tv, only=("omega", "amplitude1_rad"))
-        fits[j] = res
+        nd = res.extras.get("not_determined") or {}
+        if "omega" not in nd:
+            fits[j] = res
         figs["transmission"][j] = {"encoder_deg": (enc / DEG).tolist(), "error_deg": (err / DEG).tolist(),
                                    "sigma_deg": (sig / DEG).tolist(),
-                                   "fit": {k: float(res[k].value) for k in res.names}}
+                                   "fit": {k: float(res[k].value) for k in res.names}, "not_determined": nd}
+    if failed and not fits:
+        raise RobocalError("; ".join(failed))
+    figs.setdefault("problems", []).extend(f"transmission: {f}" for f in failed)
     return fits
 
 
-def _compliance(steps, points, robot, axes, est, twin, figs, n_mc):
-    from calib.estimators.compliance import torque_Nm, two_slope_fit
+def _setup_model(robot, setup):
+    """The description's model with the bench's base pose from the set-up: what the operator knows of the geometry
+    (nominal, no effects), for torques and joint axes at a step's pose."""
+    from calib.model import MeasurementModel
+    model = MeasurementModel(robot)
+    theta = model.nominal.copy()
+    for k, val in zip(("x_mm", "y_mm", "z_mm"), setup.get("base_xyz_mm", [0.0, 0.0, 0.0])):
+        theta[model.index[f"base.{k}"]] = val
+    roll, pitch, yaw = np.asarray(setup.get("base_rpy_deg", [0, 0, 0]), float) * DEG
+    for k, val in (("yaw_rad", yaw), ("pitch_rad", pitch), ("roll_rad", roll)):
+        theta[model.index[f"base.{k}"]] = val
+    return model, theta
+
+
+def _step_loads(st, robot, model, theta):
+    """The step's joint readings, total torque about every joint (N m: the description's link weights plus the
+    recorded hung masses, from geometry) and the joints' axes (N, 3) at that pose in the measurement frame."""
+    from .rig import c3_setup
+    spec = st["spec"]
+    q = _encoder_q(st, robot)
+    q = np.asarray(spec["pose_deg"], float) * DEG if q is None else q
+    s = c3_setup(spec["setup"], spec["pose_deg"], st["inputs"], model.kin)
+    g = model.gravity_n_per_kg(theta)
+    loads = s.get("loads", [])
+    ctx = model.context(1, point_force_link=[int(ld["link"]) for ld in loads],
+                        point_force_mm=np.array([ld["point_mm"] for ld in loads], float).reshape(1, -1, 3),
+                        point_force_n=np.array([ld["mass_kg"] * g for ld in loads], float).reshape(1, -1, 3))
+    fp = model.kin.forward(q[None], theta[: model.n_geometric])
+    return q, model.loads(fp, ctx).joint_torque_nm[0], fp.joint_axis[0]
+
+
+def _compliance(steps, points, robot, axes, est, twin, figs, n_mc, setup=None, problems=None):
+    """Joint stiffness from the deflection (angle of A1 -> A2 about the joint's axis) against the torque about that
+    axis, the torque computed from the geometry at each step's pose with its recorded loads.  A joint about which the
+    loads produce no torque (its axis along gravity, a lever along the axis) gets no number: "not determined" and
+    why, in ``problems``."""
+    from calib.estimators.compliance import two_slope_fit
     from calib.effects import JointCompliance
     if not steps:
         return
+    problems = [] if problems is None else problems
+    model, theta = _setup_model(robot, setup or {})
     by_joint: dict[int, list] = {}
     for st in steps:
         by_joint.setdefault(st["spec"]["meta"]["joint"], []).append(st)
     figs["compliance"] = {}
     fits = {}
     for j, sts in sorted(by_joint.items()):
-        if j not in axes:
-            raise RobocalError(f"joint {j}: no swept axis to measure the deflection about")
         sts.sort(key=lambda s: s["spec"]["meta"]["index"])
-        defl, sig = _joint_angles(sts, points, axes[j].value[3:6])
-        T = np.array([torque_Nm(s["inputs"].get("load_n", s["spec"]["setup"]["load_n"]),
-                                s["inputs"].get("lever_mm", s["spec"]["setup"]["lever_mm"]),
-                                s["inputs"].get("theta_i_deg", 0.0) * DEG) for s in sts])
+        per_step = [_step_loads(s, robot, model, theta) for s in sts]
+        T = np.array([tau[j - 1] for _, tau, _ in per_step])
+        # the joint's axis at the loading pose (it is not the swept one when the pose differs)
+        axis = per_step[0][2][j - 1]
+        applied = np.ptp(T)
+        if not np.isfinite(applied) or applied < 0.05:
+            problems.append(f"compliance: joint {j}: not determined: the loads change the torque about joint {j} by "
+                            f"{applied:.3g} N m at the loading pose (its axis is along gravity or the lever along "
+                            f"the axis): hang them where they turn the joint")
+            continue
+        sign = 1.0 if T[np.argmax(np.abs(T))] >= 0 else -1.0        # the fit's branches are for positive torques
+        defl, sig, dcov = _joint_angles(sts, points, axis, full=True)
         unload = np.array([s["spec"]["meta"]["phase"] == "unload" for s in sts])
-        res = two_slope_fit(T, defl, unload, float(np.nanmean(sig)), n_mc=n_mc)
+        try:
+            res = two_slope_fit(sign * T, sign * defl, unload, dcov, n_mc=n_mc)
+        except RobocalError as exc:                 # e.g. "not determined": the other joints still count
+            problems.append(f"compliance: joint {j}: {exc}")
+            continue
         tv = {}
         if twin is not None:
             for e in twin.scenario.effects:
                 if isinstance(e, JointCompliance) and e.joint == j:
                     c1, c2, tb, h = e.values
-                    tv = {"K1_Nm_per_rad": 1 / c1, "K2_Nm_per_rad": 1 / c2, "offset_rad": h}
+                    tv = {"K1_Nm_per_rad": 1 / c1, "K2_Nm_per_rad": 1 / c2, "breakpoint_Nm": tb, "offset_rad": h}
+        K = res["K1_Nm_per_rad"]
+        if not (np.isfinite(K.value) and np.isfinite(K.error) and K.value > 0 and K.error < K.value):
+            problems.append(f"compliance: joint {j}: not determined: K1 = {K.value:.4g} +- {K.error:.2g} N m/rad "
+                            f"(torque range {applied:.3g} N m, deflection sigma {np.nanmean(sig):.2g} rad)")
+            continue
         est.add_set(f"compliance.j{j}.", res, tv, only=("K1_Nm_per_rad", "K2_Nm_per_rad", "breakpoint_Nm",
                                                          "offset_rad"))
         fits[j] = res
@@ -521,7 +627,10 @@ def _compliance(steps, points, robot, axes, est, twin, figs, n_mc):
     return fits
 
 
-def _link(steps, setup, est, twin, figs, n_mc):
+def _link(steps, setup, est, twin, figs, n_mc, robot=None):
+    """Flexural rigidity of the link from the dial gauges; its truth is the scenario's link compliance of that link
+    (none when the scenario has none enabled)."""
+    from calib.effects import LinkCompliance
     from calib.estimators.link_compliance import flexural_rigidity
     if not steps:
         return
@@ -538,7 +647,10 @@ def _link(steps, setup, est, twin, figs, n_mc):
             P.append(st["inputs"].get("load_n", s["load_n"]))
             y.append(v)
     res = flexural_rigidity(x, a, P, y, sigma_mm=0.001, second_moment_mm4=cfg.get("second_moment_mm4"), n_mc=n_mc)
-    tv = {"EI_Nmm2": 2.0e11} if twin is not None else {}
+    tv = {}
+    if twin is not None:
+        tv = {"EI_Nmm2": 1.0 / float(e.values[0]) for e in twin.scenario.effects
+              if isinstance(e, LinkCompliance) and e.joint == cfg["joint"]}
     est.add_set(f"link.j{cfg['joint']}.", res, tv, only=("EI_Nmm2",))
     figs["link"] = {"x_mm": x, "load_n": P, "deflection_mm": y, "EI_Nmm2": float(res["EI_Nmm2"].value),
                     "load_x_mm": a}

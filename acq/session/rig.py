@@ -130,36 +130,99 @@ class ManualBench(Bench):
 
 
 class EmulatedBench(Bench):
-    """Acts on a :class:`acq.emulate.twin_world.TwinWorld`: the demo's robot, loads and targets."""
+    """Acts on a :class:`acq.emulate.twin_world.TwinWorld`: the demo's robot, loads, targets and dial gauges.
+
+    It only places things -- the robot at the step's pose, masses at points on links, gauges at points -- and the
+    world's one model does the physics.  Steps in the vocabulary of contract C3 (``setup["loads"]``,
+    ``setup["gauges"]``) are read as they are; older steps (a load ``load_n`` on a lever ``lever_mm`` of joint
+    ``joint``; dial gauges at ``gauges_x_mm`` along link ``joint`` with the load at ``load_x_mm``) are first
+    translated into the same vocabulary by :func:`c3_setup`.
+    """
 
     def __init__(self, world):
         from acq.emulate.twin_world import Target
+        from calib.kinematics import Kinematics
         self.world = world
         self._Target = Target
+        self._kin = Kinematics(world.robot)            # the description: what the technician knows
 
     def prepare(self, step: Step, inputs: dict) -> None:
+        from acq.emulate.twin_world import HungMass
         from calib.units import DEG
         w = self.world
         if step.pose_deg is not None:
             w.command(np.asarray(step.pose_deg, float) * DEG)
-        n = w.robot.n
-        torque = np.zeros(n)
-        ld = np.zeros(n)
-        s = step.setup
-        if step.procedure == "compliance":
-            j = s["joint"] - 1
-            load = inputs.get("load_n", s["load_n"])
-            lever = inputs.get("lever_mm", s["lever_mm"])
-            th = inputs.get("theta_i_deg", s.get("theta_i_deg", 0.0)) * DEG
-            torque[j] = load * lever * 1e-3 * np.cos(th)
-            ld[j] = s["load_direction"]
-        w.set_load(torque, ld)
+        s = c3_setup(step.setup, step.pose_deg, inputs, self._kin)
+        w.hang([HungMass(int(ld["link"]), tuple(float(x) for x in ld["point_mm"]), float(ld["mass_kg"]))
+                for ld in s.get("loads", [])], load_directions(s, w.robot.n))
 
     def aim(self, target: TargetSpec) -> None:
-        self.world.aim(self._Target(target.name, tool_mm=target.tool_mm, point_mm=target.point_mm))
+        self.world.aim(self._Target(target.name, tool_mm=target.tool_mm, point_mm=target.point_mm,
+                                    link=getattr(target, "link", None)))
 
-    def read_gauges(self, step: Step) -> dict:
-        """What the dial gauges show at a link-compliance step (the scripted operator reads them)."""
-        s = step.setup
-        return {f"gauge{g + 1}_mm": self.world.dial_gauge_mm(x, s["load_x_mm"], s["load_n"])
-                for g, x in enumerate(s["gauges_x_mm"])}
+    def read_gauges(self, step: Step, inputs: dict | None = None) -> dict:
+        """What the step's dial gauges show (``<name>_mm``), with the step's loads hung at its pose."""
+        s = c3_setup(step.setup, step.pose_deg, inputs or {}, self._kin)
+        if not s.get("gauges"):
+            return {}
+        self.prepare(step, inputs or {})
+        return {f"{g['name']}_mm": self.world.gauge_mm(int(g["link"]), g["point_mm"], g["axis"])
+                for g in s.get("gauges", [])}
+
+
+def c3_setup(setup: dict, pose_deg, inputs: dict, kin) -> dict:
+    """A step's physical set-up in the vocabulary of contract C3 (loads and gauges at points on links), with the
+    operator's ``load_kg`` (when entered) as the mass of the first load.
+
+    Steps written before C3 are translated, by geometry only: a load ``load_n`` on a lever ``lever_mm`` of joint j
+    is a mass ``load_n / g`` at ``lever_mm`` along frame j's x axis (a point on link j); a load or a gauge at ``x``
+    mm along link j is a point on the segment from joint j's centre (frame j-1) to frame j at the step's pose, gauges
+    reading along gravity.  Whether the load turns a joint is then the geometry's business, not the step's.
+    """
+    s = dict(setup)
+    if "loads" not in s and "joint" in s:
+        j = int(s["joint"])
+        gravity = kin.robot.gravity_m_s2
+        g = float(np.linalg.norm(gravity))
+        load_n = float(inputs.get("load_n", s.get("load_n", 0.0)))
+        if "lever_mm" in s:                                                  # joint compliance
+            lever = float(inputs.get("lever_mm", s["lever_mm"]))
+            s["loads"] = [{"link": j, "point_mm": [lever, 0.0, 0.0], "mass_kg": load_n / g}]
+        elif "load_x_mm" in s:                                               # link compliance
+            along = _along_link(kin, pose_deg, j)
+            s["loads"] = [{"link": j, "point_mm": along(s["load_x_mm"]), "mass_kg": load_n / g}]
+            down = (np.asarray(gravity, float) / g).tolist()
+            s["gauges"] = [{"name": f"gauge{i + 1}", "link": j, "point_mm": along(x), "axis": down}
+                           for i, x in enumerate(s.get("gauges_x_mm", []))]
+    loads = [dict(ld) for ld in s.get("loads", [])]
+    if loads and inputs.get("load_kg") is not None:
+        loads[0]["mass_kg"] = float(inputs["load_kg"])
+    s["loads"] = loads
+    return s
+
+
+def load_directions(setup: dict, n: int) -> np.ndarray:
+    """(n,) +1 loading / -1 unloading / 0 per joint from ``setup["load_direction"]`` ({"3": 1})."""
+    d = np.zeros(n)
+    ld = setup.get("load_direction") or {}
+    if not isinstance(ld, dict):                      # older steps: one number for the step's joint
+        j = setup.get("tested_joint", setup.get("joint"))
+        ld = {str(j): ld} if j is not None else {}
+    for j, v in ld.items():
+        d[int(j) - 1] = float(v)
+    return d
+
+
+def _along_link(kin, pose_deg, j: int):
+    """x mm -> the point (frame j coordinates) at x from joint j's axis along link j's body (the beam that bends)."""
+    from calib.units import DEG
+    q = np.zeros(kin.n) if pose_deg is None else np.asarray(pose_deg, float) * DEG
+    fp = kin.forward(q[None])
+    (start,), (end,) = fp.link_beam(j)
+    R = fp.frame_R[0, j]
+    L = np.linalg.norm(end - start)
+
+    def at(x_mm: float) -> list[float]:
+        p = start + (end - start) * float(x_mm) / L
+        return (R.T @ (p - end)).tolist()
+    return at

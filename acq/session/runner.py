@@ -285,7 +285,7 @@ class Runner:
                 self._emit_checks(step, results)
             else:
                 rec.add_acquisition(got, cap, self.rig.device_ids.get("encoder tap", 0))
-                results = self._check(step, got, cap)
+                results = self._check(step, got, cap, values)
                 choices = ACTIONS_DECISION
             action, note = self._decide(step, rec, results, choices)
             if action in ("pause", "abort"):
@@ -373,7 +373,7 @@ class Runner:
                 self.rig.face(st, 1)
         return rows, cap
 
-    def _check(self, step: Step, rows: list[dict], cap) -> list[ck.Check]:
+    def _check(self, step: Step, rows: list[dict], cap, values: dict | None = None) -> list[ck.Check]:
         out: list[ck.Check] = []
         if rows:
             out += ck.face_agreement(rows, self.limits["face_agreement_arcsec"])
@@ -384,7 +384,7 @@ class Runner:
         if cap is not None:
             out += ck.encoders_settled(cap, step.pose_deg, self.limits)
         for extra in procedure_info(step.procedure).checks:
-            out += extra(step, rows, self)
+            out += extra(step, rows, values or {}, self.limits)
         self._emit_checks(step, out)
         return out
 

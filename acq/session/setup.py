@@ -12,8 +12,7 @@ from calib.model import MeasurementModel
 from calib.theodolite import thesis_stations
 from calib.units import ARCSEC, DEG
 
-from .procedures import READY_DEG
-from .steps import Step
+from .steps import READY_DEG, Step
 
 
 def standard_setup() -> dict:
@@ -32,15 +31,16 @@ def standard_setup() -> dict:
         "tool_target_mm": [50.0, 0.0, 100.0],
         "sweep_radius_mm": 600.0,
         "extended_tool": {"A1_mm": [0.0, 0.0, 100.0], "A2_mm": [200.0, 0.0, 300.0]},
-        "far_target_mm": [805.0, 8000.0, 300.0],
+        "far_target_mm": [-1000.0, 3000.0, 300.0],        # a mark on the wall left of the robot, 3-4 m away
         "ruler": {"marks_mm": [0.0, 930.0, 1860.0],
                   "placements": [{"where": "1.2 m in front, left", "C_mm": [-300.0, 1200.0, 0.0], "dir": [1, 0, 0]},
                                  {"where": "1.8 m in front, turned", "C_mm": [-200.0, 1800.0, 0.0],
                                   "dir": [1, 0.15, 0]}]},
         "compliance": {"3": {"lever_mm": 500.0, "loads_n": [0, 10, 20, 30, 45, 60, 75], "theta_i_deg": 0.0,
                              "pose_deg": list(READY_DEG)},
-                       # joint 4 loaded with the forearm level: its axis horizontal, the lever across it level
-                       "4": {"lever_mm": 500.0, "loads_n": [0, 5, 10, 15, 25, 35, 45], "theta_i_deg": 0.0,
+                       # joint 4 loaded with the forearm level (its axis horizontal): a lever clamped on the wrist
+                       # housing (link 4), level, 500 mm out along joint 5's axis, away from the theodolites
+                       "4": {"link": 4, "point_mm": [0.0, 0.0, -500.0], "loads_n": [0, 5, 10, 15, 25, 35, 45],
                              "pose_deg": [0.0, -90.0, 0.0, 0.0, 0.0, 0.0]}},
         # the upper arm level (at READY it stands vertical and a weight only compresses it)
         "link": {"joint": 2, "gauges_x_mm": [150.0, 280.0, 400.0], "load_x_mm": 430.0, "loads_n": [0, 50, 100, 150],

@@ -48,6 +48,20 @@ def fit_ruler(rows: np.ndarray, setup: dict):
     return res, {na: replace(A, name=na), nb: replace(B, name=nb)}
 
 
+def ruler_station_fit(res, stations: dict[str, Station]):
+    """The fitted stations with the covariance of L, gamma1, gamma2 and B's height from the ruler fit
+    (:class:`calib.estimators.points.StationFit`), so every point carries the stations' uncertainty."""
+    from calib.estimators.points import StationFit
+    names = ["L_mm", "gamma1_rad", "gamma2_rad", "hB_mm"]
+    sigma = stations["A"].sigma_hz_rad
+    sub = res.subset(names)
+
+    def build(v):
+        return dict(zip(("A", "B"), thesis_stations(v[0], v[1], v[2], sigma, v[3])))
+
+    return StationFit(names, sub.value.copy(), sub.cov.copy(), build)
+
+
 def stations_from_store(store, setup: dict, min_marks: int = 6) -> dict[str, Station] | None:
     """Stations refitted from the ruler steps committed so far, or None while they cannot determine them.
 

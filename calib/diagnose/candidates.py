@@ -24,7 +24,9 @@ from .data import DiagnosisData
 
 #: the effect names the diagnosis reports (the registry keys of calib.effects.EFFECTS)
 EFFECT_NAMES = ("transmission_error", "joint_compliance", "backlash", "cross_coupling", "link_compliance",
-                "thermal_drift")
+                "thermal_drift", "joint_scale", "axis_tilt", "parallel_axes", "instrument_drift", "tool_flex")
+#: step times tried for instrument_drift, as quantiles of the measurement time (besides a ramp)
+DRIFT_STEPS = (0.25, 0.5, 0.75)
 #: transmission-error orders tried (cycles per radian of joint angle); the thesis found 0.9 and 1.8
 TE_ORDERS = tuple(np.round(np.arange(0.5, 4.01, 0.1), 2))
 #: a joint that moves less than this over the poses cannot show a joint-angle signature
@@ -39,6 +41,8 @@ class Candidate:
     order: float | None = None        # transmission error: cycles per radian
     reference_c: float = 20.0         # thermal drift reference temperature
     free: tuple[str, ...] = ()        # parameters to estimate (unqualified names)
+    step_s: float = 0.0               # instrument drift: step time (0: a ramp)
+    reference_s: float = 0.0          # instrument drift: ramp reference time
 
     @property
     def group(self) -> tuple:
@@ -51,13 +55,18 @@ class Candidate:
             return f"transmission_error j{self.joint} (order {self.order:g}/rad)"
         if self.kind == "cross_coupling":
             return f"cross_coupling j{self.source}->j{self.joint}"
-        if self.kind == "thermal_drift":
-            return "thermal_drift"
+        if self.kind == "instrument_drift":
+            return f"instrument_drift step at {self.step_s:.0f} s" if self.step_s > 0 else "instrument_drift ramp"
+        if self.joint is None:
+            return self.kind
         return f"{self.kind} j{self.joint}"
 
     def make(self) -> Effect:
         """A fresh effect instance at (nearly) zero magnitude: the model's own code gives its Jacobian."""
-        given = {"order": self.order, "harmonics": 1, "source": self.source, "reference_degc": self.reference_c}
+        given = {"order": self.order, "harmonics": 1, "source": self.source, "reference_degc": self.reference_c,
+                 "step_s": self.step_s, "reference_s": self.reference_s}
+        if not EFFECTS[self.kind].has_joint:
+            return make_effect(self.kind, **{k: given[k] for k in EFFECTS[self.kind].options})
         return make_effect(self.kind, self.joint, **{k: given[k] for k in EFFECTS[self.kind].options})
 
     def parameters(self, values: dict[str, float], sigmas: dict[str, float]) -> dict[str, float]:
@@ -84,7 +93,21 @@ class Candidate:
         elif self.kind == "thermal_drift":
             out = {"kappa_per_degc": values["kappa_per_degc"], "kappa_sigma_per_degc": sigmas["kappa_per_degc"],
                    "reference_degc": self.reference_c}
+        else:
+            out = _generic_parameters(values, sigmas, self.free)
         return out
+
+
+def _generic_parameters(values: dict[str, float], sigmas: dict[str, float], free) -> dict[str, float]:
+    """Any other kind: its estimated parameters by name (radians shown in degrees), each with ``<name>_sigma``."""
+    out: dict[str, float] = {}
+    for k in free:
+        v, s = values[k], sigmas[k]
+        if k.endswith("_rad"):
+            k, v, s = k[:-4] + "_deg", v / DEG, s / DEG
+        out[k] = float(v)
+        out[f"{k}_sigma"] = float(s)
+    return out
 
 
 @dataclass
@@ -149,9 +172,42 @@ def build_library(data: DiagnosisData, kinds: tuple[str, ...] = EFFECT_NAMES,
             out.candidates.append(Candidate("thermal_drift", None, reference_c=ref, free=("kappa_per_degc",)))
         else:
             skip("thermal_drift: the temperature does not vary over the poses (or is not recorded)")
+    _more_candidates(data, kinds, moving, out)
     if data.raw_angles:
         skip("instrument errors: raw theodolite angles are present, but the point-based diagnosis does not refit "
              "them (run robocal identify on the angles)")
     else:
         skip("instrument errors: the data holds intersected points, not raw theodolite angles")
     return out
+
+
+def _more_candidates(data: DiagnosisData, kinds, moving: list[int], out: Library) -> None:
+    """Scale errors, wobbling axes, a missing Hayati term, a moving instrument and a bending tool (issue 14)."""
+    robot = data.robot
+    n = robot.n
+    skip = out.skipped.append
+    if "joint_scale" in kinds:
+        for j in moving:
+            out.candidates.append(Candidate("joint_scale", j, free=("scale",)))
+    if "axis_tilt" in kinds:
+        for j in moving:
+            out.candidates.append(Candidate("axis_tilt", j, free=("c_rad", "s_rad")))
+    if "parallel_axes" in kinds:
+        pairs = [j for j in range(1, n) if abs(np.sin(robot.alpha_rad[j - 1])) < 1e-3 and not robot.hayati[j - 1]
+                 and not robot.prismatic[j - 1]]
+        for j in pairs:
+            out.candidates.append(Candidate("parallel_axes", j, free=("beta_rad",)))
+        if not pairs:
+            skip("parallel_axes: no pair of parallel axes without the Hayati term in the robot description")
+    if "instrument_drift" in kinds:
+        if data.has.get("time"):
+            t = data.ctx.time_s
+            out.candidates.append(Candidate("instrument_drift", None, reference_s=float(np.mean(t)),
+                                            free=("x_mm", "y_mm", "z_mm")))
+            for qv in DRIFT_STEPS:
+                out.candidates.append(Candidate("instrument_drift", None, step_s=float(np.quantile(t, qv)),
+                                                free=("x_mm", "y_mm", "z_mm")))
+        else:
+            skip("instrument_drift: the data carries no time (or it does not vary)")
+    if "tool_flex" in kinds:
+        out.candidates.append(Candidate("tool_flex", None, free=("sag_mm",)))

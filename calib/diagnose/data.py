@@ -40,6 +40,7 @@ class DiagnosisData:
     raw_angles: bool = False               # theodolite readings available (instrument-error candidates)
     pose_id: list[str] = field(default_factory=list)
     notes: list[str] = field(default_factory=list)
+    split: list[str] | None = None         # the data's own "fit"/"test" split (else the diagnosis makes folds)
 
     @property
     def n(self) -> int:
@@ -57,7 +58,8 @@ class DiagnosisData:
                              self.ctx.subset(idx), self.source, self.noise_from, dict(self.has),
                              {k: [v[i] for i in idx] for k, v in self.labels.items()},
                              {k: np.asarray(v)[idx] for k, v in self.numeric.items()}, self.raw_angles,
-                             [self.pose_id[i] for i in idx] if self.pose_id else [], list(self.notes))
+                             [self.pose_id[i] for i in idx] if self.pose_id else [], list(self.notes),
+                             [self.split[i] for i in idx] if self.split else None)
 
     @property
     def whitening(self) -> np.ndarray:
@@ -151,5 +153,9 @@ def load_data(path: str | Path, robot: Robot | None = None, noise_mm: float | No
     d = from_arrays(robot, table.q_rad, table.points_mm, cov, noise_mm,
                     direction=table.direction, payload_kg=table.payload_kg, temperature_c=table.temperature_c,
                     time_s=table.time_s, source=str(path), pose_id=table.pose_id or None)
+    if getattr(table, "station", None):
+        d.labels["station"] = list(table.station)
+    if getattr(table, "split", None):
+        d.split = list(table.split)
     d.notes += [str(w.message) for w in caught]
     return d

@@ -19,7 +19,7 @@ from .breakdown import Factor, breakdown
 from .candidates import EFFECT_NAMES, TE_ORDERS, build_library
 from . import noise
 from .data import DiagnosisData
-from .gap import CVResult, auto_level, cv_fit, geometric_free, heldout_floor_mm, make_folds, noise_floor_mm
+from .gap import CVResult, auto_level, cv_fit, data_folds, geometric_free, heldout_floor_mm, noise_floor_mm
 from .select import Selection, forward_select
 
 
@@ -43,6 +43,7 @@ class Diagnosis:
     outlier_report: OutlierReport = field(default_factory=lambda: OutlierReport("off"))
     noise: noise.NoiseEstimate | None = None
     judged_floor_mm: float = float("nan")      # the floor the acceptance rule used (see calib.diagnose.noise)
+    confirmation: object | None = None         # calib.diagnose.confirm.Confirmation, after --confirm
 
     @property
     def baseline_rms_mm(self) -> float:
@@ -67,8 +68,12 @@ class Diagnosis:
                         "p_value": f.p_value, "test": f"nested F on instrument-whitened residuals, Bonferroni over "
                                                       f"{f.n_tested} candidates",
                         "f_statistic": f.f_statistic, "delta_bic": f.delta_bic, "parameters": f.parameters,
-                        "stability": f.stability, "aliases": f.aliases, "doubtful": f.doubtful,
+                        "stability": f.stability if f.stability == f.stability else None,
+                        "aliases": f.aliases, "doubtful": f.doubtful,
                         "excess_share": f.shrink_share})
+        if self.confirmation is not None:
+            for d, c in zip(out, self.confirmation.findings()):
+                d["confirmed"] = c["confirmed"]
         return out
 
     def unexplained(self) -> dict | None:
@@ -94,7 +99,8 @@ class Diagnosis:
         d = self.data
         return {
             "source": d.source, "robot": d.robot.name, "poses": d.n, "folds": self.n_folds,
-            "heldout": "leave-one-out" if self.n_folds == d.n else f"{self.n_folds}-fold",
+            "heldout": ("the data's own split" if d.split else "leave-one-out" if self.n_folds == d.n
+                        else f"{self.n_folds}-fold"),
             "geometry_level": self.level, "noise_from": d.noise_from,
             "noise_floor_mm": self.noise_floor_mm, "heldout_floor_mm": self.heldout_floor_mm,
             "baseline_rms_mm": self.baseline_rms_mm, "baseline_max_mm": self.geometric.max_mm,
@@ -114,6 +120,7 @@ class Diagnosis:
             "noise_estimate": self.noise.as_dict() if self.noise else None,
             "judged_floor_mm": self.judged_floor_mm,
             "unexplained": self.unexplained(),
+            **({"confirmation": self.confirmation.as_dict()} if self.confirmation is not None else {}),
         }
 
     def warning(self) -> str:
@@ -137,10 +144,14 @@ def _outlier_step(data: DiagnosisData, model: MeasurementModel, level: str, mode
 def _geometric(data: DiagnosisData, model: MeasurementModel, level: str, folds, loss: str) -> tuple[str, CVResult, str]:
     """The baseline: the geometric set fitted and scored held-out (``auto``: full unless the poses are too few)."""
     if level == "auto":
-        full = cv_fit(model, data, geometric_free(model, "full"), folds, loss=loss)
-        if auto_level(model, data.n, len(folds)) == "full":
+        full = None
+        if 3 * min(len(tr) for tr, _ in folds) >= len(geometric_free(model, "full")):
+            full = cv_fit(model, data, geometric_free(model, "full"), folds, loss=loss)
+        if full is not None and auto_level(model, data.n, len(folds), min(len(tr) for tr, _ in folds)) == "full":
             return "full", full, ""
         offs = cv_fit(model, data, geometric_free(model, "offsets"), folds, loss=loss)
+        if full is None:
+            return "offsets", offs, "too few poses to fit the full geometric set: the 'offsets' set is the baseline"
         level, geo = ("offsets", offs) if offs.chi2 < full.chi2 else ("full", full)
         return level, geo, (f"few poses for the full geometric set: held-out RMS {full.rms_mm:.3f} mm (full) vs "
                             f"{offs.rms_mm:.3f} mm (offsets only); the '{level}' set is the baseline")
@@ -160,7 +171,7 @@ def diagnose(data: DiagnosisData, level: str = "auto", n_folds: int | None = Non
     model = MeasurementModel(data.robot)
     prog("geometric fit", 0.0)
     data, out_rep = _outlier_step(data, model, level, outliers if flag_outliers else "off", loss)
-    folds = make_folds(data.n, n_folds)
+    folds = data_folds(data, n_folds)
     level, geo, note = _geometric(data, model, level, folds, loss)
     geo_free = geometric_free(model, level)
     lib = build_library(data, kinds, te_orders)
@@ -180,4 +191,8 @@ def _breakdown(data: DiagnosisData, model: MeasurementModel, geo: CVResult, sel:
     base = ev.chain.frame_t[0, 0]
     g = data.robot.gravity_m_s2
     up = ev.chain.frame_R[0, 0] @ (-g / np.linalg.norm(g)) if np.linalg.norm(g) > 0 else None
-    return breakdown(data, geo.residual_mm, sel.final.residual_mm, base, up, ev.joint_jacobian)
+    t = geo.tested
+    if t.all():
+        return breakdown(data, geo.residual_mm, sel.final.residual_mm, base, up, ev.joint_jacobian)
+    return breakdown(data.subset(np.flatnonzero(t)), geo.residual_mm[t], sel.final.residual_mm[t], base, up,
+                     ev.joint_jacobian[t])

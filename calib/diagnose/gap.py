@@ -14,6 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from calib.errors import RobocalError
 from calib.identify import Identification, default_free, identify
 from calib.model import MeasurementModel
 
@@ -21,6 +22,28 @@ from .data import DiagnosisData
 
 #: below this many poses the held-out test is leave-one-out, above it k-fold
 LOO_MAX_POSES = 40
+
+
+def data_folds(data: DiagnosisData, k: int | None = None) -> list[tuple[np.ndarray, np.ndarray]]:
+    """The data's own split (one fold: fit rows train, test rows are held out) when it has one, else
+    :func:`make_folds`."""
+    if not data.split:
+        return make_folds(data.n, k)
+    s = np.asarray(data.split)
+    fit, test = np.flatnonzero(s == "fit"), np.flatnonzero(s == "test")
+    if len(test) == 0 or len(fit) == 0:
+        raise RobocalError(f"{data.source}: the split column needs both fit and test rows "
+                           f"({len(fit)} fit, {len(test)} test)")
+    return [(fit, test)]
+
+
+def check_folds(folds, n_params: int, source: str) -> None:
+    """Every training set must hold at least as many observations as parameters: one line otherwise."""
+    for i, (tr, _) in enumerate(folds):
+        if 3 * len(tr) < n_params:
+            raise RobocalError(f"{source}: held-out fold {i + 1} trains on {len(tr)} poses ({3 * len(tr)} "
+                               f"observations) for {n_params} parameters; use fewer folds, --geometry offsets or "
+                               f"more poses")
 
 
 def make_folds(n: int, k: int | None = None, seed: int = 0) -> list[tuple[np.ndarray, np.ndarray]]:
@@ -46,9 +69,11 @@ def geometric_free(model: MeasurementModel, level: str = "full") -> list[str]:
     return sorted(names, key=order.get)
 
 
-def auto_level(model: MeasurementModel, n_poses: int, n_folds: int) -> str:
-    """``full`` unless a training fold has fewer than three observations per full-set parameter."""
-    n_train = n_poses - int(np.ceil(n_poses / n_folds))
+def auto_level(model: MeasurementModel, n_poses: int, n_folds: int, n_train: int | None = None) -> str:
+    """``full`` unless a training fold (``n_train`` poses, default from k-fold) has fewer than three observations per
+    full-set parameter."""
+    if n_train is None:
+        n_train = n_poses - int(np.ceil(n_poses / n_folds))
     return "full" if 3 * n_train >= 3 * len(geometric_free(model, "full")) else "offsets"
 
 
@@ -74,12 +99,17 @@ class CVResult:
 
     @property
     def max_mm(self) -> float:
-        return float(np.max(np.linalg.norm(self.residual_mm, axis=1)))
+        return float(np.nanmax(np.linalg.norm(self.residual_mm, axis=1)))
+
+    @property
+    def tested(self) -> np.ndarray:
+        """(N,) poses some fold held out (all of them, unless the data bring their own split)."""
+        return np.isfinite(self.residual_mm).all(axis=1)
 
 
 def rms_mm(res: np.ndarray) -> float:
-    """RMS of the 3-D residual length."""
-    return float(np.sqrt(np.mean(np.sum(np.asarray(res) ** 2, axis=-1))))
+    """RMS of the 3-D residual length (poses without a held-out residual, NaN, left out)."""
+    return float(np.sqrt(np.nanmean(np.sum(np.asarray(res) ** 2, axis=-1))))
 
 
 def noise_floor_mm(data: DiagnosisData) -> float:
@@ -88,7 +118,7 @@ def noise_floor_mm(data: DiagnosisData) -> float:
 
 def whitened_chi2(data: DiagnosisData, res: np.ndarray, idx=None) -> float:
     W = data.whitening if idx is None else data.whitening[idx]
-    return float(np.sum(np.einsum("nij,nj->ni", W, res) ** 2))
+    return float(np.nansum(np.einsum("nij,nj->ni", W, res) ** 2))
 
 
 def cv_fit(model: MeasurementModel, data: DiagnosisData, free: list[str], folds, theta0: list[np.ndarray] | None = None,
@@ -99,7 +129,8 @@ def cv_fit(model: MeasurementModel, data: DiagnosisData, free: list[str], folds,
     (rigid base fit and the linear step of Chapter 6) for the first, geometric fit.  ``loss``: the least-squares
     loss (as identify's ``--loss``), so the diagnosis fits exactly as identify does.
     """
-    res = np.zeros_like(data.points_mm)
+    check_folds(folds, len(free), data.source)
+    res = np.full_like(data.points_mm, np.nan)
     fits = []
     for i, (tr, te) in enumerate(folds):
         obs = data.observations(tr)

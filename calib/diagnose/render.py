@@ -40,7 +40,8 @@ def render(d: Diagnosis, max_factor_rows: int = 40) -> str:
                          if isinstance(v, (int, float)) and "sigma_" not in k and not k.endswith("_sigma"))
         out.append(f"   {i}. {f['label']}: held-out RMS -> {f['rms_after_mm']:.4f} mm, p = {_p(f['p_value'])}; "
                    f"{pars}")
-        flags = [f"fold spread {100 * f['stability']:.0f} %"]
+        flags = [f"fold spread {100 * f['stability']:.0f} %" if f["stability"] is not None
+                 else "fold spread not measured (the data's own split: one fit)"]
         if f["aliases"]:
             flags.append("looks like " + ", ".join(f["aliases"]))
         out.append(f"      {'DOUBTFUL: ' if f['doubtful'] else ''}" + "; ".join(flags))
@@ -74,6 +75,13 @@ def render(d: Diagnosis, max_factor_rows: int = 40) -> str:
         out.append(f"   noise per coordinate: given {ne['given_mm']:.4f} mm, from the data {ne['estimated_mm']:.4f} mm "
                    f"({ne['from']})")
     out += [f"   note: {line}" for line in d.outlier_report.lines()]
+    c = j.get("confirmation")
+    if c:
+        out += ["", f"5. Confirmed on {c['source']} ({c['poses']} poses, base re-stationed per station; noise floor "
+                    f"{c['noise_floor_mm']:.4f} mm)", f"   geometric {c['geometric_rms_mm']:.4f} mm"]
+        for f in c["findings"]:
+            out.append(f"   + {f['label']}: {f['rms_after_mm']:.4f} mm ({1000 * f['shrink_mm']:+.1f} um): "
+                       + ("confirmed" if f["confirmed"] else "NOT confirmed"))
     for n in j["notes"]:
         out.append(f"   note: {n}")
     return "\n".join(out)

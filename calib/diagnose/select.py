@@ -70,6 +70,7 @@ class Finding:
     stability: float = 0.0          # jackknife relative spread of the parameters across folds
     aliases: list[str] = field(default_factory=list)
     shrink_share: float = float("nan")   # share of the baseline excess this effect removed
+    fit: CVResult | None = None     # the model with this and the earlier findings, fitted (for --confirm)
 
     @property
     def doubtful(self) -> bool:
@@ -260,6 +261,8 @@ def _stability(model: MeasurementModel, cv: CVResult, cand: Candidate) -> tuple[
     idx = [s.start + names.index(p) for p in cand.free]
     vals = np.array([f.theta[idx] for f in cv.folds])
     k = len(vals)
+    if k < 2:                   # the data's own split: one fit, no spread to measure
+        return float("nan"), np.zeros(s.stop - s.start)
     se = np.sqrt((k - 1) / k * np.sum((vals - vals.mean(0)) ** 2, axis=0))
     ref = float(np.linalg.norm(cv.all_fit.theta[idx]))
     full = np.zeros(s.stop - s.start)
@@ -332,7 +335,7 @@ def _try_accept(cx: _Context, cur: CVResult, ok, tests: _Tests, k: int,
         return why
     f = Finding(cand, new.rms_mm, new.max_mm, float(tests.p[k]), float(tests.F[k]), float(tests.dbic[k]), new.chi2,
                 _param_report(cand, model, new, fold_sigma), n_tested, spread, _aliases(k, ok, tests),
-                gain / cx.excess_mm if cx.excess_mm > 0 else float("nan"))
+                gain / cx.excess_mm if cx.excess_mm > 0 else float("nan"), new)
     return f, new
 
 

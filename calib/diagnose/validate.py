@@ -242,7 +242,7 @@ class Validation:
         out = [f"Withheld-effect validation: {len(self.effect_results)} effect cases, {len(self.clean_results)} "
                f"clean cases, {self.seconds:.0f} s", "",
                "Confusion matrix (rows: withheld effect; columns: effect named first)",
-               f"  {'':<20}" + "".join(f"{short[c]:>9}" for c in cols)]
+               f"  {'':<20}" + "".join(f"{short.get(c, c[:8]):>9}" for c in cols)]
         for i, r in enumerate(rows):
             out.append(f"  {r:<20}" + "".join(f"{v:>9d}" for v in M[i]))
         out += ["",

@@ -33,6 +33,10 @@ class PoseContext:
     joint_torque_nm: np.ndarray | None = None  # (N, n) torque applied directly to joints (compliance loads)
     temperature_c: np.ndarray | None = None    # (N,)
     time_s: np.ndarray | None = None           # (N,)
+    # forces at points fixed on links (hung masses: mass x the model's gravity), K of them per pose (contract C2)
+    point_force_link: np.ndarray | None = None  # (K,) int: frame the point is fixed in (0 base, j = link j)
+    point_force_mm: np.ndarray | None = None    # (N, K, 3) the point, in that frame
+    point_force_n: np.ndarray | None = None     # (N, K, 3) the force, in the measurement frame
 
     def __post_init__(self):
         N, n = self.n_poses, self.n_joints
@@ -43,12 +47,22 @@ class PoseContext:
             default = 20.0 if name == "temperature_c" else 0.0
             v = np.full(shape, default) if v is None else np.broadcast_to(np.asarray(v, float), shape).copy()
             setattr(self, name, v)
+        link = np.zeros(0, int) if self.point_force_link is None else np.asarray(self.point_force_link)
+        if link.ndim != 1 or (link.size and (np.any(link != np.round(link)) or link.min() < 0 or link.max() > n)):
+            raise ValueError(f"point_force_link must be frame indices 0..{n}, got {self.point_force_link!r}")
+        self.point_force_link = link.astype(int)
+        K = link.size
+        for name in ("point_force_mm", "point_force_n"):
+            v = getattr(self, name)
+            v = np.zeros((N, K, 3)) if v is None else np.broadcast_to(np.asarray(v, float), (N, K, 3)).copy()
+            setattr(self, name, v)
 
     def subset(self, idx) -> "PoseContext":
         pick = {k: getattr(self, k)[idx] for k in ("direction", "load_direction", "payload_kg", "tool_force_n",
-                                                      "joint_torque_nm", "temperature_c", "time_s")}
+                                                      "joint_torque_nm", "temperature_c", "time_s",
+                                                      "point_force_mm", "point_force_n")}
         n_new = len(pick["payload_kg"])
-        return PoseContext(n_new, self.n_joints, **pick)
+        return PoseContext(n_new, self.n_joints, point_force_link=self.point_force_link, **pick)
 
 
 @dataclass
@@ -58,6 +72,10 @@ class Loads:
     joint_torque_nm: np.ndarray       # (N, n) torque about each joint axis (gravity + payload + tool force + applied)
     tip_force_n: np.ndarray           # (N, n, 3) force carried at the end of each link (frame j origin)
     dtau_dgeo: np.ndarray | None = None   # (N, n, P_geometric) d torque / d geometric parameter, when asked
+    # the point forces of the pose context, placed: for effects that load a link along its length
+    point_force_n: np.ndarray | None = None   # (N, K, 3) N, measurement frame
+    point_at_mm: np.ndarray | None = None     # (N, K, 3) where each acts, measurement frame
+    point_link: np.ndarray | None = None      # (K,) frame each point is fixed in
 
 
 class JointNumber(int):

@@ -25,6 +25,8 @@ from ._common import EstimationError, at_least, finite
 PROC = "joint compliance"
 FIT_NAMES = ["K1_Nm_per_rad", "K2_Nm_per_rad", "breakpoint_Nm", "offset_rad", "theta0_rad"]
 FIT_UNITS = ["N m/rad", "N m/rad", "N m", "rad", "rad"]
+#: a stiffness whose 1-sigma exceeds this share of its value is "not determined" (linearised errors mean nothing there)
+MAX_REL_ERROR = 0.5
 
 
 def to_lbin_per_rad(K_Nm_per_rad):
@@ -64,13 +66,17 @@ def _design(T, unload, Tb):
     return np.stack([one, np.broadcast_to(unload, one.shape), np.minimum(T, Tb), np.maximum(T - Tb, 0.0)], -1)
 
 
-def _fit_fixed(T, unload, y, Tb):
-    """Linear LSQ for fixed breakpoints: y (..., n), Tb (..., g) -> coef (..., g, 4), sse (..., g)."""
+def _fit_fixed(T, unload, y, Tb, W=None):
+    """Generalised linear LSQ for fixed breakpoints: y (..., n), Tb (..., g) -> coef (..., g, 4), whitened SSE
+    (..., g).  ``W`` whitens the deflections' errors (``W C W^T = I``; None: unit weights)."""
     X = _design(T, unload, Tb)                                       # (..., g, n, 4)
+    yy = y[..., None, :]
+    if W is not None:
+        X, yy = W @ X, yy @ W.T
     XtX = np.swapaxes(X, -1, -2) @ X
-    Xty = np.swapaxes(X, -1, -2) @ y[..., None, :, None]
+    Xty = np.swapaxes(X, -1, -2) @ yy[..., None]
     coef = np.linalg.solve(XtX + 1e-18 * np.eye(4), Xty)[..., 0]
-    r = y[..., None, :] - np.einsum("...gnk,...gk->...gn", X, coef)
+    r = yy - (X @ coef[..., None])[..., 0]
     return coef, np.sum(r * r, -1)
 
 
@@ -88,18 +94,25 @@ def _model_jac(p, T, unload):
                      np.maximum(T - Tb[..., None], 0.0), np.where(below, 0.0, (c1 - c2)[..., None])], -1)
 
 
-def _fit(T, unload, y, grid_n: int = 200, min_side: int = 2):
-    """Vectorised two-slope estimator over leading batch dims of ``y`` -> ``(..., 5)`` [th0, off, c1, c2, Tb]."""
+def _search_range(T, min_side):
     Ts = np.unique(T)
-    lo, hi = Ts[min_side - 1], Ts[-min_side]
+    return Ts[min_side - 1], Ts[-min_side]
+
+
+def _fit(T, unload, y, grid_n: int = 200, min_side: int = 2, W=None):
+    """Vectorised two-slope estimator over leading batch dims of ``y`` -> ``(..., 5)`` [th0, off, c1, c2, Tb]:
+    the breakpoint by its profile on a grid (linear LSQ for the rest), then Gauss-Newton on all five."""
+    lo, hi = _search_range(T, min_side)
     grid = np.linspace(lo, hi, grid_n)
-    coef, sse = _fit_fixed(T, unload, y, np.broadcast_to(grid, y.shape[:-1] + (grid_n,)))
+    coef, sse = _fit_fixed(T, unload, y, np.broadcast_to(grid, y.shape[:-1] + (grid_n,)), W)
     k = np.argmin(sse, -1)
     c = np.take_along_axis(coef, k[..., None, None], -2)[..., 0, :]
     p = np.concatenate([c, grid[k][..., None]], -1)
     for _ in range(6):                                      # Gauss-Newton polish on all five parameters
         J = _model_jac(p, T, unload)
         r = y - two_slope_model(p, T, unload)
+        if W is not None:
+            J, r = W @ J, r @ W.T
         A = np.swapaxes(J, -1, -2) @ J
         dp = np.linalg.solve(A + 1e-18 * np.eye(5), (np.swapaxes(J, -1, -2) @ r[..., None]))[..., 0]
         p = p + dp
@@ -112,17 +125,66 @@ def _outputs(p):
     return np.stack([1.0 / c1, 1.0 / c2, Tb, off, th0], -1)
 
 
-def two_slope_fit(torque_Nm_, deflection_rad, unloading, sigma_deflection_rad: float, n_mc: int = 5000,
-                  rng=0) -> EstimateSet:
+def _cov_matrix(sigma, n: int) -> np.ndarray:
+    s = np.asarray(sigma, float)
+    C = s if s.ndim == 2 else np.diag(np.broadcast_to(s, (n,)) ** 2)
+    if C.shape != (n, n) or not np.all(np.isfinite(C)) or np.any(np.diag(C) <= 0):
+        raise EstimationError(PROC, "two-slope fit", f"the deflections' sigma must be positive and finite, one per "
+                              f"reading or an {n}x{n} covariance")
+    return 0.5 * (C + C.T)
+
+
+def _torque_cov(load_N, lever_mm, theta_i_rad, sigma_load_N, sigma_lever_mm, sigma_theta_i_rad) -> np.ndarray:
+    """Covariance of the torques ``T = N L cos(theta_i)`` from the thesis's Delta N (each load), Delta L_j (one
+    lever for the series: a common scale) and Delta theta_ij (each set-up angle), first order."""
+    N, L, th = (np.asarray(v, float) for v in np.broadcast_arrays(load_N, lever_mm, theta_i_rad))
+    sN, sth = (np.broadcast_to(np.asarray(v, float), N.shape) for v in (sigma_load_N, sigma_theta_i_rad))
+    dT_dN = L * 1e-3 * np.cos(th)
+    dT_dth = -N * L * 1e-3 * np.sin(th)
+    dT_dL = N * 1e-3 * np.cos(th)
+    return np.diag((dT_dN * sN) ** 2 + (dT_dth * sth) ** 2) + np.outer(dT_dL, dT_dL) * float(sigma_lever_mm) ** 2
+
+
+def _profile_interval(T, u, y, W, min_side, Tb_hat, n_grid: int = 400):
+    """Profile likelihood of the breakpoint: the range of Tb whose best chi^2 is within 1 of the minimum (the
+    1-sigma interval), and whether it reaches an end of the search range (then the data do not determine it)."""
+    lo, hi = _search_range(T, min_side)
+    grid = np.union1d(np.linspace(lo, hi, n_grid), [Tb_hat])
+    _, chi2 = _fit_fixed(T, u, y, grid, W)
+    inside = grid[chi2 <= chi2.min() + 1.0]
+    a, b = float(inside.min()), float(inside.max())
+    step = (hi - lo) / n_grid
+    return a, b, (a <= lo + step) or (b >= hi - step)
+
+
+def two_slope_fit(torque_Nm_, deflection_rad, unloading, sigma_deflection_rad, n_mc: int = 5000, rng=0, *,
+                  load_N=None, lever_mm=None, theta_i_rad=0.0, sigma_load_N=0.0, sigma_lever_mm=0.0,
+                  sigma_theta_i_rad=0.0, sigma_torque_Nm=None) -> EstimateSet:
     """Stiffness below and above a breakpoint, the breakpoint, and the unloading offset (dead zone), three ways.
 
-    ``torque_Nm_ (n,)``, ``deflection_rad (n,)`` (joint angle change from A1, A2), ``unloading (n,)`` bool (the
-    decreasing-load series); ``sigma_deflection_rad`` the 1-sigma of each deflection (torques taken as exact: weights
-    are calibrated).  Needs at least 3 distinct torques on each side of the breakpoint.
+    ``torque_Nm_ (n,)`` -- or ``load_N``, ``lever_mm``, ``theta_i_rad`` to compute ``T = N L cos(theta_i)`` --,
+    ``deflection_rad (n,)`` (joint angle change from A1, A2), ``unloading (n,)`` bool (the decreasing-load series);
+    ``sigma_deflection_rad``: scalar, one per reading, or their full covariance (angles measured with the same
+    stations share their errors).  The thesis's error terms enter as the torques' covariance (Delta N per load,
+    Delta L_j common to the series, Delta theta_ij per set-up; or ``sigma_torque_Nm`` directly), mapped into deflection
+    through the fitted slopes (effective variance) before the generalised least-squares fit.
+
+    The breakpoint comes from its profile likelihood.  When its 1-sigma interval reaches an end of the search range
+    (the two slopes are not told apart), no breakpoint is reported: ``K1`` is then the single slope over every load,
+    and ``K2`` and the breakpoint are listed in ``extras['not_determined']`` with the reason -- never a value at a
+    bound with an error of 0.
     """
     step = "two-slope fit"
-    T = np.asarray(torque_Nm_, float).ravel()
     y = np.asarray(deflection_rad, float).ravel()
+    if load_N is not None:
+        if lever_mm is None:
+            raise EstimationError(PROC, step, "loads were given without their lever arm")
+        T = torque_Nm(load_N, lever_mm, theta_i_rad) * np.ones(y.size)
+        CT = _torque_cov(load_N, lever_mm, theta_i_rad, sigma_load_N, sigma_lever_mm, sigma_theta_i_rad)
+        CT = np.broadcast_to(CT, (y.size, y.size)) if CT.size == 1 else CT
+    else:
+        T = np.asarray(torque_Nm_, float).ravel()
+        CT = np.zeros((T.size, T.size)) if sigma_torque_Nm is None else _cov_matrix(sigma_torque_Nm, T.size)
     u = np.asarray(unloading, bool).ravel().astype(float)
     finite(PROC, step, torque=T, deflection=y)
     if not (T.size == y.size == u.size):
@@ -130,19 +192,77 @@ def two_slope_fit(torque_Nm_, deflection_rad, unloading, sigma_deflection_rad: f
     at_least(PROC, step, "distinct torques (3 each side of the breakpoint)", np.unique(T).size, 6)
     if not (u.any() and (1 - u).any()):
         raise EstimationError(PROC, step, "needs both a loading and an unloading series (for the dead zone)")
-    if np.ptp(y) <= 3 * sigma_deflection_rad or np.ptp(y) == 0:
+    Cy = _cov_matrix(sigma_deflection_rad, y.size)
+    noise = float(np.sqrt(np.mean(np.diag(Cy))))
+    if np.ptp(y) <= 3 * noise or np.ptp(y) == 0:
         raise EstimationError(PROC, step, f"the loads produced no measurable deflection (spread {np.ptp(y):.3g} rad "
-                              f"vs noise {sigma_deflection_rad:.3g} rad)")
-    p = _fit(T, u, y, min_side=3)
+                              f"vs noise {noise:.3g} rad): the stiffness is not determined")
+    W = np.linalg.inv(np.linalg.cholesky(Cy))
+    p = _fit(T, u, y, min_side=3, W=W)
+    for _ in range(2):              # effective variance: torque errors through the fitted slopes
+        S = np.where(T < p[4], p[2], p[3])
+        C = Cy + S[:, None] * CT * S[None, :]
+        W = np.linalg.inv(np.linalg.cholesky(C))
+        p = _fit(T, u, y, min_side=3, W=W)
+    a, b, at_bound = _profile_interval(T, u, y, W, 3, p[4])
+    lo, hi = _search_range(T, 3)
+    tol = 1e-3 * (hi - lo)
+    if at_bound or not (lo + tol < p[4] < hi - tol):
+        return _single_slope(T, u, y, C, a, b, n_mc, rng)
     if np.any(p[2:4] <= 0):
         raise EstimationError(PROC, step, "a fitted compliance is not positive: deflection does not grow with load")
     J = _model_jac(p, T, u)
-    Cp = sigma_deflection_rad ** 2 * np.linalg.inv(J.T @ J)
+    Cp = np.linalg.pinv(J.T @ np.linalg.solve(C, J))
     th0, off, c1, c2, Tb = p
     G = np.zeros((5, 5))
     G[0, 2], G[1, 3], G[2, 4], G[3, 1], G[4, 0] = -1 / c1 ** 2, -1 / c2 ** 2, 1, 1, 1
-    U = np.eye(y.size) * sigma_deflection_rad ** 2
-    res = propagate(lambda z: _outputs(_fit(T, u, z, min_side=3)), y, U, FIT_NAMES, FIT_UNITS, n_mc=n_mc, rng=rng,
-                    first_order_cov=G @ Cp @ G.T, value=_outputs(p))
-    res.extras["residual_rad"] = y - two_slope_model(p, T, u)
+    res = propagate(lambda z: _outputs(_fit(T, u, z, min_side=3, W=W)), y, C, FIT_NAMES, FIT_UNITS, n_mc=n_mc,
+                    rng=rng, first_order_cov=G @ Cp @ G.T, value=_outputs(p))
+    # the breakpoint's error: the wider of the linearised one and the profile-likelihood half-width
+    half = 0.5 * (b - a)
+    for cov in (res.cov_gum, res.cov_first_order):
+        if cov is not None and cov[2, 2] < half ** 2:
+            if cov[2, 2] > 1e-12 * half ** 2:
+                f = half / np.sqrt(cov[2, 2])                 # scale the row and column: correlations kept
+                cov[2, :] *= f
+                cov[:, 2] *= f
+            else:
+                cov[2, :] = cov[:, 2] = 0.0
+                cov[2, 2] = half ** 2
+    res.extras.update(residual_rad=y - two_slope_model(p, T, u), breakpoint_interval_Nm=(a, b), not_determined={})
+    if any(res[k].error > MAX_REL_ERROR * abs(res[k].value) for k in ("K1_Nm_per_rad", "K2_Nm_per_rad")):
+        return _single_slope(T, u, y, C, a, b, n_mc, rng, "a slope on one side of the breakpoint has an error over "
+                             f"{MAX_REL_ERROR:.0%} of its value")
+    return res
+
+
+def _single_slope(T, u, y, C, a, b, n_mc, rng, reason: str = "") -> EstimateSet:
+    """One stiffness over every load (the breakpoint is not determined), with the unloading offset."""
+    X = np.stack([np.ones_like(T), u, T], -1)
+    W = np.linalg.inv(np.linalg.cholesky(C))
+    Xw = W @ X
+    P = np.linalg.pinv(Xw.T @ Xw) @ Xw.T @ W           # coefficients = P y
+
+    def f(z):
+        c = z @ P.T
+        return np.stack([1.0 / c[..., 2], c[..., 1], c[..., 0]], -1)
+
+    c = P @ y
+    if c[2] <= 0:
+        raise EstimationError(PROC, "two-slope fit", "the fitted compliance is not positive: deflection does not "
+                              "grow with load")
+    Cc = P @ C @ P.T
+    G = np.array([[0, 0, -1 / c[2] ** 2], [0, 1, 0], [1, 0, 0]])
+    names = ["K1_Nm_per_rad", "offset_rad", "theta0_rad"]
+    res = propagate(f, y, C, names, ["N m/rad", "rad", "rad"], n_mc=n_mc, rng=rng, first_order_cov=G @ Cc @ G.T)
+    K = res["K1_Nm_per_rad"]
+    if K.error > MAX_REL_ERROR * abs(K.value):
+        raise EstimationError(PROC, "two-slope fit", f"the stiffness is not determined: {K.value:.4g} +- "
+                              f"{K.error:.2g} N m/rad (the loads barely twist this joint at this pose: is its axis "
+                              f"vertical, or the lever along the axis?)")
+    why = reason or (f"its profile-likelihood interval ({a:.3g} .. {b:.3g} N m) reaches the end of the loads applied")
+    why = f"the breakpoint is not determined: {why}, so the two slopes are not told apart; K1 is the single slope " \
+          f"over every load"
+    res.extras.update(residual_rad=y - X @ c, breakpoint_interval_Nm=(a, b),
+                      not_determined={"K2_Nm_per_rad": why, "breakpoint_Nm": why})
     return res

@@ -43,6 +43,45 @@ def coupling_factor(theta_k_with_rad: float, theta_k_alone_rad: float, theta_j_r
     return propagate(_ratio, x, U, [name], ["1"], n_mc=n_mc, rng=rng, first_order_cov=J @ U @ J.T)
 
 
+def coupling_from_repeats(runs: dict[str, tuple], sigma_reading_rad: float) -> EstimateSet:
+    """sigma_jk of several couplings, each from repeated pairs of runs, with errors that include the scatter of the
+    repeats (the servo's positioning repeatability), not only the encoder's quantisation.
+
+    ``runs[name] = (theta_k_with (r,), theta_k_alone (r,), theta_j (r,))`` in radians; ``sigma_reading_rad`` the
+    1-sigma of one encoder angle difference from quantisation alone (Type B, ``sqrt(2) S / sqrt(12)``).  Each factor
+    is the mean of its repeats.  The scatter of ``theta_k,with - theta_k,alone`` about each pair's mean is pooled over
+    all couplings (one robot, one encoder, one servo: one repeatability), with ``nu = sum (r - 1)`` degrees of freedom;
+    its variance is inflated by ``nu / (nu - 2)`` (the variance of Student's t), so the 1-sigma stays a standard
+    deviation with a handful of repeats.  The adopted variance is the larger of that (Type A) and the quantisation
+    alone (Type B), over ``r theta_j^2``.  With single runs only the Type B term is available (``extras['type']``).
+    """
+    step = "eq 4.7.1 (repeats)"
+    names, vals, r_count, tj2, ss, dof = [], [], [], [], 0.0, 0
+    for name, (w, a, t) in runs.items():
+        w, a, t = (np.atleast_1d(np.asarray(v, float)) for v in (w, a, t))
+        finite(PROC, step, **{f"{name}_with": w, f"{name}_alone": a, f"{name}_theta_j": t})
+        if not (w.size == a.size == t.size) or w.size == 0:
+            raise EstimationError(PROC, step, f"{name}: one 'with', one 'alone' and one theta_j per repeat needed")
+        if np.any(np.abs(t) < 1e-9):
+            raise EstimationError(PROC, step, f"{name}: joint j was not moved (theta_j = 0)")
+        ratio = (w - a) / t
+        names.append(name)
+        vals.append(float(np.mean(ratio)))
+        r_count.append(w.size)
+        tj2.append(float(np.mean(t * t)))
+        d = (w - a) - np.mean(ratio) * t
+        ss += float(np.sum(d * d))
+        dof += w.size - 1
+    type_b = 2 * sigma_reading_rad ** 2                    # with - alone: two differences
+    var_a = ss / dof * dof / (dof - 2) if dof > 2 else 0.0
+    var = max(var_a, type_b)
+    cov = np.diag([var / (r * t2) for r, t2 in zip(r_count, tj2)])
+    res = EstimateSet(names, np.array(vals), ["1"] * len(names), cov_first_order=cov)
+    res.extras.update(type="A (pooled repeats)" if var_a > type_b else "B (quantisation)", dof=dof,
+                      scatter_rad=float(np.sqrt(ss / dof)) if dof else None)
+    return res
+
+
 def quantisation_sigma(rad_per_count: float) -> float:
     """Standard uncertainty of a reading from a counter with resolution ``rad_per_count`` (uniform, GUM 4.3.7)."""
     return rad_per_count / np.sqrt(12.0)

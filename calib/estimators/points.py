@@ -12,8 +12,12 @@ phi) dphi``, and ``da = d alpha' - d gamma1``, ``db = d beta' - d gamma2``.
 """
 from __future__ import annotations
 
+from dataclasses import dataclass, replace
+from typing import Callable, NamedTuple
+
 import numpy as np
 
+from ..theodolite import Station, face_mean, intersect, thesis_xyz
 from ..uncertainty import EstimateSet, propagate
 from ._common import EstimationError, angles_in_range, at_least, finite
 
@@ -24,12 +28,7 @@ def point_xyz(x: np.ndarray) -> np.ndarray:
     """Vectorised eq 4.3.1: ``x (..., 6) = [alpha', beta', phi, L, gamma1, gamma2]`` -> ``(..., 3)`` mm."""
     x = np.asarray(x, float)
     ap, bp, ph, L, g1, g2 = np.moveaxis(x, -1, 0)
-    a, b = ap - g1, bp - g2
-    s = np.sin(a + b)
-    X = L * np.sin(b) * np.cos(a) / s
-    Y = L * np.sin(b) * np.sin(a) / s
-    Z = np.hypot(X, Y) * np.tan(ph)
-    return np.stack([X, Y, Z], -1)
+    return thesis_xyz(ap - g1, bp - g2, ph, L)
 
 
 def point_first_order(x: np.ndarray) -> np.ndarray:
@@ -120,3 +119,110 @@ def points_jacobian_first_order(x: np.ndarray, N: int) -> np.ndarray:
         J[3 * i:3 * i + 3, 3 * i:3 * i + 3] = Jp[i, :, :3]
         J[3 * i:3 * i + 3, 3 * N:] = Jp[i, :, 3:]
     return J
+
+
+# -- targets from raw sightings, with the stations' own uncertainty ---------------------------------------------
+@dataclass
+class StationFit:
+    """Stations built from fitted parameters (the ruler's L, gamma1, gamma2, hB) and those parameters' covariance.
+
+    Why: every point is intersected with the *same* fitted stations, so an error in L or a gamma moves every point
+    of a session together.  A point's covariance must carry that term (else its coverage falls to 77-88 %), and a fit
+    over several points (a circle, a joint angle) must see the correlation it creates.
+    """
+
+    names: list[str]
+    value: np.ndarray
+    cov: np.ndarray
+    build: Callable[[np.ndarray], dict[str, Station]]
+
+    @property
+    def stations(self) -> dict[str, Station]:
+        return self.build(self.value)
+
+    @staticmethod
+    def exact(stations: dict[str, Station]) -> "StationFit":
+        """Stations taken as exact (no ruler fit): no station term."""
+        return StationFit([], np.zeros(0), np.zeros((0, 0)), lambda _v: stations)
+
+
+class TargetPoint(NamedTuple):
+    """One intersected target: point, covariance (reading noise + stations), miss distance, and
+    ``d_station (3, P)`` = d point / d station parameters (for covariances across points)."""
+
+    point_mm: np.ndarray
+    cov_mm2: np.ndarray
+    miss_mm: float
+    d_station: np.ndarray
+    cov_reading_mm2: np.ndarray
+
+
+def locate_targets(readings: list[dict], fit: StationFit, min_stations: int = 2) -> dict[str, TargetPoint]:
+    """Target name -> :class:`TargetPoint` from raw readings ``{"station", "target", "face", "hz_rad", "v_rad"}``.
+
+    Each station's readings of a target (faces, repeats) are reduced to one face-I mean, whose noise is the
+    station's reading sigma over sqrt(count); the point is the least-squares intersection (:func:`intersect`) and
+    its sensitivity to the station parameters is taken by central differences (re-intersecting with perturbed
+    stations), so the covariance is ``U_read + D U_station D^T``.  Targets sighted from fewer than two stations are
+    left out.
+    """
+    base = fit.stations
+    by: dict[tuple, list] = {}
+    for r in readings:
+        by.setdefault((r["station"], r["target"]), []).append(r)
+    groups: dict[tuple, list] = {}
+    for tg in sorted({r["target"] for r in readings}):
+        names, obs = [], []
+        for nm in base:
+            rs = by.get((nm, tg))
+            if rs:
+                names.append(nm)
+                obs.append((*face_mean([r["hz_rad"] for r in rs], [r["v_rad"] for r in rs],
+                                       [r["face"] for r in rs]), len(rs)))
+        if len(names) >= min_stations:
+            groups.setdefault((tuple(names), tuple(o[2] for o in obs)), []).append((tg, obs))
+    out = {}
+    for (names, counts), items in groups.items():
+        rd = [(np.array([obs[s][0] for _, obs in items]), np.array([obs[s][1] for _, obs in items]))
+              for s in range(len(names))]
+
+        def solve(stations, rd=rd, names=names, counts=counts):
+            # each station's sigma shrinks with the readings averaged (faces, repeats)
+            sts = [replace(stations[n], sigma_hz_rad=stations[n].sigma_hz_rad / np.sqrt(c),
+                           sigma_v_rad=stations[n].sigma_v_rad / np.sqrt(c)) for n, c in zip(names, counts)]
+            return intersect(sts, rd)
+
+        x = solve(base)
+        D = _station_sensitivity(solve, fit, x.point_mm)
+        for i, (tg, _) in enumerate(items):
+            Di = D[i]
+            out[tg] = TargetPoint(x.point_mm[i], x.cov_mm2[i] + Di @ fit.cov @ Di.T, float(x.miss_mm[i]), Di,
+                                  x.cov_mm2[i])
+    return out
+
+
+def _station_sensitivity(solve, fit: StationFit, p0: np.ndarray) -> np.ndarray:
+    """d point / d station parameter ``(N, 3, P)`` by central differences of the whole intersection."""
+    P = len(fit.names)
+    D = np.zeros(p0.shape[:1] + (3, P))
+    sd = np.sqrt(np.clip(np.diag(fit.cov), 0, None))
+    for k in range(P):
+        h = np.zeros(P)
+        h[k] = max(0.1 * sd[k], 1e-9 * max(abs(fit.value[k]), 1.0))
+        pp = solve(fit.build(fit.value + h)).point_mm
+        pm = solve(fit.build(fit.value - h)).point_mm
+        D[:, :, k] = (pp - pm) / (2 * h[k])
+    return D
+
+
+def points_covariance(points: list[TargetPoint], fit: StationFit) -> np.ndarray:
+    """Joint ``(3N, 3N)`` covariance of several located targets: independent reading noise per point plus the
+    stations' common term (the correlation a shared L or gamma puts between every pair of points)."""
+    N = len(points)
+    U = np.zeros((3 * N, 3 * N))
+    for i, t in enumerate(points):
+        U[3 * i:3 * i + 3, 3 * i:3 * i + 3] = t.cov_reading_mm2
+    if fit.cov.size:
+        D = np.concatenate([t.d_station for t in points], 0)
+        U += D @ fit.cov @ D.T
+    return U

@@ -29,6 +29,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..theodolite import observe_params
 from ..uncertainty import EstimateSet, propagate
 from ._common import EstimationError, angles_in_range, at_least, finite
 from ._lsq import gauss_newton
@@ -218,8 +219,10 @@ class RulerSightings:
 class _RulerModel:
     """Forward model of every reading from the parameter vector; vectorised over leading dimensions."""
 
-    def __init__(self, s: RulerSightings, n_marks: int, faces_both: bool):
+    def __init__(self, s: RulerSightings, n_marks: int, faces_both: bool, fixed: np.ndarray | None = None):
         self.s = s
+        #: (2, 9) parameters of stations A, B (Station.PARAMS) not fitted here: tilts and trunnion tilt
+        self.fixed = np.zeros((2, 9)) if fixed is None else np.asarray(fixed, float)
         self.nplace = int(s.placement.max()) + 1
         self.instr = faces_both
         self.n_global = 4 + (4 if faces_both else 0)
@@ -248,20 +251,14 @@ class _RulerModel:
         u = np.stack([np.cos(tl) * np.cos(az), np.cos(tl) * np.sin(az), np.sin(tl)], -1)
         pt = pl[..., :3] + dist[..., None] * u
         isB = s.station == 1
-        ox = np.where(isB, L[..., None], 0.0)
-        oz = np.where(isB, hB[..., None], 0.0)
-        yaw = np.where(isB, np.pi + g2[..., None], -g1[..., None])
-        c = np.where(isB, cB[..., None], cA[..., None])
-        k = np.where(isB, kB[..., None], kA[..., None])
-        dx, dy, dz = pt[..., 0] - ox, pt[..., 1], pt[..., 2] - oz
-        lx = np.cos(yaw) * dx + np.sin(yaw) * dy
-        ly = -np.sin(yaw) * dx + np.cos(yaw) * dy
-        hz0 = np.arctan2(-ly, lx)
-        v0 = np.arctan2(np.hypot(lx, ly), dz)
-        f2 = s.face == 2
-        corr = c / np.sin(v0)
-        hz = np.where(f2, hz0 + np.pi - corr, hz0 + corr)
-        v = np.where(f2, 2 * np.pi - v0, v0) + k
+        # the stations' parameters per sighting (Station.PARAMS order); levelling and trunnion are the set-up's
+        par = np.broadcast_to(self.fixed[s.station], pt.shape[:-1] + (9,)).copy()
+        par[..., 0] = np.where(isB, L[..., None], 0.0)
+        par[..., 2] = np.where(isB, hB[..., None], 0.0)
+        par[..., 3] = np.where(isB, np.pi + g2[..., None], -g1[..., None])
+        par[..., 6] = np.where(isB, cB[..., None], cA[..., None])
+        par[..., 8] = np.where(isB, kB[..., None], kA[..., None])
+        hz, v = observe_params(par, pt, s.face)
         return np.concatenate([hz, v], -1)
 
     def residual(self, p, marks, obs):

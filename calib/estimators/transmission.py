@@ -45,6 +45,30 @@ def joint_angle_first_order(x: np.ndarray, n: np.ndarray) -> np.ndarray:
     return np.concatenate([-g0, g0, -g, g])[None, :]
 
 
+def joint_angles(A1_mm: np.ndarray, A2_mm: np.ndarray, cov_mm2: np.ndarray, axis_n: np.ndarray,
+                 d_station: np.ndarray | None = None, station_cov: np.ndarray | None = None):
+    """Angle turned about ``axis_n`` from the first pose, per pose, with the angles' covariance.
+
+    ``A1_mm``, ``A2_mm`` (N, 3); ``cov_mm2`` (N, 6, 6) the reading-noise covariance of ``[A1, A2]`` of each pose;
+    ``d_station (N, 6, P)`` their sensitivity to the stations' parameters and ``station_cov (P, P)`` those
+    parameters' covariance (the term every pose shares).  First order (:func:`joint_angle_first_order`) in each
+    pose's own targets: the reference pose's error is the same for every angle, an offset every fit of these angles
+    absorbs.  Why not ``sqrt(trace)``: only the target motion across the A1->A2 line and the axis turns the angle;
+    the along-line and axial components (the sight-line depth, the largest) do not.  Returns ``(angles (N,),
+    cov (N, N))``.
+    """
+    A1, A2 = np.atleast_2d(np.asarray(A1_mm, float)), np.atleast_2d(np.asarray(A2_mm, float))
+    n = np.asarray(axis_n, float) / np.linalg.norm(axis_n)
+    x = np.concatenate([np.broadcast_to(np.r_[A1[0], A2[0]], (len(A1), 6)), A1, A2], -1)
+    ang = joint_angle(x, n)[:, 0]
+    g = np.stack([joint_angle_first_order(xi, n)[0, 6:] for xi in x])
+    cov = np.diag(np.einsum("ni,nij,nj->n", g, np.asarray(cov_mm2, float), g))
+    if d_station is not None and station_cov is not None and np.size(station_cov):
+        G = np.einsum("ni,nip->np", g, np.asarray(d_station, float))
+        cov = cov + G @ np.asarray(station_cov, float) @ G.T
+    return ang, cov
+
+
 def measure_joint_angle(A1_ref, A2_ref, A1, A2, axis_n, points_cov_mm2: np.ndarray, n_mc: int = 20_000,
                         rng=0) -> EstimateSet:
     """Angle turned by a joint between two poses of the targets A1, A2 (rad), errors three ways.
@@ -91,16 +115,28 @@ def _basis(theta, w, H):
     return np.stack(cols, -1)
 
 
-def _linear(theta, y, w, H):
-    X = _basis(theta, w, H)
+def _solve(A, g):
+    """``A x = g`` batched, never raising: a singular member (a vanished amplitude leaves omega free) gets the
+    minimum-norm step through a tiny ridge, so one degenerate draw cannot take the whole stage down."""
+    n = A.shape[-1]
+    scale = np.sqrt(np.clip(np.diagonal(A, axis1=-2, axis2=-1), 1e-300, None))
+    An = A / (scale[..., :, None] * scale[..., None, :])
+    return np.linalg.solve(An + 1e-12 * np.eye(n), (g / scale)[..., None])[..., 0] / scale
+
+
+def _linear(theta, y, w, H, W):
+    """Generalised linear LSQ for fixed fundamentals ``w`` (...,): coefficients and whitened SSE (``W`` whitens the
+    errors: ``W C W^T = I``)."""
+    X = W @ _basis(theta, w, H)
+    yw = y @ W.T
     XtX = np.swapaxes(X, -1, -2) @ X
-    coef = np.linalg.solve(XtX + 1e-12 * np.eye(X.shape[-1]), np.swapaxes(X, -1, -2) @ y[..., None])[..., 0]
-    r = y - np.einsum("...nk,...k->...n", X, coef)
+    coef = _solve(XtX, (np.swapaxes(X, -1, -2) @ yw[..., None])[..., 0])
+    r = yw - (X @ coef[..., None])[..., 0]
     return coef, np.sum(r * r, -1)
 
 
 def _model(p, theta, H):
-    return np.einsum("...nk,...k->...n", _basis(theta, p[..., 0], H), p[..., 1:])
+    return (_basis(theta, p[..., 0], H) @ p[..., 1:, None])[..., 0]
 
 
 def _model_jac(p, theta, H):
@@ -113,25 +149,39 @@ def _model_jac(p, theta, H):
     return np.concatenate([dw[..., None], X], -1)
 
 
-def _profile(theta, y, H, w_grid):
+def _profile(theta, y, H, w_grid, W):
     """Best w on a grid (linear LSQ for the rest) -> start parameters (2 + 2H,) [w, c, a1, b1, ...]."""
-    coef, sse = _linear(theta, y[None, :], w_grid, H)
+    coef, sse = _linear(theta, y[None, :], w_grid, H, W)
     k = int(np.argmin(sse))
     return np.concatenate([[w_grid[k]], coef[k]])
 
 
-def _gn(p0, theta, y, H, iterations: int = 8):
-    """Gauss-Newton on all parameters from ``p0``, vectorised over leading dims of ``y``.
+def _gn(p0, theta, y, H, W, iterations: int = 12):
+    """Damped Gauss-Newton (Levenberg) on all parameters from ``p0``, vectorised over leading dims of ``y``.
 
     Monte Carlo draws and the GUM Jacobian's perturbations start from the estimate itself, so the estimator stays
-    on one branch of the (multi-modal) profile in w and is smooth in the data."""
+    on one branch of the (multi-modal) profile in w and is smooth in the data.  A step that raises the cost is
+    refused and the damping raised, so a draw cannot jump to another branch of the profile."""
     p = np.array(np.broadcast_to(p0, y.shape[:-1] + p0.shape[-1:]), float)
+    lam = np.full(p.shape[:-1], 1e-9)
+
+    def cost(q):
+        r = (y - _model(q, theta, H)) @ W.T
+        return np.sum(r * r, -1), r
+
+    c, r = cost(p)
+    eye = np.eye(p.shape[-1])
     for _ in range(iterations):
-        J = _model_jac(p, theta, H)
-        r = y - _model(p, theta, H)
+        J = W @ _model_jac(p, theta, H)
         A = np.swapaxes(J, -1, -2) @ J
-        dp = np.linalg.solve(A, (np.swapaxes(J, -1, -2) @ r[..., None]))[..., 0]
-        p = p + dp
+        dp = _solve(A + lam[..., None, None] * np.diagonal(A, axis1=-2, axis2=-1)[..., None, :] * eye,
+                    (np.swapaxes(J, -1, -2) @ r[..., None])[..., 0])
+        cn, rn = cost(p + dp)
+        better = np.isfinite(cn) & (cn <= c * (1 + 1e-12))
+        p = np.where(better[..., None], p + dp, p)
+        r = np.where(better[..., None], rn, r)
+        c = np.where(better, cn, c)
+        lam = np.clip(np.where(better, lam * 0.1, lam * 10.0), 1e-12, 1e6)
         if np.all(np.abs(dp) < 1e-13 * (1 + np.abs(p))):
             break
     neg = p[..., 0] < 0                     # sin(-w t) = -sin(w t): keep the fundamental positive
@@ -157,16 +207,21 @@ def te_names(H):
     return names, units
 
 
-def fit_transmission_error(theta_rad, error_rad, sigma_rad: float | None = None, max_harmonics: int = 3,
+def fit_transmission_error(theta_rad, error_rad, sigma_rad=None, max_harmonics: int = 3,
                            omega_range: tuple[float, float] | None = None, n_grid: int = 300,
-                           n_mc: int = 5000, rng=0) -> EstimateSet:
+                           n_mc: int = 5000, rng=0, max_omega_rel_error: float = 0.25) -> EstimateSet:
     """Harmonic fit of a transmission-error curve ``error(theta)`` with the fundamental estimated.
 
-    ``theta_rad`` the encoder (or commanded) joint angle, ``error_rad`` measured minus encoder angle; the number of
-    harmonics (0 .. ``max_harmonics``) is chosen by BIC, with ``omega`` (cycles per radian x 2 pi, i.e. the thesis's
-    0.9 in ``sin(0.9 theta)``) searched over ``omega_range`` (default: from half a cycle over the span to a quarter
-    of the sampling limit).  Output: omega, period, offset, then amplitude and phase of each harmonic
+    ``theta_rad`` the encoder (or commanded) joint angle, ``error_rad`` measured minus encoder angle, ``sigma_rad``
+    the 1-sigma of each error (scalar, one per angle, or their full covariance: angles measured with the same
+    stations share those stations' errors; None: from the residuals).  The fit is generalised least squares.  The number of harmonics (0 .. ``max_harmonics``) is chosen by BIC, with ``omega``
+    (the thesis's 0.9 in ``sin(0.9 theta)``) searched over ``omega_range`` (default: from half a cycle over the span
+    to a quarter of the sampling limit).  Output: omega, period, offset, then amplitude and phase of each harmonic
     (``e = c + sum A_k sin(k w theta + phase_k)``).  ``extras['harmonics']`` is the chosen count.
+
+    When the data cannot pin the order down (its 1-sigma above ``max_omega_rel_error`` of its value: a sweep shorter
+    than a period confounds omega with the amplitude and phase), omega and the period are left out of the result and
+    ``extras['not_determined']`` says why; the amplitude is then reported with the error that confounding gives it.
     """
     step = "harmonic fit"
     th = np.asarray(theta_rad, float).ravel()
@@ -180,43 +235,68 @@ def fit_transmission_error(theta_rad, error_rad, sigma_rad: float | None = None,
     if span < np.radians(10):
         raise EstimationError(PROC, step, f"the joint angles span only {np.degrees(span):.2f} deg: too short to fit "
                               "a periodic error")
+    known = sigma_rad is not None
+    C = _error_cov(sigma_rad if known else 1.0, y.size)
+    W = np.linalg.inv(np.linalg.cholesky(C))
     dth = np.median(np.diff(np.sort(th)))
     lo, hi = omega_range if omega_range else (np.pi / span, np.pi / max(dth, 1e-9) / 4)
     grid = np.linspace(lo, hi, n_grid)
     n = y.size
     # H = 1 locates the fundamental over the whole range; higher harmonic counts refine around it, so a sub-harmonic
     # with more terms cannot masquerade as the fundamental when the sweep covers less than a period
-    p1 = _gn(_profile(th, y, 1, grid), th, y, 1)
+    p1 = _gn(_profile(th, y, 1, grid, W), th, y, 1, W)
     best = None
     for H in range(0, max_harmonics + 1):
         if 2 + 2 * H >= n - 2:
             break
         if H == 0:
-            sse, p, k_par = float(np.sum((y - y.mean()) ** 2)), None, 1
+            chi2, p, k_par = float(_linear(th, y[None], np.ones(1), 0, W)[1][0]), None, 1
         else:
             local = np.linspace(0.85 * p1[0], 1.15 * p1[0], 31)
-            p = _gn(_profile(th, y, H, local), th, y, H) if H > 1 else p1
-            sse = float(np.sum((y - _model(p, th, H)) ** 2))
+            p = _gn(_profile(th, y, H, local, W), th, y, H, W) if H > 1 else p1
+            chi2 = float(np.sum(((y - _model(p, th, H)) @ W.T) ** 2))
             k_par = 2 + 2 * H
-        if sigma_rad is None:
-            bic = n * np.log(max(sse / n, 1e-300)) + k_par * np.log(n)
-        else:
-            bic = sse / sigma_rad ** 2 + k_par * np.log(n)
+        bic = chi2 + k_par * np.log(n) if known else n * np.log(max(chi2 / n, 1e-300)) + k_par * np.log(n)
         if best is None or bic < best[0] - 1e-9:
-            best = (bic, H, p, sse)
-    _, H, p, sse = best
+            best = (bic, H, p, chi2)
+    _, H, p, chi2 = best
     if H == 0:
         raise EstimationError(PROC, step, "no periodic error is detectable above the measurement noise (BIC prefers "
                               "a constant)")
-    s = sigma_rad if sigma_rad is not None else np.sqrt(sse / (n - (2 + 2 * H)))
+    amp = np.hypot(p[2], p[3])
+    if not (0.5 * lo <= p[0] <= 2 * hi) or amp > 5 * np.ptp(y):
+        raise EstimationError(PROC, step, f"the order of the error is not determined: the fit runs off to omega "
+                              f"{p[0]:.3g} with amplitude {amp:.3g} rad (a sweep of {np.degrees(span):.0f} deg is "
+                              f"much shorter than the period); sweep the joint further")
+    C = C * (1.0 if known else chi2 / (n - (2 + 2 * H)))
     J = _model_jac(p, th, H)
-    Cp = s ** 2 * np.linalg.inv(J.T @ J)
+    Cp = np.linalg.pinv(J.T @ np.linalg.solve(C, J))
     G = _jac_outputs(p, H)
     names, units = te_names(H)
-    res = propagate(lambda z: _outputs(_gn(p, th, z, H), H), y, np.eye(n) * s ** 2, names, units, n_mc=n_mc,
-                    rng=rng, first_order_cov=G @ Cp @ G.T, value=_outputs(p, H))
-    res.extras.update(harmonics=H, sigma_rad=s, residual_rad=y - _model(p, th, H))
+    res = propagate(lambda z: _outputs(_gn(p, th, z, H, W), H), y, C, names, units,
+                    n_mc=n_mc, rng=rng, first_order_cov=G @ Cp @ G.T, value=_outputs(p, H))
+    res.extras.update(harmonics=H, sigma_rad=np.sqrt(np.diag(C)), residual_rad=y - _model(p, th, H),
+                      not_determined={})
+    w_err = res["omega"].error
+    if not np.isfinite(w_err) or w_err > max_omega_rel_error * p[0]:
+        why = (f"the order (omega {p[0]:.3g} +- {w_err:.2g}) is not determined: the sweep of "
+               f"{np.degrees(span):.0f} deg does not separate it from the amplitude and phase; sweep further")
+        keep = [k for k in names if k not in ("omega", "period_rad")]
+        extras = res.extras
+        res = res.subset(keep)
+        res.extras = {**extras, "not_determined": {"omega": why, "period_rad": why}}
     return res
+
+
+def _error_cov(sigma, n: int) -> np.ndarray:
+    """The errors' covariance from a scalar sigma, one sigma per error, or a full (n, n) covariance (joint angles
+    share the stations' errors, so theirs is full)."""
+    s = np.asarray(sigma, float)
+    C = s if s.ndim == 2 else np.diag(np.broadcast_to(s, (n,)) ** 2)
+    if C.shape != (n, n) or not np.all(np.isfinite(C)) or np.any(np.diag(C) <= 0):
+        raise EstimationError(PROC, "harmonic fit", f"the errors' sigma must be positive and finite, one per error "
+                              f"or an {n}x{n} covariance")
+    return 0.5 * (C + C.T)
 
 
 def _jac_outputs(p, H):

@@ -1,0 +1,182 @@
+"""Seeded end-to-end runs of each Chapter 4 estimator on independent data (:mod:`tests.fakes.thesis_procedures`),
+collecting ``(name, value, error, truth)`` so the stated errors can be judged: an honest 1-sigma error gives a median
+``|value - truth| / error`` near 0.67 and about 95 % of the ratios below 2.
+
+Each run starts from raw theodolite readings: the ruler fit gives the stations and their covariance, the targets are
+intersected with them (:func:`calib.estimators.points.locate_targets`), and the procedure's estimator works from those
+points, as reprocessing does.  Used by ``tests/test_est_honesty.py`` and ``benchmarks/bench_error_honesty.py``.
+"""
+from __future__ import annotations
+
+from functools import lru_cache
+
+import numpy as np
+
+from calib.estimators.axes import fit_axis
+from calib.estimators.compliance import two_slope_fit
+from calib.estimators.coupling import coupling_from_repeats, quantisation_sigma
+from calib.estimators.link_compliance import flexural_rigidity
+from calib.estimators.points import StationFit, locate_targets, points_covariance
+from calib.estimators.ruler import RulerSightings, ruler_lsq
+from calib.estimators.transmission import fit_transmission_error, joint_angles
+from calib.theodolite import thesis_stations
+from tests.fakes import thesis_procedures as tp
+
+DEG = np.pi / 180
+SIGMA = 3 * tp.ARCSEC                     # Sokkisha TM-20C
+TRUE_STATIONS = (1609.9, -1.489 * DEG, 1.358 * DEG, 2.0)     # L, gamma1, gamma2, hB
+MARKS = np.array([0.0, 620.0, 1240.0, 1860.0])
+PLACEMENTS = [((-120.0, 1800.0, 0.0), 0.02, 0.0), ((-200.0, 2300.0, 300.0), -0.05, 0.15),
+              ((0.0, 1500.0, -200.0), 0.1, -0.1)]
+AXIS_C = np.array([520.0, 2850.0, 420.0])
+AXIS_N = np.array([0.02, -0.01, 1.0]) / np.linalg.norm([0.02, -0.01, 1.0])
+
+
+@lru_cache(maxsize=512)
+def _stations_for(seed: int) -> tuple[StationFit, list]:
+    """The ruler fit of one seed (shared by every procedure of that seed: the slowest fit runs once)."""
+    rows = tp.ruler_rows(*TRUE_STATIONS, PLACEMENTS, MARKS, SIGMA, np.random.default_rng([seed, 7]))
+    s = RulerSightings(rows[:, 0], rows[:, 1], rows[:, 2], rows[:, 3], rows[:, 4], rows[:, 5])
+    res = ruler_lsq(s, MARKS, SIGMA)
+    names = ["L_mm", "gamma1_rad", "gamma2_rad", "hB_mm"]
+    sub = res.subset(names)
+
+    def build(v):
+        return dict(zip("AB", thesis_stations(v[0], v[1], v[2], SIGMA, v[3])))
+
+    out = [(n, sub.value[i], np.sqrt(sub.cov[i, i]), t) for i, (n, t) in enumerate(zip(names, TRUE_STATIONS))]
+    return StationFit(names, sub.value.copy(), sub.cov.copy(), build), out
+
+
+def _stations(rng) -> tuple[StationFit, list]:
+    return _stations_for(int(rng.bit_generator.seed_seq.entropy))
+
+
+def _locate(fit, P, rng, names=None, repeats=1):
+    names = names or [f"T{i}" for i in range(len(P))]
+    loc = locate_targets(tp.sightings(P, names, *TRUE_STATIONS, SIGMA, rng, repeats=repeats), fit)
+    return [loc[n] for n in names]
+
+
+def run_ruler(rng):
+    return _stations(rng)[1]
+
+
+def run_points(rng):
+    fit, _ = _stations(rng)
+    P = AXIS_C + rng.uniform(-700, 700, (6, 3))
+    out = []
+    for p, t in zip(P, _locate(fit, P, rng)):
+        out += [(f"P.{c}_mm", t.point_mm[k], np.sqrt(t.cov_mm2[k, k]), p[k]) for k, c in enumerate("xyz")]
+    return out
+
+
+def run_axes(rng):
+    fit, _ = _stations(rng)
+    start = AXIS_C + np.array([600.0, 0.0, 80.0])
+    P = tp.rotate(start, AXIS_C, AXIS_N, np.radians(np.linspace(-40, 50, 6)))
+    pts = _locate(fit, P, rng)
+    res = fit_axis(np.array([t.point_mm for t in pts]), points_covariance(pts, fit), n_mc=0)
+    r0 = np.linalg.norm((start - AXIS_C) - ((start - AXIS_C) @ AXIS_N) * AXIS_N)
+    # the fitted centre is the foot of the circle on the axis
+    foot = AXIS_C + ((start - AXIS_C) @ AXIS_N) * AXIS_N
+    truth = np.r_[foot, AXIS_N, r0]
+    return [(n, res.value[i], res.error[i], truth[i]) for i, n in enumerate(res.names)]
+
+
+def _two_targets(fit, rng, theta, repeats=1):
+    """A1, A2 of an extended tool turned by theta about the axis, located; returns angle and sigma per pose."""
+    A10, A20 = AXIS_C + np.array([250.0, 40.0, 150.0]), AXIS_C + np.array([750.0, -60.0, 200.0])
+    pa, pb = tp.rotate(A10, AXIS_C, AXIS_N, theta), tp.rotate(A20, AXIS_C, AXIS_N, theta)
+    n = len(theta)
+    names = [f"A1_{i}" for i in range(n)] + [f"A2_{i}" for i in range(n)]
+    loc = _locate(fit, np.concatenate([pa, pb]), rng, names, repeats)
+    cov = np.array([points_covariance([loc[i], loc[n + i]], StationFit.exact({})) for i in range(n)])
+    D = np.array([np.concatenate([loc[i].d_station, loc[n + i].d_station]) for i in range(n)])
+    return joint_angles(np.array([t.point_mm for t in loc[:n]]), np.array([t.point_mm for t in loc[n:]]), cov,
+                        AXIS_N, D, fit.cov)
+
+
+def run_transmission(rng, amplitude=0.047 * DEG, omega=1.8, lo_deg=-266.0, hi_deg=266.0, step_deg=8.0):
+    """Section 5.4.2's joint 6 (0.047 deg sin(1.8 theta6)) over its range, random phase; A1, A2 read twice."""
+    fit, _ = _stations(rng)
+    enc = np.radians(np.arange(lo_deg, hi_deg + 0.1, step_deg))
+    phase = rng.uniform(-np.pi, np.pi)
+    true = enc + tp.transmission_truth(enc, amplitude, omega, phase)
+    ang, cov = _two_targets(fit, rng, true - true[0], repeats=2)
+    err = np.angle(np.exp(1j * (ang - (enc - enc[0]))))          # the angle wraps past 180 deg, as in reprocess
+    res = fit_transmission_error(enc, err, cov, n_mc=0)
+    truth = {"omega": omega, "amplitude1_rad": amplitude}
+    return [(n, res[n].value, res[n].error, truth[n]) for n in truth if n in res.names]
+
+
+def run_compliance(rng, K1=25704.0, K2=19185.0, Tb=40.0, offset=0.005 * DEG, errors=(0.2, 1.0, 0.5 * DEG)):
+    """Section 5.5.2's joint 4 slopes, a breakpoint inside the loads; loads hung at 500 mm, loading then unloading,
+    with the thesis's Delta N, Delta L_j and Delta theta_ij in the true set-up.  Quantities the estimator says it
+    cannot determine are not scored (the test of that is its own)."""
+    fit, _ = _stations(rng)
+    loads = np.r_[np.arange(0, 9) * 30.0, np.arange(8, -1, -1) * 30.0]          # N, loading then unloading
+    unload = np.r_[np.zeros(9), np.ones(9)].astype(bool)
+    lever, th_i = 500.0, 5 * DEG
+    s_N, s_L, s_th = errors                              # the thesis's Delta N, Delta L_j, Delta theta_ij
+    N_true = loads + s_N * rng.standard_normal(loads.size) * (loads > 0)
+    L_true = lever + s_L * rng.standard_normal()
+    th_true = th_i + s_th * rng.standard_normal(loads.size)
+    T = N_true * L_true * 1e-3 * np.cos(th_true)
+    defl = tp.two_slope_deflection(T, K1, K2, Tb, offset, unload)
+    ang, cov = _two_targets(fit, rng, defl)
+    res = two_slope_fit(None, ang, unload, cov, n_mc=0, load_N=loads, lever_mm=lever,
+                        theta_i_rad=np.full(loads.size, th_i), sigma_load_N=np.where(loads > 0, s_N, 0.0),
+                        sigma_lever_mm=s_L, sigma_theta_i_rad=s_th)
+    truth = {"K1_Nm_per_rad": K1, "K2_Nm_per_rad": K2, "breakpoint_Nm": Tb, "offset_rad": offset}
+    if res.extras["not_determined"] and K1 != K2:
+        truth.pop("K1_Nm_per_rad")                        # the single slope of a two-slope joint has no truth
+    return [(n, res[n].value, res[n].error, truth[n]) for n in truth if n in res.names]
+
+
+def run_compliance_one_slope(rng):
+    """A joint with one stiffness: the breakpoint must come out as not determined, K1 honest."""
+    return run_compliance(rng, K1=25704.0, K2=25704.0)
+
+
+def run_coupling(rng, repeats=3, repeatability=0.01 * DEG):
+    """Eq 4.7.1 with a real encoder: counts quantised, each end position scattered by the servo's repeatability."""
+    S = 2 * np.pi / (1000 * 76.686)                  # joint rad per count (Puma 560 joint 6)
+    truth = {"sigma45": 0.0139, "sigma46": 0.0131, "sigma56": 0.1802}
+    th_j = 10 * DEG
+    runs = {}
+    for name, sig_true in truth.items():
+        with_, alone = [], []
+        for _ in range(repeats):
+            k0, k1 = repeatability * rng.standard_normal(2)
+            alone.append(tp.quantise(th_j + k1, S) - tp.quantise(k0, S))
+            k0, k1 = repeatability * rng.standard_normal(2)
+            with_.append(tp.quantise(th_j + sig_true * th_j + k1, S) - tp.quantise(k0, S))
+        runs[name] = (with_, alone, [th_j] * repeats)
+    res = coupling_from_repeats(runs, quantisation_sigma(S) * np.sqrt(2))
+    return [(n, res.value[i], res.error[i], truth[n]) for i, n in enumerate(res.names)]
+
+
+def run_link(rng, EI=2.0e11):
+    x = np.tile([200.0, 400.0, 600.0, 800.0], 3)
+    a = np.full(12, 800.0)
+    P = np.repeat([100.0, 200.0, 300.0], 4)
+    sig = 0.001
+    y = tp.cantilever_deflection(x, a, P, EI) + sig * rng.standard_normal(12)
+    res = flexural_rigidity(x, a, P, y, sigma_mm=sig, n_mc=0)
+    return [("EI_Nmm2", res["EI_Nmm2"].value, res["EI_Nmm2"].error, EI)]
+
+
+PROCEDURES = {"ruler": run_ruler, "points": run_points, "axes": run_axes, "transmission": run_transmission,
+              "compliance": run_compliance,
+              "compliance (one slope)": run_compliance_one_slope, "coupling": run_coupling, "link compliance": run_link}
+
+
+def honesty(procedure: str, seeds: range) -> dict:
+    """Median |value - truth| / error and the share within 2 sigma over seeded runs of one procedure."""
+    r = []
+    for s in seeds:
+        r += [abs(v - t) / e for _, v, e, t in PROCEDURES[procedure](np.random.default_rng(s))]
+    r = np.array(r)
+    return {"procedure": procedure, "n": int(r.size), "median_ratio": float(np.median(r)),
+            "within_2sigma": float(np.mean(r < 2.0))}

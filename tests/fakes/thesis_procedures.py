@@ -1,0 +1,99 @@
+"""Independent data for the Chapter 4 estimators: the thesis's own formulas as plain numpy, nothing from ``calib``.
+
+Why: an estimator tested on data made by its own model can only agree with itself.  Here every reading comes from the
+thesis's geometry written out again -- the inverse of eq 4.3.1 (section 5.3.1: a point's interior angles at A and B
+and A's elevation), Rodrigues rotations of a target about a joint axis, eq 4.4's two-target angle, eq 4.5.1's
+``T = N L cos(theta_i)``, eq 4.7.1's coupled encoder counts, and a cantilever deflection obtained by integrating
+``EI y'' = M`` numerically (not the closed form the estimator uses).
+
+Reading conventions (those of the instruments): ``Hz`` clockwise seen from above, ``V`` zenith angle; station A at the
+origin with its circle zero at yaw ``-gamma1``, B at ``(L, 0, hB)`` with its zero at yaw ``pi + gamma2``.  So
+``Hz_A = -(alpha + gamma1)`` and ``Hz_B = beta + gamma2`` with the interior angles ``alpha = atan2(Y, X)`` at A and
+``beta = atan2(Y, L - X)`` at B (the thesis's ``alpha' = alpha + gamma1``, ``beta' = beta + gamma2``).
+"""
+from __future__ import annotations
+
+import numpy as np
+
+TWO_PI = 2 * np.pi
+ARCSEC = np.pi / (180 * 3600)
+
+
+def station_angles(P, L, g1, g2, hB=0.0):
+    """Section 5.3.1: (Hz_A, V_A, Hz_B, V_B) in radians of points P (N, 3) in R_f."""
+    P = np.atleast_2d(np.asarray(P, float))
+    X, Y, Z = P[:, 0], P[:, 1], P[:, 2]
+    alpha = np.arctan2(Y, X)
+    beta = np.arctan2(Y, L - X)
+    phi_a = np.arctan2(Z, np.hypot(X, Y))
+    phi_b = np.arctan2(Z - hB, np.hypot(L - X, Y))
+    return (np.mod(-(alpha + g1), TWO_PI), np.pi / 2 - phi_a, np.mod(beta + g2, TWO_PI), np.pi / 2 - phi_b)
+
+
+def sightings(P, names, L, g1, g2, hB, sigma, rng, faces=(1, 2), repeats=1):
+    """Session-style reading rows ``{station, target, face, repeat, hz_rad, v_rad}`` of targets ``names`` at P, each
+    reading with its own Gaussian noise ``sigma`` (rad); face II is ``Hz + 180 deg, 360 deg - V``."""
+    hA, vA, hB_, vB = station_angles(P, L, g1, g2, hB)
+    rows = []
+    for i, nm in enumerate(names):
+        for st, h, v in (("A", hA[i], vA[i]), ("B", hB_[i], vB[i])):
+            for f in faces:
+                for k in range(repeats):
+                    hz, vv = (h, v) if f == 1 else (h + np.pi, TWO_PI - v)
+                    rows.append({"station": st, "target": nm, "face": f, "repeat": k,
+                                 "hz_rad": float(np.mod(hz + sigma * rng.standard_normal(), TWO_PI)),
+                                 "v_rad": float(vv + sigma * rng.standard_normal())})
+    return rows
+
+
+def ruler_rows(L, g1, g2, hB, placements, marks, sigma, rng, faces=(1, 2)):
+    """(placement, mark, station 0/1, face, hz, v) rows of ruler marks; ``placements = [(C_xyz, azimuth, tilt)]``."""
+    rows = []
+    for p, (c, az, tl) in enumerate(placements):
+        u = np.array([np.cos(tl) * np.cos(az), np.cos(tl) * np.sin(az), np.sin(tl)])
+        pts = np.asarray(c, float) + np.asarray(marks, float)[:, None] * u
+        hA, vA, hB_, vB = station_angles(pts, L, g1, g2, hB)
+        for m in range(len(marks)):
+            for st, h, v in ((0, hA[m], vA[m]), (1, hB_[m], vB[m])):
+                for f in faces:
+                    hz, vv = (h, v) if f == 1 else (h + np.pi, TWO_PI - v)
+                    rows.append((p, m, st, f, np.mod(hz + sigma * rng.standard_normal(), TWO_PI),
+                                 vv + sigma * rng.standard_normal()))
+    return np.array(rows, float)
+
+
+def rotate(P, c, n, theta):
+    """Rodrigues: points P (..., 3) turned by theta (...) about the axis through c along unit n."""
+    n = np.asarray(n, float) / np.linalg.norm(n)
+    d = np.asarray(P, float) - c
+    th = np.asarray(theta, float)[..., None]
+    return c + d * np.cos(th) + np.cross(n, d) * np.sin(th) + n * (d @ n)[..., None] * (1 - np.cos(th))
+
+
+def transmission_truth(theta_enc, amplitude, omega, phase=0.0):
+    """The thesis's transmission error (section 5.4.2): true joint angle minus encoder angle."""
+    return amplitude * np.sin(omega * np.asarray(theta_enc, float) + phase)
+
+
+def two_slope_deflection(T, K1, K2, Tb, offset, unloading):
+    """Section 5.5.2's loading curve with a breakpoint, unloading parallel but offset by the dead zone."""
+    T = np.asarray(T, float)
+    return np.where(T <= Tb, T / K1, Tb / K1 + (T - Tb) / K2) + offset * np.asarray(unloading, float)
+
+
+def cantilever_deflection(x_mm, a_mm, P_N, EI):
+    """Deflection at x of a clamped cantilever under a point load P at a, by integrating ``y'' = M / EI`` twice
+    (trapezoid rule on a fine grid, y(0) = y'(0) = 0) -- deliberately not the closed form."""
+    grid = np.linspace(0.0, max(np.max(x_mm), np.max(a_mm)) * 1.001, 20001)
+    out = []
+    for x, a, P in np.broadcast(x_mm, a_mm, P_N):
+        M = P * np.clip(a - grid, 0, None)                 # moment about the section at s: P (a - s) for s < a
+        slope = np.concatenate([[0], np.cumsum(0.5 * (M[1:] + M[:-1]) * np.diff(grid))]) / EI
+        y = np.concatenate([[0], np.cumsum(0.5 * (slope[1:] + slope[:-1]) * np.diff(grid))])
+        out.append(np.interp(x, grid, y))
+    return np.array(out)
+
+
+def quantise(angle_rad, rad_per_count):
+    """An incremental encoder's reading: whole counts."""
+    return np.round(np.asarray(angle_rad, float) / rad_per_count) * rad_per_count

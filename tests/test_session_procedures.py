@@ -1,0 +1,87 @@
+"""Procedures in the step vocabulary: levelling and the instrument check with their own checks, the ruler series
+that varies R, the registry that replaces name branches."""
+from __future__ import annotations
+
+import numpy as np
+
+from acq.session import checks as ck
+from acq.session.procedures import PROCEDURES, all_steps, mark_index, mark_names, procedure_info
+from acq.session.setup import standard_setup
+from acq.session.steps import Step
+from calib.setup_plan import into_setup, SetupPlan
+from calib.units import ARCSEC
+
+LIMITS = ck.DEFAULT_LIMITS
+
+
+def test_levelling_steps_per_station_and_their_check():
+    setup = standard_setup()
+    setup["stations"]["names"] = ["West", "East"]
+    steps = all_steps({"procedures": ["levelling"]}, setup)
+    assert [s.key for s in steps] == ["level/West", "level/East"]
+    (check,) = procedure_info("levelling").checks
+    ok = check(steps[0], [], {"tilt_cross_arcsec": 3.0, "tilt_length_arcsec": -9.0}, LIMITS)
+    bad = check(steps[1], [], {"tilt_cross_arcsec": 3.0, "tilt_length_arcsec": -25.0}, LIMITS)
+    assert ok[0].passed and ok[0].value == 9.0
+    assert not bad[0].passed and bad[0].value == 25.0 and "East" in bad[0].message
+    assert not check(steps[0], [], {}, LIMITS)[0].passed           # nothing entered is not a level
+
+
+def _reading(st, face, hz, v):
+    return {"station": st, "target": "F", "face": face, "hz_rad": hz, "v_rad": v}
+
+
+def test_instrument_check_recovers_collimation_and_index():
+    """Readings made by hand: face I at Hz0 + c, V0 + i; face II at Hz0 + 180 - c, 360 - V0 + i."""
+    c, i = 30 * ARCSEC, 8 * ARCSEC
+    hz0, v0 = 1.0, 1.5
+    rows = [_reading("A", 1, hz0 + c, v0 + i), _reading("A", 2, hz0 + np.pi - c, 2 * np.pi - v0 + i),
+            _reading("B", 1, hz0, v0), _reading("B", 2, hz0 + np.pi, 2 * np.pi - v0)]
+    (check,) = procedure_info("instrument_check").checks
+    out = {x.name: x for x in check(None, rows, {}, LIMITS)}
+    assert not out["instrument A"].passed and abs(out["instrument A"].value - 30.0) < 1e-6
+    assert "collimation +30.0\", index +8.0\"" in out["instrument A"].message
+    assert out["instrument B"].passed and out["instrument B"].value < 1e-6
+
+
+def test_ruler_series_varies_R():
+    plan = SetupPlan("ruler", {"L_mm": 1610.0, "R_mm": 1860.0, "r1_mm": 930.0, "X1_mm": -300.0, "Y1_mm": 1200.0},
+                     {}, "")
+    setup = into_setup([plan], standard_setup())
+    marks = setup["ruler"]["marks_mm"]
+    assert marks == [0.0, 930.0, 1800.0, 1830.0, 1860.0]
+    steps = all_steps({"procedures": ["ruler"]}, setup)
+    by_placement: dict[int, list] = {}
+    for s in steps:
+        by_placement.setdefault(s.meta["placement"], []).append(marks[s.meta["mark"]])
+    # each placement: C, D, its own E and the last mark; R (C to its own E) differs from placement to placement
+    assert by_placement == {0: [0.0, 930.0, 1800.0, 1860.0], 1: [0.0, 930.0, 1830.0, 1860.0], 2: [0.0, 930.0, 1860.0]}
+    assert mark_names(3) == ("C", "D", "E") and mark_names(5) == ("C", "D", "E1", "E2", "E3")
+    assert [mark_index(n) for n in mark_names(5)] == [0, 1, 2, 3, 4] and mark_index("E") == 2
+
+
+def test_registry_knows_every_procedure():
+    for name in PROCEDURES:
+        assert procedure_info(name).steps is PROCEDURES[name]
+    assert procedure_info("sweep").steps is PROCEDURES["sweeps"]          # a step's shorter name
+    assert procedure_info("ruler").refits_stations
+    assert not procedure_info("sweep").refits_stations
+    assert procedure_info("imported-something").checks == ()
+
+
+def test_loads_and_gauges_in_the_step_vocabulary():
+    from calib.robot import load_robot
+    from acq.session.setup import session_setup
+    setup = session_setup(standard_setup(), load_robot())
+    steps = all_steps({"procedures": ["compliance", "link_compliance"], "compliance": {"joints": [4]}}, setup)
+    loaded = [s for s in steps if s.procedure == "compliance" and s.setup["load_n"] > 0]
+    for s in loaded:
+        (ld,) = s.setup["loads"]
+        assert ld["link"] == 4 and abs(ld["mass_kg"] * 9.80665 - s.setup["load_n"]) < 1e-3
+        assert s.setup["tested_joint"] == 4
+    link = [s for s in steps if s.procedure == "link_compliance"]
+    g = link[0].setup["gauges"]
+    assert [x["name"] for x in g] == ["gauge1", "gauge2", "gauge3"]
+    assert all(x["link"] == 2 and np.allclose(x["axis"], [0, 0, -1]) for x in g)
+    # gauges_x_mm along the link from joint 2's centre = frame-2 x + a2 (the frame sits at the link's far end)
+    assert [x["point_mm"][0] + 432.0 for x in g] == link[0].setup["gauges_x_mm"]
