@@ -59,6 +59,7 @@ TOP_SPEC = {
     "coupling": Field("table", default={}),
     "base": Field("table", default={}),
     "tool": Field("table", default={}),
+    "readings": Field("table", default={}),
 }
 COUPLING_SPEC = {
     "sigma45": Field("number", default=0.0, min=-1, max=1),
@@ -69,6 +70,9 @@ COUPLING_SPEC = {
 BASE_SPEC = {
     "xyz_mm": Field("vector", default=[0.0, 0.0, 0.0], length=3),
     "rpy_deg": Field("vector", default=[0.0, 0.0, 0.0], length=3, min=-360, max=360),
+    # frame 0 in the description's own base frame (a URDF's base link): what ``robocal fk`` reports in
+    "frame0_xyz_mm": Field("vector", default=[0.0, 0.0, 0.0], length=3),
+    "frame0_rpy_deg": Field("vector", default=[0.0, 0.0, 0.0], length=3, min=-360, max=360),
 }
 TOOL_SPEC = {"points": Field("table", default={})}
 
@@ -349,6 +353,11 @@ def _build(chk: Checker, data: dict) -> Robot:
     def arr(key, scale=1.0):
         return np.array([j[key] for j in js], float) * scale
 
+    pris = np.array([j["type"] == "prismatic" for j in js], bool)
+    readings = _readings_table(chk, top["readings"], n, pris)
+    F0 = np.eye(4)
+    F0[:3, :3] = _rpy_matrix(np.asarray(base["frame0_rpy_deg"], float) * DEG)
+    F0[:3, 3] = base["frame0_xyz_mm"]
     return Robot(
         name=rob["name"],
         a_mm=arr("a_mm"), d_mm=arr("d_mm"), alpha_rad=arr("alpha_deg", DEG),
@@ -361,8 +370,33 @@ def _build(chk: Checker, data: dict) -> Robot:
         coupling=coupling, gravity_m_s2=np.asarray(rob["gravity_m_s2"], float),
         base_xyz_mm=np.asarray(base["xyz_mm"], float), base_rpy_rad=np.asarray(base["rpy_deg"], float) * DEG,
         tool_points_mm=points, joint_names=tuple(j["name"] or f"j{i}" for i, j in enumerate(js, 1)),
-        source=chk.source, prismatic=np.array([j["type"] == "prismatic" for j in js], bool),
+        source=chk.source, prismatic=pris, frame0_in_base=F0, **readings,
     )
+
+
+def _rpy_matrix(rpy) -> np.ndarray:
+    """Rz(yaw) Ry(pitch) Rx(roll) from (roll, pitch, yaw)."""
+    from scipy.spatial.transform import Rotation
+    return Rotation.from_euler("xyz", rpy).as_matrix()
+
+
+def _readings_table(chk: Checker, t: dict, n: int, pris: np.ndarray) -> dict:
+    """``[readings]``: ``names`` (m), ``matrix`` (n x m: joint = matrix @ readings + offset), ``offset`` (n; degrees,
+    mm for a prismatic joint).  Written by :func:`robot_to_toml` for descriptions with mimic joints or reading
+    conventions."""
+    if not t:
+        return {}
+    if not isinstance(t, dict) or set(t) - {"names", "matrix", "offset"}:
+        chk.fail("readings", "keys are names, matrix and offset")
+    names = t.get("names")
+    if not isinstance(names, list) or not names or not all(isinstance(x, str) for x in names):
+        chk.fail("readings.names", "must be a list of reading names")
+    M = np.asarray(chk.value(t.get("matrix"), Field("matrix"), "readings.matrix"), float)
+    if M.shape != (n, len(names)):
+        chk.fail("readings.matrix", f"must be {n} x {len(names)} (joints x readings)")
+    off = np.asarray(chk.value(t.get("offset", [0.0] * n), Field("vector", length=n), "readings.offset"), float)
+    return {"reading_names": tuple(names), "reading_matrix": M,
+            "reading_offset": off * np.where(pris, 1.0, DEG)}
 
 
 def robot_to_toml(robot: Robot) -> str:
@@ -395,6 +429,14 @@ def robot_to_toml(robot: Robot) -> str:
             "",
         ]
     lines += ["[coupling]", "matrix = [" + ", ".join(vec(r) for r in robot.coupling) + "]", ""]
-    lines += ["[base]", f"xyz_mm = {vec(robot.base_xyz_mm)}", f"rpy_deg = {vec(robot.base_rpy_rad / DEG)}", ""]
+    lines += ["[base]", f"xyz_mm = {vec(robot.base_xyz_mm)}", f"rpy_deg = {vec(robot.base_rpy_rad / DEG)}"]
+    F0 = robot.frame0_in_base
+    if not np.allclose(F0, np.eye(4)):
+        lines += [f"frame0_xyz_mm = {vec(F0[:3, 3])}", f"frame0_rpy_deg = {vec(rpy_from_matrix(F0[:3, :3]) / DEG)}"]
+    lines.append("")
+    if not robot.readings_are_joints or tuple(robot.reading_names) != tuple(robot.joint_names):
+        lines += ["[readings]", "names = [" + ", ".join(f'"{x}"' for x in robot.reading_names) + "]",
+                  "matrix = [" + ", ".join(vec(r) for r in robot.reading_matrix) + "]",
+                  f"offset = {vec(robot.reading_offset / robot.edge_scale)}", ""]
     lines += ["[tool.points]"] + [f"{k} = {vec(v)}" for k, v in robot.tool_points_mm.items()]
     return "\n".join(lines) + "\n"

@@ -86,3 +86,11 @@ def test_url_instruments_observe_the_twin_of_a_chosen_scenario(tmp_path):
         r0, r1 = a.angles(), b.angles()
     assert isinstance(registry.make_device("geocom", {}).world, TwinWorld)
     assert abs(r0.hz_rad - r1.hz_rad) > 1e-3          # another base line: station B reads another angle
+
+
+def test_url_instruments_of_one_process_share_one_world():
+    a = registry.make_device("geocom", {"station": "A", "seed": "5"})
+    b = registry.make_device("gsi", {"station": "B", "seed": "5"})
+    tap = registry.make_device("serialtap", {"seed": "5"})
+    other = registry.make_device("geocom", {"station": "A", "seed": "6"})
+    assert a.world is b.world is tap.model.world and other.world is not a.world

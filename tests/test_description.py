@@ -100,3 +100,23 @@ def test_shipped_tiago_description_loads():
     robot = load_robot(EX / "tiago" / "tiago_mocap.toml")
     assert robot.joint_names[0] == "torso_lift_joint" and "1" in robot.tool_points_mm
     assert robot.tolerances["j2.a_mm"] == 2.0
+
+
+def test_reading_conventions_and_base_link_survive_the_written_description(tmp_path):
+    """robot_to_toml (the model JSON's robot) keeps the readings and frame 0 in the base link."""
+    from calib.robot import parse_robot, robot_to_toml
+    f = _write(tmp_path, """
+[readings]
+names = ["shoulder_pan_joint", "shoulder_lift_joint", "J3", "J4", "wrist_2_joint", "wrist_3_joint"]
+[readings.joints]
+elbow_joint = { shoulder_lift_joint = 1.0, J3 = 1.0 }
+wrist_1_joint = { J4 = 1.0, offset_deg = 90.0 }
+""")
+    cal = load_robot(f)
+    again = parse_robot(robot_to_toml(cal), "again")
+    assert again.reading_names == cal.reading_names
+    np.testing.assert_allclose(again.reading_matrix, cal.reading_matrix)
+    np.testing.assert_allclose(again.reading_offset, cal.reading_offset, atol=1e-12)
+    np.testing.assert_allclose(again.frame0_in_base, cal.frame0_in_base, atol=1e-9)
+    r = np.array([10.0, -30.0, 50.0, 20.0, 40.0, 60.0])
+    np.testing.assert_allclose(_fk(again, r), _fk(cal, r), atol=1e-9)

@@ -160,3 +160,33 @@ def test_fk_command_prints_the_tip_in_the_base_link(capsys):
     robot = load_robot(path, tip_link="arm_7_link")
     want = _pin_tip(path, None, "arm_7_link", None, dict(zip(robot.joint_names, r)))
     np.testing.assert_allclose([got["x_mm"], got["y_mm"], got["z_mm"]], want, atol=1e-5)
+
+
+@pytest.mark.parametrize("case", ["loop", "tip", "column", "target", "split", "reading"])
+def test_bad_input_is_one_line_exit_2(tmp_path, capsys, case):
+    """The issue's list of bad input, through the command line: one line naming the file and the place, exit 2."""
+    from acq.cli import main
+    ur10 = f"{URDFS}/ur10_robot.urdf"
+    names = "shoulder_pan_joint,shoulder_lift_joint,elbow_joint,wrist_1_joint,wrist_2_joint,wrist_3_joint"
+    desc = tmp_path / "d.toml"
+    desc.write_text(f'urdf = "{ur10}"\n[tool.points]\nR1 = [0, 0, 0]\n')
+    data = tmp_path / "data.csv"
+    if case == "loop":
+        bad = tmp_path / "loop.urdf"
+        bad.write_text(MIMIC.replace('<child link="l3"/>', '<child link="l1"/>'))
+        argv, where = ["fk", "--robot", str(bad), "0", "0"], "loop.urdf: line"
+    elif case == "tip":
+        argv, where = ["fk", "--robot", ur10, "--tip-link", "hand"] + ["0"] * 6, "tip link 'hand'"
+    elif case == "reading":
+        desc.write_text(f'urdf = "{ur10}"\n[readings]\nnames = ["J1"]\n[readings.joints]\nelbow_joint = {{ J7 = 1 }}\n')
+        argv, where = ["fk", "--robot", str(desc), "0"], "d.toml: readings.joints.elbow_joint.J7"
+    else:
+        extra = {"column": ("arm_1_joint", "0", "column arm_1_joint is not a joint"),
+                 "target": ("target", "R9", "line 2: column target: 'R9' names no tool point"),
+                 "split": ("split", "train", "line 2: column split: 'train' must be fit or test")}[case]
+        data.write_text(f"{names},x,y,z,{extra[0]}\n0,0,0,0,0,0,1,2,3,{extra[1]}\n")
+        argv, where = ["identify", str(data), "--robot", str(desc)], f"data.csv: {extra[2]}" if case != "column" \
+            else "data.csv: line 1: column arm_1_joint is not a joint"
+    rc = main(argv)
+    err = capsys.readouterr().err.strip()
+    assert rc == 2 and len(err.splitlines()) == 1 and where in err, err

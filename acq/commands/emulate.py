@@ -91,7 +91,7 @@ def run(args) -> int:
     try:
         where, info = _start(args, world, hosts, failed)
         print(where, flush=True)
-        print(info, flush=True)
+        print(f"{info} [twin scenario: {world.twin.scenario.name}]", flush=True)
         try:
             stop.wait(args.duration if args.duration is not None else None)
         except KeyboardInterrupt:

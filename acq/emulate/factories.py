@@ -12,6 +12,8 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
+import threading
+from pathlib import Path
 from typing import Callable
 
 from calib.errors import RobocalError
@@ -75,12 +77,25 @@ def make_world(scenario: str | None = None, seed: int = 0, noise: bool = True, q
 
 
 _WORLD = ("seed", "noise", "scenario")
+#: URL instruments of one process with the same (scenario, seed, noise) share one world: the theodolites and the
+#: tap of a session opened by URL observe the same robot, not three copies of it
+_SHARED: dict[tuple, World] = {}
+_SHARED_LOCK = threading.Lock()
+
+
+def shared_world(scenario: str | None = None, seed: int = 0, noise: bool = True) -> World:
+    """The process's world for these options (made on first use by :func:`make_world`)."""
+    key = (str(Path(scenario).resolve()) if scenario else None, seed, noise)
+    with _SHARED_LOCK:
+        if key not in _SHARED:
+            _SHARED[key] = make_world(scenario, seed=seed, noise=noise)
+        return _SHARED[key]
 
 
 def _world(o: dict, world: World | None) -> World:
     if world is not None:
         return world
-    return make_world(o.get("scenario"), seed=o.get("seed", 0), noise=o.get("noise", True))
+    return shared_world(o.get("scenario"), seed=o.get("seed", 0), noise=o.get("noise", True))
 
 
 def geocom(options: dict[str, str], world: World | None = None):

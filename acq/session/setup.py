@@ -41,9 +41,11 @@ def standard_setup() -> dict:
         "compliance": {"3": {"lever_mm": 500.0, "loads_n": [0, 10, 20, 30, 45, 60, 75], "theta_i_deg": 0.0,
                              "pose_deg": list(READY_DEG)},
                        # joint 4 loaded with the forearm level (its axis horizontal): a lever clamped on the wrist
-                       # housing (link 4), level, 500 mm out along joint 5's axis, away from the theodolites
+                       # housing (link 4), level, 500 mm out along joint 5's axis; joint 1 at -90 deg points the
+                       # forearm at the theodolites, so the joint turns A1 -> A2 across their sight lines (across
+                       # the baseline it would move A2 in depth, the direction they measure worst)
                        "4": {"link": 4, "point_mm": [0.0, 0.0, -500.0], "loads_n": [0, 5, 10, 15, 25, 35, 45],
-                             "pose_deg": [0.0, -90.0, 0.0, 0.0, 0.0, 0.0]}},
+                             "pose_deg": [-90.0, -90.0, 0.0, 0.0, 0.0, 0.0]}},
         # the upper arm level (at READY it stands vertical and a weight only compresses it)
         "link": {"joint": 2, "gauges_x_mm": [150.0, 280.0, 400.0], "load_x_mm": 430.0, "loads_n": [0, 50, 100, 150],
                  "second_moment_mm4": None, "pose_deg": [0.0, 0.0, 90.0, 0.0, 0.0, 0.0]},
