@@ -289,6 +289,11 @@ def _sweeps(steps, points, robot, setup, est, truth, figs, n_mc):
     dh = dh_estimate(V, C, q0, fn.frame_R[0, 0], fn.frame_t[0, 0], fn.frame_R[0, 1:-1, :, 0], robot.hayati[:-1],
                      robot.d_mm[:-1], alpha_ref=robot.alpha_rad[:-1], n_mc=n_mc)
     tv = {n: truth[n] for n in dh.names if truth is not None and n in truth}
+    for k in np.flatnonzero(robot.hayati[:-1]):
+        # d of a Hayati link is held at its design value; the next link's d (its axis is parallel) takes the rest
+        held, nxt = f"j{k + 1}.d_mm", f"j{k + 2}.d_mm"
+        if truth is not None and held in truth and nxt in tv:
+            tv[nxt] = truth[nxt] + np.cos(robot.alpha_rad[k]) * (truth[held] - robot.d_mm[k])
     est.add_set("dh.", dh, tv)
     nominal = dict(zip(kin.names, kin.nominal))
     figs["dh"] = [{"name": n, "value": float(dh[n].value), "error": float(dh[n].error),
@@ -681,7 +686,9 @@ def _link(steps, setup, est, twin, figs, n_mc, robot=None):
 
 
 def _coupling(steps, robot, est, twin, figs, n_mc):
-    from calib.estimators.coupling import coupling_factor, quantisation_sigma
+    """sigma_jk per coupled pair from the tapped counts, every repeat of a pair used: the scatter of the repeats
+    (servo repeatability) pooled over the pairs, quantisation as the floor (:func:`coupling_from_repeats`)."""
+    from calib.estimators.coupling import coupling_from_repeats, quantisation_sigma
     if not steps:
         return
     runs: dict[tuple, dict] = {}
@@ -689,19 +696,30 @@ def _coupling(steps, robot, est, twin, figs, n_mc):
         m = st["spec"]["meta"]
         if st.get("counts") is None or len(st["counts"]) == 0:
             continue
-        runs.setdefault((m["j"], m["k"]), {})[m["phase"]] = np.mean(st["counts"], 0)
-    figs["coupling"] = {}
-    for (j, k), ph in sorted(runs.items()):
-        if not all(p in ph for p in ("start", "alone", "return", "with")):
+        runs.setdefault((m["j"], m["k"]), {}).setdefault(m.get("repeat", 0), {})[m["phase"]] = np.mean(st["counts"], 0)
+    S = 2 * np.pi / (robot.counts_per_rev * robot.gear_ratio)           # joint rad per count, coupling ignored
+    pairs, q = {}, 0.0
+    for (j, k), reps in sorted(runs.items()):
+        rows = [(ph["with"] - ph["return"], ph["alone"] - ph["start"], ph["with"], ph["return"]) for ph in reps.values()
+                if all(p in ph for p in ("start", "alone", "return", "with"))]
+        if not rows:
             continue
-        S = 2 * np.pi / (robot.counts_per_rev * robot.gear_ratio)       # joint rad per count, coupling ignored
-        enc = lambda c: c * S                                            # noqa: E731 (S_k xi_k of eq 4.7.1)
-        th_alone = enc(ph["alone"] - ph["start"])[k - 1]
-        th_with = enc(ph["with"] - ph["return"])[k - 1]
-        th_j = robot.joint_from_counts(ph["with"])[j - 1] - robot.joint_from_counts(ph["return"])[j - 1]
-        q = quantisation_sigma(abs(S[k - 1]))
-        res = coupling_factor(th_with, th_alone, th_j, q * np.sqrt(2), name=f"sigma{j}{k}", n_mc=n_mc)
-        tv = {f"sigma{j}{k}": float(robot.coupling[k - 1, j - 1])} if twin is not None else {}
-        est.add_set("coupling.", res, tv)
-        figs["coupling"][f"{j}{k}"] = {"theta_j_deg": th_j / DEG, "theta_k_alone_deg": th_alone / DEG,
-                                       "theta_k_with_deg": th_with / DEG, "sigma": float(res.value[0])}
+        th_with = np.array([w[k - 1] * S[k - 1] for w, _, _, _ in rows])            # S_k xi_k of eq 4.7.1
+        th_alone = np.array([a[k - 1] * S[k - 1] for _, a, _, _ in rows])
+        th_j = np.array([robot.joint_from_counts(w)[j - 1] - robot.joint_from_counts(r)[j - 1]
+                         for _, _, w, r in rows])
+        pairs[(j, k)] = (th_with, th_alone, th_j)
+        q = max(q, quantisation_sigma(abs(S[k - 1])))
+    figs["coupling"] = {}
+    if not pairs:
+        return
+    res = coupling_from_repeats({f"sigma{j}{k}": v for (j, k), v in pairs.items()}, q * np.sqrt(2))
+    for (j, k), (th_with, th_alone, th_j) in pairs.items():
+        name = f"sigma{j}{k}"
+        tv = {name: float(robot.coupling[k - 1, j - 1])} if twin is not None else {}
+        est.add_set("coupling.", res.subset([name]), tv)
+        figs["coupling"][f"{j}{k}"] = {"theta_j_deg": float(np.mean(th_j)) / DEG,
+                                       "theta_k_alone_deg": float(np.mean(th_alone)) / DEG,
+                                       "theta_k_with_deg": float(np.mean(th_with)) / DEG,
+                                       "sigma": float(res[name].value), "repeats": int(th_j.size),
+                                       "error_type": res.extras["type"]}
