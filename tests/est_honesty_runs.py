@@ -110,13 +110,13 @@ def run_transmission(rng, amplitude=0.047 * DEG, omega=1.8, lo_deg=-266.0, hi_de
     return [(n, res[n].value, res[n].error, truth[n]) for n in truth if n in res.names]
 
 
-def run_compliance(rng, K1=25704.0, K2=19185.0, Tb=40.0, offset=0.005 * DEG, errors=(0.2, 1.0, 0.5 * DEG)):
+def run_compliance(rng, K1=25704.0, K2=19185.0, Tb=60.0, offset=0.005 * DEG, errors=(0.2, 1.0, 0.5 * DEG)):
     """Section 5.5.2's joint 4 slopes, a breakpoint inside the loads; loads hung at 500 mm, loading then unloading,
     with the thesis's Delta N, Delta L_j and Delta theta_ij in the true set-up.  Quantities the estimator says it
     cannot determine are not scored (the test of that is its own)."""
     fit, _ = _stations(rng)
-    loads = np.r_[np.arange(0, 9) * 30.0, np.arange(8, -1, -1) * 30.0]          # N, loading then unloading
-    unload = np.r_[np.zeros(9), np.ones(9)].astype(bool)
+    loads = np.r_[np.arange(0, 13) * 20.0, np.arange(12, -1, -1) * 20.0]        # N, loading then unloading
+    unload = np.r_[np.zeros(13), np.ones(13)].astype(bool)
     lever, th_i = 500.0, 5 * DEG
     s_N, s_L, s_th = errors                              # the thesis's Delta N, Delta L_j, Delta theta_ij
     N_true = loads + s_N * rng.standard_normal(loads.size) * (loads > 0)
@@ -131,6 +131,8 @@ def run_compliance(rng, K1=25704.0, K2=19185.0, Tb=40.0, offset=0.005 * DEG, err
     truth = {"K1_Nm_per_rad": K1, "K2_Nm_per_rad": K2, "breakpoint_Nm": Tb, "offset_rad": offset}
     if res.extras["not_determined"] and K1 != K2:
         truth.pop("K1_Nm_per_rad")                        # the single slope of a two-slope joint has no truth
+    if K1 == K2:
+        truth.pop("breakpoint_Nm")                        # one slope: no breakpoint to find
     return [(n, res[n].value, res[n].error, truth[n]) for n in truth if n in res.names]
 
 
