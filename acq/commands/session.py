@@ -110,7 +110,8 @@ def setup_template() -> dict:
                          "and the circle offsets gamma1, gamma2 as first measured (the ruler procedure refines them);"
                          " base_xyz_mm: robot frame 0 in the theodolite frame, roughly; tool_target_mm: the target "
                          "on the flange (frame 6); extended_tool: targets A1, A2 for transmission errors; ruler: "
-                         "mark positions along the ruler and where it is placed; compliance/link: levers, loads (old keys) or "
+                         "mark positions along the ruler and where it is placed; compliance/link: levers, loads "
+                         "(old keys) or "
                          "link, point_mm in frame j, masses_kg; sweep_radius_mm: radius of the sweep targets P_j; "
                          "far_target_mm: the instrument check's far target; robocal plan setup --out designs it.")
     return setup
