@@ -47,7 +47,7 @@ def run(args) -> int:
     from calib.effects import THESIS_RUNNING_ERRORS, effect_from_text
     from calib.evaluation import context_of, fit_rows, point_covariance, split_metrics, with_polar_points
     from calib.polar import PolarNoise
-    from calib.identify import PointObservations, default_free, identify
+    from calib.identify import PointObservations, check_drivers, default_free, identify
     from calib.priors import free_from_patterns, priors_for
     from calib.model import MeasurementModel
     from calib.posecsv import read_pose_csv
@@ -77,6 +77,7 @@ def run(args) -> int:
     implausible = enforce(check_data(MeasurementModel(robot), table.q_rad, table.points_mm, args.data,
                                      n_free=len(free or default_free(model)), ignored_columns=full.ignored_columns,
                                      prismatic=robot.prismatic), args.force_implausible, "identify")
+    check_drivers(model, obs, args.data)
     ident = identify(model, obs, free=free, priors=priors, start=start, outliers=args.outliers, loss=args.loss)
     held_out = split_metrics(model, ident.theta[:model.P], full) if full.split is not None else {}
     implausible += enforce(check_fit(ident.reduced_chi2, args.data), args.force_implausible, "identify")
