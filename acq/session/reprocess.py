@@ -419,7 +419,7 @@ def _poses(steps, points, robot, setup, est, twin, figs, running=None, problems=
     if not steps:
         return None
     problems = [] if problems is None else problems
-    q, P, S = [], [], []
+    q, P, S, D = [], [], [], []
     for st in steps:
         pt = points(st).get("P") if st["readings"] else None
         if pt is None and all(k in st["inputs"] for k in ("x_mm", "y_mm", "z_mm")):     # imported pose CSV
@@ -430,6 +430,7 @@ def _poses(steps, points, robot, setup, est, twin, figs, running=None, problems=
         q.append(qe if qe is not None else np.asarray(st["spec"]["pose_deg"]) * DEG)
         P.append(pt[0])
         S.append(pt[1])
+        D.append(getattr(pt, "d_station", None))
     if len(q) < 8:
         raise RobocalError(f"only {len(q)} poses with both sightings; identification needs more")
     specs = running_error_specs(setup, running or {}, coupling_steps)
@@ -439,6 +440,7 @@ def _poses(steps, points, robot, setup, est, twin, figs, running=None, problems=
     # the dead zone needs loading and unloading, which a pose set has not: it stays out
     wanted = [n for n in default_free(model, effects=True) if not n.endswith("deadzone_rad")]
     ident = identify(model, obs, free=wanted, theta0=theta0, priors=priors)
+    sigma = np.sqrt(ident.sigma ** 2 + _station_variance(model, obs, D, ident, priors, points.station_fit))
     truth = twin.true_parameters() if twin is not None else None
     gauge = _gauge_truth(twin, model, ident, q) if twin is not None else {}
     for n in ident.free:
@@ -446,10 +448,10 @@ def _poses(steps, points, robot, setup, est, twin, figs, running=None, problems=
         raw = None if truth is None else truth.get(n)
         extra = {}
         tv = gauge.get(n, raw)
-        if raw is not None and tv is not None and abs(tv - raw) > 0.1 * ident.sigma[i]:
+        if raw is not None and tv is not None and abs(tv - raw) > 0.1 * sigma[i]:
             extra = {"truth_raw": float(raw), "note": "truth in the gauge of the held parameters (what perfect data "
                                                       "would give with them at their design values)"}
-        est.add(f"ident.{n}", ident.theta[i], ident.sigma[i], _unit(n), truth_value=tv, **extra)
+        est.add(f"ident.{n}", ident.theta[i], sigma[i], _unit(n), truth_value=tv, **extra)
     for n in wanted:
         if n in ident.free:
             continue
@@ -477,6 +479,31 @@ def _accuracy(model, obs, free, theta0, priors, figs, problems) -> None:
         return
     figs["accuracy"] = {**acc.as_dict(), "test_index": acc.test_index.tolist(),
                         "before_err_mm": acc.before_err_mm.tolist(), "after_err_mm": acc.after_err_mm.tolist()}
+
+
+def _station_variance(model, obs, D, ident, priors, fit) -> np.ndarray:
+    """What the stations' own uncertainty adds to each identified parameter's variance.
+
+    Why: every pose point was intersected with the same ruler-fitted stations, so an error in L (a scale) or B's
+    height moves all of them together and does not average down over the poses; the identification's covariance
+    treats the points as independent.  Each station parameter is moved by its 1-sigma, the points follow through
+    their sensitivities, and the identification is re-solved from its own estimate: ``G U_station G^T``."""
+    from calib.identify import PointObservations, identify
+    out = np.zeros(len(ident.theta))
+    if not fit.cov.size or any(d is None for d in D):
+        return out
+    Dk = np.array(D)                                          # (N, 3, K)
+    G = []
+    for k, sd in enumerate(np.sqrt(np.diag(fit.cov))):
+        moved = PointObservations(obs.q_rad, obs.points_mm + Dk[:, :, k] * sd, cov_mm2=obs.cov_mm2)
+        try:
+            g = identify(model, moved, free=list(ident.free), theta0=ident.theta, priors=priors)
+        except RobocalError:
+            return out
+        with np.errstate(invalid="ignore"):
+            G.append(np.nan_to_num((g.theta - ident.theta) / sd))  # parameters at +-inf (none free) give 0
+    G = np.stack(G, -1)
+    return np.einsum("pk,kl,pl->p", G, fit.cov, G)
 
 
 def _unit(name: str) -> str:
