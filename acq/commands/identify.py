@@ -81,8 +81,6 @@ def run(args) -> int:
     ident = identify(model, obs, free=free, priors=priors, start=start, outliers=args.outliers, loss=args.loss)
     held_out = split_metrics(model, ident.theta[:model.P], full) if full.split is not None else {}
     implausible += enforce(check_fit(ident.reduced_chi2, args.data), args.force_implausible, "identify")
-    if implausible:
-        held_out = {**held_out, "plausibility_warnings": implausible}
     prov = provenance(args.robot)
     if args.out:
         save_model(args.out, model, ident, args.out_robot, provenance=prov)
@@ -92,7 +90,8 @@ def run(args) -> int:
         from calib.fileio import atomic_write_text
         atomic_write_text(args.out_robot, robot_to_toml(robot_from_theta(model, ident.theta)))
     if args.json:
-        print(json.dumps({**model_document(model, ident, provenance=prov), **held_out}, indent=1))
+        extra = {"plausibility_warnings": implausible} if implausible else {}
+        print(json.dumps({**model_document(model, ident, provenance=prov), **held_out, **extra}, indent=1))
         return 0
     print(f"robocal identify {args.data}: {table.n} poses, {len(ident.free)} parameters estimated, "
           f"residual RMS {ident.residual_rms:.4f} mm, reduced chi-square {ident.reduced_chi2:.2f}")
