@@ -177,3 +177,11 @@ def effect_spec(raw: str) -> str:
         if not math.isfinite(value) or abs(value) > 1e6:
             raise _fail(f"field {i} must be a finite number of at most 1e6", raw)
     return raw
+
+
+def add_force_argument(p) -> None:
+    """``--force-implausible``: run a fit on data the plausibility checks refuse (:mod:`calib.plausibility`); each
+    finding then is a named warning on stderr and in the JSON instead of an error."""
+    p.add_argument("--force-implausible", action="store_true",
+                   help="fit even when the data look implausible (units, joint count, too few distinct poses, "
+                        "chi-square): each finding becomes a named warning")

@@ -231,9 +231,10 @@ PROCEDURES: dict[str, Callable[..., SetupPlan]] = {"ruler": plan_ruler, "sweep":
 # -- per-link sweep targets ------------------------------------------------------------------------------------------
 def sweep_targets(model, theta: np.ndarray, q_rad: np.ndarray, radius_mm: dict[int, float],
                   toward_mm=(0.0, -1e4, 0.0)) -> dict[str, dict]:
-    """A target P_j for each joint's sweep at ``radius_mm[j]`` from joint j's axis (thesis section 4.3), carried by
-    the flange (link n: rigid with link j while only joint j turns), on the side of the axis facing ``toward_mm``
-    (the theodolites).  Returns ``{"j": {"link": n, "point_mm": [x, y, z] in frame n, "radius_mm": R}}``."""
+    """A target P_j for each joint's sweep at ``radius_mm[j]`` from joint j's axis (thesis section 4.3: "a reference
+    point P_j is chosen on the link j"), fixed on link j, across the axis from the flange's side (on the side facing
+    ``toward_mm``, the theodolites, when the flange is on the axis).  Returns ``{"j": {"link": j, "point_mm": [x, y,
+    z] in frame j, "radius_mm": R}}``."""
     n = model.robot.n
     fp = model.kin.forward(np.asarray(q_rad, float)[None], theta[: model.n_geometric])
     R6, t6 = fp.frame_R[0, n], fp.frame_t[0, n]
@@ -249,8 +250,8 @@ def sweep_targets(model, theta: np.ndarray, q_rad: np.ndarray, radius_mm: dict[i
         if u @ (np.asarray(toward_mm, float) - foot) < 0:      # the side of the axis facing the theodolites
             u = -u
         p = foot + float(R) * u
-        out[str(j)] = {"link": n, "point_mm": [round(float(v), 2) for v in R6.T @ (p - t6)],
-                       "radius_mm": float(R)}
+        Rj, tj = fp.frame_R[0, j], fp.frame_t[0, j]
+        out[str(j)] = {"link": j, "point_mm": [round(float(v), 2) for v in Rj.T @ (p - tj)], "radius_mm": float(R)}
     return out
 
 

@@ -18,7 +18,8 @@ from calib.estimators.coupling import coupling_from_repeats, quantisation_sigma
 from calib.estimators.link_compliance import flexural_rigidity
 from calib.estimators.points import StationFit, locate_targets, points_covariance
 from calib.estimators.ruler import RulerSightings, ruler_lsq
-from calib.estimators.transmission import fit_transmission_error, joint_angles
+from calib.estimators.resolution import encoder_resolution
+from calib.estimators.transmission import commanded_angle_errors, fit_transmission_error, joint_angles
 from calib.theodolite import thesis_stations
 from tests.fakes import thesis_procedures as tp
 
@@ -110,13 +111,13 @@ def run_transmission(rng, amplitude=0.047 * DEG, omega=1.8, lo_deg=-266.0, hi_de
     return [(n, res[n].value, res[n].error, truth[n]) for n in truth if n in res.names]
 
 
-def run_compliance(rng, K1=25704.0, K2=19185.0, Tb=40.0, offset=0.005 * DEG, errors=(0.2, 1.0, 0.5 * DEG)):
+def run_compliance(rng, K1=25704.0, K2=19185.0, Tb=60.0, offset=0.005 * DEG, errors=(0.2, 1.0, 0.5 * DEG)):
     """Section 5.5.2's joint 4 slopes, a breakpoint inside the loads; loads hung at 500 mm, loading then unloading,
     with the thesis's Delta N, Delta L_j and Delta theta_ij in the true set-up.  Quantities the estimator says it
     cannot determine are not scored (the test of that is its own)."""
     fit, _ = _stations(rng)
-    loads = np.r_[np.arange(0, 9) * 30.0, np.arange(8, -1, -1) * 30.0]          # N, loading then unloading
-    unload = np.r_[np.zeros(9), np.ones(9)].astype(bool)
+    loads = np.r_[np.arange(0, 13) * 20.0, np.arange(12, -1, -1) * 20.0]        # N, loading then unloading
+    unload = np.r_[np.zeros(13), np.ones(13)].astype(bool)
     lever, th_i = 500.0, 5 * DEG
     s_N, s_L, s_th = errors                              # the thesis's Delta N, Delta L_j, Delta theta_ij
     N_true = loads + s_N * rng.standard_normal(loads.size) * (loads > 0)
@@ -131,6 +132,8 @@ def run_compliance(rng, K1=25704.0, K2=19185.0, Tb=40.0, offset=0.005 * DEG, err
     truth = {"K1_Nm_per_rad": K1, "K2_Nm_per_rad": K2, "breakpoint_Nm": Tb, "offset_rad": offset}
     if res.extras["not_determined"] and K1 != K2:
         truth.pop("K1_Nm_per_rad")                        # the single slope of a two-slope joint has no truth
+    if K1 == K2:
+        truth.pop("breakpoint_Nm")                        # one slope: no breakpoint to find
     return [(n, res[n].value, res[n].error, truth[n]) for n in truth if n in res.names]
 
 
@@ -167,9 +170,33 @@ def run_link(rng, EI=2.0e11):
     return [("EI_Nmm2", res["EI_Nmm2"].value, res["EI_Nmm2"].error, EI)]
 
 
+def run_resolution(rng, rad_per_count=2 * np.pi / (1000 * 76.686) * 1.002):
+    """Fig 5.14's run: the joint stepped 150 counts at a time, its angle measured from A1, A2 (true resolution 0.2 %
+    off the design value)."""
+    fit, _ = _stations(rng)
+    counts = np.arange(0, 12) * 150.0
+    ang, cov = _two_targets(fit, rng, counts * rad_per_count, repeats=2)
+    design = 2 * np.pi / (1000 * 76.686)
+    res = encoder_resolution(counts, ang, cov, design)
+    truth = {"scale": rad_per_count / design}                # rad_per_count is the same number, scaled
+    return [(n, res[n].value, res[n].error, t) for n, t in truth.items()]
+
+
+def run_commanded(rng, scale_error=1.5e-3):
+    """Section 4.4's E_a: commanded angles over 60 deg, the joint turning 0.15 % more than commanded."""
+    fit, _ = _stations(rng)
+    desired = np.radians(np.arange(0.0, 61.0, 5.0))
+    ang, cov = _two_targets(fit, rng, desired * (1 + scale_error))
+    res = commanded_angle_errors(ang, cov, desired)
+    out = [("E_a_slope", res["E_a_slope"].value, res["E_a_slope"].error, scale_error)]
+    return out + [(n, res[n].value, res[n].error, scale_error * desired[i])
+                  for i, n in enumerate(res.names[:-1], start=1)]
+
+
 PROCEDURES = {"ruler": run_ruler, "points": run_points, "axes": run_axes, "transmission": run_transmission,
               "compliance": run_compliance,
-              "compliance (one slope)": run_compliance_one_slope, "coupling": run_coupling, "link compliance": run_link}
+              "compliance (one slope)": run_compliance_one_slope, "coupling": run_coupling, "link compliance": run_link, "encoder resolution": run_resolution,
+              "E_a (commanded angle)": run_commanded}
 
 
 def honesty(procedure: str, seeds: range) -> dict:

@@ -6,11 +6,14 @@ import pytest
 
 from calib.estimators import EstimationError
 from calib.estimators.link_compliance import cantilever_shape, flexural_rigidity
+from tests.fakes import thesis_procedures as tp
 
 
 def test_cantilever_shape_is_standard_beam_theory():
     a = 400.0
     assert cantilever_shape(a, a) / 6 == pytest.approx(a ** 3 / 3)             # tip: P a^3 / (3 EI)
+    x = np.array([100.0, 250.0, 400.0, 650.0])                                 # against y'' = M / EI integrated
+    assert cantilever_shape(x, a) / 6 == pytest.approx(tp.cantilever_deflection(x, a, 1.0, 1.0), rel=1e-5)
     x = np.linspace(0, 800, 9)
     y = cantilever_shape(x, a)
     assert np.allclose(np.diff(y[x >= a], 2), 0)                                # straight beyond the load
@@ -23,7 +26,8 @@ def test_EI_and_joint_stiffness_recovered(joint):
     x = np.tile([100, 200, 300, 400.0], 3)
     a = np.full(12, 400.0)
     P = np.repeat([50, 100, 150.0], 4)
-    y = P * cantilever_shape(x, a) / (6 * EI) + (x * P * a * 1e-3 / K if joint else 0)
+    # independent truth: EI y'' = M integrated numerically, plus the rigid turn of a compliant joint (P a / K)
+    y = tp.cantilever_deflection(x, a, P, EI) + (x * P * a * 1e-3 / K if joint else 0)
     sig = 0.002
     res = flexural_rigidity(x, a, P, y + sig * rng.standard_normal(12), sig, include_joint=joint,
                             second_moment_mm4=1e4, n_mc=20000)

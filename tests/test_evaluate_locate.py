@@ -245,7 +245,7 @@ def test_orientation_rows_enter_the_identification(world, capsys):
         M = dat.oMf[fid]
         p = T1[:3, :3] @ (M.translation * 1000.0) + T1[:3, 3] + rng.normal(0, 0.01, 3)
         R = Rotation.from_matrix(T1[:3, :3] @ M.rotation) * Rotation.from_rotvec(rng.normal(0, 1e-5, 3))
-        rows.append((row, p, R.as_euler("xyz", degrees=True), "fit" if i < 12 else "test"))
+        rows.append((row, p, R.as_euler("xyz", degrees=True), "fit" if i < 14 else "test"))
     lines = [",".join(NAMES + ["x", "y", "z", "rx_deg", "ry_deg", "rz_deg", "split"])]
     for row, p, e, sp in rows:
         lines.append(",".join([f"{v:.9f}" for v in np.degrees(row)] + [f"{v:.6f}" for v in p]
@@ -257,5 +257,5 @@ def test_orientation_rows_enter_the_identification(world, capsys):
     base = ["--robot", str(EX / "urdf" / "ur10_robot.urdf"), "--noise-mm", "0.01", "--json"]
     with_o = json.loads(_run(capsys, ["identify", str(six), *base, "--orientation-noise-deg", "0.001"]))
     without = json.loads(_run(capsys, ["identify", str(three), *base]))
-    assert with_o["n_fit"] == 12 and with_o["test_rms_mm"] < 0.1
+    assert with_o["n_fit"] == 14 and with_o["test_rms_mm"] < 0.1
     assert with_o["test_rms_mm"] < without["test_rms_mm"]

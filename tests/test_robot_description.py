@@ -23,7 +23,7 @@ def test_default_is_the_thesis_puma(puma):
     assert puma.hayati.tolist() == [False, True, False, False, False, False]
     # published gear ratios (Corke & Armstrong-Helouvry) and the thesis's wrist coupling
     np.testing.assert_allclose(puma.gear_ratio, [-62.6111, 107.815, -53.7063, 76.0364, 71.923, 76.686])
-    assert puma.coupling[4, 3] == 0.0141 and puma.coupling[5, 3] == 0.0131 and puma.coupling[5, 4] == 0.1802
+    assert puma.coupling[4, 3] == 0.0139 and puma.coupling[5, 3] == 0.0131 and puma.coupling[5, 4] == 0.1802
     assert puma.tool_points_mm == {}
     np.testing.assert_allclose(puma.tool_point(), 0.0)
 
@@ -85,7 +85,7 @@ def test_bad_robot_file_names_file_and_key(tmp_path, old, new, key, words):
 
 
 def test_singular_coupling_matrix_is_refused(tmp_path):
-    text = PUMA_TEXT.replace("sigma45 = 0.0141\nsigma46 = 0.0131\nsigma56 = 0.1802",
+    text = PUMA_TEXT.replace("sigma45 = 0.0139\nsigma46 = 0.0131\nsigma56 = 0.1802",
                              "matrix = " + str([[0.0] * 6] * 6))
     bad = tmp_path / "r.toml"
     bad.write_text(text)

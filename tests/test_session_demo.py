@@ -16,7 +16,7 @@ SMALL = {
     "ruler": {"repeats": 2},
     "sweeps": {"points": 5, "span_deg": 60.0},
     "transmission": {"joints": [4], "points": 19, "repeats": 2, "range_deg": {"4": [-105.0, 165.0]}},
-    "compliance": {"joints": [3]},
+    "compliance": {"joints": [3, 4]},
     "coupling": {"pairs": [[5, 6]]},
     "seed": 3,
 }
@@ -95,7 +95,8 @@ def test_reprocess_recovers_the_twin(session):
     # the gauges read the bending of the scenario's link compliance, the stiffness comes from torques computed from
     # the geometry: both within 3 of their stated errors, and the errors small enough to mean something
     # (K2 only when the data place a breakpoint: the twin's two slopes of joint 3 differ by 6 %)
-    for n in ("link.j2.EI_Nmm2", "compliance.j3.K1_Nm_per_rad", "compliance.j3.K2_Nm_per_rad"):
+    for n in ("link.j2.EI_Nmm2", "compliance.j3.K1_Nm_per_rad", "compliance.j3.K2_Nm_per_rad",
+              "compliance.j4.K1_Nm_per_rad", "compliance.j4.K2_Nm_per_rad"):
         if n not in est and n.endswith("K2_Nm_per_rad"):
             continue
         within(n, k=3.0)

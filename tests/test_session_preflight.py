@@ -239,3 +239,22 @@ def test_plan_setup_writes_the_session_setup(tmp_path):
     assert doc["ruler"] == json.loads(base.read_text())["ruler"]
     r = _cli("plan", "check", str(out))
     assert r.returncode == 0, r.stdout
+
+
+@pytest.mark.parametrize("edit, text", [
+    (lambda s: s["compliance"]["4"].pop("point_mm"), "set-up: compliance.4: missing lever_mm"),
+    (lambda s: s["compliance"]["4"].update(pose_deg=[0, 0]), "set-up: compliance.4: pose_deg needs 6"),
+    (lambda s: s["compliance"].update({"9": s["compliance"]["3"]}), "set-up: compliance.9: joint 9 is not one of"),
+    (lambda s: s["link"].update(loads_n=[0, -5]), "set-up: link: loads must be finite and not negative"),
+    (lambda s: s["link"].pop("gauges_x_mm"), "set-up: link: missing gauges_x_mm"),
+])
+def test_malformed_setup_is_one_line(tmp_path, edit, text):
+    from acq.session.setup import standard_setup
+    s = standard_setup()
+    edit(s)
+    path = tmp_path / "s.json"
+    path.write_text(json.dumps(s))
+    r = _cli("plan", "check", str(path))
+    assert r.returncode == 2 and "Traceback" not in r.stderr
+    assert r.stderr.strip().splitlines() == [f"robocal: error: {r.stderr.split('error: ', 1)[1].strip()}"]
+    assert text in r.stderr, r.stderr

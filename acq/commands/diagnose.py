@@ -9,7 +9,7 @@ import json
 import sys
 
 from acq.commands._csvargs import add_unit_arguments, units
-from acq.argtypes import float_range, nonneg_int, output_dir, positive_float, positive_int
+from acq.argtypes import add_force_argument, float_range, nonneg_int, output_dir, positive_float, positive_int
 from calib.errors import RobocalError
 from calib.outliers import LOSSES, OUTLIER_MODES
 
@@ -45,6 +45,7 @@ def add_arguments(p):
                    help="family-wise significance level of the nested F-test (default 0.01)")
     p.add_argument("--max-effects", type=nonneg_int, default=6, metavar="N", help="stop after N accepted effects")
     add_outlier_arguments(p)
+    add_force_argument(p)
     p.add_argument("--confirm", metavar="OTHER.csv",
                    help="independent data (another day or set-up): refit only the base per station group and say, per "
                         "finding, whether it shrinks the gap there too")
@@ -56,6 +57,10 @@ def add_arguments(p):
                         "default 2,4)")
     p.add_argument("--clean", type=nonneg_int, default=4, metavar="N", help="--validate: clean cases per seed (default 4)")
     p.add_argument("--workers", type=positive_int, default=None, metavar="N", help="processes for --validate (default: CPUs)")
+    p.add_argument("--suite", choices=("twin", "independent", "all"), default="all",
+                   help="--validate: the withheld-effect study on twin data, the harder families from the independent "
+                        "generator (two effects, near the floor, outside the library, heavy tails, few poses, wrong "
+                        "--noise-mm), or both (default)")
 
 
 def _validate(args) -> int:
@@ -73,17 +78,25 @@ def _validate(args) -> int:
         raise RobocalError(f"--levels must be positive, got {args.levels!r}")
     if args.clean < 0:
         raise RobocalError(f"--clean must not be negative, got {args.clean}")
+    v = fam = None
     with progress_display("robocal diagnose --validate") as update:
-        v = run_validation(cases(seeds=args.seeds, levels=levels, clean_per_seed=args.clean), workers=args.workers,
-                           progress=update)
-    if args.report:
+        if args.suite in ("twin", "all"):
+            v = run_validation(cases(seeds=args.seeds, levels=levels, clean_per_seed=args.clean),
+                               workers=args.workers, progress=update)
+        if args.suite in ("independent", "all"):
+            from calib.diagnose.families import family_cases, run_families
+            fam = run_families(family_cases(seeds=args.seeds), workers=args.workers, progress=update)
+    if args.report and v is not None:
         from calib.diagnose.report import write_validation_report
         write_validation_report(v, args.report)
     if args.json:
-        print(json.dumps(v.to_json(), indent=1))
+        doc = v.to_json() if v is not None else {}
+        if fam is not None:
+            doc["independent"] = fam.to_json()
+        print(json.dumps(doc, indent=1))
     else:
-        print(v.render())
-        if args.report:
+        print("\n\n".join(x.render() for x in (v, fam) if x is not None))
+        if args.report and v is not None:
             print(f"\nreport: {args.report}/validation.html")
     return 0
 
@@ -97,6 +110,18 @@ def _read(path: str, robot, noise_mm, csv_units: dict | None = None):
         from acq.session.exchange import pose_arrays
         return from_session_arrays(robot or load_robot(), pose_arrays(str(path)), str(path))
     return load_data(path, robot, noise_mm, **(csv_units or {}))
+
+
+def _plausible(data, args) -> list[dict]:
+    """The data checked against the description before the fits (calib.plausibility); after them, the baseline's
+    chi-square is checked by :func:`run`."""
+    from calib.identify import default_free
+    from calib.model import MeasurementModel
+    from calib.plausibility import check_data, enforce
+    nominal = MeasurementModel(data.robot)
+    return enforce(check_data(nominal, data.q_rad, data.points_mm, str(args.data),
+                              n_free=len(default_free(nominal, effects=False)), prismatic=data.robot.prismatic),
+                   args.force_implausible, "diagnose")
 
 
 def run(args) -> int:
@@ -118,9 +143,13 @@ def run(args) -> int:
 
     robot = load_robot(args.robot) if args.robot else None
     data = _read(args.data, robot, args.noise_mm, units(args))
+    implausible = _plausible(data, args)
     with progress_display("robocal diagnose") as update:
         diag = diagnose(data, level=args.geometry, n_folds=args.folds, alpha=args.alpha,
                         max_effects=args.max_effects, outliers=args.outliers, loss=args.loss, progress=update)
+    from calib.plausibility import check_fit, enforce
+    implausible += enforce(check_fit(diag.geometric.all_fit.reduced_chi2, str(args.data)), args.force_implausible,
+                           "diagnose")
     if args.confirm:
         from calib.diagnose.confirm import confirm
         diag.confirmation = confirm(diag, _read(args.confirm, data.robot, args.noise_mm, units(args)))
@@ -132,7 +161,8 @@ def run(args) -> int:
         from calib.diagnose.report import write_report
         write_report(diag, args.report, provenance=prov)
     if args.json:
-        print(json.dumps({**diag.to_json(), "provenance": prov}, indent=1, default=float))
+        extra = {"plausibility_warnings": implausible} if implausible else {}
+        print(json.dumps({**diag.to_json(), "provenance": prov, **extra}, indent=1, default=float))
     else:
         print(render(diag))
         if args.report:

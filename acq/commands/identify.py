@@ -5,7 +5,7 @@ import json
 
 
 from calib.errors import RobocalError
-from acq.argtypes import effect_spec, output_file, positive_float
+from acq.argtypes import add_force_argument, effect_spec, output_file, positive_float
 
 from ._csvargs import add_unit_arguments, units
 from .diagnose import add_outlier_arguments
@@ -30,6 +30,7 @@ def add_arguments(p):
     p.add_argument("--json", action="store_true", help="print the model document as JSON")
     add_outlier_arguments(p)
     add_unit_arguments(p)
+    add_force_argument(p)
     p.add_argument("--polar-noise", metavar="ARCSEC,MM[,PPM]",
                    help="noise of hz_deg/v_deg/dist_mm rows (laser tracker, total station): angle 1-sigma in arc "
                         "seconds, distance 1-sigma in mm, plus ppm of the distance (default 1,0.01,1)")
@@ -49,7 +50,7 @@ def run(args) -> int:
     from calib.evaluation import (context_of, fit_rows, point_covariance, split_metrics, station_start,
                                   with_orientation_points, with_polar_points)
     from calib.polar import PolarNoise
-    from calib.identify import PointObservations, default_free, identify
+    from calib.identify import PointObservations, check_drivers, default_free, identify
     from calib.priors import free_from_patterns, priors_for
     from calib.model import MeasurementModel
     from calib.posecsv import read_pose_csv
@@ -77,12 +78,18 @@ def run(args) -> int:
     priors = priors_for(model, args.prior, free or default_free(model))
     # the rigid-fit start moves the base: only when the whole base is estimated (else it keeps its design value)
     start = free is None or all(n in free for n in model.names if n.startswith("base."))
+    from calib.plausibility import check_data, check_fit, enforce
+    implausible = enforce(check_data(MeasurementModel(robot), table.q_rad, table.points_mm, args.data,
+                                     n_free=len(free or default_free(model)), ignored_columns=full.ignored_columns,
+                                     prismatic=robot.prismatic), args.force_implausible, "identify")
+    check_drivers(model, obs, args.data)
     theta0 = None
     if table.station is not None and len(set(table.station)) > 1:
         theta0, start = station_start(model, table), False        # each set-up placed by its own rigid fit
     ident = identify(model, obs, free=free, priors=priors, start=start, theta0=theta0, outliers=args.outliers,
                      loss=args.loss)
     held_out = split_metrics(model, ident.theta[:model.P], measured) if full.split is not None else {}
+    implausible += enforce(check_fit(ident.reduced_chi2, args.data), args.force_implausible, "identify")
     prov = provenance(args.robot)
     if args.out:
         save_model(args.out, model, ident, args.out_robot, provenance=prov)
@@ -92,7 +99,8 @@ def run(args) -> int:
         from calib.fileio import atomic_write_text
         atomic_write_text(args.out_robot, robot_to_toml(robot_from_theta(model, ident.theta)))
     if args.json:
-        print(json.dumps({**model_document(model, ident, provenance=prov), **held_out}, indent=1))
+        extra = {"plausibility_warnings": implausible} if implausible else {}
+        print(json.dumps({**model_document(model, ident, provenance=prov), **held_out, **extra}, indent=1))
         return 0
     print(f"robocal identify {args.data}: {table.n} poses, {len(ident.free)} parameters estimated, "
           f"residual RMS {ident.residual_rms:.4f} mm, reduced chi-square {ident.reduced_chi2:.2f}")

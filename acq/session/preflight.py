@@ -96,14 +96,14 @@ class Preflight:
         self.stations = stations if stations is not None else setup_stations(setup)
         lim = {**PREFLIGHT_LIMITS, **({"min_focus_mm": setup["min_focus_mm"]} if "min_focus_mm" in setup else {})}
         self.limits = {**lim, **setup.get("preflight", {}), **(limits or {})}
-        g = np.asarray(robot.gravity_m_s2, float)
-        self.g_m_s2 = float(np.linalg.norm(g))
+        self.g_n_per_kg = self.model.gravity_n_per_kg(self.theta)
 
     # -- geometry ------------------------------------------------------------------------------------------------
     def geometry(self, step: Step) -> StepGeometry:
         fp = None
         if step.pose_deg is not None and len(step.pose_deg) == self.robot.n:
-            fp = self.model.kin.forward(np.asarray(step.pose_deg, float)[None] * DEG, self.theta[: self.model.n_geometric])
+            q = np.asarray(step.pose_deg, float)[None] * DEG
+            fp = self.model.kin.forward(q, self.theta[: self.model.n_geometric])
         pts = {}
         for t in step.targets:
             p = self.target_point(fp, t)
@@ -117,12 +117,8 @@ class Preflight:
             return np.asarray(t.point_mm, float)
         if t.tool_mm is None or fp is None:
             return None
-        j = self.robot.n if getattr(t, "link", None) is None else int(t.link)
-        return fp.frame_R[0, j] @ np.asarray(t.tool_mm, float) + fp.frame_t[0, j]
-
-    def gravity_world(self, fp) -> np.ndarray:
-        """Gravity (m/s^2) in the measurement frame: the description's, carried by the base's orientation."""
-        return fp.frame_R[0, 0] @ np.asarray(self.robot.gravity_m_s2, float)
+        j = self.robot.n if t.link is None else int(t.link)
+        return self.model.kin.point_on(fp, [j], np.asarray(t.tool_mm, float)[None])[0, 0]
 
     # -- running -------------------------------------------------------------------------------------------------
     def check_step(self, step: Step) -> list[Finding]:
@@ -301,33 +297,22 @@ def _sweep_radius(pf: Preflight, geo: StepGeometry) -> list[Finding]:
 
 
 def load_points(pf: Preflight, fp, loads: list[dict]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """(links (K,), points in the measurement frame (K, 3) mm, forces (K, 3) N) of hung masses."""
+    """(links (K,), points in the measurement frame (K, 3) mm, forces (K, 3) N) of hung masses: each pulls its mass
+    times the model's gravity (:meth:`calib.model.MeasurementModel.gravity_n_per_kg`) at its point."""
     links = np.array([int(ld["link"]) for ld in loads], int)
-    pts = np.array([fp.frame_R[0, j] @ np.asarray(ld["point_mm"], float) + fp.frame_t[0, j]
-                    for j, ld in zip(links, loads)])
-    g = pf.gravity_world(fp)
-    F = np.array([float(ld["mass_kg"]) * g for ld in loads])
+    pts = pf.model.kin.point_on(fp, links, np.array([[ld["point_mm"] for ld in loads]], float))[0]
+    F = np.array([float(ld["mass_kg"]) * pf.g_n_per_kg for ld in loads])
     return links, pts, F
 
 
 def load_torques_nm(pf: Preflight, fp, q_rad: np.ndarray, loads: list[dict]) -> np.ndarray:
-    """Torque (N m) about every joint from the hung masses alone, through ``MeasurementModel.loads``.
-
-    Each mass is a force at its point: the torque is the model's with the force less the model's without it (the
-    arm's own weight cancels).  Joints beyond a mass's link do not carry it."""
-    m, geo = pf.model, pf.theta[: pf.model.n_geometric]
-    links, pts, F = load_points(pf, fp, loads)
-    n = pf.robot.n
-    tau = np.zeros(n)
-    base = m.loads(fp, m.context(1)).joint_torque_nm[0]
-    for j, p, f in zip(links, pts, F):
-        # the point as a tool point (frame n) of this pose: the model's tool force then acts exactly there
-        tool = fp.frame_R[0, n].T @ (p - fp.frame_t[0, n])
-        fpt = m.kin.forward(q_rad[None], m.kin.params_with_tool(tool, geo))
-        t = m.loads(fpt, m.context(1, tool_force_n=f[None])).joint_torque_nm[0] - base
-        t[j:] = 0.0
-        tau += t
-    return tau
+    """Torque (N m) about every joint from the hung masses alone: ``MeasurementModel.loads`` with the masses as point
+    forces (contract C2) less the same without them (the arm's own weight cancels)."""
+    m = pf.model
+    links, _, F = load_points(pf, fp, loads)
+    ctx = m.context(1, point_force_link=links, point_force_mm=np.array([[ld["point_mm"] for ld in loads]], float),
+                    point_force_n=F[None])
+    return m.loads(fp, ctx).joint_torque_nm[0] - m.loads(fp, m.context(1)).joint_torque_nm[0]
 
 
 @preflight_check("load torque")

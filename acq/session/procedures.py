@@ -176,31 +176,44 @@ def _hung(cfg: dict, load_n: float) -> dict:
 
 # -- 4.5 joint compliance --------------------------------------------------------------------------------------------
 def compliance(plan: dict, setup: dict) -> Iterator[Step]:
-    """Loads hung at a lever on joint j, increasing then decreasing; A1, A2 sighted at each load."""
+    """Masses hung at a point on link j (a lever), increasing then decreasing; A1, A2 sighted at each load.
+
+    In the step vocabulary (contract C3) each step hangs ``setup["loads"]`` (one mass at the set-up's point) with
+    ``load_direction`` ``{"j": +1 / -1}``, and the operator enters the mass actually hung (``load_kg``); a set-up
+    without points (not mapped by :func:`acq.session.setup.session_setup`) keeps the old lever prompts in N."""
     p = plan.get("compliance", {})
     a1, a2 = extended_targets(setup)
+    sta, stb = station_names(setup)
     for j in p.get("joints", [3, 4]):
         cfg = setup["compliance"][str(j)]
         loads = list(cfg["loads_n"])
         series = [("load", v, +1) for v in loads] + [("unload", v, -1) for v in reversed(loads[:-1])]
         q = tuple(cfg.get("pose_deg", READY_DEG))
         for i, (phase, load, direction) in enumerate(series):
+            hung = _hung(cfg, load)
+            what = f"{hung['loads'][0]['mass_kg']:.3g} kg ({load:g} N)" if hung else f"{load:g} N"
             yield Step(
                 key=f"compliance/j{j}/{i:02d}", procedure="compliance",
-                title=f"Joint {j} {'loading' if direction > 0 else 'unloading'}: {load:g} N",
+                title=f"Joint {j} {'loading' if direction > 0 else 'unloading'}: {what}",
                 instruction=(f"Brakes released, robot holding {_fmt(q)}. "
-                             f"{'Hang' if direction > 0 else 'Remove weights to leave'} {load:g} N on the lever at "
-                             f"{cfg['lever_mm']:g} mm from joint {j}'s centre, wait for the arm to settle, enter the "
-                             f"load, then sight A1 and A2 with theodolite A, then with B."),
+                             f"{'Hang' if direction > 0 else 'Remove weights to leave'} {what} on the lever at "
+                             f"{cfg['lever_mm']:g} mm from joint {j}'s axis, wait for the arm to settle, enter the "
+                             f"load, then sight A1 and A2 with theodolite {sta}, then with {stb}."),
                 pose_deg=q, targets=(a1, a2), repeats=p.get("repeats", 1),
-                inputs=(InputSpec("load_n", "N", f"Load now on the lever of joint {j}", load),
-                        InputSpec("lever_mm", "mm", "Lever arm from the joint centre", cfg["lever_mm"]),
-                        InputSpec("theta_i_deg", "deg", "Lever angle from the horizontal",
-                                  cfg.get("theta_i_deg", 0.0))),
+                inputs=_load_inputs(j, cfg, load, hung),
                 setup={"joint": j, "load_n": load, "lever_mm": cfg["lever_mm"],
-                       "theta_i_deg": cfg.get("theta_i_deg", 0.0), "load_direction": direction,
-                       **_hung(cfg, load)},
+                       "theta_i_deg": cfg.get("theta_i_deg", 0.0),
+                       "load_direction": {str(j): direction} if hung else direction, **hung},
                 meta={"joint": j, "index": i, "phase": phase})
+
+
+def _load_inputs(j: int, cfg: dict, load_n: float, hung: dict) -> tuple[InputSpec, ...]:
+    """What the operator enters at a compliance step: the load (kg when the step hangs a mass), the lever as
+    measured and its angle from level (recorded with the step)."""
+    load = (InputSpec("load_kg", "kg", f"Mass now on the lever of joint {j}", hung["loads"][0]["mass_kg"]) if hung
+            else InputSpec("load_n", "N", f"Load now on the lever of joint {j}", load_n))
+    return (load, InputSpec("lever_mm", "mm", "Lever arm from the joint's axis", cfg["lever_mm"]),
+            InputSpec("theta_i_deg", "deg", "Lever angle from the horizontal", cfg.get("theta_i_deg", 0.0)))
 
 
 # -- 4.6 link compliance ---------------------------------------------------------------------------------------------

@@ -202,6 +202,10 @@ def reprocess(path: str, n_mc: int = 0, progress=None) -> dict:
         _coupling(by_proc.get("coupling", []), robot, est, twin, figs, n_mc)
     except (RobocalError, KeyError, ValueError, IndexError) as exc:
         problems.append(f"coupling: {exc}")
+    try:
+        _resolution(by_proc.get("encoder_resolution", []), points, robot, est, twin, figs)
+    except (RobocalError, KeyError, ValueError, IndexError) as exc:
+        problems.append(f"encoder resolution: {exc}")
     step("done", 1.0)
     problems += figs.pop("problems", [])          # what a stage could not do for part of its data
     return {
@@ -289,11 +293,48 @@ def _sweeps(steps, points, robot, setup, est, truth, figs, n_mc):
     dh = dh_estimate(V, C, q0, fn.frame_R[0, 0], fn.frame_t[0, 0], fn.frame_R[0, 1:-1, :, 0], robot.hayati[:-1],
                      robot.d_mm[:-1], alpha_ref=robot.alpha_rad[:-1], n_mc=n_mc)
     tv = {n: truth[n] for n in dh.names if truth is not None and n in truth}
+    for k in np.flatnonzero(robot.hayati[:-1]):
+        # d of a Hayati link is held at its design value; the next link's d (its axis is parallel) takes the rest
+        held, nxt = f"j{k + 1}.d_mm", f"j{k + 2}.d_mm"
+        if truth is not None and held in truth and nxt in tv:
+            tv[nxt] = truth[nxt] + np.cos(robot.alpha_rad[k]) * (truth[held] - robot.d_mm[k])
     est.add_set("dh.", dh, tv)
     nominal = dict(zip(kin.names, kin.nominal))
     figs["dh"] = [{"name": n, "value": float(dh[n].value), "error": float(dh[n].error),
                    "nominal": float(nominal.get(n, np.nan)), "truth": tv.get(n)} for n in dh.names]
+    try:
+        _misalignment(axes, kin, p, q0, robot, est, truth, figs, n_mc)
+    except (RobocalError, KeyError, ValueError) as exc:             # the axes and DH stand without it
+        figs.setdefault("problems", []).append(f"misalignment: {exc}")
     return axes
+
+
+def _misalignment(axes, kin, p_design, q0, robot, est, truth, figs, n_mc):
+    """Fig 5.10's misalignment rows (eqs 4.3.10-4.3.13): each measured axis against its design direction at the
+    reference pose, with errors from the axes' covariances; truth from the twin's own frames at that pose."""
+    from calib.estimators.misalignment import ROW, misalignment_table
+    n = robot.n
+    design = kin.forward(q0[None], p_design)
+    zd = np.array([design.frame_R[0, j][:, 2] for j in range(n)])
+    xf = np.array([design.frame_R[0, j + 1][:, 0] for j in range(n)])
+    N = np.array([axes[j + 1].value[3:6] for j in range(n)])
+    U = np.zeros((3 * n, 3 * n))
+    for j in range(n):
+        U[3 * j:3 * j + 3, 3 * j:3 * j + 3] = axes[j + 1].cov[3:6, 3:6]
+    res = misalignment_table(N, U, zd, xf, n_mc=n_mc)
+    tv = {}
+    if truth is not None:
+        from calib.estimators.dh import misalignments
+        pt = np.array([truth.get(nm, v) for nm, v in zip(kin.names, p_design)])
+        tr = kin.forward(q0[None], pt)
+        zt = np.array([tr.frame_R[0, j][:, 2] for j in range(n)])
+        full = [f"j{k + 1}.{r}" for k in range(n) for r in ROW]
+        tv = {k: v for k, v in zip(full, misalignments(zt, zd, xf).ravel()) if k in res.names}
+    est.add_set("misalign.", res, tv)
+    figs["misalignment"] = [{"joint": j + 1, **{r.replace("_rad", "_deg"): float(res[f"j{j + 1}.{r}"].value) / DEG
+                                                for r in ROW if f"j{j + 1}.{r}" in res.names},
+                             "error_deg": float(max(res[k].error for k in res.names if k.startswith(f"j{j + 1}.")))
+                             / DEG} for j in range(n)]
 
 
 def _reference_pose(sweep_steps, setup) -> np.ndarray:
@@ -535,6 +576,7 @@ def _transmission(steps, points, robot, axes, est, twin, figs, n_mc):
         figs["transmission"][j] = {"encoder_deg": (enc / DEG).tolist(), "error_deg": (err / DEG).tolist(),
                                    "sigma_deg": (sig / DEG).tolist(),
                                    "fit": {k: float(res[k].value) for k in res.names}, "not_determined": nd}
+        _commanded(sts, meas, cov, ok, j, est, figs)
     if failed and not fits:
         raise RobocalError("; ".join(failed))
     figs.setdefault("problems", []).extend(f"transmission: {f}" for f in failed)
@@ -545,14 +587,9 @@ def _setup_model(robot, setup):
     """The description's model with the bench's base pose from the set-up: what the operator knows of the geometry
     (nominal, no effects), for torques and joint axes at a step's pose."""
     from calib.model import MeasurementModel
+    from .setup import nominal_theta
     model = MeasurementModel(robot)
-    theta = model.nominal.copy()
-    for k, val in zip(("x_mm", "y_mm", "z_mm"), setup.get("base_xyz_mm", [0.0, 0.0, 0.0])):
-        theta[model.index[f"base.{k}"]] = val
-    roll, pitch, yaw = np.asarray(setup.get("base_rpy_deg", [0, 0, 0]), float) * DEG
-    for k, val in (("yaw_rad", yaw), ("pitch_rad", pitch), ("roll_rad", roll)):
-        theta[model.index[f"base.{k}"]] = val
-    return model, theta
+    return model, nominal_theta(model, setup)
 
 
 def _step_loads(st, robot, model, theta):
@@ -570,6 +607,43 @@ def _step_loads(st, robot, model, theta):
                         point_force_n=np.array([ld["mass_kg"] * g for ld in loads], float).reshape(1, -1, 3))
     fp = model.kin.forward(q[None], theta[: model.n_geometric])
     return q, model.loads(fp, ctx).joint_torque_nm[0], fp.joint_axis[0]
+
+
+def _commanded(sts, meas, cov, ok, j, est, figs):
+    """Section 4.4's E_a (measured minus commanded angle) of a transmission run, its slope as an estimate."""
+    from calib.estimators.transmission import commanded_angle_errors
+    desired = np.array([s["spec"]["pose_deg"][j - 1] for s in sts], float)[ok] * DEG
+    try:
+        ea = commanded_angle_errors(meas[ok], cov[np.ix_(ok, ok)], desired)
+    except RobocalError as exc:
+        figs.setdefault("problems", []).append(f"transmission: joint {j}: E_a: {exc}")
+        return
+    est.add_set(f"te.j{j}.", ea, only=("E_a_slope",))
+    figs["transmission"][j]["E_a_deg"] = [0.0] + (ea.value[:-1] / DEG).tolist()
+
+
+def _resolution(steps, points, robot, est, twin, figs):
+    """The encoder-resolution run (Fig 5.14): per joint, measured angle (A1, A2 about the run's own axis) against the
+    tapped counts; truth the description's resolution (the twin's encoders are the description's)."""
+    from calib.estimators.resolution import design_resolution_rad, encoder_resolution
+    if not steps:
+        return
+    by_joint: dict[int, list] = {}
+    for st in steps:
+        by_joint.setdefault(st["spec"]["meta"]["joint"], []).append(st)
+    figs["resolution"] = {}
+    for j, sts in sorted(by_joint.items()):
+        sts = [s for s in sts if s.get("counts") is not None and len(s["counts"])]
+        n = _own_axis(sts, points, j, 0)
+        meas, _, cov = _joint_angles(sts, points, n, full=True)
+        counts = np.array([np.mean(s["counts"], 0)[j - 1] for s in sts])
+        ok = np.isfinite(meas)
+        design = design_resolution_rad(robot.counts_per_rev[j - 1], robot.gear_ratio[j - 1])
+        res = encoder_resolution(counts[ok] * np.sign(robot.gear_ratio[j - 1]), meas[ok], cov[np.ix_(ok, ok)], design)
+        est.add_set(f"resolution.j{j}.", res, {"rad_per_count": design, "scale": 1.0} if twin is not None else {},
+                    only=("rad_per_count", "scale"))
+        figs["resolution"][j] = {"counts": counts.tolist(), "angle_deg": (meas / DEG).tolist(),
+                                 "rad_per_count": float(res["rad_per_count"].value)}
 
 
 def _compliance(steps, points, robot, axes, est, twin, figs, n_mc, setup=None, problems=None):
@@ -608,23 +682,52 @@ def _compliance(steps, points, robot, axes, est, twin, figs, n_mc, setup=None, p
         except RobocalError as exc:                 # e.g. "not determined": the other joints still count
             problems.append(f"compliance: joint {j}: {exc}")
             continue
-        tv = {}
+        raw, tv = {}, {}
         if twin is not None:
             for e in twin.scenario.effects:
                 if isinstance(e, JointCompliance) and e.joint == j:
                     c1, c2, tb, h = e.values
-                    tv = {"K1_Nm_per_rad": 1 / c1, "K2_Nm_per_rad": 1 / c2, "breakpoint_Nm": tb, "offset_rad": h}
+                    raw = {"K1_Nm_per_rad": 1 / c1, "K2_Nm_per_rad": 1 / c2, "breakpoint_Nm": tb, "offset_rad": h}
+                    tv = _compliance_truth(e, j, T, sign, unload, dcov, raw)
         K = res["K1_Nm_per_rad"]
         if not (np.isfinite(K.value) and np.isfinite(K.error) and K.value > 0 and K.error < K.value):
             problems.append(f"compliance: joint {j}: not determined: K1 = {K.value:.4g} +- {K.error:.2g} N m/rad "
                             f"(torque range {applied:.3g} N m, deflection sigma {np.nanmean(sig):.2g} rad)")
             continue
-        est.add_set(f"compliance.j{j}.", res, tv, only=("K1_Nm_per_rad", "K2_Nm_per_rad", "breakpoint_Nm",
-                                                         "offset_rad"))
+        for e in res.estimates():
+            if e.name not in ("K1_Nm_per_rad", "K2_Nm_per_rad", "breakpoint_Nm", "offset_rad"):
+                continue
+            t, r = tv.get(e.name), raw.get(e.name)
+            extra = {}
+            if t is not None and r is not None and abs(t - r) > 0.1 * e.error:
+                extra = {"truth_raw": float(r), "note": "truth as this fit would give it from the twin's noise-free "
+                                                        "deflections at the same torques (the slopes the data resolve)"}
+            est.add(f"compliance.j{j}.{e.name}", e.value, e.error, e.unit, truth_value=t, **extra)
         fits[j] = res
         figs["compliance"][j] = {"torque_nm": T.tolist(), "deflection_deg": (defl / DEG).tolist(),
                                  "unloading": unload.tolist(), "fit": {k: float(res[k].value) for k in res.names}}
     return fits
+
+
+def _compliance_truth(effect, j, T, sign, unload, dcov, raw: dict) -> dict:
+    """The twin's stiffness in the estimator's terms: the same fit on the deflections the twin's compliance effect
+    makes at the same torques, without noise.  Why: when the data cannot place the breakpoint the fit reports one
+    slope over every load, and the twin's two slopes are then not what it estimates (as ``_gauge_truth`` for the
+    pose set)."""
+    from calib.effects import Loads, PoseContext
+    from calib.estimators.compliance import two_slope_fit
+    n = max(effect.joint, j)
+    tau = np.zeros((len(T), n))
+    tau[:, j - 1] = T
+    ctx_dir = np.zeros((len(T), n))
+    ctx_dir[:, j - 1] = np.where(unload, -1.0, 1.0)
+    ctx = PoseContext(len(T), n, load_direction=ctx_dir)
+    d, _ = effect.joint_delta(np.zeros((len(T), n)), ctx, Loads(tau, np.zeros((len(T), n, 3))), effect.values)
+    try:
+        clean = two_slope_fit(sign * T, sign * d[:, j - 1], unload, dcov, n_mc=0)
+    except RobocalError:
+        return raw
+    return {**raw, **{e.name: float(e.value) for e in clean.estimates() if e.name in raw}}
 
 
 def _link(steps, setup, est, twin, figs, n_mc, robot=None):
@@ -657,7 +760,9 @@ def _link(steps, setup, est, twin, figs, n_mc, robot=None):
 
 
 def _coupling(steps, robot, est, twin, figs, n_mc):
-    from calib.estimators.coupling import coupling_factor, quantisation_sigma
+    """sigma_jk per coupled pair from the tapped counts, every repeat of a pair used: the scatter of the repeats
+    (servo repeatability) pooled over the pairs, quantisation as the floor (:func:`coupling_from_repeats`)."""
+    from calib.estimators.coupling import coupling_from_repeats, further_correction, quantisation_sigma
     if not steps:
         return
     runs: dict[tuple, dict] = {}
@@ -665,19 +770,33 @@ def _coupling(steps, robot, est, twin, figs, n_mc):
         m = st["spec"]["meta"]
         if st.get("counts") is None or len(st["counts"]) == 0:
             continue
-        runs.setdefault((m["j"], m["k"]), {})[m["phase"]] = np.mean(st["counts"], 0)
-    figs["coupling"] = {}
-    for (j, k), ph in sorted(runs.items()):
-        if not all(p in ph for p in ("start", "alone", "return", "with")):
+        runs.setdefault((m["j"], m["k"]), {}).setdefault(m.get("repeat", 0), {})[m["phase"]] = np.mean(st["counts"], 0)
+    S = 2 * np.pi / (robot.counts_per_rev * robot.gear_ratio)           # joint rad per count, coupling ignored
+    pairs, q = {}, 0.0
+    for (j, k), reps in sorted(runs.items()):
+        rows = [(ph["with"] - ph["return"], ph["alone"] - ph["start"], ph["with"], ph["return"]) for ph in reps.values()
+                if all(p in ph for p in ("start", "alone", "return", "with"))]
+        if not rows:
             continue
-        S = 2 * np.pi / (robot.counts_per_rev * robot.gear_ratio)       # joint rad per count, coupling ignored
-        enc = lambda c: c * S                                            # noqa: E731 (S_k xi_k of eq 4.7.1)
-        th_alone = enc(ph["alone"] - ph["start"])[k - 1]
-        th_with = enc(ph["with"] - ph["return"])[k - 1]
-        th_j = robot.joint_from_counts(ph["with"])[j - 1] - robot.joint_from_counts(ph["return"])[j - 1]
-        q = quantisation_sigma(abs(S[k - 1]))
-        res = coupling_factor(th_with, th_alone, th_j, q * np.sqrt(2), name=f"sigma{j}{k}", n_mc=n_mc)
-        tv = {f"sigma{j}{k}": float(robot.coupling[k - 1, j - 1])} if twin is not None else {}
-        est.add_set("coupling.", res, tv)
-        figs["coupling"][f"{j}{k}"] = {"theta_j_deg": th_j / DEG, "theta_k_alone_deg": th_alone / DEG,
-                                       "theta_k_with_deg": th_with / DEG, "sigma": float(res.value[0])}
+        th_with = np.array([w[k - 1] * S[k - 1] for w, _, _, _ in rows])            # S_k xi_k of eq 4.7.1
+        th_alone = np.array([a[k - 1] * S[k - 1] for _, a, _, _ in rows])
+        th_j = np.array([robot.joint_from_counts(w)[j - 1] - robot.joint_from_counts(r)[j - 1]
+                         for _, _, w, r in rows])
+        pairs[(j, k)] = (th_with, th_alone, th_j)
+        q = max(q, quantisation_sigma(abs(S[k - 1])))
+    figs["coupling"] = {}
+    if not pairs:
+        return
+    res = coupling_from_repeats({f"sigma{j}{k}": v for (j, k), v in pairs.items()}, q * np.sqrt(2))
+    # eq 4.7.2: what the controller compensates with (the description's factors) against what was measured
+    further = further_correction(res, {f"sigma{j}{k}": float(robot.coupling[k - 1, j - 1]) for (j, k) in pairs})
+    est.add_set("coupling.", further)
+    for (j, k), (th_with, th_alone, th_j) in pairs.items():
+        name = f"sigma{j}{k}"
+        tv = {name: float(robot.coupling[k - 1, j - 1])} if twin is not None else {}
+        est.add_set("coupling.", res.subset([name]), tv)
+        figs["coupling"][f"{j}{k}"] = {"theta_j_deg": float(np.mean(th_j)) / DEG,
+                                       "theta_k_alone_deg": float(np.mean(th_alone)) / DEG,
+                                       "theta_k_with_deg": float(np.mean(th_with)) / DEG,
+                                       "sigma": float(res[name].value), "repeats": int(th_j.size),
+                                       "error_type": res.extras["type"]}

@@ -4,10 +4,12 @@ Used by every session, real or emulated (not only the demo)."""
 from __future__ import annotations
 
 import json
+from contextlib import contextmanager
 from dataclasses import replace
 
 import numpy as np
 
+from calib.errors import RobocalError
 from calib.model import MeasurementModel
 from calib.theodolite import thesis_stations
 from calib.units import ARCSEC, DEG
@@ -30,7 +32,7 @@ def standard_setup() -> dict:
         "min_focus_mm": 900.0,
         "tool_target_mm": [50.0, 0.0, 100.0],
         "sweep_radius_mm": 600.0,
-        "extended_tool": {"A1_mm": [0.0, 0.0, 100.0], "A2_mm": [200.0, 0.0, 300.0]},
+        "extended_tool": {"A1_mm": [0.0, 0.0, 100.0], "A2_mm": [500.0, 0.0, 600.0]},      # 707 mm apart
         "far_target_mm": [-1000.0, 3000.0, 300.0],        # a mark on the wall left of the robot, 3-4 m away
         "ruler": {"marks_mm": [0.0, 930.0, 1860.0],
                   "placements": [{"where": "1.2 m in front, left", "C_mm": [-300.0, 1200.0, 0.0], "dir": [1, 0, 0]},
@@ -39,9 +41,11 @@ def standard_setup() -> dict:
         "compliance": {"3": {"lever_mm": 500.0, "loads_n": [0, 10, 20, 30, 45, 60, 75], "theta_i_deg": 0.0,
                              "pose_deg": list(READY_DEG)},
                        # joint 4 loaded with the forearm level (its axis horizontal): a lever clamped on the wrist
-                       # housing (link 4), level, 500 mm out along joint 5's axis, away from the theodolites
+                       # housing (link 4), level, 500 mm out along joint 5's axis; joint 1 at -90 deg points the
+                       # forearm at the theodolites, so the joint turns A1 -> A2 across their sight lines (across
+                       # the baseline it would move A2 in depth, the direction they measure worst)
                        "4": {"link": 4, "point_mm": [0.0, 0.0, -500.0], "loads_n": [0, 5, 10, 15, 25, 35, 45],
-                             "pose_deg": [0.0, -90.0, 0.0, 0.0, 0.0, 0.0]}},
+                             "pose_deg": [-90.0, -90.0, 0.0, 0.0, 0.0, 0.0]}},
         # the upper arm level (at READY it stands vertical and a weight only compresses it)
         "link": {"joint": 2, "gauges_x_mm": [150.0, 280.0, 400.0], "load_x_mm": 430.0, "loads_n": [0, 50, 100, 150],
                  "second_moment_mm4": None, "pose_deg": [0.0, 0.0, 90.0, 0.0, 0.0, 0.0]},
@@ -109,7 +113,7 @@ def predictor(robot, setup: dict, tolerances: dict | None = None):
         for t in step.targets:
             if t.tool_mm is not None:
                 ev = m.evaluate(np.asarray(step.pose_deg)[None] * DEG, theta=th, jacobian=True,
-                                tool_mm=np.asarray(t.tool_mm))
+                                tool_mm=np.asarray(t.tool_mm), link=t.link)
                 J = ev.jacobian[0][:, : m.n_geometric] * sd[None, :]
                 out[t.name] = (ev.point_mm[0], float(np.sqrt(np.sum(J * J))))
         return out
@@ -163,54 +167,95 @@ def design_sweep_targets(model: MeasurementModel, setup: dict, robot, radius_mm:
     return sweep_targets(model, nominal_theta(model, setup), np.asarray(READY_DEG) * DEG, radii, mid)
 
 
+@contextmanager
+def _section(where: str):
+    """Turn a malformed set-up entry into one line naming it (``set-up: compliance.4: missing point_mm``)."""
+    try:
+        yield
+    except KeyError as exc:
+        raise RobocalError(f"set-up: {where}: missing {exc.args[0]}") from None
+    except (TypeError, ValueError, IndexError) as exc:
+        raise RobocalError(f"set-up: {where}: {exc}") from None
+
+
+def _check_entry(where: str, robot, joint: int, pose, link: int, masses) -> None:
+    n = robot.n
+    if not 1 <= joint <= n:
+        raise RobocalError(f"set-up: {where}: joint {joint} is not one of 1..{n}")
+    if not 0 <= link <= n:
+        raise RobocalError(f"set-up: {where}: link {link} is not one of 0..{n}")
+    if len(pose) != n or not np.all(np.isfinite(np.asarray(pose, float))):
+        raise RobocalError(f"set-up: {where}: pose_deg needs {n} finite joint readings, got {list(pose)}")
+    if any(not np.isfinite(v) or v < 0 for v in masses):
+        raise RobocalError(f"set-up: {where}: loads must be finite and not negative, got {list(masses)}")
+
+
+def _compliance_entry(key: str, cfg: dict, robot, chain, g: float) -> None:
+    """One joint-compliance entry: a lever (old keys) or a point on link j (new), both filled in."""
+    j = int(key)
+    cfg.setdefault("link", j)
+    pose = cfg.setdefault("pose_deg", list(READY_DEG))
+    if "masses_kg" not in cfg:
+        cfg["masses_kg"] = [round(float(v) / g, 4) for v in cfg["loads_n"]]
+    cfg.setdefault("loads_n", [round(float(v) * g, 3) for v in cfg["masses_kg"]])
+    _check_entry(f"compliance.{key}", robot, j, pose, int(cfg["link"]), cfg["masses_kg"])
+    fp = chain(pose)
+    up = up_direction(fp, robot)
+    if "point_mm" not in cfg:
+        p = _lever_point(fp, j, float(cfg["lever_mm"]), float(cfg.get("theta_i_deg", 0.0)), up)
+        cfg["point_mm"] = _frame_point(fp, int(cfg["link"]), p)
+    p = fp.frame_R[0, cfg["link"]] @ np.asarray(cfg["point_mm"], float) + fp.frame_t[0, cfg["link"]]
+    lever, theta = lever_of(fp, j, p, up)
+    cfg.setdefault("lever_mm", round(lever, 3))
+    cfg.setdefault("theta_i_deg", round(theta, 3))
+
+
+def _link_entry(link: dict, robot, chain, g: float) -> None:
+    """The link-compliance entry: gauges and the load along link j (old keys) or as points on it (new)."""
+    j = int(link.setdefault("link", link.get("joint", 2)))
+    link.setdefault("joint", j)
+    pose = link.setdefault("pose_deg", list(READY_DEG))
+    if "masses_kg" not in link:
+        link["masses_kg"] = [round(float(v) / g, 4) for v in link["loads_n"]]
+    link.setdefault("loads_n", [round(float(v) * g, 3) for v in link["masses_kg"]])
+    _check_entry("link", robot, j, pose, j, link["masses_kg"])
+    a = float(robot.a_mm[j - 1])
+    down = -up_direction(chain(pose), robot)
+    if "load_point_mm" not in link:
+        link["load_point_mm"] = [float(link["load_x_mm"]) - a, 0.0, 0.0]
+    link.setdefault("load_x_mm", link["load_point_mm"][0] + a)
+    if "gauges" not in link:
+        link["gauges"] = [{"name": f"gauge{i + 1}", "link": j, "point_mm": [float(x) - a, 0.0, 0.0],
+                           "axis": [round(float(v), 6) for v in down]}
+                          for i, x in enumerate(link["gauges_x_mm"])]
+    link.setdefault("gauges_x_mm", [gg["point_mm"][0] + a for gg in link["gauges"]])
+
+
 def session_setup(setup: dict, robot) -> dict:
     """The set-up with every old key mapped onto the step vocabulary's (contract C3), old keys kept.
 
     Old set-up files describe a compliance load as ``lever_mm`` from the joint's centre at ``theta_i_deg`` above the
     horizontal with ``loads_n``; the link-compliance gauges as ``gauges_x_mm`` and the load as ``load_x_mm`` along
     link ``joint``.  The steps speak of masses at points on links (``link``, ``point_mm`` in frame j, ``masses_kg``)
-    and gauges as points with an axis; this adds those (and the old keys for set-ups that give only the new ones).
+    and gauges as points with an axis; this adds those (and the old keys for set-ups that give only the new ones),
+    and designs the per-joint sweep targets when the set-up has none.  A malformed entry is one line naming it.
     """
     out = json.loads(json.dumps(setup))
     m = MeasurementModel(robot)
-    th = nominal_theta(m, out)[: m.n_geometric]
+    with _section("base_xyz_mm / base_rpy_deg"):
+        th = nominal_theta(m, out)[: m.n_geometric]
     g = float(np.linalg.norm(robot.gravity_m_s2))
 
     def chain(q_deg):
         return m.kin.forward(np.asarray(q_deg, float)[None] * DEG, th)
 
     for key, cfg in out.get("compliance", {}).items():
-        j = int(key)
-        fp = chain(cfg.get("pose_deg", READY_DEG))
-        cfg.setdefault("link", j)
-        if "point_mm" not in cfg and "lever_mm" in cfg:
-            p = _lever_point(fp, j, float(cfg["lever_mm"]), float(cfg.get("theta_i_deg", 0.0)),
-                             up_direction(fp, robot))
-            cfg["point_mm"] = _frame_point(fp, cfg["link"], p)
-        p = fp.frame_R[0, cfg["link"]] @ np.asarray(cfg["point_mm"], float) + fp.frame_t[0, cfg["link"]]
-        lever, theta = lever_of(fp, j, p, up_direction(fp, robot))
-        cfg.setdefault("lever_mm", round(lever, 3))
-        cfg.setdefault("theta_i_deg", round(theta, 3))
-        if "masses_kg" not in cfg:
-            cfg["masses_kg"] = [round(v / g, 4) for v in cfg["loads_n"]]
-        cfg.setdefault("loads_n", [round(v * g, 3) for v in cfg["masses_kg"]])
+        with _section(f"compliance.{key}"):
+            _compliance_entry(key, cfg, robot, chain, g)
+    if out.get("link"):
+        with _section("link"):
+            _link_entry(out["link"], robot, chain, g)
     if "sweep_targets" not in out:
-        out["sweep_targets"] = design_sweep_targets(m, out, robot)
-    link = out.get("link")
-    if link:
-        j = int(link.setdefault("link", link.get("joint", 2)))
-        link.setdefault("joint", j)
-        a = float(robot.a_mm[j - 1])
-        down = -up_direction(chain(link.get("pose_deg", READY_DEG)), robot)
-        if "load_point_mm" not in link:
-            link["load_point_mm"] = [link["load_x_mm"] - a, 0.0, 0.0]
-        link.setdefault("load_x_mm", link["load_point_mm"][0] + a)
-        if "gauges" not in link:
-            link["gauges"] = [{"name": f"gauge{i + 1}", "link": j, "point_mm": [x - a, 0.0, 0.0],
-                               "axis": [round(float(v), 6) for v in down]}
-                              for i, x in enumerate(link["gauges_x_mm"])]
-        link.setdefault("gauges_x_mm", [gg["point_mm"][0] + a for gg in link["gauges"]])
-        if "masses_kg" not in link:
-            link["masses_kg"] = [round(v / g, 4) for v in link["loads_n"]]
-        link.setdefault("loads_n", [round(v * g, 3) for v in link["masses_kg"]])
+        with _section("sweep_radius_mm"):
+            out["sweep_targets"] = design_sweep_targets(m, out, robot)
     return out

@@ -163,7 +163,24 @@ def diagnose(data: DiagnosisData, level: str = "auto", n_folds: int | None = Non
              flag_outliers: bool = True, progress: Callable[[str, float], None] | None = None,
              outliers: str = "flag", loss: str = "linear") -> Diagnosis:
     """Run the whole diagnosis on ``data`` (see the package docstring).  ``outliers``/``loss`` as identify's
-    (``flag_outliers=False`` is ``outliers="off"``)."""
+    (``flag_outliers=False`` is ``outliers="off"``).
+
+    BLAS runs on one thread meanwhile: the matrices are a few thousand rows by tens of columns, where threads cost
+    more than they give (on a loaded 2-core machine, 3 s of CPU instead of 28 for 400 poses).
+    """
+    try:
+        from threadpoolctl import threadpool_limits
+        one_thread = threadpool_limits(1, "blas")
+    except ImportError:                     # a speed-up only
+        from contextlib import nullcontext
+        one_thread = nullcontext()
+    with one_thread:
+        return _diagnose(data, level, n_folds, alpha, max_effects, kinds, te_orders, flag_outliers, progress,
+                         outliers, loss)
+
+
+def _diagnose(data, level, n_folds, alpha, max_effects, kinds, te_orders, flag_outliers, progress, outliers,
+              loss) -> Diagnosis:
     if level not in ("auto", "full", "offsets"):
         raise RobocalError(f"--geometry must be full, offsets or auto, got {level!r}")
     check_mode(outliers, loss)

@@ -147,14 +147,16 @@ def _torque_cov(load_N, lever_mm, theta_i_rad, sigma_load_N, sigma_lever_mm, sig
 
 def _profile_interval(T, u, y, W, min_side, Tb_hat, n_grid: int = 400):
     """Profile likelihood of the breakpoint: the range of Tb whose best chi^2 is within 1 of the minimum (the
-    1-sigma interval), and whether it reaches an end of the search range (then the data do not determine it)."""
+    1-sigma interval), and whether its 2-sigma interval reaches an end of the search range (then the data do not
+    determine it)."""
     lo, hi = _search_range(T, min_side)
     grid = np.union1d(np.linspace(lo, hi, n_grid), [Tb_hat])
     _, chi2 = _fit_fixed(T, u, y, grid, W)
     inside = grid[chi2 <= chi2.min() + 1.0]
     a, b = float(inside.min()), float(inside.max())
+    wide = grid[chi2 <= chi2.min() + 4.0]            # the 2-sigma interval must stay inside the loads applied
     step = (hi - lo) / n_grid
-    return a, b, (a <= lo + step) or (b >= hi - step)
+    return a, b, bool(wide.min() <= lo + step or wide.max() >= hi - step)
 
 
 def two_slope_fit(torque_Nm_, deflection_rad, unloading, sigma_deflection_rad, n_mc: int = 5000, rng=0, *,
@@ -248,18 +250,14 @@ def _single_slope(T, u, y, C, a, b, n_mc, rng, reason: str = "") -> EstimateSet:
         return np.stack([1.0 / c[..., 2], c[..., 1], c[..., 0]], -1)
 
     c = P @ y
-    if c[2] <= 0:
-        raise EstimationError(PROC, "two-slope fit", "the fitted compliance is not positive: deflection does not "
-                              "grow with load")
     Cc = P @ C @ P.T
+    if c[2] <= 0 or np.sqrt(Cc[2, 2]) > MAX_REL_ERROR * c[2]:
+        raise EstimationError(PROC, "two-slope fit", f"the stiffness is not determined: compliance {c[2]:.3g} +- "
+                              f"{np.sqrt(Cc[2, 2]):.2g} rad/N m (the loads barely twist this joint at this pose: is "
+                              f"its axis vertical, or the lever along the axis?)")
     G = np.array([[0, 0, -1 / c[2] ** 2], [0, 1, 0], [1, 0, 0]])
     names = ["K1_Nm_per_rad", "offset_rad", "theta0_rad"]
     res = propagate(f, y, C, names, ["N m/rad", "rad", "rad"], n_mc=n_mc, rng=rng, first_order_cov=G @ Cc @ G.T)
-    K = res["K1_Nm_per_rad"]
-    if K.error > MAX_REL_ERROR * abs(K.value):
-        raise EstimationError(PROC, "two-slope fit", f"the stiffness is not determined: {K.value:.4g} +- "
-                              f"{K.error:.2g} N m/rad (the loads barely twist this joint at this pose: is its axis "
-                              f"vertical, or the lever along the axis?)")
     why = reason or (f"its profile-likelihood interval ({a:.3g} .. {b:.3g} N m) reaches the end of the loads applied")
     why = f"the breakpoint is not determined: {why}, so the two slopes are not told apart; K1 is the single slope " \
           f"over every load"

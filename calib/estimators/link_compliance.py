@@ -60,7 +60,7 @@ def flexural_rigidity(gauge_x_mm, load_x_mm, load_N, deflection_mm, sigma_mm: fl
         raise EstimationError(PROC, step, "no load was applied")
     if np.max(np.abs(y)) <= 3 * sigma_mm:
         raise EstimationError(PROC, step, f"the loads produced no measurable deflection (largest {np.max(np.abs(y)):.3g}"
-                              f" mm vs gauge noise {sigma_mm:.3g} mm)")
+                              f" mm vs gauge noise {sigma_mm:.3g} mm): EI is not determined")
     if include_joint and np.unique(x).size < 2:
         raise EstimationError(PROC, step, "separating joint from link compliance needs gauges at 2 or more positions")
     X = _design(x, a, P, include_joint)
