@@ -131,6 +131,11 @@ MODEL_SCHEMA = {
 }
 
 
+#: largest magnitude a parameter of each unit can have in a robot model (an angle within two turns, a length within
+#: a kilometre): anything beyond is a damaged value, however finite
+PARAMETER_BOUNDS = {"rad": 4 * np.pi, "mm": 1e6}
+
+
 def load_model(path: str | Path) -> IdentifiedModel:
     """Rebuild the identified model from its JSON.  The whole document is checked first (structure by
     :data:`MODEL_SCHEMA`, then the descriptions, the effects, the covariance and a trial prediction), so a damaged
@@ -145,6 +150,11 @@ def load_model(path: str | Path) -> IdentifiedModel:
     if nominal_robot.n != robot.n:
         raise RobocalError(f"{src}: nominal_robot_toml has {nominal_robot.n} joints, robot_toml {robot.n}")
     values = {p["name"]: float(p["value"]) for p in doc["parameters"]}
+    for i, (name, v) in enumerate(values.items()):
+        bound = PARAMETER_BOUNDS.get(unit_of(name))
+        if bound is not None and not abs(v) <= bound:
+            raise RobocalError(f"{src}: parameters[{i}].value: {name} = {v:g} {unit_of(name)} is beyond "
+                               f"+-{bound:g}: a damaged value")
     effects = []
     for i, spec in enumerate(doc["effects"]):
         where = f"{src}: effects[{i}]"

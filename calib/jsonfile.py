@@ -29,6 +29,8 @@ def parse_json(text: str, src: str, allow_nonfinite: bool = False) -> Any:
 
     ``allow_nonfinite``: accept NaN/Infinity (robocal's own documents carry them in informative keys, e.g. a
     condition number); a schema's ``"finite": true`` then refuses them where a value is used."""
+    if not isinstance(text, str):
+        raise RobocalError(f"{src}: not JSON text (got {type(text).__name__})")
     text = text.removeprefix("\ufeff")
     try:
         return json.loads(text, **({} if allow_nonfinite else {"parse_constant": _no_constant}))

@@ -85,3 +85,29 @@ def test_loads_and_gauges_in_the_step_vocabulary():
     assert all(x["link"] == 2 and np.allclose(x["axis"], [0, 0, -1]) for x in g)
     # gauges_x_mm along the link from joint 2's centre = frame-2 x + a2 (the frame sits at the link's far end)
     assert [x["point_mm"][0] + 432.0 for x in g] == link[0].setup["gauges_x_mm"]
+
+
+def test_steps_as_commands():
+    """Every step reads as the command vocabulary; the runner and the bench act on these, not on names."""
+    from calib.robot import load_robot
+    from acq.session.setup import session_setup
+    from acq.session.steps import Ask, Hang, Sight
+    setup = session_setup(standard_setup(), load_robot())
+    plan = {"procedures": ["levelling", "ruler", "sweeps", "compliance", "link_compliance", "coupling"],
+            "sweeps": {"points": 2, "joints": [2]}, "compliance": {"joints": [4]}, "coupling": {"pairs": [[5, 6]]}}
+    kinds = {}
+    for s in all_steps(plan, setup):
+        cmds = s.commands()
+        assert isinstance(cmds[0], Ask)
+        kinds.setdefault(s.procedure, set()).update(type(c).__name__ for c in cmds)
+        for c in cmds:
+            if isinstance(c, Hang):
+                assert c.load_direction in ({"4": 1}, {"4": -1}, {})
+            if isinstance(c, Sight):
+                assert c.faces == s.faces and c.repeats == s.repeats
+    assert kinds["levelling"] == {"Ask"}
+    assert kinds["ruler"] == {"Ask", "Sight"}
+    assert kinds["sweep"] == {"Ask", "Move", "Capture", "Sight"}
+    assert kinds["compliance"] == {"Ask", "Move", "Hang", "Capture", "Sight"}
+    assert kinds["link_compliance"] == {"Ask", "Move", "Hang", "ReadGauges", "Capture"}
+    assert kinds["coupling"] == {"Ask", "Move", "Capture"}

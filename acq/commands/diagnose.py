@@ -57,6 +57,10 @@ def add_arguments(p):
                         "default 2,4)")
     p.add_argument("--clean", type=nonneg_int, default=4, metavar="N", help="--validate: clean cases per seed (default 4)")
     p.add_argument("--workers", type=positive_int, default=None, metavar="N", help="processes for --validate (default: CPUs)")
+    p.add_argument("--suite", choices=("twin", "independent", "all"), default="all",
+                   help="--validate: the withheld-effect study on twin data, the harder families from the independent "
+                        "generator (two effects, near the floor, outside the library, heavy tails, few poses, wrong "
+                        "--noise-mm), or both (default)")
 
 
 def _validate(args) -> int:
@@ -74,17 +78,25 @@ def _validate(args) -> int:
         raise RobocalError(f"--levels must be positive, got {args.levels!r}")
     if args.clean < 0:
         raise RobocalError(f"--clean must not be negative, got {args.clean}")
+    v = fam = None
     with progress_display("robocal diagnose --validate") as update:
-        v = run_validation(cases(seeds=args.seeds, levels=levels, clean_per_seed=args.clean), workers=args.workers,
-                           progress=update)
-    if args.report:
+        if args.suite in ("twin", "all"):
+            v = run_validation(cases(seeds=args.seeds, levels=levels, clean_per_seed=args.clean),
+                               workers=args.workers, progress=update)
+        if args.suite in ("independent", "all"):
+            from calib.diagnose.families import family_cases, run_families
+            fam = run_families(family_cases(seeds=args.seeds), workers=args.workers, progress=update)
+    if args.report and v is not None:
         from calib.diagnose.report import write_validation_report
         write_validation_report(v, args.report)
     if args.json:
-        print(json.dumps(v.to_json(), indent=1))
+        doc = v.to_json() if v is not None else {}
+        if fam is not None:
+            doc["independent"] = fam.to_json()
+        print(json.dumps(doc, indent=1))
     else:
-        print(v.render())
-        if args.report:
+        print("\n\n".join(x.render() for x in (v, fam) if x is not None))
+        if args.report and v is not None:
             print(f"\nreport: {args.report}/validation.html")
     return 0
 

@@ -110,7 +110,8 @@ def setup_template() -> dict:
                          "and the circle offsets gamma1, gamma2 as first measured (the ruler procedure refines them);"
                          " base_xyz_mm: robot frame 0 in the theodolite frame, roughly; tool_target_mm: the target "
                          "on the flange (frame 6); extended_tool: targets A1, A2 for transmission errors; ruler: "
-                         "mark positions along the ruler and where it is placed; compliance/link: levers, loads (old keys) or "
+                         "mark positions along the ruler and where it is placed; compliance/link: levers, loads "
+                         "(old keys) or "
                          "link, point_mm in frame j, masses_kg; sweep_radius_mm: radius of the sweep targets P_j; "
                          "far_target_mm: the instrument check's far target; robocal plan setup --out designs it.")
     return setup
@@ -142,8 +143,8 @@ def real_builder(db: str, theodolites: list[str], tap: str | None, setup_path: s
         if not setup_path:
             raise RobocalError("session: a new session needs --setup SETUP.json (robocal plan setup all --out FILE "
                                "designs one, robocal session --write-setup FILE writes a template)")
-        from calib.jsonfile import read_json
-        setup = read_json(setup_path, ("stations", "base_xyz_mm", "tool_target_mm", "ruler"))
+        from acq.session.setup_file import read_setup
+        setup = read_setup(setup_path)
     robot = load_robot(robot_path or setup.get("robot") or None)
     if not resume:
         q = read_pose_csv(poses, robot.n).q_rad / DEG if poses else None
@@ -199,12 +200,16 @@ def real_builder(db: str, theodolites: list[str], tap: str | None, setup_path: s
 def _stored_plan_setup(db: str) -> tuple[dict, dict]:
     """The plan and set-up a session database was created with (read-only: nothing is touched)."""
     from acq.session.store import connect_readonly
+    from acq.session.setup_file import setup_from_text
+    from acq.session.store import json_column
     conn = connect_readonly(db)
     try:
-        plan_json, setup_json = conn.execute("SELECT plan_json, setup_json FROM session").fetchone()
+        row = conn.execute("SELECT plan_json, setup_json FROM session").fetchone()
     finally:
         conn.close()
-    return json.loads(plan_json), json.loads(setup_json)
+    if row is None:
+        raise RobocalError(f"{db}: holds no session (a database left by a crash while it was created)")
+    return json_column(row[0], f"{db}: session plan_json"), setup_from_text(row[1], f"{db}: session setup_json")
 
 
 def run(args) -> int:

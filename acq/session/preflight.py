@@ -102,7 +102,8 @@ class Preflight:
     def geometry(self, step: Step) -> StepGeometry:
         fp = None
         if step.pose_deg is not None and len(step.pose_deg) == self.robot.n:
-            fp = self.model.kin.forward(np.asarray(step.pose_deg, float)[None] * DEG, self.theta[: self.model.n_geometric])
+            q = np.asarray(step.pose_deg, float)[None] * DEG
+            fp = self.model.kin.forward(q, self.theta[: self.model.n_geometric])
         pts = {}
         for t in step.targets:
             p = self.target_point(fp, t)

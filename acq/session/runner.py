@@ -71,7 +71,7 @@ from . import checks as ck
 from .preflight import failing_lines
 from .procedures import procedure_info
 from .rig import Bench, ManualBench, Rig
-from .steps import Step
+from .steps import Capture, Sight, Step
 from .store import SessionStore, StepRecord
 
 log = logging.getLogger(__name__)
@@ -79,6 +79,15 @@ log = logging.getLogger(__name__)
 ACTIONS_SETUP = ("continue", "skip", "pause", "abort")
 ACTIONS_DECISION = ("accept", "repeat", "skip", "pause", "abort")
 ACTIONS_FAULT = ("skip", "pause", "abort")
+
+
+@dataclass
+class _Acquired:
+    """One attempt's acquisition: readings and the encoder capture."""
+
+    attempt: int
+    rows: list = field(default_factory=list)
+    cap: object = None
 
 
 @dataclass
@@ -348,30 +357,44 @@ class Runner:
                                       "the reading-noise limit")
 
     def _acquire(self, step: Step, attempt: int):
-        cap = None
-        if step.encoders and self.rig.tap is not None:
-            cap = self.rig.capture(self.capture_s, self.settle_s)
-            jd = np.mean(cap.joint_rad, 0) / DEG if cap.n else []
-            self.emit("encoders", key=step.key, n_samples=cap.n, joint_deg=[float(v) for v in jd])
-        rows = []
-        for tg in step.targets:
-            self.bench.aim(tg)
-            for rep in range(step.repeats):
-                for face in step.faces:
-                    for st in self.rig.theodolites:
-                        self.rig.face(st, face)
-                        r = self.rig.sight(st)
-                        rows.append({"attempt": attempt, "device_id": self.rig.device_ids.get(f"theodolite {st}", 0),
-                                     "station": st, "target": tg.name, "face": face, "repeat": rep,
-                                     "hz_rad": r.hz_rad, "v_rad": r.v_rad, "t_wall_s": r.t_wall,
-                                     "t_mono_s": r.t_mono, "command": r.command, "warnings": ",".join(r.warnings),
-                                     "raw": r.raw})
-                        self.emit("reading", key=step.key, station=st, target=tg.name, face=face, repeat=rep,
-                                  hz_deg=r.hz_rad / DEG, v_deg=r.v_rad / DEG)
-        for st in self.rig.theodolites:
-            if step.faces:
+        """Perform the step's acquisition commands (the physical ones -- move, hang -- the bench did in
+        ``prepare``; the operator's -- ask, gauges -- came with the setup answer): (readings, encoder capture)."""
+        acq = _Acquired(attempt)
+        for cmd in step.commands():
+            handler = self._HANDLERS.get(type(cmd))
+            if handler is not None:
+                handler(self, step, cmd, acq)
+        if step.faces:
+            for st in self.rig.theodolites:
                 self.rig.face(st, 1)
-        return rows, cap
+        return acq.rows, acq.cap
+
+    def _do_capture(self, step: Step, cmd: Capture, acq: "_Acquired") -> None:
+        if self.rig.tap is None:
+            return
+        cap = acq.cap = self.rig.capture(self.capture_s, self.settle_s)
+        jd = np.mean(cap.joint_rad, 0) / DEG if cap.n else []
+        self.emit("encoders", key=step.key, n_samples=cap.n, joint_deg=[float(v) for v in jd])
+
+    def _do_sight(self, step: Step, cmd: Sight, acq: "_Acquired") -> None:
+        tg = cmd.target
+        self.bench.aim(tg)
+        for rep in range(cmd.repeats):
+            for face in cmd.faces:
+                for st in self.rig.theodolites:            # the stations as the rig (the set-up) names them
+                    self.rig.face(st, face)
+                    r = self.rig.sight(st)
+                    did = self.rig.device_ids.get(f"theodolite {st}", 0)
+                    acq.rows.append({"attempt": acq.attempt, "device_id": did, "station": st, "target": tg.name,
+                                     "face": face, "repeat": rep, "hz_rad": r.hz_rad, "v_rad": r.v_rad,
+                                     "t_wall_s": r.t_wall, "t_mono_s": r.t_mono, "command": r.command,
+                                     "warnings": ",".join(r.warnings), "raw": r.raw})
+                    self.emit("reading", key=step.key, station=st, target=tg.name, face=face, repeat=rep,
+                              hz_deg=r.hz_rad / DEG, v_deg=r.v_rad / DEG)
+
+    #: the runner's part of the command vocabulary (Ask, Move, Hang and ReadGauges happen at the setup prompt and in
+    #: ``bench.prepare``)
+    _HANDLERS = {Capture: _do_capture, Sight: _do_sight}
 
     def _check(self, step: Step, rows: list[dict], cap, values: dict | None = None) -> list[ck.Check]:
         out: list[ck.Check] = []

@@ -49,9 +49,78 @@ class Step:
     setup: dict = field(default_factory=dict)  # physical state: joint_torque_nm, load_direction, gauges ...
     meta: dict = field(default_factory=dict)   # procedure bookkeeping: joint, index, phase ...
 
+    def commands(self) -> list:
+        """The step in the command vocabulary (:func:`commands`)."""
+        return commands(self)
+
     def spec(self) -> dict:
         """JSON-able record of the step as generated (stored with it)."""
         d = asdict(self)
         d["targets"] = [asdict(t) for t in self.targets]
         d["inputs"] = [asdict(i) for i in self.inputs]
         return d
+
+
+# -- the command vocabulary ------------------------------------------------------------------------------------------
+# What a step asks of the cell, in order: the runner interprets these in one place (:meth:`Runner._acquire` and the
+# setup prompt), the bench (:class:`acq.session.rig.Bench`) performs the physical ones.  A procedure never issues I/O;
+# it only fills the step's fields, and :meth:`Step.commands` reads them as commands.
+@dataclass(frozen=True)
+class Ask:
+    """Ask the operator to do the step's instruction and enter ``inputs`` (loads, gauge readings, tilts)."""
+
+    inputs: tuple[InputSpec, ...]
+
+
+@dataclass(frozen=True)
+class Move:
+    """The robot to ``pose_deg`` (joint readings, deg)."""
+
+    pose_deg: tuple[float, ...]
+
+
+@dataclass(frozen=True)
+class Hang:
+    """Masses at points on links (``{"link", "point_mm", "mass_kg"}``) and the loading direction per joint."""
+
+    loads: tuple
+    load_direction: dict
+
+
+@dataclass(frozen=True)
+class ReadGauges:
+    """Dial gauges on points of links (``{"name", "link", "point_mm", "axis"}``): the operator enters
+    ``<name>_mm``."""
+
+    gauges: tuple
+
+
+@dataclass(frozen=True)
+class Capture:
+    """Record the encoder stream while the robot holds still."""
+
+
+@dataclass(frozen=True)
+class Sight:
+    """Sight ``target`` with every station, ``repeats`` times on each of ``faces``."""
+
+    target: TargetSpec
+    faces: tuple[int, ...]
+    repeats: int
+
+
+def commands(step: Step) -> list:
+    """The step as commands, in the order the cell performs them."""
+    s = step.setup
+    out: list = [Ask(step.inputs)]
+    if step.pose_deg is not None:
+        out.append(Move(tuple(step.pose_deg)))
+    if s.get("loads"):
+        ld = s.get("load_direction", {})
+        out.append(Hang(tuple(s["loads"]), ld if isinstance(ld, dict) else {}))
+    if s.get("gauges"):
+        out.append(ReadGauges(tuple(s["gauges"])))
+    if step.encoders:
+        out.append(Capture())
+    out += [Sight(t, step.faces, step.repeats) for t in step.targets]
+    return out

@@ -25,6 +25,8 @@ from .data import DiagnosisData
 #: the effect names the diagnosis reports (the registry keys of calib.effects.EFFECTS)
 EFFECT_NAMES = ("transmission_error", "joint_compliance", "backlash", "cross_coupling", "link_compliance",
                 "thermal_drift", "joint_scale", "axis_tilt", "parallel_axes", "instrument_drift", "tool_flex")
+#: wobbles per turn tried for axis_tilt
+AXIS_TILT_ORDERS = (1, 2)
 #: step times tried for instrument_drift, as quantiles of the measurement time (besides a ramp)
 DRIFT_STEPS = (0.25, 0.5, 0.75)
 #: transmission-error orders tried (cycles per radian of joint angle); the thesis found 0.9 and 1.8
@@ -55,6 +57,8 @@ class Candidate:
             return f"transmission_error j{self.joint} (order {self.order:g}/rad)"
         if self.kind == "cross_coupling":
             return f"cross_coupling j{self.source}->j{self.joint}"
+        if self.kind == "axis_tilt":
+            return f"axis_tilt j{self.joint}" + (f" (order {self.order:g}/turn)" if self.order != 1 else "")
         if self.kind == "instrument_drift":
             return f"instrument_drift step at {self.step_s:.0f} s" if self.step_s > 0 else "instrument_drift ramp"
         if self.joint is None:
@@ -63,7 +67,8 @@ class Candidate:
 
     def make(self) -> Effect:
         """A fresh effect instance at (nearly) zero magnitude: the model's own code gives its Jacobian."""
-        given = {"order": self.order, "harmonics": 1, "source": self.source, "reference_degc": self.reference_c,
+        order = int(self.order) if self.kind == "axis_tilt" else self.order
+        given = {"order": order, "harmonics": 1, "source": self.source, "reference_degc": self.reference_c,
                  "step_s": self.step_s, "reference_s": self.reference_s}
         if not EFFECTS[self.kind].has_joint:
             return make_effect(self.kind, **{k: given[k] for k in EFFECTS[self.kind].options})
@@ -191,7 +196,8 @@ def _more_candidates(data: DiagnosisData, kinds, moving: list[int], out: Library
             out.candidates.append(Candidate("joint_scale", j, free=("scale",)))
     if "axis_tilt" in kinds:
         for j in moving:
-            out.candidates.append(Candidate("axis_tilt", j, free=("c_rad", "s_rad")))
+            for k in AXIS_TILT_ORDERS:
+                out.candidates.append(Candidate("axis_tilt", j, order=float(k), free=("c_rad", "s_rad")))
     if "parallel_axes" in kinds:
         pairs = [j for j in range(1, n) if abs(np.sin(robot.alpha_rad[j - 1])) < 1e-3 and not robot.hayati[j - 1]
                  and not robot.prismatic[j - 1]]

@@ -19,27 +19,38 @@ class AxisTilt(Effect):
     kind = "axis_tilt"
     stage = "point"
     param_names = ("c_rad", "s_rad")
-    scenario_fields = {"joint": Field("int", required=True, min=1),
+    options = {"order": int}
+    scenario_fields = {"joint": Field("int", required=True, min=1), "order": Field("int", default=1, min=1, max=6),
                        "c_deg": Field("number", default=0.0, min=-1, max=1),
                        "s_deg": Field("number", default=0.0, min=-1, max=1)}
 
-    def __init__(self, joint: int, c_rad: float, s_rad: float):
+    def __init__(self, joint: int, c_rad: float, s_rad: float, order: int = 1):
+        if int(order) < 1:
+            raise ValueError(f"order must be at least 1, got {order}")
+        self.order = int(order)
         super().__init__(joint, {"c_rad": c_rad, "s_rad": s_rad})
 
     @classmethod
-    def zero(cls, joint=None):
-        return cls(joint, 0.0, 0.0)
+    def zero(cls, joint=None, order: int = 1):
+        return cls(joint, 0.0, 0.0, int(order))
 
     @classmethod
     def from_table(cls, c):
-        return cls(c["joint"], np.radians(c["c_deg"]), np.radians(c["s_deg"]))
+        return cls(c["joint"], np.radians(c["c_deg"]), np.radians(c["s_deg"]), c["order"])
+
+    def option_values(self):
+        return {"order": self.order}
+
+    @property
+    def label(self) -> str:
+        return f"{self.kind}.j{self.joint}" if self.order == 1 else f"{self.kind}.j{self.joint}o{self.order}"
 
     def point_delta(self, fp, point, loads, values):
         j = self.joint
         R0, R1 = fp.frame_R[:, j - 1], fp.frame_R[:, j]
         # the joint angle: frame j's x axis seen in frame j-1 (the twist alpha turns about that x, not the angle)
         x1 = np.einsum("nji,nj->ni", R0, R1[:, :, 0])
-        phi = np.arctan2(x1[:, 1], x1[:, 0])
+        phi = self.order * np.arctan2(x1[:, 1], x1[:, 0])
         c, s = np.cos(phi), np.sin(phi)
         zero = np.zeros_like(c)
         local = np.stack([np.stack([c, -s, zero], -1), np.stack([s, c, zero], -1)], -1)     # (N, 3, 2) d w / d (c, s)
