@@ -21,6 +21,7 @@ import pkgutil
 import re
 import sys
 import traceback
+import warnings
 
 from calib.errors import RobocalError
 
@@ -106,7 +107,18 @@ def _internal_error(exc: BaseException, argv: list[str], debug: bool) -> int:
     return EXIT_INTERNAL
 
 
+def _show_warning(message, category, filename, lineno, file=None, line=None) -> None:
+    """Python warnings (unknown CSV columns, ...) reach the operator as one line, not as source file and line."""
+    print(f"robocal: warning: {' '.join(str(message).split())}", file=file or sys.stderr)
+
+
 def main(argv: list[str] | None = None) -> int:
+    with warnings.catch_warnings():
+        warnings.showwarning = _show_warning
+        return _main(argv)
+
+
+def _main(argv: list[str] | None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
     debug = _debug_wanted(argv)
     argv = [a for a in argv if a != "--debug"]  # accepted anywhere on the line, not only before the command

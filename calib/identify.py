@@ -258,6 +258,17 @@ class _Problem:
         return J
 
 
+def check_drivers(model: MeasurementModel, obs, where: str) -> None:
+    """An effect whose driver does not vary over the poses (no time, temperature, approach direction or load) would
+    be a column of zeros, held silently by the guard: one line instead, naming the effect."""
+    ev = model.evaluate(obs.q_rad, obs.ctx, model.nominal, jacobian=True)
+    for e, s in zip(model.effects, model.effect_slices):
+        if not np.any(np.abs(ev.jacobian[:, :, s]) > 1e-12):
+            raise RobocalError(f"{where}: effect {e.label}: nothing drives it in these data (the condition it "
+                               f"follows -- time, temperature, approach direction or load -- does not vary over the "
+                               f"poses)")
+
+
 def initial_base(model: MeasurementModel, q_rad, points_mm, ctx=None, theta=None) -> np.ndarray:
     """Base pose (parameters of the base) by a rigid fit of nominal tool points (robot frame) to measured ones."""
     th = np.array(model.nominal if theta is None else theta, float)

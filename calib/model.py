@@ -170,56 +170,55 @@ class MeasurementModel:
         elif tool_mm is not None:
             geo = self.kin.params_with_tool(tool_mm, geo)
         vals = [theta[s] for s in self.effect_slices]
-        geo_pose = np.broadcast_to(geo, (N, self.n_geometric)).copy()
-        geo_grads = []
-        for e, v in zip(self.effects, vals):
-            if e.stage == "geometry":
-                d, g = e.geometry_delta(geo, self.length_idx, ctx, v)
-                geo_pose += d
-                geo_grads.append(g)
-        need_loads = any(e.needs_loads for e in self.effects)
+        dgeo, grads = self._stage("geometry", vals, lambda e, v: e.geometry_delta(geo, self.length_idx, ctx, v))
+        geo_pose = np.broadcast_to(geo, (N, self.n_geometric)) + dgeo
         torque_driven = any(e.torque_driven for e in self.effects)
         loads = (self.loads(self.kin.forward(q, geo_pose), ctx, derivative=jacobian and torque_driven)
-                 if need_loads else None)
-        th = q.copy()
-        joint_grads = []
-        for e, v in zip(self.effects, vals):
-            if e.stage == "joint":
-                d, g = e.joint_delta(q, ctx, loads, v)
-                th += d
-                joint_grads.append(g)
+                 if any(e.needs_loads for e in self.effects) else None)
+        dq, g = self._stage("joint", vals, lambda e, v: e.joint_delta(q, ctx, loads, v))
+        th = q + dq
+        grads.update(g)
         fp = self.kin.forward(th, geo_pose)
         if link is not None:
             fp.point_link = link
             fp.point = self.kin.point_on(fp, [link], np.reshape(tool_mm, (-1, 1, 3)))[:, 0]
-        point = fp.point.copy()
-        point_grads = []
-        for e, v in zip(self.effects, vals):
-            if e.stage == "point":
-                d, g = e.point_delta(fp, fp.point, loads, v)
-                point += d
-                point_grads.append(g)
+        dp, g = self._stage("point", vals, lambda e, v: e.point_delta(fp, fp.point, loads, v))
+        point = fp.point + dp
+        grads.update(g)
         if not jacobian:
             return Evaluation(point, th, None, None, loads, fp)
+        J, Jq = self._jacobian(fp, link, q, ctx, vals, loads, grads)
+        return Evaluation(point, th, J, Jq, loads, fp)
+
+    def _stage(self, stage: str, vals, call) -> tuple:
+        """The effects of one stage: the sum of their changes (0.0 when there are none) and each one's derivative
+        w.r.t. its own parameters, keyed by the effect's index."""
+        delta, grads = 0.0, {}
+        for i, (e, v) in enumerate(zip(self.effects, vals)):
+            if e.stage == stage:
+                d, grads[i] = call(e, v)
+                delta = delta + d
+        return delta, grads
+
+    def _jacobian(self, fp: ChainPass, link, q, ctx: PoseContext, vals, loads: Loads | None, grads: dict):
+        """d point / d theta (N, 3, P) and d point / d joint angle (N, 3, n), from the chain's screws and each
+        effect's own derivative carried through what its stage moves (the joints, the geometry or the point)."""
+        ng = self.n_geometric
         Je = self.kin.element_jacobian(fp, link=link)           # (N, 3, Pg)
-        J = np.zeros((N, 3, self.P))
-        J[:, :, : self.n_geometric] = Je
+        J = np.zeros((len(q), 3, self.P))
+        J[:, :, :ng] = Je
         Jq = Je[:, :, self.kin.joint_elements]
-        if loads is not None and torque_driven:
+        if loads is not None and any(e.torque_driven for e in self.effects):
             # joint deflections follow the torques, and the torques move with the geometry
             gain = sum(e.torque_gain(q, ctx, loads, v) for e, v in zip(self.effects, vals) if e.torque_driven)
-            J[:, :, : self.n_geometric] += np.einsum("nij,nje->nie", Jq, gain[:, :, None] * loads.dtau_dgeo)
-        gi = ji = pi = 0
-        for e, s, v in zip(self.effects, self.effect_slices, vals):
-            if e.stage == "joint":
-                J[:, :, s] = np.einsum("nij,njk->nik", Jq, joint_grads[ji]); ji += 1
-            elif e.stage == "geometry":
+            J[:, :, :ng] += np.einsum("nij,nje->nie", Jq, gain[:, :, None] * loads.dtau_dgeo)
+        through = {"joint": Jq, "geometry": Je}
+        for i, (e, s, v) in enumerate(zip(self.effects, self.effect_slices, vals)):
+            if e.stage == "geometry":
                 # the effect's change of the geometry depends on the geometry: its own chain rule
-                J[:, :, : self.n_geometric] = e.geometry_chain(J[:, :, : self.n_geometric], self.length_idx, ctx, v)
-                J[:, :, s] = np.einsum("nip,npk->nik", Je, geo_grads[gi]); gi += 1
-            else:
-                J[:, :, s] = point_grads[pi]; pi += 1
-        return Evaluation(point, th, J, Jq, loads, fp)
+                J[:, :, :ng] = e.geometry_chain(J[:, :, :ng], self.length_idx, ctx, v)
+            J[:, :, s] = grads[i] if e.stage == "point" else np.einsum("nij,njk->nik", through[e.stage], grads[i])
+        return J, Jq
 
     def points(self, q_rad, ctx: PoseContext | None = None, theta=None, tool_mm=None, link=None) -> np.ndarray:
         return self.evaluate(q_rad, ctx, theta, False, tool_mm, link).point_mm

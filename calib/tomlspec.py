@@ -27,6 +27,7 @@ class Field:
     max: float | None = None
     positive: bool = False         # strictly > 0
     length: int | None = None      # vector length
+    max_abs: float = 1e15          # no robot or scenario number is larger: beyond, a typo (1e308) that would overflow
     help: str = ""
 
 
@@ -127,6 +128,8 @@ class Checker:
         return value
 
     def _range(self, value: float, field: Field, key: str) -> None:
+        if abs(value) > field.max_abs:
+            self.fail(key, f"{value:g} is beyond +-{field.max_abs:g}: a typing mistake?")
         if field.positive and not value > 0:
             self.fail(key, f"must be positive, got {value:g}")
         if field.min is not None and value < field.min:

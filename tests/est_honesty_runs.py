@@ -18,7 +18,8 @@ from calib.estimators.coupling import coupling_from_repeats, quantisation_sigma
 from calib.estimators.link_compliance import flexural_rigidity
 from calib.estimators.points import StationFit, locate_targets, points_covariance
 from calib.estimators.ruler import RulerSightings, ruler_lsq
-from calib.estimators.transmission import fit_transmission_error, joint_angles
+from calib.estimators.resolution import encoder_resolution
+from calib.estimators.transmission import commanded_angle_errors, fit_transmission_error, joint_angles
 from calib.theodolite import thesis_stations
 from tests.fakes import thesis_procedures as tp
 
@@ -169,9 +170,33 @@ def run_link(rng, EI=2.0e11):
     return [("EI_Nmm2", res["EI_Nmm2"].value, res["EI_Nmm2"].error, EI)]
 
 
+def run_resolution(rng, rad_per_count=2 * np.pi / (1000 * 76.686) * 1.002):
+    """Fig 5.14's run: the joint stepped 150 counts at a time, its angle measured from A1, A2 (true resolution 0.2 %
+    off the design value)."""
+    fit, _ = _stations(rng)
+    counts = np.arange(0, 12) * 150.0
+    ang, cov = _two_targets(fit, rng, counts * rad_per_count, repeats=2)
+    design = 2 * np.pi / (1000 * 76.686)
+    res = encoder_resolution(counts, ang, cov, design)
+    truth = {"scale": rad_per_count / design}                # rad_per_count is the same number, scaled
+    return [(n, res[n].value, res[n].error, t) for n, t in truth.items()]
+
+
+def run_commanded(rng, scale_error=1.5e-3):
+    """Section 4.4's E_a: commanded angles over 60 deg, the joint turning 0.15 % more than commanded."""
+    fit, _ = _stations(rng)
+    desired = np.radians(np.arange(0.0, 61.0, 5.0))
+    ang, cov = _two_targets(fit, rng, desired * (1 + scale_error))
+    res = commanded_angle_errors(ang, cov, desired)
+    out = [("E_a_slope", res["E_a_slope"].value, res["E_a_slope"].error, scale_error)]
+    return out + [(n, res[n].value, res[n].error, scale_error * desired[i])
+                  for i, n in enumerate(res.names[:-1], start=1)]
+
+
 PROCEDURES = {"ruler": run_ruler, "points": run_points, "axes": run_axes, "transmission": run_transmission,
               "compliance": run_compliance,
-              "compliance (one slope)": run_compliance_one_slope, "coupling": run_coupling, "link compliance": run_link}
+              "compliance (one slope)": run_compliance_one_slope, "coupling": run_coupling, "link compliance": run_link, "encoder resolution": run_resolution,
+              "E_a (commanded angle)": run_commanded}
 
 
 def honesty(procedure: str, seeds: range) -> dict:

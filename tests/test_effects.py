@@ -186,10 +186,13 @@ def test_every_registered_kind_round_trips_through_text_json_and_zero():
             "thermal_drift"} <= set(EFFECTS)
     for kind, cls in EFFECTS.items():
         assert cls.kind == kind
-        fields = ([3] if cls.has_joint else []) + [{"order": 0.9, "harmonics": 2, "source": 5,
-                                                    "reference_degc": 21.5}.get(k, 1) for k in cls.options]
+        joint = 3 if cls.has_joint else None
+        opts = make_effect(kind, joint).option_values()                # the kind's own defaults
+        if kind in ("transmission_error", "cross_coupling"):
+            opts.update({k: v for k, v in {"order": 0.9, "harmonics": 2, "source": 5}.items() if k in cls.options})
+        fields = ([joint] if cls.has_joint else []) + [opts[k] for k in cls.options]
         e = effect_from_text(":".join([kind] + [f"{f:g}" for f in fields]))
-        assert type(e) is cls and e.joint == (3 if cls.has_joint else None)
+        assert type(e) is cls and e.joint == joint and e.option_values() == opts
         e.values = np.arange(1.0, len(e.values) + 1) * 1e-6
         again = effect_from_spec(json.loads(json.dumps(effect_spec(e))), dict(zip(e.qualified_names(), e.values)),
                                  "model.json: effects[0]")

@@ -93,8 +93,10 @@ def test_misalignments_eq_4_3_10_11():
     m = misalignments(zm, zd, x)
     np.testing.assert_allclose(m[0], 0, atol=1e-12)
     assert m[1, 3] == pytest.approx(tilt, rel=1e-6)                     # delta alpha (eq 4.3.10)
-    assert m[1, 4] == pytest.approx(0.0, abs=1e-12)                     # delta theta (eq 4.3.11)
+    assert m[1, 4] == pytest.approx(0.0, abs=1e-12)                     # delta beta
+    assert m[1, 5] == pytest.approx(0.0, abs=1e-12)                     # delta theta (eq 4.3.11)
     zm2 = np.array([[0, 0, 1.0], [np.sin(tilt), np.cos(tilt), 0]])      # tilted about z instead
     m2 = misalignments(zm2, zd, x)
     assert m2[1, 3] == pytest.approx(0.0, abs=1e-12)
-    assert abs(m2[1, 4]) == pytest.approx(tilt, rel=1e-6)
+    assert m2[1, 4] == pytest.approx(tilt, rel=1e-6)                    # about y_2 = z_2 x x_2 = -Z
+    assert m2[1, 5] == pytest.approx(0.0, abs=1e-12)

@@ -10,7 +10,7 @@ import pytest
 from tests.est_honesty_runs import PROCEDURES, honesty
 
 SEEDS = {"ruler": 40, "points": 30, "axes": 30, "transmission": 40, "compliance": 60, "compliance (one slope)": 40,
-         "coupling": 100, "link compliance": 200}
+         "coupling": 100, "link compliance": 200, "encoder resolution": 70, "E_a (commanded angle)": 20}
 
 
 @pytest.mark.parametrize("procedure", list(PROCEDURES))

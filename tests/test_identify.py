@@ -237,3 +237,16 @@ def test_evaluate_bad_pose_file(tmp_path, content, words):
     f.write_text(content)
     r = run_cli("plan", "poses", "--evaluate", str(f))
     assert r.returncode == 2 and words in r.stderr and "Traceback" not in r.stderr
+
+
+def test_an_effect_nothing_drives_is_one_line(tmp_path):
+    """--effect backlash on data without approach directions, instrument_drift without time: exit 2, one line."""
+    from calib.posecsv import write_pose_csv
+    tw = geometric_twin(10)
+    m, pts = measure_points(tw, tw.random_poses(30))
+    p = tmp_path / "p.csv"
+    write_pose_csv(p, m.q_read_rad, pts.point_mm)
+    for spec in ("backlash:2", "instrument_drift"):
+        r = run_cli("identify", str(p), "--effect", spec)
+        assert r.returncode == 2, r.stderr
+        assert "nothing drives it" in r.stderr and r.stderr.strip().count("\n") == 0

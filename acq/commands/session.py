@@ -143,8 +143,8 @@ def real_builder(db: str, theodolites: list[str], tap: str | None, setup_path: s
         if not setup_path:
             raise RobocalError("session: a new session needs --setup SETUP.json (robocal plan setup all --out FILE "
                                "designs one, robocal session --write-setup FILE writes a template)")
-        from calib.jsonfile import read_json
-        setup = read_json(setup_path, ("stations", "base_xyz_mm", "tool_target_mm", "ruler"))
+        from acq.session.setup_file import read_setup
+        setup = read_setup(setup_path)
     robot = load_robot(robot_path or setup.get("robot") or None)
     if not resume:
         q = read_pose_csv(poses, robot.n).q_rad / DEG if poses else None
@@ -200,12 +200,16 @@ def real_builder(db: str, theodolites: list[str], tap: str | None, setup_path: s
 def _stored_plan_setup(db: str) -> tuple[dict, dict]:
     """The plan and set-up a session database was created with (read-only: nothing is touched)."""
     from acq.session.store import connect_readonly
+    from acq.session.setup_file import setup_from_text
+    from acq.session.store import json_column
     conn = connect_readonly(db)
     try:
-        plan_json, setup_json = conn.execute("SELECT plan_json, setup_json FROM session").fetchone()
+        row = conn.execute("SELECT plan_json, setup_json FROM session").fetchone()
     finally:
         conn.close()
-    return json.loads(plan_json), json.loads(setup_json)
+    if row is None:
+        raise RobocalError(f"{db}: holds no session (a database left by a crash while it was created)")
+    return json_column(row[0], f"{db}: session plan_json"), setup_from_text(row[1], f"{db}: session setup_json")
 
 
 def run(args) -> int:

@@ -146,12 +146,15 @@ def build_demo(db: str | Path, seed: int = 0, resume: bool = False, script: dict
     if resume:
         store = SessionStore.open(db)
         meta = store.session_row()
-        import json
-        plan_d, setup = json.loads(meta["plan_json"]), json.loads(meta["setup_json"])
+        from .setup_file import setup_from_text
+        from .store import json_column
+        plan_d = json_column(meta["plan_json"], f"{db}: session plan_json")
+        setup = setup_from_text(meta["setup_json"], f"{db}: session setup_json")
         seed = plan_d.get("seed", seed)
         # a resumed emulated session continues with a fresh noise stream (the twin's truth is the same)
         seed_offset = 1 + len(store.done_keys())
-        scenario = json.loads(meta.get("metadata_json") or "{}").get("scenario_path")
+        meta_d = json_column(meta.get("metadata_json") or "{}", f"{db}: session metadata_json")
+        scenario = meta_d.get("scenario_path")
     else:
         plan_d = None
         seed_offset = 0

@@ -40,7 +40,7 @@ from calib.units import DEG
 
 from .procedures import mark_index
 from .reprocess import load_session
-from .store import SessionStore, StepRecord, connect_readonly
+from .store import SessionStore, StepRecord, connect_readonly, json_column
 
 READING_COLUMNS = ["step", "procedure", "station", "target", "face", "hz_deg", "v_deg", "q1_deg", "q2_deg", "q3_deg",
                    "q4_deg", "q5_deg", "q6_deg", "raw_hex"]
@@ -59,7 +59,7 @@ def export_readings_csv(db: str, out: str) -> int:
     w = csv.writer(f)
     w.writerow(READING_COLUMNS)
     for key, proc, st, tg, face, hz, v, spec, raw in rows:
-        q = json.loads(spec).get("pose_deg") or [""] * 6
+        q = json_column(spec, f"{db}: step {key!r}: spec_json").get("pose_deg") or [""] * 6
         w.writerow([key, proc, st, tg, face, f"{hz / DEG:.10f}", f"{v / DEG:.10f}", *q, raw.hex()])
     atomic_write_text(out, f.getvalue())
     return len(rows)

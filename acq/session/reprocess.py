@@ -202,6 +202,10 @@ def reprocess(path: str, n_mc: int = 0, progress=None) -> dict:
         _coupling(by_proc.get("coupling", []), robot, est, twin, figs, n_mc)
     except (RobocalError, KeyError, ValueError, IndexError) as exc:
         problems.append(f"coupling: {exc}")
+    try:
+        _resolution(by_proc.get("encoder_resolution", []), points, robot, est, twin, figs)
+    except (RobocalError, KeyError, ValueError, IndexError) as exc:
+        problems.append(f"encoder resolution: {exc}")
     step("done", 1.0)
     problems += figs.pop("problems", [])          # what a stage could not do for part of its data
     return {
@@ -298,7 +302,39 @@ def _sweeps(steps, points, robot, setup, est, truth, figs, n_mc):
     nominal = dict(zip(kin.names, kin.nominal))
     figs["dh"] = [{"name": n, "value": float(dh[n].value), "error": float(dh[n].error),
                    "nominal": float(nominal.get(n, np.nan)), "truth": tv.get(n)} for n in dh.names]
+    try:
+        _misalignment(axes, kin, p, q0, robot, est, truth, figs, n_mc)
+    except (RobocalError, KeyError, ValueError) as exc:             # the axes and DH stand without it
+        figs.setdefault("problems", []).append(f"misalignment: {exc}")
     return axes
+
+
+def _misalignment(axes, kin, p_design, q0, robot, est, truth, figs, n_mc):
+    """Fig 5.10's misalignment rows (eqs 4.3.10-4.3.13): each measured axis against its design direction at the
+    reference pose, with errors from the axes' covariances; truth from the twin's own frames at that pose."""
+    from calib.estimators.misalignment import ROW, misalignment_table
+    n = robot.n
+    design = kin.forward(q0[None], p_design)
+    zd = np.array([design.frame_R[0, j][:, 2] for j in range(n)])
+    xf = np.array([design.frame_R[0, j + 1][:, 0] for j in range(n)])
+    N = np.array([axes[j + 1].value[3:6] for j in range(n)])
+    U = np.zeros((3 * n, 3 * n))
+    for j in range(n):
+        U[3 * j:3 * j + 3, 3 * j:3 * j + 3] = axes[j + 1].cov[3:6, 3:6]
+    res = misalignment_table(N, U, zd, xf, n_mc=n_mc)
+    tv = {}
+    if truth is not None:
+        from calib.estimators.dh import misalignments
+        pt = np.array([truth.get(nm, v) for nm, v in zip(kin.names, p_design)])
+        tr = kin.forward(q0[None], pt)
+        zt = np.array([tr.frame_R[0, j][:, 2] for j in range(n)])
+        full = [f"j{k + 1}.{r}" for k in range(n) for r in ROW]
+        tv = {k: v for k, v in zip(full, misalignments(zt, zd, xf).ravel()) if k in res.names}
+    est.add_set("misalign.", res, tv)
+    figs["misalignment"] = [{"joint": j + 1, **{r.replace("_rad", "_deg"): float(res[f"j{j + 1}.{r}"].value) / DEG
+                                                for r in ROW if f"j{j + 1}.{r}" in res.names},
+                             "error_deg": float(max(res[k].error for k in res.names if k.startswith(f"j{j + 1}.")))
+                             / DEG} for j in range(n)]
 
 
 def _reference_pose(sweep_steps, setup) -> np.ndarray:
@@ -540,6 +576,7 @@ def _transmission(steps, points, robot, axes, est, twin, figs, n_mc):
         figs["transmission"][j] = {"encoder_deg": (enc / DEG).tolist(), "error_deg": (err / DEG).tolist(),
                                    "sigma_deg": (sig / DEG).tolist(),
                                    "fit": {k: float(res[k].value) for k in res.names}, "not_determined": nd}
+        _commanded(sts, meas, cov, ok, j, est, figs)
     if failed and not fits:
         raise RobocalError("; ".join(failed))
     figs.setdefault("problems", []).extend(f"transmission: {f}" for f in failed)
@@ -570,6 +607,43 @@ def _step_loads(st, robot, model, theta):
                         point_force_n=np.array([ld["mass_kg"] * g for ld in loads], float).reshape(1, -1, 3))
     fp = model.kin.forward(q[None], theta[: model.n_geometric])
     return q, model.loads(fp, ctx).joint_torque_nm[0], fp.joint_axis[0]
+
+
+def _commanded(sts, meas, cov, ok, j, est, figs):
+    """Section 4.4's E_a (measured minus commanded angle) of a transmission run, its slope as an estimate."""
+    from calib.estimators.transmission import commanded_angle_errors
+    desired = np.array([s["spec"]["pose_deg"][j - 1] for s in sts], float)[ok] * DEG
+    try:
+        ea = commanded_angle_errors(meas[ok], cov[np.ix_(ok, ok)], desired)
+    except RobocalError as exc:
+        figs.setdefault("problems", []).append(f"transmission: joint {j}: E_a: {exc}")
+        return
+    est.add_set(f"te.j{j}.", ea, only=("E_a_slope",))
+    figs["transmission"][j]["E_a_deg"] = [0.0] + (ea.value[:-1] / DEG).tolist()
+
+
+def _resolution(steps, points, robot, est, twin, figs):
+    """The encoder-resolution run (Fig 5.14): per joint, measured angle (A1, A2 about the run's own axis) against the
+    tapped counts; truth the description's resolution (the twin's encoders are the description's)."""
+    from calib.estimators.resolution import design_resolution_rad, encoder_resolution
+    if not steps:
+        return
+    by_joint: dict[int, list] = {}
+    for st in steps:
+        by_joint.setdefault(st["spec"]["meta"]["joint"], []).append(st)
+    figs["resolution"] = {}
+    for j, sts in sorted(by_joint.items()):
+        sts = [s for s in sts if s.get("counts") is not None and len(s["counts"])]
+        n = _own_axis(sts, points, j, 0)
+        meas, _, cov = _joint_angles(sts, points, n, full=True)
+        counts = np.array([np.mean(s["counts"], 0)[j - 1] for s in sts])
+        ok = np.isfinite(meas)
+        design = design_resolution_rad(robot.counts_per_rev[j - 1], robot.gear_ratio[j - 1])
+        res = encoder_resolution(counts[ok] * np.sign(robot.gear_ratio[j - 1]), meas[ok], cov[np.ix_(ok, ok)], design)
+        est.add_set(f"resolution.j{j}.", res, {"rad_per_count": design, "scale": 1.0} if twin is not None else {},
+                    only=("rad_per_count", "scale"))
+        figs["resolution"][j] = {"counts": counts.tolist(), "angle_deg": (meas / DEG).tolist(),
+                                 "rad_per_count": float(res["rad_per_count"].value)}
 
 
 def _compliance(steps, points, robot, axes, est, twin, figs, n_mc, setup=None, problems=None):
@@ -688,7 +762,7 @@ def _link(steps, setup, est, twin, figs, n_mc, robot=None):
 def _coupling(steps, robot, est, twin, figs, n_mc):
     """sigma_jk per coupled pair from the tapped counts, every repeat of a pair used: the scatter of the repeats
     (servo repeatability) pooled over the pairs, quantisation as the floor (:func:`coupling_from_repeats`)."""
-    from calib.estimators.coupling import coupling_from_repeats, quantisation_sigma
+    from calib.estimators.coupling import coupling_from_repeats, further_correction, quantisation_sigma
     if not steps:
         return
     runs: dict[tuple, dict] = {}
@@ -714,6 +788,9 @@ def _coupling(steps, robot, est, twin, figs, n_mc):
     if not pairs:
         return
     res = coupling_from_repeats({f"sigma{j}{k}": v for (j, k), v in pairs.items()}, q * np.sqrt(2))
+    # eq 4.7.2: what the controller compensates with (the description's factors) against what was measured
+    further = further_correction(res, {f"sigma{j}{k}": float(robot.coupling[k - 1, j - 1]) for (j, k) in pairs})
+    est.add_set("coupling.", further)
     for (j, k), (th_with, th_alone, th_j) in pairs.items():
         name = f"sigma{j}{k}"
         tv = {name: float(robot.coupling[k - 1, j - 1])} if twin is not None else {}

@@ -8,7 +8,6 @@ miss-distance check can then be held to what the reading noise explains (see :mo
 """
 from __future__ import annotations
 
-import json
 from dataclasses import replace
 
 import numpy as np
@@ -18,6 +17,7 @@ from calib.theodolite import Station, thesis_stations
 from calib.units import ARCSEC
 
 from .setup import station_names
+from .store import json_column
 
 
 def ruler_rows(steps: list[dict], names: tuple[str, str] = ("A", "B")) -> np.ndarray:
@@ -76,7 +76,7 @@ def stations_from_store(store, setup: dict, min_marks: int = 6) -> dict[str, Sta
         readings = [{"station": s, "face": f, "hz_rad": h, "v_rad": v} for s, f, h, v in conn.execute(
             "SELECT station, face, hz_rad, v_rad FROM reading WHERE step_id=? AND attempt=? ORDER BY reading_id",
             (step_id, attempts))]
-        steps.append({"spec": json.loads(spec), "readings": readings})
+        steps.append({"spec": json_column(spec, f"{store.path}: step {step_id}: spec_json"), "readings": readings})
     if len(steps) < min_marks:
         return None
     try:

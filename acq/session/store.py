@@ -201,11 +201,14 @@ def from_npy(b: bytes, where: str = "array blob") -> np.ndarray:
 
 
 def json_column(text, where: str):
-    """A JSON column (plan, set-up, step spec); damaged JSON is one line naming ``where``."""
+    """A JSON object column (plan, set-up, metadata, step spec); damaged JSON is one line naming ``where``."""
     from calib.jsonfile import parse_json
     if not isinstance(text, str):
         raise StoreError(f"{where}: damaged: not JSON text")
-    return parse_json(text, where)
+    doc = parse_json(text, where)
+    if not isinstance(doc, dict):
+        raise StoreError(f"{where}: damaged: not a JSON object")
+    return doc
 
 
 # -- opening -----------------------------------------------------------------------------------------------------

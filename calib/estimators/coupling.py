@@ -128,6 +128,20 @@ def coupling_from_streams(time_with_s, theta_k_with_rad, theta_j_with_rad, time_
                      first_order_cov=np.array([[var1]]))
 
 
+def further_correction(measured: EstimateSet, controller: dict[str, float]) -> EstimateSet:
+    """Eq 4.7.2's check of the maker's compensation, from the coupling runs: the controller turns joint k's encoder
+    into ``theta_k + sigma_jk theta_j`` with its own ``sigma_jk`` (the robot description's); the further correction the
+    calibration model must supply is ``measured - controller`` per factor, with the measured factor's error (the
+    controller's value is exact: it is what the controller computes with).  Names ``further{jk}``."""
+    names = [n for n in measured.names if n in controller]
+    if not names:
+        raise EstimationError(PROC, "eq 4.7.2", "none of the measured factors has a controller value to check")
+    sub = measured.subset(names)
+    value = sub.value - np.array([controller[n] for n in names])
+    return EstimateSet([n.replace("sigma", "further") for n in names], value, ["1"] * len(names),
+                       cov_first_order=sub.cov.copy())
+
+
 def check_compensation(theta_k_encoder_rad, theta_k_rad, theta_j_rad, sigma_jk: float) -> dict:
     """Eq 4.7.2: the encoder of k should read ``theta_k + sigma_jk theta_j`` when j and k turn together.
 

@@ -206,12 +206,12 @@ def puma_thesis_dh(centres: dict, cov: np.ndarray | None = None, n_mc: int = 20_
 # -- misalignments (eqs 4.3.10-4.3.11) ------------------------------------------------------------------------
 def misalignments(z_meas: np.ndarray, z_design: np.ndarray, x_frames: np.ndarray) -> np.ndarray:
     """Per joint j the small rotation ``(dtheta_x, dtheta_y, dtheta_z)`` (R_f components) turning the design axis
-    into the measured one, and between successive joints ``delta alpha_j`` and ``delta theta_j`` (eqs 4.3.10-11).
-
-    The relative rotation ``D_j = delta_j - delta_{j-1}`` is split in the frame of link j (``x_frames[j]`` = its
-    common normal): ``delta alpha_j = D_j . x_j`` (eq 4.3.10) and ``delta theta_j = +-|D_j - (D_j . x_j) x_j|``
-    (eq 4.3.11), signed by the component along ``y_j = z_j x x_j``.  Returns ``(n, 5)``:
-    ``[dtheta_x, dtheta_y, dtheta_z, delta_alpha, delta_theta]`` (rad); the first joint's relative terms are its own.
+    into the measured one, and between successive joints the relative rotation ``D_j = delta_j - delta_{j-1}`` in
+    the frame of link j (eqs 4.3.10-11): ``delta alpha_j = D_j . x_j`` (about the common normal ``x_frames[j]``, the
+    twist deviation), ``delta beta_j = D_j . y_j`` and ``delta theta_j = D_j . z_j`` (``y_j = z_j x x_j``).  The
+    printed 4.3.11 takes ``|D_j - (D_j . x_j) x_j|`` with a sign: that norm loses its sign when the remainder turns
+    from y to z, so the two components are reported apart.  Returns ``(n, 6)``: ``[dtheta_x, dtheta_y, dtheta_z,
+    delta_alpha, delta_beta, delta_theta]`` (rad); the first joint's relative terms are its own.
     """
     zm, zd = _unit(np.asarray(z_meas, float)), _unit(np.asarray(z_design, float))
     w = np.cross(zd, zm)
@@ -221,7 +221,4 @@ def misalignments(z_meas: np.ndarray, z_design: np.ndarray, x_frames: np.ndarray
     D = delta - np.concatenate([np.zeros_like(delta[..., :1, :]), delta[..., :-1, :]], -2)
     x = _unit(np.asarray(x_frames, float))
     y = np.cross(zd, x)
-    da = _dot(D, x)
-    rest = D - da[..., None] * x
-    dt = np.sign(_dot(rest, y)) * np.linalg.norm(rest, axis=-1)
-    return np.concatenate([delta, da[..., None], dt[..., None]], -1)
+    return np.concatenate([delta, _dot(D, x)[..., None], _dot(D, y)[..., None], _dot(D, zd)[..., None]], -1)

@@ -90,6 +90,36 @@ def measure_joint_angle(A1_ref, A2_ref, A1, A2, axis_n, points_cov_mm2: np.ndarr
                      first_order_cov=J @ U @ J.T)
 
 
+def commanded_angle_errors(theta_measured_rad, cov_rad2, theta_desired_rad) -> EstimateSet:
+    """Section 4.4's ``E_a = measured - desired`` per pose, with errors: angles turned from the first pose (measured
+    from A1, A2, :func:`joint_angles`; ``cov_rad2`` their covariance) against the commanded ones.  Unlike a fit with
+    an offset, ``E_a`` of one pose carries the first pose's error too, so the covariance used is that of the
+    differences ``angle_i - angle_0``.  Reports ``E_a{i}_rad`` for poses 1.. and ``E_a_slope``, the least-squares
+    proportional error of the commanded angle (a gear-ratio or scale error of the controller), with errors."""
+    step = "E_a"
+    m, d = (np.atleast_1d(np.asarray(v, float)).ravel() for v in (theta_measured_rad, theta_desired_rad))
+    angles_in_range(PROC, step, limit_rad=8 * np.pi, measured=m, desired=d)
+    if m.shape != d.shape:
+        raise EstimationError(PROC, step, "one commanded angle per measured angle needed")
+    at_least(PROC, step, "poses", m.size, 2)
+    C = np.asarray(cov_rad2, float)
+    C = np.diag(np.broadcast_to(C, m.shape).astype(float)) if C.ndim < 2 else C
+    A = np.eye(m.size)[1:] - np.eye(m.size)[:1]                # rows: angle_i - angle_0
+    K = A @ C @ A.T
+    rel = (d - d[0])[1:]
+    if np.all(rel == 0):
+        raise EstimationError(PROC, step, "the commanded angles do not change: no E_a slope")
+    Ki = np.linalg.inv(K)
+    P = (rel @ Ki) / (rel @ Ki @ rel)                          # GLS slope through the origin
+
+    def f(z):
+        e = np.angle(np.exp(1j * (z[..., 1:] - z[..., :1] - rel)))      # measured angles wrap past 180 deg
+        return np.concatenate([e, (e @ P)[..., None]], -1)
+
+    names = [f"E_a{i}_rad" for i in range(1, m.size)] + ["E_a_slope"]
+    return propagate(f, m, C, names, ["rad"] * (m.size - 1) + ["1"], n_mc=0)
+
+
 def angle_errors(theta_measured_rad, theta_encoder_rad, theta_desired_rad=None) -> dict:
     """Section 4.4's two errors per pose: ``E_c = measured - controller (encoder) reading`` (the transmission error
     curve fitted below) and, when the commanded angles are given, ``E_a = measured - desired``."""
