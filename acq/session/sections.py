@@ -153,7 +153,8 @@ section(Section(
      ThesisRow("K4 above", "compliance.j4.K2_Nm_per_rad", 1.698e5 * NM_PER_LBIN, "N m/rad")], ("compliance",)))
 section(Section(
     "link_compliance", "Link compliance (§4.6)", ("link.",),
-    "Dial gauges along a link, loads at its end; the flexural rigidity from the gauge readings.", ("link",),
+    "Dial gauges along a link, loads at its end; the flexural rigidity from the gauge readings.",
+    ("link", "link compliance"),
     "Repeat with larger loads or gauges farther from the joint.", [], ("link",)))
 section(Section(
     "coupling", "Wrist cross coupling (§4.7)", ("coupling.",),
