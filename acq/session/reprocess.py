@@ -18,6 +18,7 @@ still run.
 """
 from __future__ import annotations
 
+import sqlite3
 import time
 from dataclasses import dataclass, field
 
@@ -52,28 +53,35 @@ def load_session(path: str) -> SessionData:
     """Every accepted step with the readings of its accepted (last) attempt; opened read-only."""
     conn = connect_readonly(path)
     try:
-        sess = _rows(conn, "SELECT * FROM session ORDER BY session_id LIMIT 1")
-        if not sess:
-            raise RobocalError(f"{path}: holds no session")
-        s = sess[0]
-        steps = _rows(conn, "SELECT * FROM step WHERE session_id=? AND status='accepted' ORDER BY seq",
-                      (s["session_id"],))
-        for st in steps:
-            a = st["attempts"]
-            st["spec"] = json_column(st["spec_json"], f"{path}: step {st['key']!r}: spec_json")
-            st["readings"] = _rows(conn, "SELECT station, target, face, repeat, hz_rad, v_rad FROM reading "
-                                         "WHERE step_id=? AND attempt=? ORDER BY reading_id", (st["step_id"], a))
-            st["inputs"] = {r["name"]: r["value"] for r in _rows(
-                conn, "SELECT name, value FROM operator_input WHERE step_id=? AND attempt=? ORDER BY input_id",
-                (st["step_id"], a))}
-            ch = _rows(conn, "SELECT counts FROM encoder_chunk WHERE step_id=? AND attempt=? ORDER BY chunk_id",
-                       (st["step_id"], a))
-            st["counts"] = _counts(ch, f"{path}: step {st['key']!r}: encoder counts")
-        devices = _rows(conn, "SELECT role, driver, url, identity_json FROM device")
-        return SessionData(path, s, json_column(s["plan_json"], f"{path}: session plan_json"),
-                           setup_from_text(s["setup_json"], f"{path}: session setup_json"), steps, devices)
+        return _load(conn, path)
+    except sqlite3.DatabaseError as exc:
+        raise StoreError(f"{path}: damaged database ({exc})") from None
     finally:
         conn.close()
+
+
+def _load(conn, path: str) -> SessionData:
+    """The rows of :func:`load_session`, each JSON column and array blob checked as it is read."""
+    sess = _rows(conn, "SELECT * FROM session ORDER BY session_id LIMIT 1")
+    if not sess:
+        raise RobocalError(f"{path}: holds no session")
+    s = sess[0]
+    steps = _rows(conn, "SELECT * FROM step WHERE session_id=? AND status='accepted' ORDER BY seq",
+                  (s["session_id"],))
+    for st in steps:
+        a = st["attempts"]
+        st["spec"] = json_column(st["spec_json"], f"{path}: step {st['key']!r}: spec_json")
+        st["readings"] = _rows(conn, "SELECT station, target, face, repeat, hz_rad, v_rad FROM reading "
+                                     "WHERE step_id=? AND attempt=? ORDER BY reading_id", (st["step_id"], a))
+        st["inputs"] = {r["name"]: r["value"] for r in _rows(
+            conn, "SELECT name, value FROM operator_input WHERE step_id=? AND attempt=? ORDER BY input_id",
+            (st["step_id"], a))}
+        ch = _rows(conn, "SELECT counts FROM encoder_chunk WHERE step_id=? AND attempt=? ORDER BY chunk_id",
+                   (st["step_id"], a))
+        st["counts"] = _counts(ch, f"{path}: step {st['key']!r}: encoder counts")
+    devices = _rows(conn, "SELECT role, driver, url, identity_json FROM device")
+    return SessionData(path, s, json_column(s["plan_json"], f"{path}: session plan_json"),
+                       setup_from_text(s["setup_json"], f"{path}: session setup_json"), steps, devices)
 
 
 def _counts(chunks: list[dict], where: str) -> np.ndarray | None:
