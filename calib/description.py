@@ -66,19 +66,10 @@ DRIVE_SPEC = {"gear_ratio": Field("number", required=True),
               "encoder_counts_per_rev": Field("int", required=True, positive=True)}
 
 
-def _rpy_matrix(rpy):
-    r, p, y = rpy
-    cr, sr, cp, sp, cy, sy = np.cos(r), np.sin(r), np.cos(p), np.sin(p), np.cos(y), np.sin(y)
-    Rz = np.array([[cy, -sy, 0], [sy, cy, 0], [0, 0, 1]])
-    Ry = np.array([[cp, 0, sp], [0, 1, 0], [-sp, 0, cp]])
-    Rx = np.array([[1, 0, 0], [0, cr, -sr], [0, sr, cr]])
-    return Rz @ Ry @ Rx
-
-
 def build_description(chk: Checker, data: dict, path: Path, base_link: str | None = None,
                       tip_link: str | None = None):
     """The :class:`calib.robot.Robot` a calibration description defines (command-line cut wins over the file's)."""
-    from .robot import Robot, rpy_from_matrix
+    from .robot import Robot, _rpy_matrix, rpy_from_matrix
     from .urdf import analyse_chain, parameter_meaning, read_urdf
 
     top = chk.table(data, TOP_SPEC, "")
@@ -198,21 +189,18 @@ def _readings(chk: Checker, t: dict, ch) -> tuple[list[str], np.ndarray, np.ndar
 
 def _tolerances(chk: Checker, t: dict, robot) -> dict[str, float]:
     """Priors by kinematic parameter name (``j2.a_mm``, ``base.z_mm``) or by joint name (``arm_1_joint.a_mm``);
-    ``*_deg`` keys are converted to the ``*_rad`` parameter."""
+    ``*_deg`` keys are converted to the ``*_rad`` parameter (names as :func:`calib.priors.canonical` reads them)."""
+    from .errors import RobocalError
     from .kinematics import Kinematics
+    from .priors import canonical
 
     known = set(Kinematics(robot).names)
     out = {}
     for key, v in t.items():
         sd = chk.value(v, Field("number", positive=True), f"tolerances.{key}")
-        head, _, param = key.rpartition(".")
-        if head in robot.joint_names:
-            head = f"j{robot.joint_names.index(head) + 1}"
-        scale = 1.0
-        if param.endswith("_deg"):
-            param, scale = param[:-4] + "_rad", DEG
-        name = f"{head}.{param}"
-        if name not in known:
+        try:
+            name, scale = canonical(key, robot, known)
+        except RobocalError:
             chk.fail(f"tolerances.{key}", f"is not a parameter of the chain (e.g. j1.a_mm, "
                                           f"{robot.joint_names[0]}.alpha_deg, base.z_mm, tool.x_mm)")
         out[name] = float(sd) * scale

@@ -20,7 +20,8 @@ from .errors import RobocalError
 from .model import MeasurementModel
 from .effects.target_offset import TargetOffset
 from .posecsv import PoseTable
-from .targets import TargetContext, order_targets, reference_name, target_effects, target_index
+from .targets import (TargetContext, order_targets, reference_name, station_effects, station_index, target_effects,
+                      target_index)
 
 
 def with_polar_points(table: PoseTable, noise=None) -> PoseTable:
@@ -60,7 +61,8 @@ def context_of(model: MeasurementModel, table: PoseTable) -> TargetContext:
     tool_per_row(model.robot, table)                          # names every target, or fails naming the line
     return TargetContext(table.n, model.robot.n, direction=table.direction, payload_kg=table.payload_kg,
                          temperature_c=table.temperature_c, time_s=table.time_s,
-                         target=target_index(model.robot, table.target, table.n))
+                         target=target_index(model.robot, table.target, table.n),
+                         station=station_index(table.station, table.n)[0])
 
 
 def predict_rows(model: MeasurementModel, theta: np.ndarray, table: PoseTable) -> np.ndarray:
@@ -196,8 +198,74 @@ def fit_rows(table: PoseTable, robot):
     fit = table.subset(table.split_mask("fit")) if table.split is not None else table
     if fit.n == 0:
         raise RobocalError(f"{table.source}: no fit rows (column split)")
+    extra = station_effects(station_index(table.station, table.n)[1])
     if fit.target is None:
-        return fit, robot, []
+        return fit, robot, extra
     used = list(dict.fromkeys(table.target))
     robot = order_targets(robot, used)
-    return fit, robot, target_effects(robot, used)
+    return fit, robot, target_effects(robot, used) + extra
+
+
+def station_start(model: MeasurementModel, table: PoseTable) -> np.ndarray:
+    """Start parameters for several stations: each station's base by a rigid fit of the nominal chain to its rows;
+    the first station's is the chain's base, the others' offsets are their differences from it."""
+    from .effects.station_offset import StationOffset
+    from .robot import rpy_from_matrix
+
+    th = model.nominal.copy()
+    th[:6] = 0.0
+    ctx = context_of(model, table)
+    st = ctx.station.copy()
+    ctx.station[:] = 0
+    pred = model.points(table.q_rad, ctx, th)
+    bases = {}
+    for k in np.unique(st):
+        loc = fit_location(str(k), pred[st == k], table.points_mm[st == k])
+        roll, pitch, yaw = rpy_from_matrix(loc.R)
+        bases[int(k)] = np.array([*loc.t_mm, yaw, pitch, roll])
+    th[:6] = bases[0]
+    for e, sl in zip(model.effects, model.effect_slices):
+        if isinstance(e, StationOffset) and e.station in bases:
+            d = bases[e.station] - bases[0]
+            d[3:] = np.angle(np.exp(1j * d[3:]))
+            th[sl] = d
+    # Chapter 6's linear step (eq 6.6) for the chain's translations, as identify's own start does for one station
+    from .identify import PointObservations, linear_translations
+    obs = PointObservations(table.q_rad, table.points_mm, point_covariance(table), ctx=context_of(model, table))
+    trans = [n for n in model.kin.names if n.endswith("_mm") and not n.startswith("base.")]
+    th[: model.n_geometric] = linear_translations(model, obs, th[: model.P], trans)[: model.n_geometric]
+    return th
+
+
+def with_orientation_points(table: PoseTable, robot, noise_mm: float, sigma_angle_rad: float,
+                            lever_mm: float = 100.0):
+    """Rows that also carry a measured orientation (rx_deg, ry_deg, rz_deg: the tip's frame in the instrument frame,
+    R = Rz(rz) Ry(ry) Rx(rx)) enter the identification as two more points: the measured point plus ``lever_mm``
+    along the measured frame's x and y axes, as targets ``<T>@x`` and ``<T>@y`` whose positions on the tip are
+    identified with the chain (their covariance: the point's plus (lever x angle noise)^2 on each axis; the
+    correlation with the point's own row is neglected).  Returns the table and the robot with those tool points."""
+    if table.orientation_rad is None:
+        return table, robot
+    if table.points_mm is None:
+        raise RobocalError(f"{table.source}: rx_deg, ry_deg, rz_deg need x, y, z (the point of the measured frame)")
+    from .targets import reference_name
+    names = table.target or [reference_name(list(robot.tool_points_mm) or ["P"])] * table.n
+    if not robot.tool_points_mm:
+        robot = robot.with_tool({"P": robot.tool_point()})
+    R = Rotation.from_euler("xyz", table.orientation_rad).as_matrix()          # (N, 3, 3)
+    cov = point_covariance(table)
+    if cov is None:
+        cov = np.broadcast_to(np.eye(3) * noise_mm ** 2, (table.n, 3, 3)).copy()
+    parts, points, targets, covs = [table], [table.points_mm], list(names), [cov]
+    tool = dict(robot.tool_points_mm)
+    for axis, suffix in ((0, "@x"), (1, "@y")):
+        parts.append(table)
+        points.append(table.points_mm + lever_mm * R[:, :, axis])
+        targets += [n + suffix for n in names]
+        covs.append(cov + np.eye(3) * (lever_mm * sigma_angle_rad) ** 2)
+        for n in dict.fromkeys(names):
+            tool.setdefault(n + suffix, tool[n] + lever_mm * np.eye(3)[axis])
+    out = table.subset(np.concatenate([np.arange(table.n)] * 3))
+    out.points_mm, out.target, out.cov_mm2 = np.concatenate(points), targets, np.concatenate(covs)
+    out.orientation_rad = None
+    return out, robot.with_tool(tool)

@@ -20,14 +20,17 @@ class TargetContext(PoseContext):
     """A :class:`PoseContext` that also says which tool point (index into the robot's tool points) each row measures."""
 
     target: np.ndarray | None = None           # (N,) int
+    station: np.ndarray | None = None          # (N,) int: index of the instrument set-up (0: the reference)
 
     def __post_init__(self):
         super().__post_init__()
         self.target = np.zeros(self.n_poses, int) if self.target is None else np.asarray(self.target, int)
+        self.station = np.zeros(self.n_poses, int) if self.station is None else np.asarray(self.station, int)
 
     def subset(self, idx) -> "TargetContext":
         base = super().subset(idx)
-        return TargetContext(**{k: getattr(base, k) for k in base.__dataclass_fields__}, target=self.target[idx])
+        keep = {k: getattr(base, k) for k in base.__dataclass_fields__ if k not in ("target", "station")}
+        return TargetContext(**keep, target=self.target[idx], station=self.station[idx])
 
 
 def reference_name(names: list[str]) -> str:
@@ -56,6 +59,20 @@ def target_index(robot, target: list[str] | None, n: int) -> np.ndarray:
     if target is None:
         return np.zeros(n, int)
     return np.array([names.index(t) for t in target], int)
+
+
+def station_index(station: list[str] | None, n: int) -> tuple[np.ndarray, list[str]]:
+    """Index of each row's station among the sorted station names (0: the reference set-up) and the names."""
+    if station is None:
+        return np.zeros(n, int), []
+    names = sorted(set(station))
+    return np.array([names.index(s) for s in station], int), names
+
+
+def station_effects(names: list[str]) -> list:
+    """One base-offset effect per station after the first (fitted jointly with the chain)."""
+    from .effects.station_offset import StationOffset
+    return [StationOffset(k) for k in range(1, len(names))]
 
 
 def identified_tool_points(model, theta) -> dict[str, np.ndarray]:

@@ -8,7 +8,7 @@ import pytest
 
 from acq.emulate.twin_world import TwinWorld
 from acq.session.rig import EmulatedBench
-from acq.session.steps import Step
+from acq.session.steps import Step, TargetSpec
 from calib.twin import Twin, parse_scenario
 from calib.units import DEG
 from tests.fakes.point_loads import frames, point_force_torques
@@ -118,9 +118,8 @@ def test_gauges_read_the_cantilever_deflection_of_their_points(bench):
 
 
 def test_targets_on_a_link_ride_with_that_link_only(bench):
-    from acq.emulate.twin_world import Target
     w = bench.world
-    w.aim(Target("P3", tool_mm=(300.0, 0.0, 0.0), link=3))
+    bench.aim(TargetSpec("P3", tool_mm=(300.0, 0.0, 0.0), link=3))
     bench.prepare(_step((0.0, -90.0, 90.0, 0.0, 0.0, 0.0), {}), {})
     p0 = w.target_mm()
     bench.prepare(_step((0.0, -90.0, 90.0, 40.0, -30.0, 70.0), {}), {})

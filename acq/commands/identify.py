@@ -34,6 +34,8 @@ def add_arguments(p):
     p.add_argument("--polar-noise", metavar="ARCSEC,MM[,PPM]",
                    help="noise of hz_deg/v_deg/dist_mm rows (laser tracker, total station): angle 1-sigma in arc "
                         "seconds, distance 1-sigma in mm, plus ppm of the distance (default 1,0.01,1)")
+    p.add_argument("--orientation-noise-deg", type=positive_float, default=0.01, metavar="DEG",
+                   help="1-sigma noise of rx_deg/ry_deg/rz_deg rows (a 6-D tracker probe), default 0.01")
     p.add_argument("--free", action="append", default=[], metavar="PATTERN",
                    help="estimate only the parameters matching these shell patterns (comma-separated or repeated; "
                         "joint names allowed: 'base.*,tool.*,arm_*_joint.a_mm'); the rest keep their design values")
@@ -45,7 +47,8 @@ def add_arguments(p):
 def run(args) -> int:
     from calib.compensate import model_document, save_model, unit_of
     from calib.effects import THESIS_RUNNING_ERRORS, effect_from_text
-    from calib.evaluation import context_of, fit_rows, point_covariance, split_metrics, with_polar_points
+    from calib.evaluation import (context_of, fit_rows, point_covariance, split_metrics, station_start,
+                                  with_orientation_points, with_polar_points)
     from calib.polar import PolarNoise
     from calib.identify import PointObservations, check_drivers, default_free, identify
     from calib.priors import free_from_patterns, priors_for
@@ -58,6 +61,8 @@ def run(args) -> int:
     robot = load_robot(args.robot)
     full = read_pose_csv(args.data, robot.n, robot.prismatic, robot=robot, **units(args))
     full = with_polar_points(full, PolarNoise.from_text(args.polar_noise) if args.polar_noise else None)
+    measured = full                              # the rows as measured: what the held-out figures are about
+    full, robot = with_orientation_points(full, robot, args.noise_mm, args.orientation_noise_deg * DEG)
     table, robot, target_offsets = fit_rows(full, robot)
     if table.points_mm is None:
         raise RobocalError(f"{args.data}: columns x, y, z (measured tool points, mm) are needed to identify")
@@ -78,8 +83,12 @@ def run(args) -> int:
                                      n_free=len(free or default_free(model)), ignored_columns=full.ignored_columns,
                                      prismatic=robot.prismatic), args.force_implausible, "identify")
     check_drivers(model, obs, args.data)
-    ident = identify(model, obs, free=free, priors=priors, start=start, outliers=args.outliers, loss=args.loss)
-    held_out = split_metrics(model, ident.theta[:model.P], full) if full.split is not None else {}
+    theta0 = None
+    if table.station is not None and len(set(table.station)) > 1:
+        theta0, start = station_start(model, table), False        # each set-up placed by its own rigid fit
+    ident = identify(model, obs, free=free, priors=priors, start=start, theta0=theta0, outliers=args.outliers,
+                     loss=args.loss)
+    held_out = split_metrics(model, ident.theta[:model.P], measured) if full.split is not None else {}
     implausible += enforce(check_fit(ident.reduced_chi2, args.data), args.force_implausible, "identify")
     prov = provenance(args.robot)
     if args.out:

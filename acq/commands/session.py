@@ -143,8 +143,8 @@ def real_builder(db: str, theodolites: list[str], tap: str | None, setup_path: s
         if not setup_path:
             raise RobocalError("session: a new session needs --setup SETUP.json (robocal plan setup all --out FILE "
                                "designs one, robocal session --write-setup FILE writes a template)")
-        from calib.jsonfile import read_json
-        setup = read_json(setup_path, ("stations", "base_xyz_mm", "tool_target_mm", "ruler"))
+        from acq.session.setup_file import read_setup
+        setup = read_setup(setup_path)
     robot = load_robot(robot_path or setup.get("robot") or None)
     if not resume:
         q = read_pose_csv(poses, robot.n).q_rad / DEG if poses else None

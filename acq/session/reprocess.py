@@ -18,6 +18,7 @@ still run.
 """
 from __future__ import annotations
 
+import sqlite3
 import time
 from dataclasses import dataclass, field
 
@@ -52,28 +53,35 @@ def load_session(path: str) -> SessionData:
     """Every accepted step with the readings of its accepted (last) attempt; opened read-only."""
     conn = connect_readonly(path)
     try:
-        sess = _rows(conn, "SELECT * FROM session ORDER BY session_id LIMIT 1")
-        if not sess:
-            raise RobocalError(f"{path}: holds no session")
-        s = sess[0]
-        steps = _rows(conn, "SELECT * FROM step WHERE session_id=? AND status='accepted' ORDER BY seq",
-                      (s["session_id"],))
-        for st in steps:
-            a = st["attempts"]
-            st["spec"] = json_column(st["spec_json"], f"{path}: step {st['key']!r}: spec_json")
-            st["readings"] = _rows(conn, "SELECT station, target, face, repeat, hz_rad, v_rad FROM reading "
-                                         "WHERE step_id=? AND attempt=? ORDER BY reading_id", (st["step_id"], a))
-            st["inputs"] = {r["name"]: r["value"] for r in _rows(
-                conn, "SELECT name, value FROM operator_input WHERE step_id=? AND attempt=? ORDER BY input_id",
-                (st["step_id"], a))}
-            ch = _rows(conn, "SELECT counts FROM encoder_chunk WHERE step_id=? AND attempt=? ORDER BY chunk_id",
-                       (st["step_id"], a))
-            st["counts"] = _counts(ch, f"{path}: step {st['key']!r}: encoder counts")
-        devices = _rows(conn, "SELECT role, driver, url, identity_json FROM device")
-        return SessionData(path, s, json_column(s["plan_json"], f"{path}: session plan_json"),
-                           setup_from_text(s["setup_json"], f"{path}: session setup_json"), steps, devices)
+        return _load(conn, path)
+    except sqlite3.DatabaseError as exc:
+        raise StoreError(f"{path}: damaged database ({exc})") from None
     finally:
         conn.close()
+
+
+def _load(conn, path: str) -> SessionData:
+    """The rows of :func:`load_session`, each JSON column and array blob checked as it is read."""
+    sess = _rows(conn, "SELECT * FROM session ORDER BY session_id LIMIT 1")
+    if not sess:
+        raise RobocalError(f"{path}: holds no session")
+    s = sess[0]
+    steps = _rows(conn, "SELECT * FROM step WHERE session_id=? AND status='accepted' ORDER BY seq",
+                  (s["session_id"],))
+    for st in steps:
+        a = st["attempts"]
+        st["spec"] = json_column(st["spec_json"], f"{path}: step {st['key']!r}: spec_json")
+        st["readings"] = _rows(conn, "SELECT station, target, face, repeat, hz_rad, v_rad FROM reading "
+                                     "WHERE step_id=? AND attempt=? ORDER BY reading_id", (st["step_id"], a))
+        st["inputs"] = {r["name"]: r["value"] for r in _rows(
+            conn, "SELECT name, value FROM operator_input WHERE step_id=? AND attempt=? ORDER BY input_id",
+            (st["step_id"], a))}
+        ch = _rows(conn, "SELECT counts FROM encoder_chunk WHERE step_id=? AND attempt=? ORDER BY chunk_id",
+                   (st["step_id"], a))
+        st["counts"] = _counts(ch, f"{path}: step {st['key']!r}: encoder counts")
+    devices = _rows(conn, "SELECT role, driver, url, identity_json FROM device")
+    return SessionData(path, s, json_column(s["plan_json"], f"{path}: session plan_json"),
+                       setup_from_text(s["setup_json"], f"{path}: session setup_json"), steps, devices)
 
 
 def _counts(chunks: list[dict], where: str) -> np.ndarray | None:
@@ -621,7 +629,9 @@ def _setup_model(robot, setup):
 
 def _step_loads(st, robot, model, theta):
     """The step's joint readings, total torque about every joint (N m: the description's link weights plus the
-    recorded hung masses, from geometry) and the joints' axes (N, 3) at that pose in the measurement frame."""
+    recorded hung masses, from geometry), the joints' axes (N, 3) at that pose in the measurement frame, and the
+    torques' derivatives: w.r.t. the geometric parameters (n, P_geometric) and w.r.t. the load points' coordinates
+    in their frames (n, 3, summed over the loads: they move together when the lever is measured wrong)."""
     from .rig import c3_setup
     spec = st["spec"]
     q = _encoder_q(st, robot)
@@ -629,11 +639,49 @@ def _step_loads(st, robot, model, theta):
     s = c3_setup(spec["setup"], spec["pose_deg"], st["inputs"], model.kin)
     g = model.gravity_n_per_kg(theta)
     loads = s.get("loads", [])
-    ctx = model.context(1, point_force_link=[int(ld["link"]) for ld in loads],
+    links = [int(ld["link"]) for ld in loads]
+    F = np.array([ld["mass_kg"] * g for ld in loads], float).reshape(-1, 3)
+    ctx = model.context(1, point_force_link=links,
                         point_force_mm=np.array([ld["point_mm"] for ld in loads], float).reshape(1, -1, 3),
-                        point_force_n=np.array([ld["mass_kg"] * g for ld in loads], float).reshape(1, -1, 3))
+                        point_force_n=F[None])
     fp = model.kin.forward(q[None], theta[: model.n_geometric])
-    return q, model.loads(fp, ctx).joint_torque_nm[0], fp.joint_axis[0]
+    ld = model.loads(fp, ctx, derivative=True)
+    # moving a load's point by e_c in its frame j adds (R_j e_c x F) . z_i to joint i's torque (i <= j)
+    z = fp.joint_axis[0]
+    dpoint = np.zeros((robot.n, 3))
+    for b, f in zip(links, F):
+        R = fp.frame_R[0, b]
+        for i in range(min(b, robot.n)):
+            dpoint[i] += np.cross(R.T, f * 1e-3) @ z[i]
+    return q, ld.joint_torque_nm[0], z, ld.dtau_dgeo[0], dpoint
+
+
+def _swept_geometry(model, theta, est):
+    """The geometry the torques are computed with, and each parameter's 1-sigma: the session's own DH estimates
+    from the sweeps where it has them (they run first), the description within its tolerances
+    (:data:`acq.session.setup.DESCRIPTION_TOLERANCES`) elsewhere.  Why: a Puma's a3 can be 10 mm off its drawing,
+    which is 2 % of a compliance lever."""
+    from .setup import DESCRIPTION_TOLERANCES as tol
+    theta = theta.copy()
+    sig = np.array([tol["length_mm"] if n.startswith("j") and n.endswith("_mm") else
+                    tol["angle_deg"] * DEG if n.startswith("j") and n.endswith("_rad") else 0.0
+                    for n in model.kin.names])
+    for e in est.items:
+        name = e["name"][3:]
+        if e["name"].startswith("dh.") and name in model.kin.index and not e["held"] and np.isfinite(e["error"]):
+            theta[model.index[name]], sig[model.kin.index[name]] = e["value"], e["error"]
+    return theta, sig
+
+
+def _torque_cov(per_step, j, sig_geo) -> np.ndarray:
+    """Covariance of the torques about joint j over a loading series, from the geometry they were computed with
+    (``sig_geo``, per geometric parameter) and the load point's position (a lever measured with a tape: the tool
+    tolerance), each common to the whole series -- the thesis's Delta L_j and Delta theta_ij terms, from the model's
+    torque derivative instead of N L cos(theta)."""
+    from .setup import DESCRIPTION_TOLERANCES as tol
+    Jg = np.array([p[3][j - 1] for p in per_step]) * sig_geo                  # (steps, P)
+    Jp = np.array([p[4][j - 1] for p in per_step]) * tol["tool_mm"]           # (steps, 3)
+    return Jg @ Jg.T + Jp @ Jp.T
 
 
 def _commanded(sts, meas, cov, ok, j, est, figs):
@@ -684,6 +732,7 @@ def _compliance(steps, points, robot, axes, est, twin, figs, n_mc, setup=None, p
         return
     problems = [] if problems is None else problems
     model, theta = _setup_model(robot, setup or {})
+    theta, sig_geo = _swept_geometry(model, theta, est)
     by_joint: dict[int, list] = {}
     for st in steps:
         by_joint.setdefault(st["spec"]["meta"]["joint"], []).append(st)
@@ -692,7 +741,7 @@ def _compliance(steps, points, robot, axes, est, twin, figs, n_mc, setup=None, p
     for j, sts in sorted(by_joint.items()):
         sts.sort(key=lambda s: s["spec"]["meta"]["index"])
         per_step = [_step_loads(s, robot, model, theta) for s in sts]
-        T = np.array([tau[j - 1] for _, tau, _ in per_step])
+        T = np.array([p[1][j - 1] for p in per_step])
         # the joint's axis at the loading pose (it is not the swept one when the pose differs)
         axis = per_step[0][2][j - 1]
         applied = np.ptp(T)
@@ -705,7 +754,8 @@ def _compliance(steps, points, robot, axes, est, twin, figs, n_mc, setup=None, p
         defl, sig, dcov = _joint_angles(sts, points, axis, full=True)
         unload = np.array([s["spec"]["meta"]["phase"] == "unload" for s in sts])
         try:
-            res = two_slope_fit(sign * T, sign * defl, unload, dcov, n_mc=n_mc)
+            res = two_slope_fit(sign * T, sign * defl, unload, dcov, n_mc=n_mc,
+                                sigma_torque_Nm=_torque_cov(per_step, j, sig_geo))
         except RobocalError as exc:                 # e.g. "not determined": the other joints still count
             problems.append(f"compliance: joint {j}: {exc}")
             continue

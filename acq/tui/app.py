@@ -261,6 +261,7 @@ class RobocalApp(App):
     def _ev_state(self, d: dict) -> None:
         self.state = d.get("new", "")
         self.log_line(f"state: {d.get('old')} -> {d.get('new')}")
+        self._refresh_devices()                  # the state line follows the event, not the next timer tick
 
     def _ev_session(self, d: dict) -> None:
         resumed = " (resumed)" if d.get("resumed") else ""

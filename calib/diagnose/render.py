@@ -44,6 +44,8 @@ def render(d: Diagnosis, max_factor_rows: int = 40) -> str:
                  else "fold spread not measured (the data's own split: one fit)"]
         if f["aliases"]:
             flags.append("looks like " + ", ".join(f["aliases"]))
+        if f.get("leftover"):
+            flags.append(f["leftover"])
         out.append(f"      {'DOUBTFUL: ' if f['doubtful'] else ''}" + "; ".join(flags))
     out.append(f"   stopped: {j['stop_reason']}")
     if j["not_tested"]:

@@ -71,10 +71,11 @@ class Finding:
     aliases: list[str] = field(default_factory=list)
     shrink_share: float = float("nan")   # share of the baseline excess this effect removed
     fit: CVResult | None = None     # the model with this and the earlier findings, fitted (for --confirm)
+    leftover: str = ""              # structure the final residual still shows along this effect's own driver
 
     @property
     def doubtful(self) -> bool:
-        return self.stability > DOUBTFUL_SPREAD or bool(self.aliases)
+        return self.stability > DOUBTFUL_SPREAD or bool(self.aliases) or bool(self.leftover)
 
 
 @dataclass
@@ -408,3 +409,28 @@ def forward_select(data: DiagnosisData, base: CVResult, geo_free: list[str], can
         findings.append(res[0])
         cur = res[1]
     return Selection(findings, rounds, cur, cx.notes, stop, cx.near)
+
+
+def leftover_structure(data: DiagnosisData, final: CVResult, findings: list[Finding], alpha: float = 0.01) -> None:
+    """Mark findings whose own driver still orders the final held-out residual (Kruskal-Wallis over quartiles of
+    the joint angle, or of time for a drift; every signed component and the length, Bonferroni): the effect then
+    describes only part of what follows that driver (a step read as a sinusoid, a wobble of another order)."""
+    t = final.tested
+    res = final.residual_mm[t]
+    stats_ = [np.linalg.norm(res, axis=1)] + [res[:, i] for i in range(3)]
+    for f in findings:
+        c = f.candidate
+        if c.joint is not None:
+            x, what = data.q_rad[t, c.joint - 1], f"joint {c.joint}'s angle"
+        elif c.kind == "instrument_drift":
+            x, what = data.ctx.time_s[t], "time"
+        else:
+            continue
+        edges = np.unique(np.quantile(x, [0, 0.25, 0.5, 0.75, 1]))
+        if len(edges) < 3:
+            continue
+        keys = np.clip(np.searchsorted(edges, x, side="right") - 1, 0, len(edges) - 2)
+        groups = [keys == k for k in range(len(edges) - 1) if np.any(keys == k)]
+        p = min(float(stats.kruskal(*[v[g] for g in groups]).pvalue) for v in stats_) * len(stats_)
+        if p < alpha:
+            f.leftover = f"the residual left still depends on {what} (p = {p:.2g})"

@@ -89,7 +89,8 @@ def _twin_files() -> dict[str, bytes]:
     import io
     with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(io.StringIO()):
         assert main(["twin", "--poses", "30", "--export", str(d / "p.csv")]) == 0
-        assert main(["identify", str(d / "p.csv"), "--thesis-effects", "--out", str(d / "m.json")]) == 0
+        assert main(["identify", str(d / "p.csv"), "--effect", "transmission_error:4:0.9", "--effect",
+                     "joint_compliance:3", "--out", str(d / "m.json")]) == 0
         assert main(["import", str(d / "p.csv"), "--db", str(d / "s.db")]) == 0
     out = {k: (d / f).read_bytes() for k, f in (("poses", "p.csv"), ("model", "m.json"), ("db", "s.db"))}
     shutil.rmtree(d, ignore_errors=True)
