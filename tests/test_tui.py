@@ -321,6 +321,7 @@ def test_a_plan_that_fails_the_preflight_is_refused_with_the_reason(tmp_path):
             assert app.finished["exit_status"] == "refused"
             step = str(app.query_one("#step").render())
             assert "pre-flight failed for 1 step(s)" in step and "te/j4/00: joint limit" in step
+            assert "Nothing was recorded" in step and "powered" not in step
             await pilot.press("q")
 
     run(main())

@@ -139,6 +139,7 @@ def reprocess(path: str, n_mc: int = 0, progress=None) -> dict:
     est = _Est(truth)
     robot = load_robot(data.setup.get("robot") or None)
     problems: list[str] = []
+    details: list[str] = []          # the technical cause of a failed stage: JSON only, never the terminal or report
     figs: dict = {}
     by_proc: dict[str, list[dict]] = {}
     for st in data.steps:
@@ -151,7 +152,7 @@ def reprocess(path: str, n_mc: int = 0, progress=None) -> dict:
     try:
         stations = _ruler(by_proc.get("ruler", []), data.setup, sigma, est, twin, figs)
     except (RobocalError, KeyError, ValueError, IndexError) as exc:
-        problems.append(f"ruler: {exc}")
+        problems.append(_worded("ruler", exc, details))
     if stations is None:
         from calib.estimators.points import StationFit
         from .setup import setup_stations
@@ -178,7 +179,7 @@ def reprocess(path: str, n_mc: int = 0, progress=None) -> dict:
     try:
         axes = _sweeps(by_proc.get("sweep", []), points, robot, data.setup, est, truth, figs, n_mc)
     except (RobocalError, KeyError, ValueError, IndexError) as exc:
-        problems.append(f"sweeps: {exc}")
+        problems.append(_worded("sweeps", exc, details))
     step("sweeps", 0.3)
     # 5-6 before the pose set: their running errors enter its model (priors on the effects) -------------------------
     running: dict = {}
@@ -186,12 +187,12 @@ def reprocess(path: str, n_mc: int = 0, progress=None) -> dict:
         running["transmission"] = _transmission(by_proc.get("transmission", []), points, robot, axes, est, twin,
                                                 figs, n_mc)
     except (RobocalError, KeyError, ValueError, IndexError) as exc:
-        problems.append(f"transmission: {exc}")
+        problems.append(_worded("transmission", exc, details))
     try:
         running["compliance"] = _compliance(by_proc.get("compliance", []), points, robot, axes, est, twin, figs,
                                             n_mc, data.setup, problems)
     except (RobocalError, KeyError, ValueError, IndexError) as exc:
-        problems.append(f"compliance: {exc}")
+        problems.append(_worded("compliance", exc, details))
     step("running errors", 0.45)
     # 4. pose set ---------------------------------------------------------------------------------------------------
     ident_doc = None
@@ -199,21 +200,21 @@ def reprocess(path: str, n_mc: int = 0, progress=None) -> dict:
         ident_doc = _poses(by_proc.get("poses", []), points, robot, data.setup, est, twin, figs, running, problems,
                            by_proc.get("coupling", []))
     except (RobocalError, KeyError, ValueError, IndexError) as exc:
-        problems.append(f"poses: {exc}")
+        problems.append(_worded("poses", exc, details))
     step("poses", 0.8)
     # 7-8 ---------------------------------------------------------------------------------------------------------
     try:
         _link(by_proc.get("link_compliance", []), data.setup, est, twin, figs, n_mc)
     except (RobocalError, KeyError, ValueError, IndexError) as exc:
-        problems.append(f"link compliance: {exc}")
+        problems.append(_worded("link compliance", exc, details))
     try:
         _coupling(by_proc.get("coupling", []), robot, est, twin, figs, n_mc)
     except (RobocalError, KeyError, ValueError, IndexError) as exc:
-        problems.append(f"coupling: {exc}")
+        problems.append(_worded("coupling", exc, details))
     try:
         _resolution(by_proc.get("encoder_resolution", []), points, robot, est, twin, figs)
     except (RobocalError, KeyError, ValueError, IndexError) as exc:
-        problems.append(f"encoder resolution: {exc}")
+        problems.append(_worded("encoder resolution", exc, details))
     step("done", 1.0)
     problems += figs.pop("problems", [])          # what a stage could not do for part of its data
     return {
@@ -226,9 +227,22 @@ def reprocess(path: str, n_mc: int = 0, progress=None) -> dict:
         "accuracy": {k: v for k, v in figs.get("accuracy", {}).items() if not k.endswith(("_err_mm", "_index"))}
         or None,
         "problems": problems,
+        "problem_details": details,
         "robot": ident_doc,
         "figures": figs,
     }
+
+
+def _worded(stage: str, exc: Exception, details: list[str]) -> str:
+    """A failed stage in words for the operator: robocal's own errors already say what is wrong; anything else (a
+    computation that failed on these readings) is said plainly, its technical cause kept in ``details`` (the JSON's
+    ``problem_details``) for whoever maintains robocal, never shown as exception text."""
+    if isinstance(exc, RobocalError):
+        return f"{stage}: {exc}"
+    details.append(f"{stage}: {type(exc).__name__}: {exc}")
+    return (f"{stage}: the recorded readings of this stage could not be reduced to estimates (the computation failed "
+            f"on them); check that every step of it was recorded, repeat its steps, and send the session file with "
+            f"the results JSON to the maintainers if it persists")
 
 
 # -- stages ------------------------------------------------------------------------------------------------------

@@ -150,6 +150,7 @@ class RobocalApp(App):
         self.progress = Progress()
         self.groups: dict = {}                               # procedure -> its node in the plan tree
         self.step_t0: dict[str, float] = {}                  # key -> when the step started (for the estimate)
+        self.preflight_lines: list[str] = []                 # why the runner refused to start, one line a step
 
     # -- layout -------------------------------------------------------------------------------------------------
     def compose(self) -> ComposeResult:
@@ -345,12 +346,20 @@ class RobocalApp(App):
     def _ev_log(self, d: dict) -> None:
         self.log_line(d.get("text", ""))
 
+    def _ev_preflight(self, d: dict) -> None:
+        self.preflight_lines = list(d.get("lines", []))
+
     def _ev_finished(self, d: dict) -> None:
         self.finished = d
         err = d.get("error")
         status = d.get("exit_status")
         where = self.handle.db_path if self.handle else ""
-        if err:
+        if status == "refused":
+            lines = "\n".join(f"  {ln}" for ln in self.preflight_lines) or f"  {err}"
+            msg = (f"[b red]The session did not start: {err}[/]\n{lines}\nNothing was recorded. Change the plan or "
+                   f"the set-up so these steps pass (robocal plan check prints the pre-flight; the operator guide "
+                   f"says what each check means), then start again.")
+        elif err:
             msg = (f"[b red]The session stopped: {err}[/]\nEverything saved so far is in {where}; fix the cause "
                    f"(device connected? powered?) and start again to resume.")
         elif status == "paused":
