@@ -248,11 +248,12 @@ def _worded(stage: str, exc: Exception, details: list[str]) -> str:
 # -- stages ------------------------------------------------------------------------------------------------------
 def _ruler(steps, setup, sigma, est, twin, figs):
     """The same ruler fit the runner uses live (:mod:`acq.session.stations`), recorded with its estimates."""
+    from .setup import station_names
     from .stations import fit_ruler, ruler_rows, ruler_station_fit
     if not steps:
         return None
-    res, stations = fit_ruler(ruler_rows(steps), {**setup, "stations": {**setup["stations"],
-                                                                          "sigma_arcsec": sigma / ARCSEC}})
+    cfg = {**setup, "stations": {**setup["stations"], "sigma_arcsec": sigma / ARCSEC}}
+    res, stations = fit_ruler(ruler_rows(steps, station_names(setup)), cfg)
     tv = {}
     if twin is not None:
         A, B = twin.stations
