@@ -230,6 +230,15 @@ class RobocalApp(App):
         cur = self.steps_by_key[self.current_key].procedure if self.current_key in self.steps_by_key else None
         self.sub_title = self.progress.header(cur)
 
+    def _relayout_text(self) -> None:
+        """Measure the wrapped texts again at the width they have now: a text set while the layout was still
+        settling (start-up, a breakpoint change, a resize) must never keep the height of a wider column."""
+        for w in self.query("#step, #prompt, #live, #diagram"):
+            w.refresh(layout=True)
+
+    def on_resize(self, event) -> None:
+        self.call_after_refresh(self._relayout_text)
+
     @on(Tree.NodeHighlighted, "#plan")
     def _plan_highlighted(self, event: Tree.NodeHighlighted) -> None:
         step = self.steps_by_key.get(event.node.data) if event.node.data else None
@@ -296,6 +305,7 @@ class RobocalApp(App):
             f"[b]{d.get('title', key)}[/b]{attempt}   step {d.get('index', 0) + 1} of {d.get('total', '?')}\n"
             f"{d.get('instruction', '')}{pose_txt}")
         self.query_one("#diagram", Static).update(DIAGRAMS.get(d.get("procedure", ""), ""))
+        self.call_after_refresh(self._relayout_text)
         self.query_one("#checks", DataTable).clear()
         self.query_one("#checks", DataTable).remove_class("has-rows")
         self._show_progress()
@@ -417,6 +427,7 @@ class RobocalApp(App):
         else:
             head = "Do what the step says, then continue"
         self.query_one("#prompt", Static).update(f"{head}\n{choices}")
+        self.call_after_refresh(self._relayout_text)
         box = self.query_one("#inputs", Vertical)
         box.remove_children()
         if req.kind == "setup":
