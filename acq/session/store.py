@@ -174,11 +174,9 @@ class StoreError(RobocalError):
 
 
 def code_version() -> str:
-    try:
-        from importlib.metadata import version
-        return version("robocal")
-    except Exception:          # pragma: no cover - running from a source tree without metadata
-        return "0+unknown"
+    """The robocal version stored with sessions and results (one definition: :mod:`calib.provenance`)."""
+    from calib.provenance import robocal_version
+    return robocal_version()
 
 
 # -- npy blobs ---------------------------------------------------------------------------------------------------
