@@ -111,3 +111,55 @@ def test_steps_as_commands():
     assert kinds["compliance"] == {"Ask", "Move", "Hang", "Capture", "Sight"}
     assert kinds["link_compliance"] == {"Ask", "Move", "Hang", "ReadGauges", "Capture"}
     assert kinds["coupling"] == {"Ask", "Move", "Capture"}
+
+
+def test_link_steps_ask_the_mass_and_reprocess_reads_both():
+    """Contract C3: a link step that hangs a mass asks ``load_kg``; reprocess reads it as a force with standard
+    gravity, and still reads ``load_n`` from sessions recorded before."""
+    from calib.robot import load_robot
+    from acq.session.reprocess import _link_load_n
+    from acq.session.setup import session_setup
+    setup = session_setup(standard_setup(), load_robot())
+    link = all_steps({"procedures": ["link_compliance"]}, setup)
+    for s in link:
+        (inp,) = [i for i in s.inputs if i.name.startswith("load")]
+        assert inp.name == "load_kg" and inp.unit == "kg"
+        assert inp.suggested == s.setup["loads"][0]["mass_kg"]
+        assert abs(_link_load_n({"load_kg": inp.suggested}, s.setup) - s.setup["load_n"]) < 1e-2
+    assert _link_load_n({"load_kg": 2.0}, {"load_n": 0.0}) == 2.0 * 9.80665
+    assert _link_load_n({"load_n": 12.5}, {"load_n": 10.0}) == 12.5          # an older session's entry
+    assert _link_load_n({}, {"load_n": 10.0}) == 10.0
+    # a set-up without load points keeps the old force prompt
+    old = {**setup, "link": {k: v for k, v in setup["link"].items() if k != "load_point_mm"}}
+    old["link"]["load_point_mm"] = None
+    (s0,) = all_steps({"procedures": ["link_compliance"]}, old)[:1]
+    assert [i.name for i in s0.inputs][0] == "load_n"
+
+
+def test_coupling_repeats_have_distinct_stable_keys():
+    """Repeats of the coupling run: every repeat its own keys (resume skips what is committed), the first repeat
+    with the keys a session without repeats had, the repeat number in meta for reprocess to pool them."""
+    setup = standard_setup()
+    plan = {"procedures": ["coupling"], "coupling": {"pairs": [[5, 6], [4, 5]], "repeats": 3}}
+    steps = all_steps(plan, setup)
+    keys = [s.key for s in steps]
+    assert len(steps) == 2 * 3 * 4 and len(set(keys)) == len(keys)
+    assert keys == [s.key for s in all_steps(plan, setup)]                    # stable
+    one = [s.key for s in all_steps({**plan, "coupling": {**plan["coupling"], "repeats": 1}}, setup)]
+    assert set(one) <= set(keys) and "coupling/j5k6/with" in one and "coupling/j5k6/with/r2" in keys
+    reps = {(s.meta["j"], s.meta["k"], s.meta["repeat"], s.meta["phase"]) for s in steps}
+    assert len(reps) == len(steps)
+
+
+def test_encoder_resolution_steps_are_what_reprocess_reads():
+    """The encoder-resolution run: one joint stepped one way, A1 and A2 sighted, the encoder tapped, each step's
+    joint in meta (reprocess groups by it)."""
+    setup = standard_setup()
+    steps = all_steps({"procedures": ["encoder_resolution"],
+                       "encoder_resolution": {"joints": [6], "points": 5, "span_deg": 20.0}}, setup)
+    assert len(steps) == 5 and all(s.procedure == "encoder_resolution" for s in steps)
+    assert all(s.encoders and [t.name for t in s.targets] == ["A1", "A2"] for s in steps)
+    assert [s.meta["joint"] for s in steps] == [6] * 5
+    q6 = [s.pose_deg[5] for s in steps]
+    assert np.all(np.diff(q6) > 0) and abs(q6[-1] - q6[0] - 20.0) < 1e-9
+    assert procedure_info("encoder_resolution").steps is PROCEDURES["encoder_resolution"]

@@ -4,7 +4,7 @@ Read a procedure top to bottom to know what the operator will be asked, in order
 ``plan`` (their parameters) and ``setup`` (the geometry of the bench) and never touch a device: the runner does the
 I/O, checks and storage.  Step keys are stable (``sweep/j2/03``), so a resumed session skips what is committed.
 
-Units: poses in degrees (what the operator types into the teach pendant), lengths in mm, loads in N.
+Units: poses in degrees (what the operator types into the teach pendant), lengths in mm, loads as masses in kg (old set-ups: forces in N).
 """
 from __future__ import annotations
 
@@ -229,18 +229,26 @@ def link_compliance(plan: dict, setup: dict) -> Iterator[Step]:
     j = cfg["joint"]
     xs = cfg["gauges_x_mm"]
     for i, load in enumerate(cfg["loads_n"]):
+        hung = _hung({"link": j, "point_mm": cfg.get("load_point_mm"), **cfg}, load)
         yield Step(
             key=f"link/j{j}/{i:02d}", procedure="link_compliance", title=f"Link {j}: load {load:g} N",
             instruction=(f"Dial gauges at {', '.join(f'{x:g}' for x in xs)} mm from joint {j}'s centre, zeroed "
                          f"without load. Hang {load:g} N at {cfg['load_x_mm']:g} mm, wait 30 s, read every gauge."),
             pose_deg=tuple(cfg.get("pose_deg", READY_DEG)), targets=(), faces=(),
-            inputs=(InputSpec("load_n", "N", "Load hung", load),
+            inputs=(_link_load_input(hung, load),
                     *[InputSpec(f"gauge{g + 1}_mm", "mm", f"Dial gauge {g + 1} at {x:g} mm")
                       for g, x in enumerate(xs)]),
-            setup={"joint": j, "load_n": load, "load_x_mm": cfg["load_x_mm"], "gauges_x_mm": list(xs),
-                   **_hung({"link": j, "point_mm": cfg.get("load_point_mm"), **cfg}, load),
+            setup={"joint": j, "load_n": load, "load_x_mm": cfg["load_x_mm"], "gauges_x_mm": list(xs), **hung,
                    **({"gauges": cfg["gauges"]} if "gauges" in cfg else {})},
             meta={"joint": j, "index": i})
+
+
+def _link_load_input(hung: dict, load_n: float) -> InputSpec:
+    """The link step's load as the operator enters it: the mass hung (kg, contract C3) when the step hangs one, the
+    old force prompt (N) for a set-up without load points."""
+    if hung:
+        return InputSpec("load_kg", "kg", "Mass hung", hung["loads"][0]["mass_kg"])
+    return InputSpec("load_n", "N", "Load hung", load_n)
 
 
 # -- 4.7 wrist coupling ----------------------------------------------------------------------------------------------
@@ -248,19 +256,44 @@ def coupling(plan: dict, setup: dict) -> Iterator[Step]:
     """Joint k alone through theta, then j and k together: the encoder of k shows sigma_jk theta_j more."""
     p = plan.get("coupling", {})
     th = p.get("angle_deg", 10.0)
+    repeats = int(p.get("repeats", 1))
     for j, k in p.get("pairs", [(5, 6), (4, 6), (4, 5)]):
         start = READY_DEG
         alone = _pose(k, th)
         both = _pose(j, th, alone)
-        for name, q, text in (
-                ("start", start, f"Move to READY {_fmt(start)} and hold; the encoder stream is recorded."),
-                ("alone", alone, f"Rotate joint {k} alone by {th:+g} deg, hold."),
-                ("return", start, "Return to READY, hold."),
-                ("with", both, f"Rotate joints {j} and {k} together by {th:+g} deg each, hold.")):
+        for r in range(repeats):
+            # repeats: the scatter between them (servo repeatability) is pooled into sigma_jk's error by reprocess;
+            # the first repeat keeps the old key, so sessions recorded without repeats resume unchanged
+            tag, of = ("" if r == 0 else f"/r{r}"), ("" if repeats == 1 else f" (repeat {r + 1}/{repeats})")
+            for name, q, text in (
+                    ("start", start, f"Move to READY {_fmt(start)} and hold; the encoder stream is recorded."),
+                    ("alone", alone, f"Rotate joint {k} alone by {th:+g} deg, hold."),
+                    ("return", start, "Return to READY, hold."),
+                    ("with", both, f"Rotate joints {j} and {k} together by {th:+g} deg each, hold.")):
+                yield Step(
+                    key=f"coupling/j{j}k{k}/{name}{tag}", procedure="coupling",
+                    title=f"Coupling {j}->{k}: {name}{of}",
+                    instruction=text + " No sightings.", pose_deg=q, targets=(), faces=(),
+                    meta={"j": j, "k": k, "phase": name, "angle_deg": th, "repeat": r})
+
+
+# -- 5.4.2 encoder resolution -----------------------------------------------------------------------------------------
+def encoder_resolution(plan: dict, setup: dict) -> Iterator[Step]:
+    """Joint j stepped in one direction while A1, A2 are sighted and the encoder tapped (thesis Fig 5.14): the slope
+    of the measured angle on the counts is the resolution achieved.  The run spans enough degrees for reprocess to
+    fit the joint's axis from A2 over the run itself."""
+    p = plan.get("encoder_resolution", {})
+    a1, a2 = extended_targets(setup)
+    n, span = int(p.get("points", 6)), float(p.get("span_deg", 30.0))
+    for j in p.get("joints", [6]):
+        for i, a in enumerate(np.linspace(0.0, span, n)):
+            q = _pose(j, float(a))
             yield Step(
-                key=f"coupling/j{j}k{k}/{name}", procedure="coupling", title=f"Coupling {j}->{k}: {name}",
-                instruction=text + " No sightings.", pose_deg=q, targets=(), faces=(),
-                meta={"j": j, "k": k, "phase": name, "angle_deg": th})
+                key=f"resolution/j{j}/{i:02d}", procedure="encoder_resolution",
+                title=f"Joint {j} encoder resolution {i + 1}/{n}",
+                instruction=(f"Extended tool fitted. Step joint {j} to {q[j - 1]:+.2f} deg (positive direction only, "
+                             f"no load), hold; the encoder stream is recorded; sight A1 then A2 with {_both(setup)}."),
+                pose_deg=q, targets=(a1, a2), repeats=p.get("repeats", 1), meta={"joint": j, "index": i})
 
 
 @dataclass(frozen=True)
@@ -305,6 +338,7 @@ register_procedure("transmission", transmission)
 register_procedure("compliance", compliance)
 register_procedure("link_compliance", link_compliance)
 register_procedure("coupling", coupling)
+register_procedure("encoder_resolution", encoder_resolution)
 
 
 def all_steps(plan: dict, setup: dict) -> list[Step]:

@@ -27,7 +27,7 @@ import numpy as np
 from calib.errors import RobocalError
 from calib.provenance import provenance
 from calib.robot import load_robot
-from calib.units import ARCSEC, DEG
+from calib.units import ARCSEC, DEG, G0_M_S2
 
 from .setup_file import setup_from_text
 from .store import StoreError, code_version, connect_readonly, from_npy, json_column
@@ -839,7 +839,7 @@ def _link(steps, setup, est, twin, figs, n_mc, robot=None):
                 continue
             x.append(gx)
             a.append(s["load_x_mm"])
-            P.append(st["inputs"].get("load_n", s["load_n"]))
+            P.append(_link_load_n(st["inputs"], s))
             y.append(v)
     res = flexural_rigidity(x, a, P, y, sigma_mm=0.001, second_moment_mm4=cfg.get("second_moment_mm4"), n_mc=n_mc)
     tv = {}
@@ -849,6 +849,14 @@ def _link(steps, setup, est, twin, figs, n_mc, robot=None):
     est.add_set(f"link.j{cfg['joint']}.", res, tv, only=("EI_Nmm2",))
     figs["link"] = {"x_mm": x, "load_n": P, "deflection_mm": y, "EI_Nmm2": float(res["EI_Nmm2"].value),
                     "load_x_mm": a}
+
+
+def _link_load_n(inputs: dict, spec_setup: dict) -> float:
+    """The force hung at a link step (N): the mass the operator entered (``load_kg``, contract C3) times standard
+    gravity; sessions recorded before that entered ``load_n``; else the planned load."""
+    if inputs.get("load_kg") is not None:
+        return float(inputs["load_kg"]) * G0_M_S2
+    return float(inputs.get("load_n", spec_setup["load_n"]))
 
 
 def _coupling(steps, robot, est, twin, figs, n_mc):
