@@ -8,6 +8,7 @@ parser (a RecursionError).
 """
 from __future__ import annotations
 
+import functools
 import json
 import math
 from pathlib import Path
@@ -50,6 +51,7 @@ def json_path(parts) -> str:
     return out
 
 
+@functools.cache
 def _validator_class():
     """Draft 2020-12 with two more keywords, ``"finite": true`` and ``"notNaN": true`` (JSON Schema's ``number``
     lets NaN and Infinity through)."""

@@ -232,22 +232,29 @@ PROCEDURES: dict[str, Callable[..., SetupPlan]] = {"ruler": plan_ruler, "sweep":
 def sweep_targets(model, theta: np.ndarray, q_rad: np.ndarray, radius_mm: dict[int, float],
                   toward_mm=(0.0, -1e4, 0.0)) -> dict[str, dict]:
     """A target P_j for each joint's sweep at ``radius_mm[j]`` from joint j's axis (thesis section 4.3: "a reference
-    point P_j is chosen on the link j"), fixed on link j, across the axis from the flange's side (on the side facing
-    ``toward_mm``, the theodolites, when the flange is on the axis).  Returns ``{"j": {"link": j, "point_mm": [x, y,
-    z] in frame j, "radius_mm": R}}``."""
+    point P_j is chosen on the link j"), fixed on link j.  Where the axis is not vertical the target stands out
+    level across it (its circle is then seen edge-on by neither station and the arm, which hangs below or stands
+    above the axis, is not between them); on a vertical axis it stands out on the flange's side.  Of the two sides,
+    the one facing ``toward_mm`` (the theodolites).  Returns ``{"j": {"link": j, "point_mm": [x, y, z] in frame j,
+    "radius_mm": R}}``."""
     n = model.robot.n
     fp = model.kin.forward(np.asarray(q_rad, float)[None], theta[: model.n_geometric])
     R6, t6 = fp.frame_R[0, n], fp.frame_t[0, n]
+    g = fp.frame_R[0, 0] @ np.asarray(model.robot.gravity_m_s2, float)
+    up = -g / np.linalg.norm(g)
+    toward = np.asarray(toward_mm, float)
     out = {}
     for j, R in sorted(radius_mm.items()):
         z, o = fp.joint_axis[0, j - 1], fp.joint_origin[0, j - 1]
         r = t6 - o
         foot = o + (r @ z) * z
-        u = t6 - foot
-        if np.linalg.norm(u) < 1.0:                # the flange on the axis (wrist joints): along the flange's x
-            u = R6[:, 0] - (R6[:, 0] @ z) * z
+        u = np.cross(z, up)                         # level, across the axis
+        if np.linalg.norm(u) < 0.1:                 # the axis (nearly) vertical: towards the flange
+            u = t6 - foot
+            if np.linalg.norm(u) < 1.0:             # the flange on the axis too: along the flange's x
+                u = R6[:, 0] - (R6[:, 0] @ z) * z
         u /= np.linalg.norm(u)
-        if u @ (np.asarray(toward_mm, float) - foot) < 0:      # the side of the axis facing the theodolites
+        if u @ (toward - foot) < 0:                 # the side of the axis facing the theodolites
             u = -u
         p = foot + float(R) * u
         Rj, tj = fp.frame_R[0, j], fp.frame_t[0, j]

@@ -126,3 +126,25 @@ def test_report_as_a_person_sees_it(example_result, tmp_path):
     subprocess.run([BROWSER, *flags, "--window-size=1200,1600", f"--screenshot={shot}", path.as_uri()],
                    capture_output=True, timeout=120)
     assert shot.exists() and shot.stat().st_size > 20_000
+
+
+def test_a_failed_stage_is_explained_not_dumped(monkeypatch, tmp_path, capsys):
+    """A computation that fails on a stage's readings: the operator reads which stage and what to do; the exception
+    text stays in the JSON's problem_details, out of the terminal and the report."""
+    import acq.session.reprocess as rp
+    from acq.session.report import write_report
+    from acq.session.summary import print_summary
+
+    def broken(*a, **k):
+        raise np.linalg.LinAlgError("Singular matrix")
+    monkeypatch.setattr(rp, "_transmission", broken)
+    res = rp.reprocess(str(EXAMPLE))
+    te = [p for p in res["problems"] if p.startswith("transmission:")]
+    assert te and "Singular" not in te[0] and "repeat its steps" in te[0]
+    assert any("LinAlgError: Singular matrix" in d for d in res["problem_details"])
+    print_summary(res)
+    out = capsys.readouterr().out
+    assert "Transmission error" in out and "Singular" not in out
+    page = write_report(res, tmp_path).read_text(encoding="utf-8")
+    assert "The transmission stage did not give a result" in page and "Singular" not in page
+    assert "estimates" in json.loads((tmp_path / "results.json").read_text())

@@ -51,3 +51,18 @@ def test_no_deflection_and_missing_series_refused():
         two_slope_fit(T[:3], th[:3], unl[:3], 1e-6)
     with pytest.raises(EstimationError, match="eq 4.5.1: the load produced no measurable deflection"):
         stiffness_single(100.0, 500.0, 0.0, 0.0)
+
+
+def test_breakpoint_never_reported_at_a_bound_with_zero_error():
+    rng = np.random.default_rng(4)
+    K = 2.0e4
+    T = np.r_[np.linspace(0, 40, 9), np.linspace(40, 0, 9)]
+    u = np.r_[np.zeros(9), np.ones(9)].astype(bool)
+    y = T / K + 1e-4 * u + 2e-5 * rng.standard_normal(18)          # one slope: no breakpoint to find
+    res = two_slope_fit(T, y, u, 2e-5, n_mc=0)
+    assert "breakpoint_Nm" not in res.names and "K2_Nm_per_rad" not in res.names
+    assert "not determined" in res.extras["not_determined"]["breakpoint_Nm"]
+    assert abs(res["K1_Nm_per_rad"].value - K) < 4 * res["K1_Nm_per_rad"].error
+    assert all(e.error > 0 for e in res.estimates())
+    with pytest.raises(EstimationError, match="not determined"):      # a load that twists nothing
+        two_slope_fit(T, 1e-4 * u + 2e-5 * rng.standard_normal(18) + T * 1e-7, u, 2e-5, n_mc=0)

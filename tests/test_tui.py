@@ -300,3 +300,32 @@ def test_session_command_bad_device_arguments(tmp_path, args, words):
     r = subprocess.run([sys.executable, "-m", "acq.cli", *args, "--db", str(tmp_path / "n.db")],
                        capture_output=True, text=True, timeout=60)
     assert r.returncode == 2 and words in r.stderr and "Traceback" not in r.stderr
+
+
+def test_a_plan_that_fails_the_preflight_is_refused_with_the_reason(tmp_path):
+    """A session whose plan drives joint 4 past its stop: the TUI shows why, nothing is recorded."""
+    from acq.session.demo import build_demo, demo_plan
+    from calib.twin import Twin
+    db = tmp_path / "bad.db"
+    plan = demo_plan(Twin(seed=2), 2, n_poses=8)
+    plan["procedures"] = ["transmission"]
+    plan["transmission"] = {"joints": [4], "points": 3, "range_deg": {"4": [-150.0, 0.0]}}
+    build_demo(db, seed=2, plan=plan).close()
+
+    async def main():
+        app = RobocalApp(emulated_builder(str(db), 2), clock=False)
+        async with app.run_test(size=(180, 50)) as pilot:
+            t0 = time.monotonic()
+            while app.finished is None and time.monotonic() - t0 < 30:
+                await pilot.pause(0.1)
+            assert app.finished["exit_status"] == "refused"
+            step = str(app.query_one("#step").render())
+            assert "pre-flight failed for 1 step(s)" in step and "te/j4/00: joint limit" in step
+            assert "Nothing was recorded" in step and "powered" not in step
+            await pilot.press("q")
+
+    run(main())
+    store = SessionStore.open(str(db))
+    assert not store.done_keys()
+    assert store.session_row()["exit_status"] is None
+    store.close()

@@ -37,6 +37,20 @@ async def _at_first_step(app, pilot):
     raise AssertionError("the first step never showed")
 
 
+async def _settled(pilot, tries: int = 30):
+    """Wait until two screenshots 0.2 s apart agree: timers (live values, devices) have caught up with the events,
+    so the snapshot shows the steady screen and not a moment in between."""
+    last = None
+    for _ in range(tries):
+        await pilot.wait_for_scheduled_animations()
+        await pilot.pause(0.2)
+        shot = pilot.app.export_screenshot()
+        if shot == last:
+            return
+        last = shot
+    raise AssertionError("the screen never settled")
+
+
 def _visible_text(app) -> str:
     return "\n".join(str(w.render()) for w in app.query("Static") if w.display and w.region.width > 0)
 
@@ -85,7 +99,7 @@ def test_step_title_instruction_and_prompt_get_the_room_they_need(size):
 def test_snapshot_first_step(snap_compare, size):
     async def run_before(pilot):
         await _at_first_step(pilot.app, pilot)
-        await pilot.pause(0.2)
+        await _settled(pilot)
 
     assert snap_compare(RobocalApp(still_builder, clock=False, final_results=False), run_before=run_before,
                         terminal_size=size)

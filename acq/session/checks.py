@@ -30,7 +30,7 @@ from calib.units import ARCSEC, DEG
 DEFAULT_LIMITS = {
     "face_agreement_arcsec": 40.0,     # |2c| and |2k| from face I / face II
     "repeat_spread_arcsec": 15.0,      # std of repeat sightings
-    "miss_distance_mm": 5.0,           # shortest distance between the sight lines of A and B (setup stations)
+    "miss_distance_mm": 5.0,           # shortest distance between the two stations' sight lines (setup stations)
     "miss_distance_sigmas": 6.0,       # ... with ruler-fitted stations: this many noise sigmas of the miss
     "miss_distance_floor_mm": 0.1,     # ... but never tighter than this
     "encoder_ptp_counts": 2.0,         # encoder counts moving while holding
@@ -147,7 +147,8 @@ def miss_and_plausibility(readings: list[dict], stations: dict[str, Station], pr
             lim = limits["miss_distance_mm"]
         ok = miss <= lim
         out.append(Check(f"miss distance {tg}", ok, miss, lim, "mm",
-                         "sight lines meet" if ok else f"the sight lines of A and B pass {miss:.2f} mm apart: one "
+                         "sight lines meet" if ok else f"the sight lines of {' and '.join(list(stations)[:2])} pass "
+                         f"{miss:.2f} mm apart: one "
                          f"instrument is not on the centre of {tg} (most often a vertical pointing error); re-sight "
                          f"both"))
         if tg in predicted:

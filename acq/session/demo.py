@@ -28,7 +28,7 @@ from calib.units import ARCSEC, DEG
 from .headless import ScriptedOperator
 from .preflight import Preflight
 from .setup import predictor, session_setup, setup_stations, standard_setup
-from .procedures import READY_DEG, all_steps
+from .procedures import all_steps, tool_target
 from .rig import EmulatedBench, Rig
 from .runner import Runner
 from .steps import Step
@@ -89,9 +89,17 @@ def demo_plan(twin: Twin, seed: int, n_poses: int = DEMO_POSES, quick: bool = Tr
 
 
 def _visible(twin: Twin, q_rad: np.ndarray) -> np.ndarray:
-    """Poses whose tool target is in front of both stations, above the floor and not too close."""
+    """Poses whose tool target is in front of both stations, above the floor, not too close, and that pass the
+    pre-flight (sight lines clear of the arm, inside the limits) with the demo's set-up."""
     pts = MeasurementModel(twin.robot).points(q_rad, theta=_nominal_theta(twin))
-    return (pts[:, 1] > 1200) & (pts[:, 2] > -400)
+    ok = (pts[:, 1] > 1200) & (pts[:, 2] > -400)
+    setup = session_setup(demo_setup(twin), twin.robot)
+    pf = Preflight(twin.robot, setup)
+    target = tool_target(setup)
+    for i in np.flatnonzero(ok):
+        step = Step("pose", "poses", "", "", pose_deg=tuple(np.asarray(q_rad[i]) / DEG), targets=(target,))
+        ok[i] = not pf.check_step(step)
+    return ok
 
 
 def _nominal_theta(twin: Twin, tool_mm=(50.0, 0.0, 100.0)) -> np.ndarray:

@@ -24,6 +24,12 @@ def _fmt(q) -> str:
     return "[" + ", ".join(f"{v:.1f}" for v in q) + "] deg"
 
 
+def _both(setup: dict) -> str:
+    """"theodolite A, then with B" with the set-up's station names."""
+    a, b = station_names(setup)
+    return f"theodolite {a}, then with {b}"
+
+
 def _pose(j: int, angle_deg: float, base=READY_DEG) -> tuple[float, ...]:
     q = list(base)
     q[j - 1] += angle_deg
@@ -130,7 +136,7 @@ def sweeps(plan: dict, setup: dict) -> Iterator[Step]:
             yield Step(
                 key=f"sweep/j{j}/{i:02d}", procedure="sweep", title=f"Joint {j} sweep, position {i + 1}/{n}",
                 instruction=(f"Other joints at READY. Rotate joint {j} to about {q[j - 1]:+.1f} deg (always in "
-                             f"the positive direction), sight target P with theodolite A, then with B."),
+                             f"the positive direction), sight target P with {_both(setup)}."),
                 pose_deg=q, targets=(sweep_target(setup, j),), repeats=p.get("repeats", 1),
                 meta={"joint": j, "index": i, "swept_joint": j})
 
@@ -143,7 +149,7 @@ def poses(plan: dict, setup: dict) -> Iterator[Step]:
     for i, q in enumerate(qs):
         yield Step(
             key=f"poses/{i:03d}", procedure="poses", title=f"Pose {i + 1}/{len(qs)}",
-            instruction=f"Move the robot to {_fmt(q)}, sight target P with theodolite A, then with B.",
+            instruction=f"Move the robot to {_fmt(q)}, sight target P with {_both(setup)}.",
             pose_deg=tuple(q), targets=(tool_target(setup),), repeats=p.get("repeats", 1), meta={"index": i})
 
 
@@ -160,7 +166,7 @@ def transmission(plan: dict, setup: dict) -> Iterator[Step]:
             yield Step(
                 key=f"te/j{j}/{i:02d}", procedure="transmission", title=f"Joint {j} transmission error {i + 1}/{n}",
                 instruction=(f"Extended tool fitted. Rotate joint {j} to {q[j - 1]:+.1f} deg (positive direction "
-                             f"only, no load), sight A1 then A2 with theodolite A, then with B."),
+                             f"only, no load), sight A1 then A2 with {_both(setup)}."),
                 pose_deg=q, targets=(a1, a2), repeats=p.get("repeats", 1), meta={"joint": j, "index": i})
 
 

@@ -18,6 +18,7 @@ still run.
 """
 from __future__ import annotations
 
+import sqlite3
 import time
 from dataclasses import dataclass, field
 
@@ -52,28 +53,35 @@ def load_session(path: str) -> SessionData:
     """Every accepted step with the readings of its accepted (last) attempt; opened read-only."""
     conn = connect_readonly(path)
     try:
-        sess = _rows(conn, "SELECT * FROM session ORDER BY session_id LIMIT 1")
-        if not sess:
-            raise RobocalError(f"{path}: holds no session")
-        s = sess[0]
-        steps = _rows(conn, "SELECT * FROM step WHERE session_id=? AND status='accepted' ORDER BY seq",
-                      (s["session_id"],))
-        for st in steps:
-            a = st["attempts"]
-            st["spec"] = json_column(st["spec_json"], f"{path}: step {st['key']!r}: spec_json")
-            st["readings"] = _rows(conn, "SELECT station, target, face, repeat, hz_rad, v_rad FROM reading "
-                                         "WHERE step_id=? AND attempt=? ORDER BY reading_id", (st["step_id"], a))
-            st["inputs"] = {r["name"]: r["value"] for r in _rows(
-                conn, "SELECT name, value FROM operator_input WHERE step_id=? AND attempt=? ORDER BY input_id",
-                (st["step_id"], a))}
-            ch = _rows(conn, "SELECT counts FROM encoder_chunk WHERE step_id=? AND attempt=? ORDER BY chunk_id",
-                       (st["step_id"], a))
-            st["counts"] = _counts(ch, f"{path}: step {st['key']!r}: encoder counts")
-        devices = _rows(conn, "SELECT role, driver, url, identity_json FROM device")
-        return SessionData(path, s, json_column(s["plan_json"], f"{path}: session plan_json"),
-                           setup_from_text(s["setup_json"], f"{path}: session setup_json"), steps, devices)
+        return _load(conn, path)
+    except sqlite3.DatabaseError as exc:
+        raise StoreError(f"{path}: damaged database ({exc})") from None
     finally:
         conn.close()
+
+
+def _load(conn, path: str) -> SessionData:
+    """The rows of :func:`load_session`, each JSON column and array blob checked as it is read."""
+    sess = _rows(conn, "SELECT * FROM session ORDER BY session_id LIMIT 1")
+    if not sess:
+        raise RobocalError(f"{path}: holds no session")
+    s = sess[0]
+    steps = _rows(conn, "SELECT * FROM step WHERE session_id=? AND status='accepted' ORDER BY seq",
+                  (s["session_id"],))
+    for st in steps:
+        a = st["attempts"]
+        st["spec"] = json_column(st["spec_json"], f"{path}: step {st['key']!r}: spec_json")
+        st["readings"] = _rows(conn, "SELECT station, target, face, repeat, hz_rad, v_rad FROM reading "
+                                     "WHERE step_id=? AND attempt=? ORDER BY reading_id", (st["step_id"], a))
+        st["inputs"] = {r["name"]: r["value"] for r in _rows(
+            conn, "SELECT name, value FROM operator_input WHERE step_id=? AND attempt=? ORDER BY input_id",
+            (st["step_id"], a))}
+        ch = _rows(conn, "SELECT counts FROM encoder_chunk WHERE step_id=? AND attempt=? ORDER BY chunk_id",
+                   (st["step_id"], a))
+        st["counts"] = _counts(ch, f"{path}: step {st['key']!r}: encoder counts")
+    devices = _rows(conn, "SELECT role, driver, url, identity_json FROM device")
+    return SessionData(path, s, json_column(s["plan_json"], f"{path}: session plan_json"),
+                       setup_from_text(s["setup_json"], f"{path}: session setup_json"), steps, devices)
 
 
 def _counts(chunks: list[dict], where: str) -> np.ndarray | None:
@@ -131,6 +139,7 @@ def reprocess(path: str, n_mc: int = 0, progress=None) -> dict:
     est = _Est(truth)
     robot = load_robot(data.setup.get("robot") or None)
     problems: list[str] = []
+    details: list[str] = []          # the technical cause of a failed stage: JSON only, never the terminal or report
     figs: dict = {}
     by_proc: dict[str, list[dict]] = {}
     for st in data.steps:
@@ -143,7 +152,7 @@ def reprocess(path: str, n_mc: int = 0, progress=None) -> dict:
     try:
         stations = _ruler(by_proc.get("ruler", []), data.setup, sigma, est, twin, figs)
     except (RobocalError, KeyError, ValueError, IndexError) as exc:
-        problems.append(f"ruler: {exc}")
+        problems.append(_worded("ruler", exc, details))
     if stations is None:
         from calib.estimators.points import StationFit
         from .setup import setup_stations
@@ -170,7 +179,7 @@ def reprocess(path: str, n_mc: int = 0, progress=None) -> dict:
     try:
         axes = _sweeps(by_proc.get("sweep", []), points, robot, data.setup, est, truth, figs, n_mc)
     except (RobocalError, KeyError, ValueError, IndexError) as exc:
-        problems.append(f"sweeps: {exc}")
+        problems.append(_worded("sweeps", exc, details))
     step("sweeps", 0.3)
     # 5-6 before the pose set: their running errors enter its model (priors on the effects) -------------------------
     running: dict = {}
@@ -178,12 +187,12 @@ def reprocess(path: str, n_mc: int = 0, progress=None) -> dict:
         running["transmission"] = _transmission(by_proc.get("transmission", []), points, robot, axes, est, twin,
                                                 figs, n_mc)
     except (RobocalError, KeyError, ValueError, IndexError) as exc:
-        problems.append(f"transmission: {exc}")
+        problems.append(_worded("transmission", exc, details))
     try:
         running["compliance"] = _compliance(by_proc.get("compliance", []), points, robot, axes, est, twin, figs,
                                             n_mc, data.setup, problems)
     except (RobocalError, KeyError, ValueError, IndexError) as exc:
-        problems.append(f"compliance: {exc}")
+        problems.append(_worded("compliance", exc, details))
     step("running errors", 0.45)
     # 4. pose set ---------------------------------------------------------------------------------------------------
     ident_doc = None
@@ -191,21 +200,21 @@ def reprocess(path: str, n_mc: int = 0, progress=None) -> dict:
         ident_doc = _poses(by_proc.get("poses", []), points, robot, data.setup, est, twin, figs, running, problems,
                            by_proc.get("coupling", []))
     except (RobocalError, KeyError, ValueError, IndexError) as exc:
-        problems.append(f"poses: {exc}")
+        problems.append(_worded("poses", exc, details))
     step("poses", 0.8)
     # 7-8 ---------------------------------------------------------------------------------------------------------
     try:
         _link(by_proc.get("link_compliance", []), data.setup, est, twin, figs, n_mc)
     except (RobocalError, KeyError, ValueError, IndexError) as exc:
-        problems.append(f"link compliance: {exc}")
+        problems.append(_worded("link compliance", exc, details))
     try:
         _coupling(by_proc.get("coupling", []), robot, est, twin, figs, n_mc)
     except (RobocalError, KeyError, ValueError, IndexError) as exc:
-        problems.append(f"coupling: {exc}")
+        problems.append(_worded("coupling", exc, details))
     try:
         _resolution(by_proc.get("encoder_resolution", []), points, robot, est, twin, figs)
     except (RobocalError, KeyError, ValueError, IndexError) as exc:
-        problems.append(f"encoder resolution: {exc}")
+        problems.append(_worded("encoder resolution", exc, details))
     step("done", 1.0)
     problems += figs.pop("problems", [])          # what a stage could not do for part of its data
     return {
@@ -218,19 +227,33 @@ def reprocess(path: str, n_mc: int = 0, progress=None) -> dict:
         "accuracy": {k: v for k, v in figs.get("accuracy", {}).items() if not k.endswith(("_err_mm", "_index"))}
         or None,
         "problems": problems,
+        "problem_details": details,
         "robot": ident_doc,
         "figures": figs,
     }
 
 
+def _worded(stage: str, exc: Exception, details: list[str]) -> str:
+    """A failed stage in words for the operator: robocal's own errors already say what is wrong; anything else (a
+    computation that failed on these readings) is said plainly, its technical cause kept in ``details`` (the JSON's
+    ``problem_details``) for whoever maintains robocal, never shown as exception text."""
+    if isinstance(exc, RobocalError):
+        return f"{stage}: {exc}"
+    details.append(f"{stage}: {type(exc).__name__}: {exc}")
+    return (f"{stage}: the recorded readings of this stage could not be reduced to estimates (the computation failed "
+            f"on them); check that every step of it was recorded, repeat its steps, and send the session file with "
+            f"the results JSON to the maintainers if it persists")
+
+
 # -- stages ------------------------------------------------------------------------------------------------------
 def _ruler(steps, setup, sigma, est, twin, figs):
     """The same ruler fit the runner uses live (:mod:`acq.session.stations`), recorded with its estimates."""
+    from .setup import station_names
     from .stations import fit_ruler, ruler_rows, ruler_station_fit
     if not steps:
         return None
-    res, stations = fit_ruler(ruler_rows(steps), {**setup, "stations": {**setup["stations"],
-                                                                          "sigma_arcsec": sigma / ARCSEC}})
+    cfg = {**setup, "stations": {**setup["stations"], "sigma_arcsec": sigma / ARCSEC}}
+    res, stations = fit_ruler(ruler_rows(steps, station_names(setup)), cfg)
     tv = {}
     if twin is not None:
         A, B = twin.stations
@@ -419,7 +442,7 @@ def _poses(steps, points, robot, setup, est, twin, figs, running=None, problems=
     if not steps:
         return None
     problems = [] if problems is None else problems
-    q, P, S = [], [], []
+    q, P, S, D = [], [], [], []
     for st in steps:
         pt = points(st).get("P") if st["readings"] else None
         if pt is None and all(k in st["inputs"] for k in ("x_mm", "y_mm", "z_mm")):     # imported pose CSV
@@ -430,6 +453,7 @@ def _poses(steps, points, robot, setup, est, twin, figs, running=None, problems=
         q.append(qe if qe is not None else np.asarray(st["spec"]["pose_deg"]) * DEG)
         P.append(pt[0])
         S.append(pt[1])
+        D.append(getattr(pt, "d_station", None))
     if len(q) < 8:
         raise RobocalError(f"only {len(q)} poses with both sightings; identification needs more")
     specs = running_error_specs(setup, running or {}, coupling_steps)
@@ -439,6 +463,7 @@ def _poses(steps, points, robot, setup, est, twin, figs, running=None, problems=
     # the dead zone needs loading and unloading, which a pose set has not: it stays out
     wanted = [n for n in default_free(model, effects=True) if not n.endswith("deadzone_rad")]
     ident = identify(model, obs, free=wanted, theta0=theta0, priors=priors)
+    sigma = np.sqrt(ident.sigma ** 2 + _station_variance(model, obs, D, ident, priors, points.station_fit))
     truth = twin.true_parameters() if twin is not None else None
     gauge = _gauge_truth(twin, model, ident, q) if twin is not None else {}
     for n in ident.free:
@@ -446,10 +471,10 @@ def _poses(steps, points, robot, setup, est, twin, figs, running=None, problems=
         raw = None if truth is None else truth.get(n)
         extra = {}
         tv = gauge.get(n, raw)
-        if raw is not None and tv is not None and abs(tv - raw) > 0.1 * ident.sigma[i]:
+        if raw is not None and tv is not None and abs(tv - raw) > 0.1 * sigma[i]:
             extra = {"truth_raw": float(raw), "note": "truth in the gauge of the held parameters (what perfect data "
                                                       "would give with them at their design values)"}
-        est.add(f"ident.{n}", ident.theta[i], ident.sigma[i], _unit(n), truth_value=tv, **extra)
+        est.add(f"ident.{n}", ident.theta[i], sigma[i], _unit(n), truth_value=tv, **extra)
     for n in wanted:
         if n in ident.free:
             continue
@@ -477,6 +502,31 @@ def _accuracy(model, obs, free, theta0, priors, figs, problems) -> None:
         return
     figs["accuracy"] = {**acc.as_dict(), "test_index": acc.test_index.tolist(),
                         "before_err_mm": acc.before_err_mm.tolist(), "after_err_mm": acc.after_err_mm.tolist()}
+
+
+def _station_variance(model, obs, D, ident, priors, fit) -> np.ndarray:
+    """What the stations' own uncertainty adds to each identified parameter's variance.
+
+    Why: every pose point was intersected with the same ruler-fitted stations, so an error in L (a scale) or B's
+    height moves all of them together and does not average down over the poses; the identification's covariance
+    treats the points as independent.  Each station parameter is moved by its 1-sigma, the points follow through
+    their sensitivities, and the identification is re-solved from its own estimate: ``G U_station G^T``."""
+    from calib.identify import PointObservations, identify
+    out = np.zeros(len(ident.theta))
+    if not fit.cov.size or any(d is None for d in D):
+        return out
+    Dk = np.array(D)                                          # (N, 3, K)
+    G = []
+    for k, sd in enumerate(np.sqrt(np.diag(fit.cov))):
+        moved = PointObservations(obs.q_rad, obs.points_mm + Dk[:, :, k] * sd, cov_mm2=obs.cov_mm2)
+        try:
+            g = identify(model, moved, free=list(ident.free), theta0=ident.theta, priors=priors)
+        except RobocalError:
+            return out
+        with np.errstate(invalid="ignore"):
+            G.append(np.nan_to_num((g.theta - ident.theta) / sd))  # parameters at +-inf (none free) give 0
+    G = np.stack(G, -1)
+    return np.einsum("pk,kl,pl->p", G, fit.cov, G)
 
 
 def _unit(name: str) -> str:
@@ -594,7 +644,9 @@ def _setup_model(robot, setup):
 
 def _step_loads(st, robot, model, theta):
     """The step's joint readings, total torque about every joint (N m: the description's link weights plus the
-    recorded hung masses, from geometry) and the joints' axes (N, 3) at that pose in the measurement frame."""
+    recorded hung masses, from geometry), the joints' axes (N, 3) at that pose in the measurement frame, and the
+    torques' derivatives: w.r.t. the geometric parameters (n, P_geometric) and w.r.t. the load points' coordinates
+    in their frames (n, 3, summed over the loads: they move together when the lever is measured wrong)."""
     from .rig import c3_setup
     spec = st["spec"]
     q = _encoder_q(st, robot)
@@ -602,11 +654,49 @@ def _step_loads(st, robot, model, theta):
     s = c3_setup(spec["setup"], spec["pose_deg"], st["inputs"], model.kin)
     g = model.gravity_n_per_kg(theta)
     loads = s.get("loads", [])
-    ctx = model.context(1, point_force_link=[int(ld["link"]) for ld in loads],
+    links = [int(ld["link"]) for ld in loads]
+    F = np.array([ld["mass_kg"] * g for ld in loads], float).reshape(-1, 3)
+    ctx = model.context(1, point_force_link=links,
                         point_force_mm=np.array([ld["point_mm"] for ld in loads], float).reshape(1, -1, 3),
-                        point_force_n=np.array([ld["mass_kg"] * g for ld in loads], float).reshape(1, -1, 3))
+                        point_force_n=F[None])
     fp = model.kin.forward(q[None], theta[: model.n_geometric])
-    return q, model.loads(fp, ctx).joint_torque_nm[0], fp.joint_axis[0]
+    ld = model.loads(fp, ctx, derivative=True)
+    # moving a load's point by e_c in its frame j adds (R_j e_c x F) . z_i to joint i's torque (i <= j)
+    z = fp.joint_axis[0]
+    dpoint = np.zeros((robot.n, 3))
+    for b, f in zip(links, F):
+        R = fp.frame_R[0, b]
+        for i in range(min(b, robot.n)):
+            dpoint[i] += np.cross(R.T, f * 1e-3) @ z[i]
+    return q, ld.joint_torque_nm[0], z, ld.dtau_dgeo[0], dpoint
+
+
+def _swept_geometry(model, theta, est):
+    """The geometry the torques are computed with, and each parameter's 1-sigma: the session's own DH estimates
+    from the sweeps where it has them (they run first), the description within its tolerances
+    (:data:`acq.session.setup.DESCRIPTION_TOLERANCES`) elsewhere.  Why: a Puma's a3 can be 10 mm off its drawing,
+    which is 2 % of a compliance lever."""
+    from .setup import DESCRIPTION_TOLERANCES as tol
+    theta = theta.copy()
+    sig = np.array([tol["length_mm"] if n.startswith("j") and n.endswith("_mm") else
+                    tol["angle_deg"] * DEG if n.startswith("j") and n.endswith("_rad") else 0.0
+                    for n in model.kin.names])
+    for e in est.items:
+        name = e["name"][3:]
+        if e["name"].startswith("dh.") and name in model.kin.index and not e["held"] and np.isfinite(e["error"]):
+            theta[model.index[name]], sig[model.kin.index[name]] = e["value"], e["error"]
+    return theta, sig
+
+
+def _torque_cov(per_step, j, sig_geo) -> np.ndarray:
+    """Covariance of the torques about joint j over a loading series, from the geometry they were computed with
+    (``sig_geo``, per geometric parameter) and the load point's position (a lever measured with a tape: the tool
+    tolerance), each common to the whole series -- the thesis's Delta L_j and Delta theta_ij terms, from the model's
+    torque derivative instead of N L cos(theta)."""
+    from .setup import DESCRIPTION_TOLERANCES as tol
+    Jg = np.array([p[3][j - 1] for p in per_step]) * sig_geo                  # (steps, P)
+    Jp = np.array([p[4][j - 1] for p in per_step]) * tol["tool_mm"]           # (steps, 3)
+    return Jg @ Jg.T + Jp @ Jp.T
 
 
 def _commanded(sts, meas, cov, ok, j, est, figs):
@@ -657,6 +747,7 @@ def _compliance(steps, points, robot, axes, est, twin, figs, n_mc, setup=None, p
         return
     problems = [] if problems is None else problems
     model, theta = _setup_model(robot, setup or {})
+    theta, sig_geo = _swept_geometry(model, theta, est)
     by_joint: dict[int, list] = {}
     for st in steps:
         by_joint.setdefault(st["spec"]["meta"]["joint"], []).append(st)
@@ -665,7 +756,7 @@ def _compliance(steps, points, robot, axes, est, twin, figs, n_mc, setup=None, p
     for j, sts in sorted(by_joint.items()):
         sts.sort(key=lambda s: s["spec"]["meta"]["index"])
         per_step = [_step_loads(s, robot, model, theta) for s in sts]
-        T = np.array([tau[j - 1] for _, tau, _ in per_step])
+        T = np.array([p[1][j - 1] for p in per_step])
         # the joint's axis at the loading pose (it is not the swept one when the pose differs)
         axis = per_step[0][2][j - 1]
         applied = np.ptp(T)
@@ -678,7 +769,8 @@ def _compliance(steps, points, robot, axes, est, twin, figs, n_mc, setup=None, p
         defl, sig, dcov = _joint_angles(sts, points, axis, full=True)
         unload = np.array([s["spec"]["meta"]["phase"] == "unload" for s in sts])
         try:
-            res = two_slope_fit(sign * T, sign * defl, unload, dcov, n_mc=n_mc)
+            res = two_slope_fit(sign * T, sign * defl, unload, dcov, n_mc=n_mc,
+                                sigma_torque_Nm=_torque_cov(per_step, j, sig_geo))
         except RobocalError as exc:                 # e.g. "not determined": the other joints still count
             problems.append(f"compliance: joint {j}: {exc}")
             continue

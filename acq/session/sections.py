@@ -7,8 +7,8 @@ stiffness in N m/rad with lb in/rad beside it (the thesis's unit); everything el
 
 Verdicts (per estimate, then per section: the worst of its estimates):
 * ``determined``: the stated 1-sigma error is small against the quantity (under 10 % of a magnitude such as a
-  stiffness or a length; under 0.5 mm / 0.01 deg for a deviation that may be near zero);
-* ``weakly determined``: under 50 % / 2 mm / 0.05 deg;
+  stiffness or a length; under 0.5 mm / 0.01 deg / 0.001 for a deviation or share that may be near zero);
+* ``weakly determined``: under 50 % / 2 mm / 0.05 deg / 0.005;
 * ``not determined``: anything larger, a zero or non-finite error on an estimated quantity, or a parameter held at its
   design value.
 """
@@ -64,6 +64,8 @@ def verdict_of(e: dict) -> str:
         return DETERMINED if err < 0.5 else WEAK if err < 2.0 else UNDETERMINED
     if unit == "rad":
         return DETERMINED if err < 0.01 * DEG else WEAK if err < 0.05 * DEG else UNDETERMINED
+    if unit == "1":                 # a dimensionless share that may be near zero (coupling left, E_a slope)
+        return DETERMINED if err < 1e-3 else WEAK if err < 5e-3 else UNDETERMINED
     return DETERMINED if err < 0.1 * max(abs(val), 1e-12) else WEAK if err < 0.5 * abs(val) else UNDETERMINED
 
 
@@ -124,7 +126,7 @@ section(Section(
      ThesisRow("γ1 (Fig 5.4)", "ruler.gamma1_rad", -1.489, "deg", 0.013),
      ThesisRow("γ2 (Fig 5.4)", "ruler.gamma2_rad", 1.358, "deg", 0.010)], ("ruler",)))
 section(Section(
-    "sweep", "Joint axes and DH parameters (circle point analysis, §4.3)", ("dh.",),
+    "sweep", "Joint axes and DH parameters (circle point analysis, §4.3)", ("dh.", "misalign."),
     "Each joint swept alone while a target on its link is sighted; a circle and its axis fitted per joint; the DH "
     "parameters follow from successive axes.", ("sweeps", "sweep"),
     "Widen the sweep of a joint whose axis is weakly determined, or put its target farther from the axis "
@@ -153,7 +155,8 @@ section(Section(
      ThesisRow("K4 above", "compliance.j4.K2_Nm_per_rad", 1.698e5 * NM_PER_LBIN, "N m/rad")], ("compliance",)))
 section(Section(
     "link_compliance", "Link compliance (§4.6)", ("link.",),
-    "Dial gauges along a link, loads at its end; the flexural rigidity from the gauge readings.", ("link",),
+    "Dial gauges along a link, loads at its end; the flexural rigidity from the gauge readings.",
+    ("link", "link compliance"),
     "Repeat with larger loads or gauges farther from the joint.", [], ("link",)))
 section(Section(
     "coupling", "Wrist cross coupling (§4.7)", ("coupling.",),

@@ -30,6 +30,9 @@ def standard_setup() -> dict:
         "stations": {"names": ["A", "B"], "L_mm": 1610.0, "gamma1_deg": -1.49, "gamma2_deg": 1.36,
                      "sigma_arcsec": 3.0},
         "min_focus_mm": 900.0,
+        # the arm's links as 50 mm-radius bars along the chain, for the pre-flight's line of sight (the description
+        # has no link shapes; a Puma's forearm is about 100 mm across)
+        "preflight": {"link_radius_mm": 50.0},
         "tool_target_mm": [50.0, 0.0, 100.0],
         "sweep_radius_mm": 600.0,
         "extended_tool": {"A1_mm": [0.0, 0.0, 100.0], "A2_mm": [500.0, 0.0, 600.0]},      # 707 mm apart

@@ -53,11 +53,12 @@ def ruler_station_fit(res, stations: dict[str, Station]):
     (:class:`calib.estimators.points.StationFit`), so every point carries the stations' uncertainty."""
     from calib.estimators.points import StationFit
     names = ["L_mm", "gamma1_rad", "gamma2_rad", "hB_mm"]
-    sigma = stations["A"].sigma_hz_rad
+    keys = list(stations)                           # the set-up's names, the first at the origin
+    sigma = stations[keys[0]].sigma_hz_rad
     sub = res.subset(names)
 
     def build(v):
-        return dict(zip(("A", "B"), thesis_stations(v[0], v[1], v[2], sigma, v[3])))
+        return {k: replace(s, name=k) for k, s in zip(keys, thesis_stations(v[0], v[1], v[2], sigma, v[3]))}
 
     return StationFit(names, sub.value.copy(), sub.cov.copy(), build)
 

@@ -174,11 +174,9 @@ class StoreError(RobocalError):
 
 
 def code_version() -> str:
-    try:
-        from importlib.metadata import version
-        return version("robocal")
-    except Exception:          # pragma: no cover - running from a source tree without metadata
-        return "0+unknown"
+    """The robocal version stored with sessions and results (one definition: :mod:`calib.provenance`)."""
+    from calib.provenance import robocal_version
+    return robocal_version()
 
 
 # -- npy blobs ---------------------------------------------------------------------------------------------------
@@ -275,6 +273,12 @@ def connect(path: str | Path, *, create: bool = False, target_version: int = SCH
     return conn
 
 
+def _damaged_text_visible(raw: bytes) -> str:
+    """Text columns of a damaged file: invalid UTF-8 shows as U+FFFD (a damaged JSON column then fails its parse
+    with one line naming it) instead of an sqlite3 error in the middle of a read."""
+    return raw.decode("utf-8", errors="replace")
+
+
 def connect_readonly(path: str | Path) -> sqlite3.Connection:
     """Read-only connection (``mode=ro`` URI): reprocessing can never modify raw data."""
     p = str(path)
@@ -283,6 +287,7 @@ def connect_readonly(path: str | Path) -> sqlite3.Connection:
     uri = Path(p).resolve().as_uri() + "?mode=ro"
     try:
         conn = sqlite3.connect(uri, uri=True, isolation_level=None, check_same_thread=False)
+        conn.text_factory = _damaged_text_visible
         app, ver = _probe(conn, p)
         if app != APPLICATION_ID:
             conn.close()

@@ -150,6 +150,7 @@ class RobocalApp(App):
         self.progress = Progress()
         self.groups: dict = {}                               # procedure -> its node in the plan tree
         self.step_t0: dict[str, float] = {}                  # key -> when the step started (for the estimate)
+        self.preflight_lines: list[str] = []                 # why the runner refused to start, one line a step
 
     # -- layout -------------------------------------------------------------------------------------------------
     def compose(self) -> ComposeResult:
@@ -229,6 +230,15 @@ class RobocalApp(App):
         cur = self.steps_by_key[self.current_key].procedure if self.current_key in self.steps_by_key else None
         self.sub_title = self.progress.header(cur)
 
+    def _relayout_text(self) -> None:
+        """Measure the wrapped texts again at the width they have now: a text set while the layout was still
+        settling (start-up, a breakpoint change, a resize) must never keep the height of a wider column."""
+        for w in self.query("#step, #prompt, #live, #diagram"):
+            w.refresh(layout=True)
+
+    def on_resize(self, event) -> None:
+        self.call_after_refresh(self._relayout_text)
+
     @on(Tree.NodeHighlighted, "#plan")
     def _plan_highlighted(self, event: Tree.NodeHighlighted) -> None:
         step = self.steps_by_key.get(event.node.data) if event.node.data else None
@@ -261,6 +271,7 @@ class RobocalApp(App):
     def _ev_state(self, d: dict) -> None:
         self.state = d.get("new", "")
         self.log_line(f"state: {d.get('old')} -> {d.get('new')}")
+        self._refresh_devices()                  # the state line follows the event, not the next timer tick
 
     def _ev_session(self, d: dict) -> None:
         resumed = " (resumed)" if d.get("resumed") else ""
@@ -294,6 +305,7 @@ class RobocalApp(App):
             f"[b]{d.get('title', key)}[/b]{attempt}   step {d.get('index', 0) + 1} of {d.get('total', '?')}\n"
             f"{d.get('instruction', '')}{pose_txt}")
         self.query_one("#diagram", Static).update(DIAGRAMS.get(d.get("procedure", ""), ""))
+        self.call_after_refresh(self._relayout_text)
         self.query_one("#checks", DataTable).clear()
         self.query_one("#checks", DataTable).remove_class("has-rows")
         self._show_progress()
@@ -344,12 +356,20 @@ class RobocalApp(App):
     def _ev_log(self, d: dict) -> None:
         self.log_line(d.get("text", ""))
 
+    def _ev_preflight(self, d: dict) -> None:
+        self.preflight_lines = list(d.get("lines", []))
+
     def _ev_finished(self, d: dict) -> None:
         self.finished = d
         err = d.get("error")
         status = d.get("exit_status")
         where = self.handle.db_path if self.handle else ""
-        if err:
+        if status == "refused":
+            lines = "\n".join(f"  {ln}" for ln in self.preflight_lines) or f"  {err}"
+            msg = (f"[b red]The session did not start: {err}[/]\n{lines}\nNothing was recorded. Change the plan or "
+                   f"the set-up so these steps pass (robocal plan check prints the pre-flight; the operator guide "
+                   f"says what each check means), then start again.")
+        elif err:
             msg = (f"[b red]The session stopped: {err}[/]\nEverything saved so far is in {where}; fix the cause "
                    f"(device connected? powered?) and start again to resume.")
         elif status == "paused":
@@ -407,6 +427,7 @@ class RobocalApp(App):
         else:
             head = "Do what the step says, then continue"
         self.query_one("#prompt", Static).update(f"{head}\n{choices}")
+        self.call_after_refresh(self._relayout_text)
         box = self.query_one("#inputs", Vertical)
         box.remove_children()
         if req.kind == "setup":

@@ -42,3 +42,16 @@ def angles_in_range(procedure: str, step: str, limit_rad: float = 2 * np.pi, **a
 def at_least(procedure: str, step: str, what: str, have: int, need: int) -> None:
     if have < need:
         raise EstimationError(procedure, step, f"needs at least {need} {what}, got {have}")
+
+
+def error_covariance(procedure: str, step: str, sigma, n: int) -> np.ndarray:
+    """The (n, n) covariance of n errors from a scalar sigma, one sigma per error, or a full covariance.
+
+    Why full: angles measured with the same fitted stations share those stations' errors, so their covariance has
+    off-diagonal terms the fits must see.  Refuses a non-positive or non-finite sigma in one line."""
+    s = np.asarray(sigma, float)
+    C = s if s.ndim == 2 else np.diag(np.broadcast_to(s, (n,)) ** 2)
+    if C.shape != (n, n) or not np.all(np.isfinite(C)) or np.any(np.diag(C) <= 0):
+        raise EstimationError(procedure, step, f"the errors' sigma must be positive and finite, one per reading or an "
+                                               f"{n}x{n} covariance")
+    return 0.5 * (C + C.T)

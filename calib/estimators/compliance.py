@@ -20,7 +20,7 @@ import numpy as np
 
 from ..uncertainty import EstimateSet, propagate
 from ..units import LBIN_PER_NM
-from ._common import EstimationError, at_least, finite
+from ._common import EstimationError, at_least, error_covariance, finite
 
 PROC = "joint compliance"
 FIT_NAMES = ["K1_Nm_per_rad", "K2_Nm_per_rad", "breakpoint_Nm", "offset_rad", "theta0_rad"]
@@ -125,15 +125,6 @@ def _outputs(p):
     return np.stack([1.0 / c1, 1.0 / c2, Tb, off, th0], -1)
 
 
-def _cov_matrix(sigma, n: int) -> np.ndarray:
-    s = np.asarray(sigma, float)
-    C = s if s.ndim == 2 else np.diag(np.broadcast_to(s, (n,)) ** 2)
-    if C.shape != (n, n) or not np.all(np.isfinite(C)) or np.any(np.diag(C) <= 0):
-        raise EstimationError(PROC, "two-slope fit", f"the deflections' sigma must be positive and finite, one per "
-                              f"reading or an {n}x{n} covariance")
-    return 0.5 * (C + C.T)
-
-
 def _torque_cov(load_N, lever_mm, theta_i_rad, sigma_load_N, sigma_lever_mm, sigma_theta_i_rad) -> np.ndarray:
     """Covariance of the torques ``T = N L cos(theta_i)`` from the thesis's Delta N (each load), Delta L_j (one
     lever for the series: a common scale) and Delta theta_ij (each set-up angle), first order."""
@@ -186,7 +177,7 @@ def two_slope_fit(torque_Nm_, deflection_rad, unloading, sigma_deflection_rad, n
         CT = np.broadcast_to(CT, (y.size, y.size)) if CT.size == 1 else CT
     else:
         T = np.asarray(torque_Nm_, float).ravel()
-        CT = np.zeros((T.size, T.size)) if sigma_torque_Nm is None else _cov_matrix(sigma_torque_Nm, T.size)
+        CT = np.zeros((T.size, T.size)) if sigma_torque_Nm is None else error_covariance(PROC, "two-slope fit", sigma_torque_Nm, T.size)
     u = np.asarray(unloading, bool).ravel().astype(float)
     finite(PROC, step, torque=T, deflection=y)
     if not (T.size == y.size == u.size):
@@ -194,7 +185,7 @@ def two_slope_fit(torque_Nm_, deflection_rad, unloading, sigma_deflection_rad, n
     at_least(PROC, step, "distinct torques (3 each side of the breakpoint)", np.unique(T).size, 6)
     if not (u.any() and (1 - u).any()):
         raise EstimationError(PROC, step, "needs both a loading and an unloading series (for the dead zone)")
-    Cy = _cov_matrix(sigma_deflection_rad, y.size)
+    Cy = error_covariance(PROC, step, sigma_deflection_rad, y.size)
     noise = float(np.sqrt(np.mean(np.diag(Cy))))
     if np.ptp(y) <= 3 * noise or np.ptp(y) == 0:
         raise EstimationError(PROC, step, f"the loads produced no measurable deflection (spread {np.ptp(y):.3g} rad "

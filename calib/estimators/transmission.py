@@ -18,7 +18,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..uncertainty import EstimateSet, propagate
-from ._common import EstimationError, angles_in_range, at_least, finite
+from ._common import EstimationError, angles_in_range, at_least, error_covariance, finite
 
 PROC = "transmission error"
 
@@ -266,7 +266,7 @@ def fit_transmission_error(theta_rad, error_rad, sigma_rad=None, max_harmonics: 
         raise EstimationError(PROC, step, f"the joint angles span only {np.degrees(span):.2f} deg: too short to fit "
                               "a periodic error")
     known = sigma_rad is not None
-    C = _error_cov(sigma_rad if known else 1.0, y.size)
+    C = error_covariance(PROC, step, sigma_rad if known else 1.0, y.size)
     W = np.linalg.inv(np.linalg.cholesky(C))
     dth = np.median(np.diff(np.sort(th)))
     lo, hi = omega_range if omega_range else (np.pi / span, np.pi / max(dth, 1e-9) / 4)
@@ -316,17 +316,6 @@ def fit_transmission_error(theta_rad, error_rad, sigma_rad=None, max_harmonics: 
         res = res.subset(keep)
         res.extras = {**extras, "not_determined": {"omega": why, "period_rad": why}}
     return res
-
-
-def _error_cov(sigma, n: int) -> np.ndarray:
-    """The errors' covariance from a scalar sigma, one sigma per error, or a full (n, n) covariance (joint angles
-    share the stations' errors, so theirs is full)."""
-    s = np.asarray(sigma, float)
-    C = s if s.ndim == 2 else np.diag(np.broadcast_to(s, (n,)) ** 2)
-    if C.shape != (n, n) or not np.all(np.isfinite(C)) or np.any(np.diag(C) <= 0):
-        raise EstimationError(PROC, "harmonic fit", f"the errors' sigma must be positive and finite, one per error "
-                              f"or an {n}x{n} covariance")
-    return 0.5 * (C + C.T)
 
 
 def _jac_outputs(p, H):
