@@ -261,7 +261,11 @@ class _Problem:
 def check_drivers(model: MeasurementModel, obs, where: str) -> None:
     """An effect whose driver does not vary over the poses (no time, temperature, approach direction or load) would
     be a column of zeros, held silently by the guard: one line instead, naming the effect."""
-    ev = model.evaluate(obs.q_rad, obs.ctx, model.nominal, jacobian=True)
+    theta = model.nominal.copy()
+    for k in ("x_mm", "y_mm", "z_mm"):        # a tool point off every axis: the geometry must not hide the effect
+        if f"tool.{k}" in model.index:
+            theta[model.index[f"tool.{k}"]] += 100.0
+    ev = model.evaluate(obs.q_rad, obs.ctx, theta, jacobian=True)
     for e, s in zip(model.effects, model.effect_slices):
         if not np.any(np.abs(ev.jacobian[:, :, s]) > 1e-12):
             raise RobocalError(f"{where}: effect {e.label}: nothing drives it in these data (the condition it "

@@ -68,7 +68,7 @@ def test_summary_is_compact_with_full_names_and_degrees():
                {"name": "compliance.j4.K1_Nm_per_rad", "value": 25000.0, "error": 20000.0, "unit": "N m/rad",
                 "truth": None}]}
     text = "\n".join(t for _, t in summary_lines(res))
-    assert "gamma1       -1.489 ± 0.01 deg" in text.replace("-1.48900", "-1.489")
+    assert "gamma1       -1.489 ± 0.010 deg" in text
     assert "lb in/rad" in text and "not determined" in text
     assert "the order is not determined" in text and "what to do" in text
     assert "accuracy: not measured" in text
@@ -148,3 +148,12 @@ def test_a_failed_stage_is_explained_not_dumped(monkeypatch, tmp_path, capsys):
     page = write_report(res, tmp_path).read_text(encoding="utf-8")
     assert "The transmission stage did not give a result" in page and "Singular" not in page
     assert "estimates" in json.loads((tmp_path / "results.json").read_text())
+
+
+def test_values_are_printed_to_the_precision_of_their_error():
+    from acq.session.summary import value_pm
+    assert value_pm(18608.2, 403.0) == "18610 ± 400"
+    assert value_pm(1609.8768, 0.03344) == "1609.877 ± 0.033"
+    assert value_pm(0.180262, 0.00029) == "0.18026 ± 0.00029"
+    assert value_pm(1.9477e11, 7.4e9) == "1.948e+11 ± 7.4e+09"
+    assert value_pm(5.0, None) == "5"

@@ -3,6 +3,8 @@ names, degrees for angles, a verdict), so an operator on an 80-column terminal r
 table of every estimate goes to the JSON and the report, or to the terminal with ``--verbose``."""
 from __future__ import annotations
 
+import math
+
 from rich.console import Console
 from rich.table import Table
 
@@ -20,10 +22,24 @@ def _short_name(e: dict) -> str:
     return shown(e).name.split(".", 1)[-1]
 
 
+def value_pm(value: float, error: float | None) -> str:
+    """``value ± error`` with the error to two significant digits and the value to the same decimal place (the
+    metrologist's convention); magnitudes far from 1 in exponent form."""
+    if error is None or not math.isfinite(error) or error <= 0:
+        return f"{value:.6g}" + ("" if error is None else f" ± {error:.2g}")
+    if abs(value) >= 1e6 or (0 < abs(value) < 1e-3 and error < 1e-3):
+        return f"{value:.4g} ± {error:.2g}"
+    decimals = 1 - int(math.floor(math.log10(error)))
+    if decimals > 0:
+        return f"{value:.{decimals}f} ± {error:.{decimals}f}"
+    step = 10.0 ** (-decimals)
+    return f"{round(value / step) * step:.0f} ± {round(error / step) * step:.0f}"
+
+
 def _value_text(e: dict) -> str:
     s = shown(e)
-    err = "held" if s.error is None else f"± {s.error:.2g}"
-    text = f"{s.value:.6g} {err} {s.unit}".rstrip()
+    text = (f"{s.value:.6g} held" if s.error is None else value_pm(s.value, s.error)) + (f" {s.unit}" if s.unit
+                                                                                          else "")
     if s.extra:
         text += f" ({s.extra})"
     if s.truth is not None and s.error:
@@ -70,7 +86,8 @@ def summary_lines(res: dict) -> list[tuple[str, str]]:
                 out.append(("", "  held at design values: " + ", ".join(held)))
         if v != DETERMINED and sec.advice:
             out.append(("dim", f"  what to do: {sec.advice}"))
-        out += [("yellow", f"  note: {p.split(':', 1)[1].strip()}") for p in sp]
+        out += [("yellow", f"  note: {p.split(':', 1)[1].strip()}") for p in sp
+                if p.split(":", 1)[1].strip() != why]
     known = {p for sec in SECTIONS for p in section_problems(sec, probs)}
     out += [("yellow", f"note: {p}") for p in probs if p not in known]
     return out
@@ -89,4 +106,4 @@ def print_summary(res: dict, verbose: bool = False, console: Console | None = No
                       "" if s.truth is None else f"{s.truth:.6g}", s.verdict)
         console.print(t)
     for style, text in summary_lines(res):
-        console.print(text, style=style or None, highlight=False, markup=False, soft_wrap=False)
+        console.print(text, style=style or None, highlight=False, markup=False, soft_wrap=True)

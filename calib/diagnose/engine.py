@@ -133,7 +133,9 @@ def _outlier_step(data: DiagnosisData, model: MeasurementModel, level: str, mode
     """identify's own outlier decision on the geometric fit (one implementation); rejected poses leave the data."""
     if mode == "off":
         return data, OutlierReport("off")
-    free = geometric_free(model, "full" if level == "auto" else level)
+    if level == "auto":         # the set the baseline will most likely use (full needs 3 observations a parameter)
+        level = "full" if data.n >= len(geometric_free(model, "full")) else "offsets"
+    free = geometric_free(model, level)
     rep = identify(model, data.observations(), free=free, outliers=mode, loss=loss,
                    labels=data.labels or None).outlier_report
     if rep.rejected:
