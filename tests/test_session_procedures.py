@@ -163,3 +163,28 @@ def test_encoder_resolution_steps_are_what_reprocess_reads():
     q6 = [s.pose_deg[5] for s in steps]
     assert np.all(np.diff(q6) > 0) and abs(q6[-1] - q6[0] - 20.0) < 1e-9
     assert procedure_info("encoder_resolution").steps is PROCEDURES["encoder_resolution"]
+
+
+def test_resolution_truth_is_the_twins_slope_over_the_run():
+    """reprocess's truth for the resolution run: the description's resolution when the twin has no running errors,
+    tilted by the transmission error (a little, not more than its amplitude allows) when it has."""
+    import dataclasses
+    from acq.session.reprocess import _resolution_truth
+    from calib.estimators.resolution import design_resolution_rad
+    from calib.twin import Twin, load_scenario
+    from calib.units import DEG
+    sc = load_scenario(None)
+    r = sc.robot
+    design = design_resolution_rad(r.counts_per_rev[5], r.gear_ratio[5])
+    q = np.zeros((7, 6))
+    q[:, 5] = np.linspace(0.0, 150.0, 7) * DEG
+    counts = np.rint(r.counts_from_joint(q))
+    sts = [{"counts": c[None]} for c in counts]
+    ok = np.ones(7, bool)
+    signed = counts[:, 5] * np.sign(r.gear_ratio[5])
+    cov = np.eye(7) * 1e-10
+    bare = Twin(dataclasses.replace(sc, effects=[]), seed=0)
+    tv = _resolution_truth(bare, r, sts, ok, 6, signed, cov, design)
+    assert abs(tv["scale"] - 1.0) < 1e-4 and abs(tv["rad_per_count"] / design - tv["scale"]) < 1e-12
+    tv = _resolution_truth(Twin(sc, seed=0), r, sts, ok, 6, signed, cov, design)
+    assert 1e-5 < abs(tv["scale"] - 1.0) < 3e-3

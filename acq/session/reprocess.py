@@ -729,11 +729,28 @@ def _resolution(steps, points, robot, est, twin, figs):
         counts = np.array([np.mean(s["counts"], 0)[j - 1] for s in sts])
         ok = np.isfinite(meas)
         design = design_resolution_rad(robot.counts_per_rev[j - 1], robot.gear_ratio[j - 1])
-        res = encoder_resolution(counts[ok] * np.sign(robot.gear_ratio[j - 1]), meas[ok], cov[np.ix_(ok, ok)], design)
-        est.add_set(f"resolution.j{j}.", res, {"rad_per_count": design, "scale": 1.0} if twin is not None else {},
-                    only=("rad_per_count", "scale"))
+        signed, C = counts[ok] * np.sign(robot.gear_ratio[j - 1]), cov[np.ix_(ok, ok)]
+        res = encoder_resolution(signed, meas[ok], C, design)
+        tv = _resolution_truth(twin, robot, sts, ok, j, signed, C, design) if twin is not None else {}
+        est.add_set(f"resolution.j{j}.", res, tv, only=("rad_per_count", "scale"))
         figs["resolution"][j] = {"counts": counts.tolist(), "angle_deg": (meas / DEG).tolist(),
                                  "rad_per_count": float(res["rad_per_count"].value)}
+
+
+def _resolution_truth(twin, robot, sts, ok, j, signed_counts, cov, design) -> dict:
+    """The twin's resolution in the estimator's terms: the same fit on the twin's true joint angles (description's
+    encoders plus the joint's running errors, e.g. its transmission error) at the run's counts, without noise.  Why:
+    the slope the run measures is the resolution achieved over the run, which the transmission error tilts by more
+    than the fit's error; the description's value alone would not be what it estimates (as ``_compliance_truth``)."""
+    from calib.estimators.resolution import encoder_resolution
+    counts = np.array([np.mean(s["counts"], 0) for s in sts])[ok]
+    q = robot.joint_from_counts(counts)
+    try:
+        _, th = twin.true_points(q, twin.context(len(q)))
+        clean = encoder_resolution(signed_counts, th[:, j - 1] - th[0, j - 1], cov, design)
+    except RobocalError:
+        return {"rad_per_count": design, "scale": 1.0}
+    return {k: float(clean[k].value) for k in ("rad_per_count", "scale")}
 
 
 def _compliance(steps, points, robot, axes, est, twin, figs, n_mc, setup=None, problems=None):
