@@ -77,13 +77,17 @@ def model_document(model: MeasurementModel, ident: Identification, truth: dict[s
         "nominal_robot_toml": robot_to_toml(model.robot),
         "parameters": params,
         "effects": [effect_spec(e) for e in model.effects],
-        "covariance": {"names": free, "matrix": ident.cov[np.ix_(idx, idx)].tolist()},
+        "covariance": {"names": free, "matrix": _symmetric(ident.cov[np.ix_(idx, idx)]).tolist()},
         "identifiability": ident.identifiability.report(model.robot.description_joint_names),
         "residual_rms": ident.residual_rms,
         "reduced_chi2": ident.reduced_chi2,
         "outliers": ident.outliers,
         **({"provenance": provenance} if provenance is not None else {}),
     }
+
+
+def _symmetric(C: np.ndarray) -> np.ndarray:
+    return 0.5 * (C + C.T)
 
 
 def save_model(path: str | Path, model: MeasurementModel, ident: Identification,
@@ -176,8 +180,11 @@ def load_model(path: str | Path) -> IdentifiedModel:
         raise RobocalError(f"{src}: covariance.matrix: must be {len(names)}x{len(names)} (one row and column per "
                            "name)")
     C = np.asarray(rows, float).reshape(len(names), len(names))
-    if not np.allclose(C, C.T, rtol=1e-6, atol=1e-12 * max(1.0, float(np.abs(C).max(initial=0.0)))):
+    # symmetric to the precision of its own diagonal (a solver's covariance carries rounding off the diagonal)
+    scale = np.sqrt(np.outer(np.abs(np.diag(C)), np.abs(np.diag(C)))) + 1e-300
+    if np.max(np.abs(C - C.T) / scale, initial=0.0) > 1e-6:
         raise RobocalError(f"{src}: covariance.matrix: is not symmetric")
+    C = _symmetric(C)
     if len(names) and np.linalg.eigvalsh(C).min() < -1e-9 * max(1.0, float(np.abs(C).max())):
         raise RobocalError(f"{src}: covariance.matrix: is not positive semi-definite")
     idx = [model.index[n] for n in names]

@@ -94,7 +94,7 @@ def test_identify_and_compensate_commands(tmp_path):
     model = tmp_path / "model.json"
     r = run("identify", str(csv), "--thesis-effects", "--out", str(model), "--out-robot", str(tmp_path / "r.toml"))
     assert r.returncode == 0, r.stderr
-    assert "held at their design values" in r.stdout and "transmission_error.j4.s1_rad" in r.stdout
+    assert "held at their design values" in r.stdout and "transmission_error.j4.s1_deg" in r.stdout
     r = run("compensate", str(model), "10", "-40", "70", "30", "-20", "50", "--json")
     assert r.returncode == 0, r.stderr
     out = json.loads(r.stdout)

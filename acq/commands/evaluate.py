@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import json
 
+from acq.argtypes import add_force_argument
 from acq.commands._csvargs import add_unit_arguments, units
 
 NAME = "evaluate"
@@ -17,6 +18,7 @@ def add_arguments(p):
                         "its rows) with the model held fixed")
     p.add_argument("--json", action="store_true", help="print the evaluation as JSON")
     add_unit_arguments(p)
+    add_force_argument(p)
 
 
 def _fmt(v) -> str:
@@ -31,6 +33,9 @@ def run(args) -> int:
     im = load_model(args.model)
     robot = im.model.robot
     table = with_polar_points(read_pose_csv(args.data, robot.n, robot.prismatic, robot=robot, **units(args)))
+    from calib.plausibility import check_data, enforce
+    enforce(check_data(im.model, table.q_rad, table.points_mm, args.data, prismatic=robot.prismatic),
+            args.force_implausible, NAME)        # metres or radians never give a number with exit 0
     doc = evaluate_table(im.model, im.theta, table, with_locate=args.locate)
     if args.json:
         print(json.dumps(doc, indent=1))

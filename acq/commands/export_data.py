@@ -15,7 +15,7 @@ def add_arguments(p):
     p.add_argument("session", help="session database")
     p.add_argument("--readings", type=output_file, metavar="CSV", help="raw theodolite readings of accepted steps")
     p.add_argument("--poses", type=output_file, metavar="CSV", help="pose set: encoder joint readings (deg) and tool target (mm)")
-    p.add_argument("--json", type=output_file, metavar="OUT", help="the whole session (steps, inputs, readings) as JSON")
+    p.add_argument("--json", type=output_file, metavar="OUT", help="the whole session (steps, inputs, readings) as JSON ('-' for stdout)")
 
 
 def run(args) -> int:

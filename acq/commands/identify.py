@@ -115,8 +115,9 @@ def run(args) -> int:
     for name in ident.free:
         v, s = ident.value(name), ident.std(name)
         unit = unit_of(name)
-        if unit == "rad":
+        if unit == "rad":           # shown in degrees under the name that says so (what --prior reads back)
             v, s, unit = v / DEG, s / DEG, "deg"
+            name = name[: -len("_rad")] + "_deg" if name.endswith("_rad") else name
         print(f"  {name:<44}{v:>14.6g}{s:>12.3g}  {unit}")
     corr = ident.correlations(0.9)
     if corr:

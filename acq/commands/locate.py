@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import json
 
+from acq.argtypes import add_force_argument
 from acq.commands._csvargs import add_unit_arguments, units
 
 NAME = "locate"
@@ -14,6 +15,7 @@ def add_arguments(p):
     p.add_argument("data", metavar="DATA.csv", help="pose CSV with measured x, y, z (and a station column)")
     p.add_argument("--json", action="store_true", help="print the stations as JSON")
     add_unit_arguments(p)
+    add_force_argument(p)
 
 
 def run(args) -> int:
@@ -24,6 +26,9 @@ def run(args) -> int:
     im = load_model(args.model)
     robot = im.model.robot
     table = with_polar_points(read_pose_csv(args.data, robot.n, robot.prismatic, robot=robot, **units(args)))
+    from calib.plausibility import check_data, enforce
+    enforce(check_data(im.model, table.q_rad, table.points_mm, args.data, prismatic=robot.prismatic),
+            args.force_implausible, NAME)        # metres or radians never give a number with exit 0
     locs = locate(predict_rows(im.model, im.theta, table), table)
     doc = {"source": table.source, "stations": [loc.as_dict() for loc in locs.values()]}
     if args.json:

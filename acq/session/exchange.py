@@ -75,7 +75,11 @@ def export_json(db: str, out: str) -> None:
                       "encoder_counts_mean": None if s["counts"] is None else np.mean(s["counts"], 0).tolist()})
     doc = {"format": "robocal-session-json", "version": 1, "session": {k: v for k, v in d.session.items()},
            "plan": d.plan, "setup": d.setup, "steps": steps}
-    atomic_write_text(out, json.dumps(doc, indent=1, default=str))
+    text = json.dumps(doc, indent=1, default=str)
+    if out == "-":                       # '-' is standard output, as for reprocess --json and demo --json
+        print(text)
+    else:
+        atomic_write_text(out, text)
 
 
 def pose_arrays(db: str) -> dict:

@@ -23,8 +23,8 @@ import numpy as np
 from calib.fileio import atomic_path, atomic_write_text
 from calib.units import DEG
 
-from .sections import DETERMINED, SECTIONS, UNDETERMINED, WEAK, Section, section_estimates, section_problems, \
-    section_verdict, shown, thesis_rows
+from .sections import DETERMINED, SECTIONS, UNDETERMINED, WEAK, Section, in_session, section_estimates, \
+    section_problems, section_verdict, shown, thesis_rows
 
 STYLE = """
 body { font-family: system-ui, -apple-system, "Segoe UI", sans-serif; max-width: 60rem; margin: 1.5rem auto;
@@ -432,8 +432,9 @@ def report_html(res: dict, tolerance_mm: float | None = None, record=None) -> st
     figs = {k: [(c, _png(fig)) for c, fig in v] for k, v in render_figures(res).items()}
     body = [f"<h1>Calibration report</h1><p class='muted'>robocal — {html.escape(res['session']['title'])}</p>",
             _answer(res, record, tolerance_mm, figs)]
-    body += [_section_html(sec, res, record, figs) for sec in SECTIONS]
-    known = {p for sec in SECTIONS for p in section_problems(sec, res.get("problems", []))}
+    present = [sec for sec in SECTIONS if in_session(sec, res)]
+    body += [_section_html(sec, res, record, figs) for sec in present]
+    known = {p for sec in present for p in section_problems(sec, res.get("problems", []))}
     others = [p for p in res.get("problems", []) if p not in known]
     if others:
         body.append("<section id='notes'><h2>Notes</h2><ul>" + "".join(f"<li>{html.escape(p)}</li>" for p in others)

@@ -219,7 +219,8 @@ def reprocess(path: str, n_mc: int = 0, progress=None) -> dict:
     problems += figs.pop("problems", [])          # what a stage could not do for part of its data
     return {
         "session": {"guid": data.session["guid"], "title": data.session["title"], "path": path,
-                    "exit_status": data.session["exit_status"], "steps_accepted": len(data.steps)},
+                    "exit_status": data.session["exit_status"], "steps_accepted": len(data.steps),
+                    "procedures": {name: len(sts) for name, sts in by_proc.items()}},
         "provenance": {**provenance(data.setup.get("robot") or None, twin.scenario.source if twin else None),
                        "code_version": code_version(), "reprocessed_unix_s": time.time(), "input_session":
                        data.session["guid"], "n_mc": n_mc, "elapsed_s": time.perf_counter() - t0},

@@ -178,6 +178,15 @@ section(Section(
      ThesisRow("d3 (Fig 5.10)", "ident.j6.d_mm", 56.4, "mm")], ("poses",)))
 
 
+def in_session(sec: Section, res: dict) -> bool:
+    """Whether the session recorded this procedure (unknown: assume it did).  A procedure the session never had gets
+    no section: advice to repeat a ruler series means nothing to a session imported from a laser tracker."""
+    procs = res.get("session", {}).get("procedures")
+    if procs is None:
+        return True
+    return any(procs.get(k) for k in (sec.key, *sec.problem_prefixes))
+
+
 def section_estimates(sec: Section, estimates: list[dict]) -> list[dict]:
     return [e for e in estimates if e["name"].startswith(sec.prefixes)]
 

@@ -8,8 +8,8 @@ import math
 from rich.console import Console
 from rich.table import Table
 
-from .sections import DETERMINED, SECTIONS, UNDETERMINED, WEAK, section_estimates, section_problems, \
-    section_verdict, shown, verdict_of
+from .sections import DETERMINED, SECTIONS, UNDETERMINED, WEAK, in_session, section_estimates, \
+    section_problems, section_verdict, shown, verdict_of
 
 #: a section with at most this many estimates lists them all; a larger one shows its counts and weakest few
 LIST_UP_TO = 6
@@ -65,7 +65,8 @@ def summary_lines(res: dict) -> list[tuple[str, str]]:
     out: list[tuple[str, str]] = [("bold", f"{res['session']['title']}")]
     out += [("bold", line) for line in accuracy_lines(res.get("accuracy"))]
     est, probs = res.get("estimates", []), res.get("problems", [])
-    for sec in SECTIONS:
+    shown_sections = [sec for sec in SECTIONS if in_session(sec, res)]
+    for sec in shown_sections:
         mine = section_estimates(sec, est)
         sp = section_problems(sec, probs)
         if not mine and not sp:
@@ -75,7 +76,9 @@ def summary_lines(res: dict) -> list[tuple[str, str]]:
         if len(mine) <= LIST_UP_TO:
             out += [("", f"  {_short_name(e):<12} {_value_text(e)}") for e in mine]
         else:
-            counts = {k: sum(verdict_of(e) == k for e in mine) for k in (DETERMINED, WEAK, UNDETERMINED)}
+            counts = {k: sum(verdict_of(e) == k for e in mine if not e.get("held"))
+                      for k in (DETERMINED, WEAK, UNDETERMINED)}
+            counts["held"] = sum(bool(e.get("held")) for e in mine)
             out.append(("", f"  {len(mine)} estimates: " + ", ".join(f"{n} {k}" for k, n in counts.items() if n)))
             rank = {DETERMINED: 0, WEAK: 1, UNDETERMINED: 2}
             weakest = sorted((e for e in mine if not e.get("held")), key=lambda e: -rank[verdict_of(e)])
@@ -88,7 +91,7 @@ def summary_lines(res: dict) -> list[tuple[str, str]]:
             out.append(("dim", f"  what to do: {sec.advice}"))
         out += [("yellow", f"  note: {p.split(':', 1)[1].strip()}") for p in sp
                 if p.split(":", 1)[1].strip() != why]
-    known = {p for sec in SECTIONS for p in section_problems(sec, probs)}
+    known = {p for sec in shown_sections for p in section_problems(sec, probs)}
     out += [("yellow", f"note: {p}") for p in probs if p not in known]
     return out
 
