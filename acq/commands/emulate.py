@@ -115,6 +115,9 @@ def _start(args, world, hosts, failed) -> tuple[str, str]:
         if args.slcan_pty or args.serial_pty or args.can:
             raise RobocalError(f"emulate {args.device}: --slcan-pty/--serial-pty/--can are for the tap")
         if args.device == "geocom":
+            if args.stream_hz or args.gsi8:
+                raise RobocalError("emulate geocom: --stream-hz and --gsi8 are options of the GSI emulator "
+                                   "(robocal emulate gsi)")
             from acq.emulate.geocom_device import GeoComDevice
             dev = GeoComDevice(world, args.station or "A", seed=args.seed)
             what = f"GeoCOM theodolite (station {dev.station}, {dev.instrument_name})"
