@@ -157,3 +157,16 @@ def test_values_are_printed_to_the_precision_of_their_error():
     assert value_pm(0.180262, 0.00029) == "0.18026 ± 0.00029"
     assert value_pm(1.9477e11, 7.4e9) == "1.948e+11 ± 7.4e+09"
     assert value_pm(5.0, None) == "5"
+
+
+def test_diagnosis_section_when_present(example_result, tmp_path):
+    """reprocess --diagnose: the pose set's diagnosis in the summary and in its own report section."""
+    from acq.commands.reprocess import session_diagnosis
+    from acq.session.report import write_report
+    from acq.session.summary import summary_lines
+    res = {**example_result, "diagnosis": session_diagnosis(str(EXAMPLE))}
+    text = "\n".join(t for _, t in summary_lines(res))
+    assert "Diagnosis of the sim-to-real gap" in text and "joint_compliance j3" in text
+    page = write_report(res, tmp_path).read_text(encoding="utf-8")
+    assert "id='diagnosis'" in page and "joint_compliance j3" in page
+    assert "id='diagnosis'" not in write_report(example_result, tmp_path / "plain").read_text(encoding="utf-8")

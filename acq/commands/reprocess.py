@@ -19,6 +19,19 @@ def add_arguments(p):
     p.add_argument("--mc", type=int_range(0, 100000), default=0, help="Monte Carlo draws for the estimation errors (0: GUM only)")
     p.add_argument("--store", action="store_true", help="also record the result (with provenance) in the session")
     add_report_options(p)
+    p.add_argument("--diagnose", action="store_true",
+                   help="also diagnose the sim-to-real gap of the pose set (robocal diagnose on this session) and "
+                        "put it in the summary, the JSON (key diagnosis) and the report")
+
+
+def session_diagnosis(db: str) -> dict:
+    """The diagnosis of a session's pose set (the same as ``robocal diagnose DB --json``), for the report."""
+    from acq.session.exchange import pose_arrays
+    from calib.diagnose import diagnose
+    from calib.diagnose.data import from_session_arrays
+    from calib.robot import load_robot
+    arrays = pose_arrays(str(db))
+    return diagnose(from_session_arrays(load_robot(), arrays, str(db))).to_json()
 
 
 def run(args) -> int:
@@ -27,6 +40,8 @@ def run(args) -> int:
     from acq.session.store import save_result
 
     res = reprocess(args.session, n_mc=args.mc)
+    if args.diagnose:
+        res["diagnosis"] = session_diagnosis(args.session)
     if args.json:
         _write_json(res, args.json)
     if args.json != "-":

@@ -394,6 +394,30 @@ def _section_html(sec: Section, res: dict, record, figs_png: dict[str, list[tupl
     return "".join(out)
 
 
+def _diagnosis_html(diag: dict | None) -> str:
+    """The diagnosis section (present when the session was reprocessed with ``--diagnose``)."""
+    if not diag:
+        return ""
+    from .summary import finding_flags
+    rows = "".join(
+        f"<tr><td class='name'>{html.escape(f['label'])}</td><td>{f['rms_after_mm']:.3f}</td>"
+        f"<td>{f.get('p_value', float('nan')):.2g}</td><td>{100 * (f.get('excess_share') or 0):.0f} %</td>"
+        f"<td class='name {'weakly' if f.get('doubtful') else 'determined'}'>{html.escape(finding_flags(f) or 'stable')}"
+        f"</td></tr>" for f in diag.get("findings", []))
+    table = ("<table><tr><th class='name'>finding</th><th>held-out RMS after (mm)</th><th>p</th>"
+             f"<th>share of the excess</th><th class='name'>flags</th></tr>{rows}</table>") if rows else \
+        "<p>No unmodelled effect found.</p>"
+    unexplained = diag.get("unexplained")
+    un = f"<p class='verdict weakly'>Unexplained: {html.escape(str(unexplained))}</p>" if unexplained else ""
+    return (f"<section id='diagnosis'><h2>Diagnosis of the sim-to-real gap</h2>"
+            f"<p>On poses each fit did not use: {diag['baseline_rms_mm']:.3f} mm RMS with the geometry alone, "
+            f"{diag['final_rms_mm']:.3f} mm with the findings below, against an instrument floor of "
+            f"{diag['noise_floor_mm']:.3f} mm — {html.escape(str(diag.get('stop_reason', '')))}.</p>{table}{un}"
+            "<p class='muted'>A finding is accepted only when it is significant, shrinks the held-out excess over "
+            "the floor materially and keeps its parameters across folds; <i>doubtful</i> marks one that another "
+            "candidate explains nearly as well (its alias) or whose parameters vary across folds.</p></section>")
+
+
 def _estimation_errors(est: list[dict]):
     rows = [e for e in est if e.get("truth") is not None and e["error"] > 0 and not e.get("held")]
     if not rows:
@@ -434,6 +458,7 @@ def report_html(res: dict, tolerance_mm: float | None = None, record=None) -> st
             _answer(res, record, tolerance_mm, figs)]
     present = [sec for sec in SECTIONS if in_session(sec, res)]
     body += [_section_html(sec, res, record, figs) for sec in present]
+    body.append(_diagnosis_html(res.get("diagnosis")))
     known = {p for sec in present for p in section_problems(sec, res.get("problems", []))}
     others = [p for p in res.get("problems", []) if p not in known]
     if others:

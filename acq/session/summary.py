@@ -60,6 +60,34 @@ def accuracy_lines(acc: dict | None, tolerance_mm: float | None = None) -> list[
     return lines
 
 
+def finding_flags(f: dict) -> str:
+    """What a finding's flags say, in words (see the README's diagnosis section)."""
+    words = []
+    if f.get("doubtful"):
+        words.append("doubtful")
+    if f.get("aliases"):
+        words.append("looks like " + ", ".join(f["aliases"]))
+    if f.get("stability") is not None:
+        words.append(f"parameters vary {100 * f['stability']:.0f} % across folds")
+    return "; ".join(words)
+
+
+def diagnosis_lines(diag: dict | None) -> list[tuple[str, str]]:
+    """The diagnosis of the pose set in a few lines: the gap, each finding with its flags, what is unexplained."""
+    if not diag:
+        return []
+    out = [("bold", f"Diagnosis of the sim-to-real gap: held-out {diag['baseline_rms_mm']:.3f} mm with the geometry "
+                    f"alone, {diag['final_rms_mm']:.3f} mm with the findings; instrument floor "
+                    f"{diag['noise_floor_mm']:.3f} mm ({diag.get('stop_reason', '')})")]
+    for f in diag.get("findings", []):
+        flags = finding_flags(f)
+        out.append(("yellow" if f.get("doubtful") else "", f"  {f['label']}: held-out RMS {f['rms_after_mm']:.3f} mm"
+                    + (f" — {flags}" if flags else "")))
+    if diag.get("unexplained"):
+        out.append(("yellow", f"  unexplained: {diag['unexplained']}"))
+    return out
+
+
 def summary_lines(res: dict) -> list[tuple[str, str]]:
     """(style, text) lines of the compact summary."""
     out: list[tuple[str, str]] = [("bold", f"{res['session']['title']}")]
@@ -91,6 +119,7 @@ def summary_lines(res: dict) -> list[tuple[str, str]]:
             out.append(("dim", f"  what to do: {sec.advice}"))
         out += [("yellow", f"  note: {p.split(':', 1)[1].strip()}") for p in sp
                 if p.split(":", 1)[1].strip() != why]
+    out += diagnosis_lines(res.get("diagnosis"))
     known = {p for sec in shown_sections for p in section_problems(sec, probs)}
     out += [("yellow", f"note: {p}") for p in probs if p not in known]
     return out
