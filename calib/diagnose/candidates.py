@@ -53,17 +53,8 @@ class Candidate:
 
     @property
     def label(self) -> str:
-        if self.kind == "transmission_error":
-            return f"transmission_error j{self.joint} (order {self.order:g}/rad)"
-        if self.kind == "cross_coupling":
-            return f"cross_coupling j{self.source}->j{self.joint}"
-        if self.kind == "axis_tilt":
-            return f"axis_tilt j{self.joint}" + (f" (order {self.order:g}/turn)" if self.order != 1 else "")
-        if self.kind == "instrument_drift":
-            return f"instrument_drift step at {self.step_s:.0f} s" if self.step_s > 0 else "instrument_drift ramp"
-        if self.joint is None:
-            return self.kind
-        return f"{self.kind} j{self.joint}"
+        """The finding's name, as the effect kind itself says it (the registry, no branch here)."""
+        return self.make().finding_label()
 
     def make(self) -> Effect:
         """A fresh effect instance at (nearly) zero magnitude: the model's own code gives its Jacobian."""
@@ -76,43 +67,7 @@ class Candidate:
 
     def parameters(self, values: dict[str, float], sigmas: dict[str, float]) -> dict[str, float]:
         """The estimated parameters in edge units (degrees, N m), with their 1-sigma, for reports and JSON."""
-        out: dict[str, float] = {}
-        if self.kind == "transmission_error":
-            s, c = values["s1_rad"], values["c1_rad"]
-            out = {"order_per_rad": float(self.order), "sin_deg": s / DEG, "cos_deg": c / DEG,
-                   "amplitude_deg": float(np.hypot(s, c)) / DEG,
-                   "sin_sigma_deg": sigmas["s1_rad"] / DEG, "cos_sigma_deg": sigmas["c1_rad"] / DEG}
-        elif self.kind == "joint_compliance":
-            c = values["compliance1_rad_per_nm"]
-            out = {"compliance_deg_per_nm": c / DEG, "compliance_sigma_deg_per_nm":
-                   sigmas["compliance1_rad_per_nm"] / DEG,
-                   "stiffness_nm_per_rad": (1.0 / c) if c > 0 else None}
-        elif self.kind == "backlash":
-            out = {"width_deg": values["width_rad"] / DEG, "width_sigma_deg": sigmas["width_rad"] / DEG}
-        elif self.kind == "cross_coupling":
-            out = {"source_joint": self.source, "sigma": values["sigma"], "sigma_sigma": sigmas["sigma"]}
-        elif self.kind == "link_compliance":
-            c = values["compliance_per_nmm2"]
-            out = {"compliance_per_nmm2": c, "compliance_sigma_per_nmm2": sigmas["compliance_per_nmm2"],
-                   "ei_nmm2": (1.0 / c) if c > 0 else None}
-        elif self.kind == "thermal_drift":
-            out = {"kappa_per_degc": values["kappa_per_degc"], "kappa_sigma_per_degc": sigmas["kappa_per_degc"],
-                   "reference_degc": self.reference_c}
-        else:
-            out = _generic_parameters(values, sigmas, self.free)
-        return out
-
-
-def _generic_parameters(values: dict[str, float], sigmas: dict[str, float], free) -> dict[str, float]:
-    """Any other kind: its estimated parameters by name (radians shown in degrees), each with ``<name>_sigma``."""
-    out: dict[str, float] = {}
-    for k in free:
-        v, s = values[k], sigmas[k]
-        if k.endswith("_rad"):
-            k, v, s = k[:-4] + "_deg", v / DEG, s / DEG
-        out[k] = float(v)
-        out[f"{k}_sigma"] = float(s)
-    return out
+        return self.make().edge_parameters(values, sigmas, self.free)
 
 
 @dataclass

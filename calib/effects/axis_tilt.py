@@ -58,3 +58,6 @@ class AxisTilt(Effect):
         arm = point - fp.frame_t[:, j - 1]
         grad = np.cross(w_dirs.transpose(0, 2, 1), arm[:, None, :]).transpose(0, 2, 1)      # (N, 3, 2)
         return np.einsum("nik,k->ni", grad, values), grad
+
+    def finding_label(self) -> str:
+        return f"{self.kind} j{self.joint}" + (f" (order {self.order:g}/turn)" if self.order != 1 else "")

@@ -34,3 +34,6 @@ class Backlash(Effect):
         grad[:, j, 0] = -0.5 * ctx.direction[:, j]
         delta[:, j] = grad[:, j, 0] * values[0]
         return delta, grad
+
+    def edge_parameters(self, values, sigmas, free):
+        return {"width_deg": values["width_rad"] / DEG, "width_sigma_deg": sigmas["width_rad"] / DEG}

@@ -19,6 +19,8 @@ from typing import Any, ClassVar
 
 import numpy as np
 
+_DEG = np.pi / 180.0
+
 
 @dataclass
 class PoseContext:
@@ -131,6 +133,22 @@ class Effect:
 
     def qualified_names(self) -> list[str]:
         return [f"{self.label}.{p}" for p in self.param_names]
+
+    def finding_label(self) -> str:
+        """How the diagnosis names this effect in a finding (a kind with structure overrides it)."""
+        return f"{self.kind} j{self.joint}" if self.joint is not None else self.kind
+
+    def edge_parameters(self, values: dict[str, float], sigmas: dict[str, float], free) -> dict[str, Any]:
+        """The estimated parameters ``free`` in edge units for reports and JSON: radians as degrees, each with
+        ``<name>_sigma``.  A kind whose readers expect other quantities (a stiffness, an amplitude) overrides it."""
+        out: dict[str, Any] = {}
+        for k in free:
+            v, s = values[k], sigmas[k]
+            if k.endswith("_rad"):
+                k, v, s = k[:-4] + "_deg", v / _DEG, s / _DEG
+            out[k] = float(v)
+            out[f"{k}_sigma"] = float(s)
+        return out
 
     def describe(self) -> str:
         parts = ", ".join(f"{k}={v:.6g}" for k, v in zip(self.param_names, self.values))

@@ -42,3 +42,9 @@ class CrossCoupling(Effect):
         grad[:, self.joint - 1, 0] = q[:, self.source - 1]
         delta[:, self.joint - 1] = values[0] * q[:, self.source - 1]
         return delta, grad
+
+    def finding_label(self) -> str:
+        return f"{self.kind} j{self.source}->j{self.joint}"
+
+    def edge_parameters(self, values, sigmas, free):
+        return {"source_joint": self.source, "sigma": values["sigma"], "sigma_sigma": sigmas["sigma"]}

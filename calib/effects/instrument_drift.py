@@ -58,3 +58,6 @@ class InstrumentDrift(Effect):
         for k, i in enumerate(BASE_XYZ):
             grad[:, i, k] = u
         return grad @ values, grad
+
+    def finding_label(self) -> str:
+        return f"{self.kind} step at {self.step_s:.0f} s" if self.step_s > 0 else f"{self.kind} ramp"

@@ -68,3 +68,8 @@ class JointCompliance(Effect):
         g = np.zeros_like(q)
         g[:, self.joint - 1] = np.where(np.abs(loads.joint_torque_nm[:, self.joint - 1]) <= tb, c1, c2)
         return g
+
+    def edge_parameters(self, values, sigmas, free):
+        c = values["compliance1_rad_per_nm"]
+        return {"compliance_deg_per_nm": c / DEG, "compliance_sigma_deg_per_nm": sigmas["compliance1_rad_per_nm"] / DEG,
+                "stiffness_nm_per_rad": (1.0 / c) if c > 0 else None}

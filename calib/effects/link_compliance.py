@@ -63,3 +63,8 @@ class LinkCompliance(Effect):
         rot = np.cross(u, np.einsum("nk,nkc->nc", slope, Fperp))                   # rotation vector at x
         unit = d_vec + np.cross(rot, point - (start + u * x))
         return unit * values[0], unit[..., None]
+
+    def edge_parameters(self, values, sigmas, free):
+        c = values["compliance_per_nmm2"]
+        return {"compliance_per_nmm2": c, "compliance_sigma_per_nmm2": sigmas["compliance_per_nmm2"],
+                "ei_nmm2": (1.0 / c) if c > 0 else None}

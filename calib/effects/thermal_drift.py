@@ -49,3 +49,7 @@ class ThermalDrift(Effect):
         out = J_geo.copy()
         out[:, :, length_idx] *= self._scale(ctx, values)[:, None, None]
         return out
+
+    def edge_parameters(self, values, sigmas, free):
+        return {"kappa_per_degc": values["kappa_per_degc"], "kappa_sigma_per_degc": sigmas["kappa_per_degc"],
+                "reference_degc": self.reference_c}

@@ -63,3 +63,12 @@ class TransmissionError(Effect):
         grad = np.zeros(q.shape + (len(values),))
         grad[:, self.joint - 1, :] = B
         return delta, grad
+
+    def finding_label(self) -> str:
+        return f"{self.kind} j{self.joint} (order {self.order:g}/rad)"
+
+    def edge_parameters(self, values, sigmas, free):
+        s, c = values["s1_rad"], values["c1_rad"]
+        return {"order_per_rad": float(self.order), "sin_deg": s / DEG, "cos_deg": c / DEG,
+                "amplitude_deg": float(np.hypot(s, c)) / DEG,
+                "sin_sigma_deg": sigmas["s1_rad"] / DEG, "cos_sigma_deg": sigmas["c1_rad"] / DEG}
