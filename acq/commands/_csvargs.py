@@ -17,3 +17,19 @@ def add_unit_arguments(p) -> None:
 def units(args) -> dict:
     """Keyword arguments for :func:`calib.posecsv.read_pose_csv`."""
     return {"angle_unit": getattr(args, "angle_unit", None), "length_unit": getattr(args, "length_unit", None)}
+
+
+def model_and_table(args, command: str):
+    """The calibrated model (``args.model``) and the pose table (``args.data``) it is checked against, the data's
+    plausibility checked first (metres or radians never give a number with exit 0): what evaluate and locate share."""
+    from calib.compensate import load_model
+    from calib.evaluation import with_polar_points
+    from calib.plausibility import check_data, enforce
+    from calib.posecsv import read_pose_csv
+
+    im = load_model(args.model)
+    robot = im.model.robot
+    table = with_polar_points(read_pose_csv(args.data, robot.n, robot.prismatic, robot=robot, **units(args)))
+    enforce(check_data(im.model, table.q_rad, table.points_mm, args.data, prismatic=robot.prismatic),
+            args.force_implausible, command)
+    return im, table

@@ -4,7 +4,7 @@ from __future__ import annotations
 import json
 
 from acq.argtypes import add_force_argument
-from acq.commands._csvargs import add_unit_arguments, units
+from acq.commands._csvargs import add_unit_arguments, model_and_table
 
 NAME = "evaluate"
 HELP = "predict the test rows of a pose CSV with a calibrated model: RMS, max, 95th percentile, per station/group"
@@ -26,16 +26,9 @@ def _fmt(v) -> str:
 
 
 def run(args) -> int:
-    from calib.compensate import load_model
-    from calib.evaluation import with_polar_points, evaluate_table
-    from calib.posecsv import read_pose_csv
+    from calib.evaluation import evaluate_table
 
-    im = load_model(args.model)
-    robot = im.model.robot
-    table = with_polar_points(read_pose_csv(args.data, robot.n, robot.prismatic, robot=robot, **units(args)))
-    from calib.plausibility import check_data, enforce
-    enforce(check_data(im.model, table.q_rad, table.points_mm, args.data, prismatic=robot.prismatic),
-            args.force_implausible, NAME)        # metres or radians never give a number with exit 0
+    im, table = model_and_table(args, NAME)
     doc = evaluate_table(im.model, im.theta, table, with_locate=args.locate)
     if args.json:
         print(json.dumps(doc, indent=1))

@@ -4,7 +4,7 @@ from __future__ import annotations
 import json
 
 from acq.argtypes import add_force_argument
-from acq.commands._csvargs import add_unit_arguments, units
+from acq.commands._csvargs import add_unit_arguments, model_and_table
 
 NAME = "locate"
 HELP = "fit only the instrument-to-robot transform (per station) with the calibrated model held fixed"
@@ -19,16 +19,9 @@ def add_arguments(p):
 
 
 def run(args) -> int:
-    from calib.compensate import load_model
-    from calib.evaluation import with_polar_points, locate, predict_rows
-    from calib.posecsv import read_pose_csv
+    from calib.evaluation import locate, predict_rows
 
-    im = load_model(args.model)
-    robot = im.model.robot
-    table = with_polar_points(read_pose_csv(args.data, robot.n, robot.prismatic, robot=robot, **units(args)))
-    from calib.plausibility import check_data, enforce
-    enforce(check_data(im.model, table.q_rad, table.points_mm, args.data, prismatic=robot.prismatic),
-            args.force_implausible, NAME)        # metres or radians never give a number with exit 0
+    im, table = model_and_table(args, NAME)
     locs = locate(predict_rows(im.model, im.theta, table), table)
     doc = {"source": table.source, "stations": [loc.as_dict() for loc in locs.values()]}
     if args.json:
