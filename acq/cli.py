@@ -15,6 +15,7 @@ Exit status and messages (the README's "Errors" section):
 from __future__ import annotations
 
 import argparse
+import ast
 import importlib
 import os
 import pkgutil
@@ -41,28 +42,62 @@ class _Parser(argparse.ArgumentParser):
         self.exit(EXIT_INPUT, f"robocal: error: {where}{' '.join(message.split())} (see --help)\n")
 
 
-def _command_modules():
+def _constants(path: str) -> dict[str, str]:
+    """The module-level string constants of a source file (``NAME``, ``HELP``, ``DESCRIPTION``), read without
+    importing it: a command's module imports numpy, scipy and the model, which ``robocal --help`` does not need."""
+    with open(path, encoding="utf-8") as fh:
+        tree = ast.parse(fh.read(), path)
+    out = {}
+    for node in tree.body:
+        if isinstance(node, ast.Assign) and len(node.targets) == 1 and isinstance(node.targets[0], ast.Name) \
+                and node.targets[0].id in ("NAME", "HELP", "DESCRIPTION"):
+            try:
+                out[node.targets[0].id] = ast.literal_eval(node.value)
+            except ValueError:          # not a literal: the module is imported to read it
+                pass
+    return out
+
+
+def command_index() -> dict[str, tuple[str, str, str]]:
+    """Every command: NAME -> (module, HELP, DESCRIPTION), by scanning the package (a new command is one new file)."""
+    index = {}
     for info in sorted(pkgutil.iter_modules(commands.__path__), key=lambda m: m.name):
         if info.name.startswith("_"):
             continue
-        mod = importlib.import_module(f"{commands.__name__}.{info.name}")
-        if hasattr(mod, "NAME") and hasattr(mod, "run"):
-            yield mod
+        module = f"{commands.__name__}.{info.name}"
+        c = _constants(os.path.join(commands.__path__[0], f"{info.name}.py"))
+        if "NAME" not in c or "HELP" not in c:
+            mod = importlib.import_module(module)
+            if not (hasattr(mod, "NAME") and hasattr(mod, "run")):
+                continue
+            c = {"NAME": mod.NAME, "HELP": mod.HELP, "DESCRIPTION": getattr(mod, "DESCRIPTION", mod.HELP)}
+        index[c["NAME"]] = (module, c["HELP"], c.get("DESCRIPTION", c["HELP"]))
+    return index
 
 
-def build_parser() -> argparse.ArgumentParser:
+def build_parser(only: str | None = None) -> argparse.ArgumentParser:
+    """The whole command line; with ``only``, only that command's module is imported and given its options (the
+    others are listed for ``--help``), so a command starts without loading every other command's dependencies."""
     parser = _Parser(
         prog="robocal",
         description="Calibrate an industrial robot with two theodolites and a joint-encoder tap.")
     parser.add_argument("--debug", action="store_true",
                         help="on an internal error (exit 3) show the Python traceback (also ROBOCAL_DEBUG=1)")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
-    for mod in _command_modules():
-        p = sub.add_parser(mod.NAME, help=mod.HELP, description=getattr(mod, "DESCRIPTION", mod.HELP))
-        mod.add_arguments(p)
-        _add_chain_cut(p)
-        p.set_defaults(_run=mod.run)
+    for name, (module, help_, description) in command_index().items():
+        p = sub.add_parser(name, help=help_, description=description)
+        if only is None or only == name:
+            mod = importlib.import_module(module)
+            mod.add_arguments(p)
+            _add_chain_cut(p)
+            p.set_defaults(_run=mod.run)
     return parser
+
+
+def _selected_command(argv: list[str]) -> str:
+    """The command word of ``argv`` ("" when there is none: the top-level help needs no command module)."""
+    words = [a for a in argv if not a.startswith("-")]
+    return words[0] if words else ""
 
 
 def _add_chain_cut(p: argparse.ArgumentParser) -> None:
@@ -123,7 +158,7 @@ def _main(argv: list[str] | None) -> int:
     debug = _debug_wanted(argv)
     argv = [a for a in argv if a != "--debug"]  # accepted anywhere on the line, not only before the command
     try:
-        parser = build_parser()
+        parser = build_parser(only=_selected_command(argv))
         try:
             args = parser.parse_args(argv)
         except SystemExit as exc:  # --help (0) or a bad option (2, already printed as one line)

@@ -375,9 +375,13 @@ def _build(chk: Checker, data: dict) -> Robot:
 
 
 def _rpy_matrix(rpy) -> np.ndarray:
-    """Rz(yaw) Ry(pitch) Rx(roll) from (roll, pitch, yaw)."""
-    from scipy.spatial.transform import Rotation
-    return Rotation.from_euler("xyz", rpy).as_matrix()
+    """Rz(yaw) Ry(pitch) Rx(roll) from (roll, pitch, yaw): the inverse of :func:`rpy_from_matrix` (plain numpy: a
+    description loads without importing scipy, which costs a command half a second of start-up)."""
+    roll, pitch, yaw = (float(v) for v in rpy)
+    cr, sr, cp, sp, cy, sy = np.cos(roll), np.sin(roll), np.cos(pitch), np.sin(pitch), np.cos(yaw), np.sin(yaw)
+    return np.array([[cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr],
+                     [sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr],
+                     [-sp, cp * sr, cp * cr]])
 
 
 def _readings_table(chk: Checker, t: dict, n: int, pris: np.ndarray) -> dict:

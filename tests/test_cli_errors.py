@@ -7,6 +7,7 @@ import os
 import subprocess
 import sys
 
+import numpy as np
 import pytest
 
 from acq import argtypes, cli
@@ -98,3 +99,27 @@ def test_exit_codes_through_the_console_script():
     r = subprocess.run([sys.executable, "-m", "acq.cli", "fk", "nan", "0", "0", "0", "0", "0"], capture_output=True,
                        text=True, timeout=60)
     assert r.returncode == 2 and r.stderr.count("\n") == 1 and "Traceback" not in r.stderr
+
+
+def test_top_level_help_loads_no_command_module():
+    """First contact is fast: ``robocal --help`` lists every command without importing numpy, scipy or the model
+    (each command's module is imported only when that command runs)."""
+    code = ("import sys, contextlib, io\n"
+            "from acq.cli import main\n"
+            "with contextlib.redirect_stdout(io.StringIO()) as out:\n"
+            "    rc = main(['--help'])\n"
+            "assert rc == 0 and 'reprocess' in out.getvalue() and 'diagnose' in out.getvalue(), out.getvalue()\n"
+            "heavy = [m for m in ('numpy', 'scipy', 'calib.model', 'acq.commands.plan') if m in sys.modules]\n"
+            "assert not heavy, heavy\n")
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
+    assert r.returncode == 0, r.stderr
+
+
+def test_base_rotation_matches_an_independent_library():
+    from scipy.spatial.transform import Rotation
+
+    from calib.robot import _rpy_matrix, rpy_from_matrix
+    rng = np.random.default_rng(3)
+    for rpy in rng.uniform([-3.0, -1.5, -3.0], [3.0, 1.5, 3.0], (50, 3)):
+        np.testing.assert_allclose(_rpy_matrix(rpy), Rotation.from_euler("xyz", rpy).as_matrix(), atol=1e-12)
+        np.testing.assert_allclose(rpy_from_matrix(_rpy_matrix(rpy)), rpy, atol=1e-12)
