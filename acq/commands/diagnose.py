@@ -30,8 +30,8 @@ def add_arguments(p):
     p.add_argument("data", metavar="DATA", nargs="?",
                    help="pose CSV (q1..qn deg, x y z mm, optional dir*, payload, temperature, time, sigma_*_mm), "
                         "or a session database")
-    p.add_argument("--robot", metavar="FILE", help="robot description TOML (default: the thesis's Puma 560; "
-                                                   "the shipped TIAGo arm for the TIAGo mocap file)")
+    p.add_argument("--robot", metavar="FILE", help="robot description: TOML, calibration TOML or URDF (default: the thesis's Puma "
+                                                   "560)")
     add_unit_arguments(p)
     p.add_argument("--noise-mm", type=positive_float, default=None, metavar="S",
                    help="1-sigma point noise per coordinate (mm) when DATA carries no per-point uncertainty")

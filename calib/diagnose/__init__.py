@@ -1,6 +1,6 @@
 """Sim-to-real gap diagnosis (issue 8): how far the measured robot is from the model, where, and why.
 
-* :mod:`.data`        observations from a pose CSV, a session database (hook) or the TIAGo mocap file;
+* :mod:`.data`        observations from a pose CSV (any robot: joint-name columns, units) or a session database's arrays;
 * :mod:`.gap`         the geometric model fitted and scored on held-out poses, against the instruments' noise floor;
 * :mod:`.breakdown`   the held-out residuals by joint angle, workspace region, payload, direction, time, temperature;
 * :mod:`.candidates`  the library of unmodelled effects (the model's own effects), per joint where they apply;

@@ -1,7 +1,8 @@
 """What the diagnosis reads: joint readings, measured points with their uncertainty, and the pose conditions.
 
-Every source (a pose-measurement CSV, a session database, a foreign data set such as the TIAGo mocap file) is turned
-into one :class:`DiagnosisData`, so the gap, breakdown and selection code never looks at file formats.
+Every source (a pose-measurement CSV in any of its column conventions, or the plain arrays the session layer hands
+over for a session database) is turned into one :class:`DiagnosisData`, so the gap, breakdown and selection code
+never looks at file formats.
 
 Why the context flags matter: a candidate effect can only be tested when the data carries what drives it (approach
 directions for backlash, temperature for thermal drift, varied load for compliance).  :attr:`DiagnosisData.has`
