@@ -113,7 +113,9 @@ def rms_mm(res: np.ndarray) -> float:
 
 
 def noise_floor_mm(data: DiagnosisData) -> float:
-    return float(np.sqrt(np.mean(np.trace(data.cov_mm2, axis1=1, axis2=2))))
+    """RMS 3-D error the instruments alone explain (one formula: :func:`calib.accuracy.floor_mm`)."""
+    from calib.accuracy import floor_mm
+    return floor_mm(data.cov_mm2)
 
 
 def whitened_chi2(data: DiagnosisData, res: np.ndarray, idx=None) -> float:
