@@ -4,6 +4,7 @@ Truth: an independent Puma (tests/fakes/thesis_puma, plain matrix products of th
 the file's own sigma columns, conditions and labels must come back out of the session as written."""
 from __future__ import annotations
 
+import json
 from importlib import resources
 
 import numpy as np
@@ -94,3 +95,40 @@ def test_reprocess_refuses_several_targets_per_pose(tmp_path):
     assert main(["import", str(src), "--db", str(tmp_path / "i.db")]) == 0
     problems = reprocess(str(tmp_path / "i.db"))["problems"]
     assert any("2 targets (1, 2)" in p for p in problems), problems        # a failed stage in words, no wrong fit
+
+
+def _ruler_readings(path, names, setup):
+    """A raw-readings CSV of the set-up's ruler placements, both faces, by the independent thesis geometry."""
+    from tests.fakes.thesis_puma import leica_readings
+    st = setup["stations"]
+    lines = ["step,procedure,station,target,face,hz_deg,v_deg"]
+    for k, pl in enumerate(setup["ruler"]["placements"]):
+        d = np.asarray(pl["dir"], float) / np.linalg.norm(pl["dir"])
+        for mark, m_mm in zip("CDE", setup["ruler"]["marks_mm"]):
+            p = np.asarray(pl["C_mm"], float) + m_mm * d
+            r = np.degrees(leica_readings(p[None], st["L_mm"], np.radians(st["gamma1_deg"]),
+                                          np.radians(st["gamma2_deg"]))[0])
+            for s, (hz, v) in zip(names, (r[:2], r[2:])):
+                for face, (h, vv) in ((1, (hz, v)), (2, ((hz + 180) % 360, 360 - v))):
+                    lines.append(f"ruler/p{k}/{mark},ruler,{s},{mark},{face},{h:.8f},{vv:.8f}")
+    path.write_text("\n".join(lines) + "\n")
+    return path
+
+
+def test_readings_import_takes_the_setups_station_names(tmp_path, capsys):
+    setup = standard_setup()
+    setup["stations"] = {**setup["stations"], "names": ["West", "East"], "L_mm": 1723.0}
+    (tmp_path / "setup.json").write_text(json.dumps(setup))
+    src = _ruler_readings(tmp_path / "r.csv", ["West", "East"], setup)
+    assert main(["import", str(src), "--db", str(tmp_path / "r.db"), "--setup", str(tmp_path / "setup.json")]) == 0
+    est = {e["name"]: e["value"] for e in reprocess(str(tmp_path / "r.db"))["estimates"]}
+    assert est["ruler.L_mm"] == pytest.approx(1723.0, abs=1e-3)
+    stored = {r["station"] for s in load_session(str(tmp_path / "r.db")).steps for r in s["readings"]}
+    assert stored == {"West", "East"}
+    # a station the set-up does not name: one line with the file, the line and the column
+    capsys.readouterr()
+    assert main(["import", str(src), "--db", str(tmp_path / "d.db")]) == 2       # default set-up: A and B
+    err = capsys.readouterr().err.strip()
+    assert err == (f"robocal: error: {src}: line 2: column station: 'West' is not a station of the set-up "
+                   "(its stations: A, B)")
+    assert not (tmp_path / "d.db").exists()

@@ -7,7 +7,7 @@ column             meaning
 =================  ===========================================================================
 ``step``           step key (``ruler/p0/C``, ``sweep/j2/03``, ``poses/004`` ...): groups readings
 ``procedure``      ruler, sweep, poses, transmission, compliance (as in the session)
-``station``        A or B
+``station``        a station of the set-up (``stations.names``, default A and B)
 ``target``         target name (C, D, E, P, A1, A2)
 ``face``           1 or 2
 ``hz_deg``         horizontal circle reading, deg (clockwise)
@@ -170,7 +170,7 @@ def import_file(path: str, db: str, setup_json: str | None = None, resume: bool 
         raise RobocalError(f"{db}: exists already: import writes a new session database (choose another --db)")
     kind = _detect(path)
     setup = read_setup(setup_json) if setup_json else _default_setup()
-    steps = _pose_steps(path, setup) if kind == "poses" else _reading_steps(path)
+    steps = _pose_steps(path, setup) if kind == "poses" else _reading_steps(path, setup)
     part = partial_path(db)
     if resume and not part.exists():
         raise RobocalError(f"{db}: no unfinished import to resume ({part} does not exist)")
@@ -245,8 +245,13 @@ def _finite(text: str, what: str) -> float:
     return v
 
 
-def _reading_steps(path: str) -> list[StepRecord]:
+def _reading_steps(path: str, setup: dict | None = None) -> list[StepRecord]:
+    """The readings of a raw-readings CSV grouped into steps; ``station`` must name one of the set-up's stations
+    (default set-up: A and B)."""
     from calib.posecsv import csv_fields
+
+    from .setup import station_names
+    stations = station_names(setup or _default_setup())
     steps: dict[str, dict] = {}
     lines = [(n, ln) for n, ln in enumerate(read_text(path).splitlines(), 1) if not ln.startswith("#")]
     if not lines:
@@ -266,11 +271,14 @@ def _reading_steps(path: str) -> list[StepRecord]:
         if len(fields) != len(cols):
             raise RobocalError(f"{path}: line {lineno}: {len(fields)} fields, the header has {len(cols)}")
         row = dict(zip(cols, fields))
+        if row["station"] not in stations:
+            raise RobocalError(f"{path}: line {lineno}: column station: {row['station']!r} is not a station of the "
+                               f"set-up (its stations: {', '.join(stations)})")
         try:
             face = int(row["face"])
             hz, v = _finite(row["hz_deg"], "hz_deg") * DEG, _finite(row["v_deg"], "v_deg") * DEG
-            if row["station"] not in ("A", "B") or face not in (1, 2):
-                raise ValueError("station must be A or B and face 1 or 2")
+            if face not in (1, 2):
+                raise ValueError("column face: must be 1 or 2")
             q = [_finite(row[f"q{j}_deg"], f"q{j}_deg") for j in range(1, 7)] if row.get("q1_deg") else None
             raw = bytes.fromhex(row.get("raw_hex") or "")
             _meta_from_key(row["step"])
