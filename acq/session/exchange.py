@@ -84,7 +84,8 @@ def export_json(db: str, out: str) -> None:
 
 def pose_arrays(db: str) -> dict:
     """The pose-set steps of a session as arrays: encoder joint readings, intersected tool-target positions (with the
-    stations the session's own ruler steps give) and their covariances, step keys and sighting geometry."""
+    stations the session's own ruler steps give) and their covariances, step keys and sighting geometry; the raw
+    readings of each point (``readings``, ``target``) and the ``stations`` they were intersected with."""
     from calib.robot import load_robot
 
     from calib.estimators.points import StationFit, locate_targets
@@ -98,16 +99,18 @@ def pose_arrays(db: str) -> dict:
     fit = (_ruler(ruler, d.setup, sigma, _Est(None), None, {}) if ruler else None) \
         or StationFit.exact(setup_stations(d.setup))
     stations = fit.stations
-    q, P, C, keys, angle = [], [], [], [], []
+    q, P, C, keys, angle, raw = [], [], [], [], [], []
     for s in d.steps:
         if s["procedure"] != "poses":
             continue
         pts = locate_targets(s["readings"], fit) if s["readings"] else {}
         if "P" in pts:
             p, cov = pts["P"][0], pts["P"][1]
+            raw.append([r for r in s["readings"] if r["target"] == "P"])
         elif all(k in s["inputs"] for k in ("x_mm", "y_mm", "z_mm")):
             p = np.array([s["inputs"][k] for k in ("x_mm", "y_mm", "z_mm")])
             cov = np.eye(3) * s["inputs"].get("sigma_mm", 0.05) ** 2
+            raw.append([])
         else:
             continue
         qe = _encoder_q(s, robot)
@@ -121,7 +124,8 @@ def pose_arrays(db: str) -> dict:
     if not q:
         raise RobocalError(f"{db}: no pose-set steps")
     return {"q_rad": np.array(q), "points_mm": np.array(P), "cov_mm2": np.array(C), "keys": keys,
-            "procedure": ["poses"] * len(q), "sighting_angle_deg": np.array(angle), "raw_angles": False}
+            "procedure": ["poses"] * len(q), "sighting_angle_deg": np.array(angle), "raw_angles": False,
+            "readings": raw, "target": ["P"] * len(q), "stations": stations}
 
 
 def export_poses_csv(db: str, out: str) -> int:
