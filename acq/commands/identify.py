@@ -47,7 +47,7 @@ def add_arguments(p):
 def run(args) -> int:
     from calib.compensate import model_document, save_model, unit_of
     from calib.effects import THESIS_RUNNING_ERRORS, effect_from_text
-    from calib.evaluation import (context_of, fit_rows, point_covariance, split_metrics, station_start,
+    from calib.evaluation import (context_of, fit_rows, point_covariance, split_metrics, station_names, station_start,
                                   with_orientation_points, with_polar_points)
     from calib.polar import PolarNoise
     from calib.identify import PointObservations, check_drivers, default_free, identify
@@ -70,7 +70,7 @@ def run(args) -> int:
         raise RobocalError(f"identify: --noise-mm must be positive, got {args.noise_mm}")
     specs = list(args.effect) + (list(THESIS_RUNNING_ERRORS) if args.thesis_effects else [])
     effects = [effect_from_text(s, robot.n) for s in specs]
-    model = MeasurementModel(robot, effects + target_offsets)
+    model = MeasurementModel(robot, effects + target_offsets, stations=station_names(full))
     ctx = context_of(model, table)
     cov = point_covariance(table)
     obs = PointObservations(table.q_rad, table.points_mm, cov, sigma_mm=args.noise_mm, ctx=ctx)

@@ -55,6 +55,14 @@ def standard_setup() -> dict:
     }
 
 
+def setup_robot(setup: dict):
+    """The robot a session's set-up names: ``robot`` (a description file; empty: the shipped Puma) cut at
+    ``base_link`` / ``tip_link`` when the set-up records a URDF chain cut, so a reprocess loads the same chain the
+    session was recorded with."""
+    from calib.robot import load_robot
+    return load_robot(setup.get("robot") or None, setup.get("base_link") or None, setup.get("tip_link") or None)
+
+
 def station_names(setup: dict) -> tuple[str, str]:
     """The two stations' names as the set-up gives them (``stations.names``; default A and B)."""
     names = setup.get("stations", {}).get("names") or ["A", "B"]

@@ -118,19 +118,24 @@ def from_session_arrays(robot: Robot, arrays: dict, source: str) -> DiagnosisDat
     """A session database's pose set, as the session layer hands it over (plain arrays; ``calib`` never reads the
     session store itself, data flow one way): ``q_rad`` (N, n), ``points_mm`` (N, 3), ``cov_mm2`` (N, 3, 3),
     optional ``direction``, ``payload_kg``, ``temperature_c``, ``time_s``, ``procedure`` (N step procedure names),
-    ``sighting_angle_deg`` (N,) (intersection angle of the two sight lines), ``raw_angles`` (bool) and, when the
-    points were intersected from raw readings, ``readings`` (per pose the reading dicts), ``target`` (per pose the
+    ``sighting_angle_deg`` (N,) (intersection angle of the two sight lines), ``raw_angles`` (bool), and, as a pose
+    CSV gives them, ``pose`` ids, ``station`` and ``target`` labels and the data's own ``split``; when the points were
+    intersected from raw readings, ``readings`` (per pose the reading dicts), ``readings_target`` (per pose the
     target those readings sight) and ``stations`` (name -> Station): the both-faces noise estimate reads them."""
     d = from_arrays(robot, arrays["q_rad"], arrays["points_mm"], arrays.get("cov_mm2"), None,
                     direction=arrays.get("direction"), payload_kg=arrays.get("payload_kg"),
-                    temperature_c=arrays.get("temperature_c"), time_s=arrays.get("time_s"), source=source)
-    if arrays.get("procedure") is not None:
-        d.labels["procedure"] = [str(s) for s in arrays["procedure"]]
+                    temperature_c=arrays.get("temperature_c"), time_s=arrays.get("time_s"), source=source,
+                    pose_id=arrays.get("pose"))
+    for name in ("procedure", "station", "target"):
+        if arrays.get(name) is not None:
+            d.labels[name] = [str(s) for s in arrays[name]]
+    if arrays.get("split") is not None:
+        d.split = [str(s) for s in arrays["split"]]
     if arrays.get("sighting_angle_deg") is not None:
         d.numeric["sighting angle (deg)"] = np.asarray(arrays["sighting_angle_deg"], float)
     d.raw_angles = bool(arrays.get("raw_angles", False))
     if arrays.get("readings") is not None and arrays.get("stations"):
-        d.sightings = Sightings(list(arrays["readings"]), list(arrays["target"]), dict(arrays["stations"]))
+        d.sightings = Sightings(list(arrays["readings"]), list(arrays["readings_target"]), dict(arrays["stations"]))
     return d
 
 
