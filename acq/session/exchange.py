@@ -82,18 +82,23 @@ def export_json(db: str, out: str) -> None:
         atomic_write_text(out, text)
 
 
-def session_robot(db: str):
-    """The robot a session database was recorded with: its set-up's ``robot`` and chain cut."""
-    from .setup import setup_robot
+def stored_plan_setup(db: str) -> tuple[dict, dict]:
+    """The plan and set-up a session database was created with (read-only: nothing is touched)."""
     from .setup_file import setup_from_text
     conn = connect_readonly(db)
     try:
-        row = conn.execute("SELECT setup_json FROM session ORDER BY session_id LIMIT 1").fetchone()
+        row = conn.execute("SELECT plan_json, setup_json FROM session ORDER BY session_id LIMIT 1").fetchone()
     finally:
         conn.close()
     if row is None:
-        raise RobocalError(f"{db}: holds no session")
-    return setup_robot(setup_from_text(row[0], f"{db}: session setup_json"))
+        raise RobocalError(f"{db}: holds no session (a database left by a crash while it was created)")
+    return json_column(row[0], f"{db}: session plan_json"), setup_from_text(row[1], f"{db}: session setup_json")
+
+
+def session_robot(db: str):
+    """The robot a session database was recorded with: its set-up's ``robot`` and chain cut."""
+    from .setup import setup_robot
+    return setup_robot(stored_plan_setup(db)[1])
 
 
 def pose_arrays(db: str) -> dict:
