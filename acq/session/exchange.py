@@ -82,6 +82,25 @@ def export_json(db: str, out: str) -> None:
         atomic_write_text(out, text)
 
 
+def stored_plan_setup(db: str) -> tuple[dict, dict]:
+    """The plan and set-up a session database was created with (read-only: nothing is touched)."""
+    from .setup_file import setup_from_text
+    conn = connect_readonly(db)
+    try:
+        row = conn.execute("SELECT plan_json, setup_json FROM session ORDER BY session_id LIMIT 1").fetchone()
+    finally:
+        conn.close()
+    if row is None:
+        raise RobocalError(f"{db}: holds no session (a database left by a crash while it was created)")
+    return json_column(row[0], f"{db}: session plan_json"), setup_from_text(row[1], f"{db}: session setup_json")
+
+
+def session_robot(db: str):
+    """The robot a session database was recorded with: its set-up's ``robot`` and chain cut."""
+    from .setup import setup_robot
+    return setup_robot(stored_plan_setup(db)[1])
+
+
 def pose_arrays(db: str) -> dict:
     """The pose-set steps of a session as arrays: encoder joint readings, intersected tool-target positions (with the
     stations the session's own ruler steps give) and their covariances, step keys and sighting geometry; for an
@@ -148,12 +167,12 @@ def _detect(path: str) -> str:
     for lineno, line in enumerate(read_text(path).splitlines(), 1):
         if line.strip() and not line.startswith("#"):
             cols = [c.strip() for c in line.strip().split(",")]
+            if "q1" in cols or {"x", "y", "z"} <= set(cols):     # joint columns may carry a description's names
+                return "poses"
             if "hz_deg" in cols:
                 return "readings"
-            if "q1" in cols:
-                return "poses"
             raise RobocalError(f"{path}: line {lineno}: neither a raw-readings CSV (needs hz_deg) nor a pose CSV "
-                               f"(needs q1)")
+                               f"(needs q1, or x, y, z)")
     raise RobocalError(f"{path}: empty file")
 
 

@@ -26,7 +26,6 @@ import numpy as np
 
 from calib.errors import RobocalError
 from calib.provenance import provenance
-from calib.robot import load_robot
 from calib.units import ARCSEC, DEG, G0_M_S2
 
 from .setup_file import setup_from_text
@@ -137,7 +136,8 @@ def reprocess(path: str, n_mc: int = 0, progress=None) -> dict:
     twin = _twin_for(data)
     truth = twin.true_parameters() if twin is not None else None
     est = _Est(truth)
-    robot = load_robot(data.setup.get("robot") or None)
+    from .setup import setup_robot
+    robot = setup_robot(data.setup)
     problems: list[str] = []
     details: list[str] = []          # the technical cause of a failed stage: JSON only, never the terminal or report
     figs: dict = {}
