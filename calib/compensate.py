@@ -21,6 +21,7 @@ from pathlib import Path
 import numpy as np
 
 from .effects import PoseContext, effect_from_spec, effect_spec
+from .effects.station_offset import StationOffset
 from .errors import RobocalError
 from .fileio import atomic_write_text
 from .identify import Identification
@@ -77,6 +78,7 @@ def model_document(model: MeasurementModel, ident: Identification, truth: dict[s
         "nominal_robot_toml": robot_to_toml(model.robot),
         "parameters": params,
         "effects": [effect_spec(e) for e in model.effects],
+        **({"stations": model.stations} if model.stations is not None else {}),
         "covariance": {"names": free, "matrix": _symmetric(ident.cov[np.ix_(idx, idx)]).tolist()},
         "identifiability": ident.identifiability.report(model.robot.description_joint_names),
         "residual_rms": ident.residual_rms,
@@ -128,6 +130,7 @@ MODEL_SCHEMA = {
             "properties": {"type": {"type": "string"}, "joint": {"type": ["integer", "null"], "minimum": 1,
                                                                  "maximum": 64}},
             "additionalProperties": FINITE}},
+        "stations": {"type": "array", "maxItems": 10000, "items": {"type": "string"}, "uniqueItems": True},
         "covariance": {"type": "object", "required": ["names", "matrix"], "properties": {
             "names": {"type": "array", "items": {"type": "string"}, "uniqueItems": True},
             "matrix": {"type": "array", "items": {"type": "array", "items": FINITE}}}},
@@ -165,7 +168,11 @@ def load_model(path: str | Path) -> IdentifiedModel:
         if spec.get("joint") is not None and spec["joint"] > robot.n:
             raise RobocalError(f"{where}.joint: must be a joint number 1..{robot.n}, got {spec['joint']}")
         effects.append(effect_from_spec(spec, values, where))
-    model = MeasurementModel(robot, effects)
+    model = MeasurementModel(robot, effects, stations=doc.get("stations"))
+    n_offsets = sum(isinstance(e, StationOffset) for e in effects)
+    if model.stations is not None and n_offsets and n_offsets != len(model.stations) - 1:
+        raise RobocalError(f"{src}: stations: {len(model.stations)} names for {n_offsets + 1} set-ups "
+                           "(the reference and one station_offset effect each)")
     theta = model.nominal.copy()
     for i, name in enumerate(model.names):
         if name in values:

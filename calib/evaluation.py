@@ -56,21 +56,37 @@ def tool_per_row(robot, table: PoseTable) -> np.ndarray | None:
     return out
 
 
-def context_of(model: MeasurementModel, table: PoseTable) -> TargetContext:
-    """The pose conditions of every row, with the index of the tool point it measures."""
+def context_of(model: MeasurementModel, table: PoseTable, new_stations: bool = False) -> TargetContext:
+    """The pose conditions of every row, with the index of the tool point it measures and of the model's station
+    it was measured from (by name).  A station the model does not know is an error naming it, or, with
+    ``new_stations`` (the rows are re-stationed afterwards: locate, evaluate --locate), the reference set-up."""
     tool_per_row(model.robot, table)                          # names every target, or fails naming the line
     return TargetContext(table.n, model.robot.n, direction=table.direction, payload_kg=table.payload_kg,
                          temperature_c=table.temperature_c, time_s=table.time_s,
                          target=target_index(model.robot, table.target, table.n),
-                         station=station_index(table.station, table.n)[0])
+                         station=_model_stations(model, table, new_stations))
 
 
-def predict_rows(model: MeasurementModel, theta: np.ndarray, table: PoseTable) -> np.ndarray:
-    """Predicted positions (N, 3) of every row's target in the model's measurement frame.
+def _model_stations(model: MeasurementModel, table: PoseTable, new_stations: bool) -> np.ndarray:
+    idx, names = station_index(table.station, table.n, model.stations)
+    unknown = np.flatnonzero(idx < 0)
+    if unknown.size and not new_stations:
+        i = unknown[0]
+        known = (f"its stations: {', '.join(names)}" if names else
+                 "it was identified from one set-up without a station column")
+        raise RobocalError(f"{table.source}: line {table.line[i] if table.line else i + 1}: column station: "
+                           f"{table.station[i]!r} is not a station of the model ({known}); --locate re-stations it")
+    idx[unknown] = 0
+    return idx
+
+
+def predict_rows(model: MeasurementModel, theta: np.ndarray, table: PoseTable, new_stations: bool = False) -> np.ndarray:
+    """Predicted positions (N, 3) of every row's target in the frame of the model's station of that row (see
+    :func:`context_of` for ``new_stations``).
 
     The reference target and those with an offset effect come from ``theta``; any other named target from the
     model's tool points."""
-    ctx = context_of(model, table)
+    ctx = context_of(model, table, new_stations)
     tool = None
     if table.target is not None:
         names = list(model.robot.tool_points_mm)
@@ -160,7 +176,7 @@ def evaluate_table(model: MeasurementModel, theta: np.ndarray, table: PoseTable,
     """Residuals of the ``test`` rows (all rows without a split), optionally after re-stationing each station."""
     if table.points_mm is None:
         raise RobocalError(f"{table.source}: columns x, y, z (measured points) are needed to evaluate")
-    pred = predict_rows(model, theta, table)
+    pred = predict_rows(model, theta, table, new_stations=with_locate)
     test = table.split_mask("test")
     doc: dict = {"source": table.source, "rows": "test" if table.split is not None else "all"}
     if with_locate:
@@ -198,12 +214,19 @@ def fit_rows(table: PoseTable, robot):
     fit = table.subset(table.split_mask("fit")) if table.split is not None else table
     if fit.n == 0:
         raise RobocalError(f"{table.source}: no fit rows (column split)")
-    extra = station_effects(station_index(table.station, table.n)[1])
+    extra = station_effects(station_names(table))
     if fit.target is None:
         return fit, robot, extra
     used = list(dict.fromkeys(table.target))
     robot = order_targets(robot, used)
     return fit, robot, target_effects(robot, used) + extra
+
+
+def station_names(table: PoseTable) -> list[str]:
+    """The instrument set-ups of a table by name, the reference (station 0) first: the sorted ``station`` labels
+    (``[]`` without a station column).  A model identified from the table keeps them
+    (:attr:`calib.model.MeasurementModel.stations`), so later data is matched to them by name."""
+    return station_index(table.station, table.n)[1]
 
 
 def station_start(model: MeasurementModel, table: PoseTable) -> np.ndarray:

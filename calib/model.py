@@ -41,8 +41,13 @@ class Evaluation:
 
 
 class MeasurementModel:
-    def __init__(self, robot: Robot, effects: list[Effect] | tuple = ()):
+    def __init__(self, robot: Robot, effects: list[Effect] | tuple = (), stations: list[str] | None = None):
+        """``stations``: the names of the instrument set-ups the station indices of :class:`calib.targets.
+        TargetContext` stand for (0: the reference, ``station_offset`` effect k: the k-th), so rows are matched to
+        their set-up by name; ``[]`` for a model identified without a ``station`` column, None when unknown (a
+        model file written before the names were kept)."""
         self.robot = robot
+        self.stations = None if stations is None else [str(s) for s in stations]
         self.kin = Kinematics(robot)
         self.effects: list[Effect] = list(effects)
         self.names: list[str] = list(self.kin.names)

@@ -378,6 +378,16 @@ def _check_poses(table: PoseTable) -> None:
                                    f"and {lab!r} here (column {attr})")
 
 
+def raw_rows(path: str | Path) -> dict[int, dict[str, str]]:
+    """Every data row of a pose CSV exactly as written, by source line: column -> text (unit comment lines and
+    comments left out).  Why: an import keeps what the operator measured, columns robocal does not use included."""
+    src, lines, _ = _read_lines(Path(path))
+    if not lines:
+        return {}
+    cols = [c.strip() for c in csv_fields(lines[0][1], src, lines[0][0])]
+    return {ln: dict(zip(cols, (v.strip() for v in csv_fields(raw, src, ln)))) for ln, raw in lines[1:]}
+
+
 def csv_fields(line: str, src: str, lineno: int) -> list[str]:
     """The fields of one CSV line; a malformed line (a field over the csv module's 128 KiB limit, a stray quote)
     is one error naming the file and the line."""

@@ -61,12 +61,19 @@ def target_index(robot, target: list[str] | None, n: int) -> np.ndarray:
     return np.array([names.index(t) for t in target], int)
 
 
-def station_index(station: list[str] | None, n: int) -> tuple[np.ndarray, list[str]]:
-    """Index of each row's station among the sorted station names (0: the reference set-up) and the names."""
+def station_index(station: list[str] | None, n: int, names: list[str] | None = None) -> tuple[np.ndarray, list[str]]:
+    """Index of each row's station among ``names`` (a model's :attr:`~calib.model.MeasurementModel.stations`: 0 the
+    reference set-up), matched by name; -1 for a station not among them.  ``names`` None (new data, or a model file
+    from before the names were kept): the sorted station names of the rows.  ``names`` empty (a model identified
+    without a station column): rows of one station are that set-up."""
     if station is None:
-        return np.zeros(n, int), []
-    names = sorted(set(station))
-    return np.array([names.index(s) for s in station], int), names
+        return np.zeros(n, int), list(names or [])
+    if names is None:
+        names = sorted(set(station))
+    elif not names and len(set(station)) == 1:
+        return np.zeros(n, int), [station[0]]
+    pos = {s: k for k, s in enumerate(names)}
+    return np.array([pos.get(s, -1) for s in station], int), list(names)
 
 
 def station_effects(names: list[str]) -> list:

@@ -259,3 +259,29 @@ def test_orientation_rows_enter_the_identification(world, capsys):
     without = json.loads(_run(capsys, ["identify", str(three), *base]))
     assert with_o["n_fit"] == 14 and with_o["test_rms_mm"] < 0.1
     assert with_o["test_rms_mm"] < without["test_rms_mm"]
+
+
+def test_evaluate_matches_stations_by_name(world, capsys):
+    """A model identified from set-ups S1 and S2 evaluates a file holding only S2's rows in S2's frame (sorted
+    order would take the file's first station for the model's first); a station the model lacks is one line."""
+    tmp, truth, q, T1, data = world
+    T2 = np.eye(4)
+    T2[:3, :3], T2[:3, 3] = _rot([0.02, 0.01, 2.0]), [300.0, 1800.0, -120.0]
+    f = _write(tmp / "two_by_name.csv", np.vstack([q[:30], q[30:]]),
+               np.vstack([_measure(truth, q[:30], T1, 12), _measure(truth, q[30:], T2, 13)]),
+               {"station": ["S1"] * 30 + ["S2"] * 30})
+    model = tmp / "m_by_name.json"
+    _run(capsys, ["identify", str(f), "--robot", str(EX / "urdf" / "ur10_robot.urdf"), "--noise-mm", "0.01",
+                  "--out", str(model)])
+    assert json.loads(model.read_text())["stations"] == ["S1", "S2"]
+    only2 = _write(tmp / "only_s2.csv", q[:20], _measure(truth, q[:20], T2, 14), {"station": ["S2"] * 20})
+    ev = json.loads(_run(capsys, ["evaluate", str(model), str(only2), "--json"]))
+    assert ev["rms_mm"] < 0.05 and set(ev["by"]["station"]) == {"S2"}
+    s3 = _write(tmp / "s3.csv", q[:8], _measure(truth, q[:8], T2, 15), {"station": ["S2"] * 4 + ["S3"] * 4})
+    assert main(["evaluate", str(model), str(s3)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err == (f"robocal: error: {s3}: line 6: column station: 'S3' is not a station of the model (its "
+                   "stations: S1, S2); --locate re-stations it")
+    # re-stationing takes a new set-up: S3's rows are located like any other station's
+    ev = json.loads(_run(capsys, ["evaluate", str(model), str(s3), "--locate", "--json"]))
+    assert ev["rms_mm"] < 0.05 and [s["station"] for s in ev["stations"]] == ["S2", "S3"]

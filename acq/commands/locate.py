@@ -22,7 +22,7 @@ def run(args) -> int:
     from calib.evaluation import locate, predict_rows
 
     im, table = model_and_table(args, NAME)
-    locs = locate(predict_rows(im.model, im.theta, table), table)
+    locs = locate(predict_rows(im.model, im.theta, table, new_stations=True), table)
     doc = {"source": table.source, "stations": [loc.as_dict() for loc in locs.values()]}
     if args.json:
         print(json.dumps(doc, indent=1))

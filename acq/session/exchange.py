@@ -7,7 +7,7 @@ column             meaning
 =================  ===========================================================================
 ``step``           step key (``ruler/p0/C``, ``sweep/j2/03``, ``poses/004`` ...): groups readings
 ``procedure``      ruler, sweep, poses, transmission, compliance (as in the session)
-``station``        A or B
+``station``        a station of the set-up (``stations.names``, default A and B)
 ``target``         target name (C, D, E, P, A1, A2)
 ``face``           1 or 2
 ``hz_deg``         horizontal circle reading, deg (clockwise)
@@ -82,32 +82,52 @@ def export_json(db: str, out: str) -> None:
         atomic_write_text(out, text)
 
 
+def stored_plan_setup(db: str) -> tuple[dict, dict]:
+    """The plan and set-up a session database was created with (read-only: nothing is touched)."""
+    from .setup_file import setup_from_text
+    conn = connect_readonly(db)
+    try:
+        row = conn.execute("SELECT plan_json, setup_json FROM session ORDER BY session_id LIMIT 1").fetchone()
+    finally:
+        conn.close()
+    if row is None:
+        raise RobocalError(f"{db}: holds no session (a database left by a crash while it was created)")
+    return json_column(row[0], f"{db}: session plan_json"), setup_from_text(row[1], f"{db}: session setup_json")
+
+
+def session_robot(db: str):
+    """The robot a session database was recorded with: its set-up's ``robot`` and chain cut."""
+    from .setup import setup_robot
+    return setup_robot(stored_plan_setup(db)[1])
+
+
 def pose_arrays(db: str) -> dict:
     """The pose-set steps of a session as arrays: encoder joint readings, intersected tool-target positions (with the
-    stations the session's own ruler steps give) and their covariances, step keys and sighting geometry."""
-    from calib.robot import load_robot
-
+    stations the session's own ruler steps give) and their covariances, step keys and sighting geometry; for an
+    imported pose CSV also the conditions, split, station and pose labels its rows carried; the raw readings behind
+    each intersected point (``readings``, the target they sight ``readings_target``) and the ``stations`` they were
+    intersected with (the both-faces noise estimate)."""
     from calib.estimators.points import StationFit, locate_targets
 
+    from .imported import imported_conditions, imported_labels, imported_point
     from .reprocess import _Est, _encoder_q, _ruler
-    from .setup import setup_stations
+    from .setup import setup_robot, setup_stations
     d = load_session(db)
-    robot = load_robot(d.setup.get("robot") or None)
+    robot = setup_robot(d.setup)
     ruler = [s for s in d.steps if s["procedure"] == "ruler"]
     sigma = d.setup["stations"].get("sigma_arcsec", 3.0) * 4.84813681109536e-06
     fit = (_ruler(ruler, d.setup, sigma, _Est(None), None, {}) if ruler else None) \
         or StationFit.exact(setup_stations(d.setup))
     stations = fit.stations
-    q, P, C, keys, angle = [], [], [], [], []
+    q, P, C, keys, angle, used, raw = [], [], [], [], [], [], []
     for s in d.steps:
         if s["procedure"] != "poses":
             continue
         pts = locate_targets(s["readings"], fit) if s["readings"] else {}
         if "P" in pts:
             p, cov = pts["P"][0], pts["P"][1]
-        elif all(k in s["inputs"] for k in ("x_mm", "y_mm", "z_mm")):
-            p = np.array([s["inputs"][k] for k in ("x_mm", "y_mm", "z_mm")])
-            cov = np.eye(3) * s["inputs"].get("sigma_mm", 0.05) ** 2
+        elif imported_point(s) is not None:
+            p, cov = imported_point(s)
         else:
             continue
         qe = _encoder_q(s, robot)
@@ -115,13 +135,22 @@ def pose_arrays(db: str) -> dict:
         P.append(p)
         C.append(cov)
         keys.append(s["key"])
+        used.append(s)
+        raw.append([r for r in s["readings"] if r["target"] == "P"] if "P" in pts else [])
         sa, sb = list(stations.values())[:2]
         ua, ub = p - sa.position, p - sb.position
         angle.append(np.degrees(np.arccos(np.clip(ua @ ub / (np.linalg.norm(ua) * np.linalg.norm(ub)), -1, 1))))
     if not q:
         raise RobocalError(f"{db}: no pose-set steps")
-    return {"q_rad": np.array(q), "points_mm": np.array(P), "cov_mm2": np.array(C), "keys": keys,
-            "procedure": ["poses"] * len(q), "sighting_angle_deg": np.array(angle), "raw_angles": False}
+    out = {"q_rad": np.array(q), "points_mm": np.array(P), "cov_mm2": np.array(C), "keys": keys,
+           "procedure": ["poses"] * len(q), "sighting_angle_deg": np.array(angle), "raw_angles": False,
+           **imported_conditions(used, robot.n), "readings": raw, "readings_target": ["P"] * len(q),
+           "stations": stations}
+    for name in ("station", "split", "target", "pose"):
+        labels = imported_labels(used, name)
+        if labels is not None:
+            out[name] = labels
+    return out
 
 
 def export_poses_csv(db: str, out: str) -> int:
@@ -138,12 +167,12 @@ def _detect(path: str) -> str:
     for lineno, line in enumerate(read_text(path).splitlines(), 1):
         if line.strip() and not line.startswith("#"):
             cols = [c.strip() for c in line.strip().split(",")]
+            if "q1" in cols or {"x", "y", "z"} <= set(cols):     # joint columns may carry a description's names
+                return "poses"
             if "hz_deg" in cols:
                 return "readings"
-            if "q1" in cols:
-                return "poses"
             raise RobocalError(f"{path}: line {lineno}: neither a raw-readings CSV (needs hz_deg) nor a pose CSV "
-                               f"(needs q1)")
+                               f"(needs q1, or x, y, z)")
     raise RobocalError(f"{path}: empty file")
 
 
@@ -164,7 +193,7 @@ def import_file(path: str, db: str, setup_json: str | None = None, resume: bool 
         raise RobocalError(f"{db}: exists already: import writes a new session database (choose another --db)")
     kind = _detect(path)
     setup = read_setup(setup_json) if setup_json else _default_setup()
-    steps = _pose_steps(path) if kind == "poses" else _reading_steps(path)
+    steps = _pose_steps(path, setup) if kind == "poses" else _reading_steps(path, setup)
     part = partial_path(db)
     if resume and not part.exists():
         raise RobocalError(f"{db}: no unfinished import to resume ({part} does not exist)")
@@ -207,21 +236,18 @@ def _default_setup() -> dict:
     return standard_setup()
 
 
-def _pose_steps(path: str) -> list[StepRecord]:
-    from calib.posecsv import read_pose_csv
-    t = read_pose_csv(path)
+def _pose_steps(path: str, setup: dict) -> list[StepRecord]:
+    """Every row of a pose CSV as a ``poses`` step, each measured column kept (:mod:`acq.session.imported`)."""
+    from calib.posecsv import raw_rows, read_pose_csv
+
+    from .imported import pose_steps
+    from .setup import setup_robot
+    # a set-up naming a description reads the file as identify does with it (joint names, conventions, tool points)
+    robot = setup_robot(setup)
+    t = read_pose_csv(path, robot.n, robot.prismatic, robot=robot if setup.get("robot") else None)
     if t.points_mm is None:
         raise RobocalError(f"{path}: a pose CSV to import needs the measured x, y, z columns")
-    now = time.time()
-    out = []
-    for i in range(t.n):
-        pid = t.pose_id[i] if t.pose_id else f"{i:03d}"
-        q = (t.q_rad[i] / DEG).tolist()
-        spec = {"pose_deg": q, "meta": {"index": i}, "targets": [], "setup": {}}
-        inputs = [{"attempt": 1, "name": f"{k}_mm", "value": float(v), "unit": "mm", "t_wall_s": now}
-                  for k, v in zip("xyz", t.points_mm[i])]
-        out.append(StepRecord(f"poses/{pid}", "poses", f"imported pose {pid}", "imported", "accepted", 1,
-                              now, now, spec, "", [], [], inputs, []))
+    out = pose_steps(t, raw_rows(path), str(path))
     _unique_keys(path, out)
     return out
 
@@ -230,7 +256,8 @@ def _unique_keys(path: str, steps: list[StepRecord]) -> None:
     seen: set[str] = set()
     for rec in steps:
         if rec.key in seen:
-            raise RobocalError(f"{path}: step {rec.key!r} appears twice (pose ids must be unique)")
+            raise RobocalError(f"{path}: step {rec.key!r} appears twice (pose ids must be unique, or differ in "
+                               "their target)")
         seen.add(rec.key)
 
 
@@ -241,8 +268,13 @@ def _finite(text: str, what: str) -> float:
     return v
 
 
-def _reading_steps(path: str) -> list[StepRecord]:
+def _reading_steps(path: str, setup: dict | None = None) -> list[StepRecord]:
+    """The readings of a raw-readings CSV grouped into steps; ``station`` must name one of the set-up's stations
+    (default set-up: A and B)."""
     from calib.posecsv import csv_fields
+
+    from .setup import station_names
+    stations = station_names(setup or _default_setup())
     steps: dict[str, dict] = {}
     lines = [(n, ln) for n, ln in enumerate(read_text(path).splitlines(), 1) if not ln.startswith("#")]
     if not lines:
@@ -262,11 +294,14 @@ def _reading_steps(path: str) -> list[StepRecord]:
         if len(fields) != len(cols):
             raise RobocalError(f"{path}: line {lineno}: {len(fields)} fields, the header has {len(cols)}")
         row = dict(zip(cols, fields))
+        if row["station"] not in stations:
+            raise RobocalError(f"{path}: line {lineno}: column station: {row['station']!r} is not a station of the "
+                               f"set-up (its stations: {', '.join(stations)})")
         try:
             face = int(row["face"])
             hz, v = _finite(row["hz_deg"], "hz_deg") * DEG, _finite(row["v_deg"], "v_deg") * DEG
-            if row["station"] not in ("A", "B") or face not in (1, 2):
-                raise ValueError("station must be A or B and face 1 or 2")
+            if face not in (1, 2):
+                raise ValueError("column face: must be 1 or 2")
             q = [_finite(row[f"q{j}_deg"], f"q{j}_deg") for j in range(1, 7)] if row.get("q1_deg") else None
             raw = bytes.fromhex(row.get("raw_hex") or "")
             _meta_from_key(row["step"])

@@ -26,7 +26,6 @@ import numpy as np
 
 from calib.errors import RobocalError
 from calib.provenance import provenance
-from calib.robot import load_robot
 from calib.units import ARCSEC, DEG, G0_M_S2
 
 from .setup_file import setup_from_text
@@ -137,7 +136,8 @@ def reprocess(path: str, n_mc: int = 0, progress=None) -> dict:
     twin = _twin_for(data)
     truth = twin.true_parameters() if twin is not None else None
     est = _Est(truth)
-    robot = load_robot(data.setup.get("robot") or None)
+    from .setup import setup_robot
+    robot = setup_robot(data.setup)
     problems: list[str] = []
     details: list[str] = []          # the technical cause of a failed stage: JSON only, never the terminal or report
     figs: dict = {}
@@ -440,14 +440,16 @@ def _pose_model(robot, running: dict, problems: list[str], specs=None):
 def _poses(steps, points, robot, setup, est, twin, figs, running=None, problems=None, coupling_steps=()):
     from calib.compensate import model_document
     from calib.identify import PointObservations, default_free, identify
+
+    from .imported import imported_context, imported_point, one_target_one_station
     if not steps:
         return None
     problems = [] if problems is None else problems
-    q, P, S, D = [], [], [], []
+    q, P, S, D, used = [], [], [], [], []
     for st in steps:
         pt = points(st).get("P") if st["readings"] else None
-        if pt is None and all(k in st["inputs"] for k in ("x_mm", "y_mm", "z_mm")):     # imported pose CSV
-            pt = (np.array([st["inputs"][k] for k in ("x_mm", "y_mm", "z_mm")]), np.eye(3) * 0.05 ** 2, 0.0)
+        if pt is None:
+            pt = imported_point(st)                               # an imported pose CSV: its own sigmas
         if pt is None:
             continue
         qe = _encoder_q(st, robot)
@@ -455,12 +457,14 @@ def _poses(steps, points, robot, setup, est, twin, figs, running=None, problems=
         P.append(pt[0])
         S.append(pt[1])
         D.append(getattr(pt, "d_station", None))
+        used.append(st)
     if len(q) < 8:
         raise RobocalError(f"only {len(q)} poses with both sightings; identification needs more")
+    one_target_one_station(used, "reprocess")
     specs = running_error_specs(setup, running or {}, coupling_steps)
     model, theta0, priors = _pose_model(robot, running or {}, problems, specs)
     q, P = np.array(q), np.array(P)
-    obs = PointObservations(q, P, cov_mm2=np.array(S))
+    obs = PointObservations(q, P, cov_mm2=np.array(S), ctx=imported_context(used, robot.n))
     # the dead zone needs loading and unloading, which a pose set has not: it stays out
     wanted = [n for n in default_free(model, effects=True) if not n.endswith("deadzone_rad")]
     ident = identify(model, obs, free=wanted, theta0=theta0, priors=priors)

@@ -20,6 +20,8 @@ SETUP_SCHEMA: dict[str, Any] = {
     "required": ["stations", "base_xyz_mm", "tool_target_mm", "ruler"],
     "properties": {
         "robot": {"type": "string"},
+        "base_link": {"type": "string"},         # a URDF robot's chain cut (empty: the root / the moving leaf)
+        "tip_link": {"type": "string"},
         "scenario": {"type": "string"},
         "base_xyz_mm": _VEC3,
         "base_rpy_deg": {**_VEC3, "items": {"type": "number", "minimum": -360, "maximum": 360}},
