@@ -104,7 +104,9 @@ def session_robot(db: str):
 def pose_arrays(db: str) -> dict:
     """The pose-set steps of a session as arrays: encoder joint readings, intersected tool-target positions (with the
     stations the session's own ruler steps give) and their covariances, step keys and sighting geometry; for an
-    imported pose CSV also the conditions, split, station and pose labels its rows carried."""
+    imported pose CSV also the conditions, split, station and pose labels its rows carried; the raw readings behind
+    each intersected point (``readings``, the target they sight ``readings_target``) and the ``stations`` they were
+    intersected with (the both-faces noise estimate)."""
     from calib.estimators.points import StationFit, locate_targets
 
     from .imported import imported_conditions, imported_labels, imported_point
@@ -117,7 +119,7 @@ def pose_arrays(db: str) -> dict:
     fit = (_ruler(ruler, d.setup, sigma, _Est(None), None, {}) if ruler else None) \
         or StationFit.exact(setup_stations(d.setup))
     stations = fit.stations
-    q, P, C, keys, angle, used = [], [], [], [], [], []
+    q, P, C, keys, angle, used, raw = [], [], [], [], [], [], []
     for s in d.steps:
         if s["procedure"] != "poses":
             continue
@@ -134,6 +136,7 @@ def pose_arrays(db: str) -> dict:
         C.append(cov)
         keys.append(s["key"])
         used.append(s)
+        raw.append([r for r in s["readings"] if r["target"] == "P"] if "P" in pts else [])
         sa, sb = list(stations.values())[:2]
         ua, ub = p - sa.position, p - sb.position
         angle.append(np.degrees(np.arccos(np.clip(ua @ ub / (np.linalg.norm(ua) * np.linalg.norm(ub)), -1, 1))))
@@ -141,7 +144,8 @@ def pose_arrays(db: str) -> dict:
         raise RobocalError(f"{db}: no pose-set steps")
     out = {"q_rad": np.array(q), "points_mm": np.array(P), "cov_mm2": np.array(C), "keys": keys,
            "procedure": ["poses"] * len(q), "sighting_angle_deg": np.array(angle), "raw_angles": False,
-           **imported_conditions(used, robot.n)}
+           **imported_conditions(used, robot.n), "readings": raw, "readings_target": ["P"] * len(q),
+           "stations": stations}
     for name in ("station", "split", "target", "pose"):
         labels = imported_labels(used, name)
         if labels is not None:
