@@ -104,11 +104,10 @@ def _validate(args) -> int:
 def _read(path: str, robot, noise_mm, csv_units: dict | None = None):
     """DATA as DiagnosisData: a session database through the session layer (plain arrays), else the file loader."""
     from calib.diagnose.data import from_session_arrays, is_session_db, load_data
-    from calib.robot import load_robot
 
     if is_session_db(path):
-        from acq.session.exchange import pose_arrays
-        return from_session_arrays(robot or load_robot(), pose_arrays(str(path)), str(path))
+        from acq.session.exchange import pose_arrays, session_robot
+        return from_session_arrays(robot or session_robot(str(path)), pose_arrays(str(path)), str(path))
     return load_data(path, robot, noise_mm, **(csv_units or {}))
 
 

@@ -82,10 +82,31 @@ def export_json(db: str, out: str) -> None:
         atomic_write_text(out, text)
 
 
+def stored_plan_setup(db: str) -> tuple[dict, dict]:
+    """The plan and set-up a session database was created with (read-only: nothing is touched)."""
+    from .setup_file import setup_from_text
+    conn = connect_readonly(db)
+    try:
+        row = conn.execute("SELECT plan_json, setup_json FROM session ORDER BY session_id LIMIT 1").fetchone()
+    finally:
+        conn.close()
+    if row is None:
+        raise RobocalError(f"{db}: holds no session (a database left by a crash while it was created)")
+    return json_column(row[0], f"{db}: session plan_json"), setup_from_text(row[1], f"{db}: session setup_json")
+
+
+def session_robot(db: str):
+    """The robot a session database was recorded with: its set-up's ``robot`` and chain cut."""
+    from .setup import setup_robot
+    return setup_robot(stored_plan_setup(db)[1])
+
+
 def pose_arrays(db: str) -> dict:
     """The pose-set steps of a session as arrays: encoder joint readings, intersected tool-target positions (with the
     stations the session's own ruler steps give) and their covariances, step keys and sighting geometry; for an
-    imported pose CSV also the conditions, split, station and pose labels its rows carried."""
+    imported pose CSV also the conditions, split, station and pose labels its rows carried; the raw readings behind
+    each intersected point (``readings``, the target they sight ``readings_target``) and the ``stations`` they were
+    intersected with (the both-faces noise estimate)."""
     from calib.estimators.points import StationFit, locate_targets
 
     from .imported import imported_conditions, imported_labels, imported_point
@@ -98,7 +119,7 @@ def pose_arrays(db: str) -> dict:
     fit = (_ruler(ruler, d.setup, sigma, _Est(None), None, {}) if ruler else None) \
         or StationFit.exact(setup_stations(d.setup))
     stations = fit.stations
-    q, P, C, keys, angle, used = [], [], [], [], [], []
+    q, P, C, keys, angle, used, raw = [], [], [], [], [], [], []
     for s in d.steps:
         if s["procedure"] != "poses":
             continue
@@ -115,6 +136,7 @@ def pose_arrays(db: str) -> dict:
         C.append(cov)
         keys.append(s["key"])
         used.append(s)
+        raw.append([r for r in s["readings"] if r["target"] == "P"] if "P" in pts else [])
         sa, sb = list(stations.values())[:2]
         ua, ub = p - sa.position, p - sb.position
         angle.append(np.degrees(np.arccos(np.clip(ua @ ub / (np.linalg.norm(ua) * np.linalg.norm(ub)), -1, 1))))
@@ -122,7 +144,8 @@ def pose_arrays(db: str) -> dict:
         raise RobocalError(f"{db}: no pose-set steps")
     out = {"q_rad": np.array(q), "points_mm": np.array(P), "cov_mm2": np.array(C), "keys": keys,
            "procedure": ["poses"] * len(q), "sighting_angle_deg": np.array(angle), "raw_angles": False,
-           **imported_conditions(used, robot.n)}
+           **imported_conditions(used, robot.n), "readings": raw, "readings_target": ["P"] * len(q),
+           "stations": stations}
     for name in ("station", "split", "target", "pose"):
         labels = imported_labels(used, name)
         if labels is not None:
@@ -144,12 +167,12 @@ def _detect(path: str) -> str:
     for lineno, line in enumerate(read_text(path).splitlines(), 1):
         if line.strip() and not line.startswith("#"):
             cols = [c.strip() for c in line.strip().split(",")]
+            if "q1" in cols or {"x", "y", "z"} <= set(cols):     # joint columns may carry a description's names
+                return "poses"
             if "hz_deg" in cols:
                 return "readings"
-            if "q1" in cols:
-                return "poses"
             raise RobocalError(f"{path}: line {lineno}: neither a raw-readings CSV (needs hz_deg) nor a pose CSV "
-                               f"(needs q1)")
+                               f"(needs q1, or x, y, z)")
     raise RobocalError(f"{path}: empty file")
 
 

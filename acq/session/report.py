@@ -201,6 +201,22 @@ def _coupling_fig(f: dict, res: dict):
     return [("Wrist cross coupling", fig)]
 
 
+@figure("resolution")
+def _resolution_fig(f: dict, res: dict):
+    """Fig 5.14: the measured angle less the fitted line, against the counts (what one count is worth is the line's
+    slope; what is left is the transmission error over the run and the noise)."""
+    out = []
+    plt = _plt()
+    for j, r in (f.get("resolution") or {}).items():
+        fig, ax = plt.subplots(figsize=(6, 2.6))
+        ax.errorbar(r["counts"], r["residual_deg"], r.get("sigma_deg"), fmt="o", ms=3)
+        ax.axhline(0.0, color="k", lw=0.5)
+        ax.set_xlabel(f"joint {j} encoder counts"), ax.set_ylabel("angle − fitted line (deg)")
+        out.append((f"Joint {j}: {np.degrees(r['rad_per_count']) * 3600:.4g} arc seconds per count; the measured angle "
+                    f"less the fitted line", fig))
+    return out
+
+
 @figure("poses")
 def _poses_fig(f: dict, res: dict):
     p = f.get("poses")

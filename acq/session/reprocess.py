@@ -26,7 +26,6 @@ import numpy as np
 
 from calib.errors import RobocalError
 from calib.provenance import provenance
-from calib.robot import load_robot
 from calib.units import ARCSEC, DEG, G0_M_S2
 
 from .setup_file import setup_from_text
@@ -137,7 +136,8 @@ def reprocess(path: str, n_mc: int = 0, progress=None) -> dict:
     twin = _twin_for(data)
     truth = twin.true_parameters() if twin is not None else None
     est = _Est(truth)
-    robot = load_robot(data.setup.get("robot") or None)
+    from .setup import setup_robot
+    robot = setup_robot(data.setup)
     problems: list[str] = []
     details: list[str] = []          # the technical cause of a failed stage: JSON only, never the terminal or report
     figs: dict = {}
@@ -718,9 +718,11 @@ def _commanded(sts, meas, cov, ok, j, est, figs):
 
 
 def _resolution(steps, points, robot, est, twin, figs):
-    """The encoder-resolution run (Fig 5.14): per joint, measured angle (A1, A2 about the run's own axis) against the
-    tapped counts; truth the description's resolution (the twin's encoders are the description's)."""
-    from calib.estimators.resolution import design_resolution_rad, encoder_resolution
+    """The encoder-resolution run (Fig 5.14): per joint, measured angle (A1, A2 about the run's own axis, fitted from
+    A2 over the run) against the tapped counts, the axis's error propagated into the slope's
+    (:func:`calib.estimators.resolution.encoder_resolution_fitted_axis`); truth the description's resolution (the
+    twin's encoders are the description's)."""
+    from calib.estimators.resolution import design_resolution_rad, encoder_resolution_fitted_axis
     if not steps:
         return
     by_joint: dict[int, list] = {}
@@ -728,18 +730,22 @@ def _resolution(steps, points, robot, est, twin, figs):
         by_joint.setdefault(st["spec"]["meta"]["joint"], []).append(st)
     figs["resolution"] = {}
     for j, sts in sorted(by_joint.items()):
-        sts = [s for s in sts if s.get("counts") is not None and len(s["counts"])]
-        n = _own_axis(sts, points, j, 0)
-        meas, _, cov = _joint_angles(sts, points, n, full=True)
+        sts = sorted((s for s in sts if s.get("counts") is not None and len(s["counts"])
+                      and {"A1", "A2"} <= set(points(s))), key=lambda s: s["spec"]["meta"]["index"])
+        pairs = [(points(s)["A1"], points(s)["A2"]) for s in sts]
         counts = np.array([np.mean(s["counts"], 0)[j - 1] for s in sts])
-        ok = np.isfinite(meas)
         design = design_resolution_rad(robot.counts_per_rev[j - 1], robot.gear_ratio[j - 1])
-        signed, C = counts[ok] * np.sign(robot.gear_ratio[j - 1]), cov[np.ix_(ok, ok)]
-        res = encoder_resolution(signed, meas[ok], C, design)
-        tv = _resolution_truth(twin, robot, sts, ok, j, signed, C, design) if twin is not None else {}
+        signed = counts * np.sign(robot.gear_ratio[j - 1])
+        res = encoder_resolution_fitted_axis(signed, [a.point_mm for a, _ in pairs], [b.point_mm for _, b in pairs],
+                                             _block([t for p in pairs for t in p], points), design, joint=f"j{j}")
+        meas, C = res.extras["angle_rad"], res.extras["angle_cov_rad2"]
+        tv = (_resolution_truth(twin, robot, sts, np.ones(len(sts), bool), j, signed, C, design)
+              if twin is not None else {})
         est.add_set(f"resolution.j{j}.", res, tv, only=("rad_per_count", "scale"))
         figs["resolution"][j] = {"counts": counts.tolist(), "angle_deg": (meas / DEG).tolist(),
-                                 "rad_per_count": float(res["rad_per_count"].value)}
+                                 "sigma_deg": (np.sqrt(np.diag(C)) / DEG).tolist(),
+                                 "rad_per_count": float(res["rad_per_count"].value),
+                                 "residual_deg": (res.extras["residual_rad"] / DEG).tolist()}
 
 
 def _resolution_truth(twin, robot, sts, ok, j, signed_counts, cov, design) -> dict:

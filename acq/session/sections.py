@@ -171,7 +171,8 @@ section(Section(
     "encoder_resolution", "Encoder resolution (Fig 5.14)", ("resolution.",),
     "One joint turned through a wide arc while the targets are sighted and the encoder counted; the joint angle per "
     "count from the slope.", ("encoder_resolution", "encoder resolution"),
-    "Turn the joint through a wider arc (within 180 deg of the first position) with more positions.", [], ()))
+    "Turn the joint through a wider arc (within 180 deg of the first position) with more positions.", [],
+    ("resolution",)))
 section(Section(
     "poses", "Identification from the pose set (Chapter 6)", ("ident.",),
     "The tool target sighted at every pose of the designed set; the geometry and the running errors identified "
