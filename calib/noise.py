@@ -14,9 +14,11 @@ without any model of the robot (each source an estimate of the per-coordinate va
   independent).  With ``d_bar`` their weighted mean, ``chi2 = sum_i (d_i - d_bar)^T V_i^+ (d_i - d_bar)`` has
   expectation ``k (n - 1) r`` when the true covariance is ``k C`` (``r``: rank of ``V``: 1 for two targets,
   ``3 t - 6`` for ``t >= 3`` off a line), so the variance is ``k_hat = chi2 / ((n - 1) r)`` times the given
-  per-coordinate variance (the mean over those points).  For an isotropic sigma and two targets this is ``var(d) = 2 sigma^2``:
-  ``sigma^2 = sum (d_i - d_bar)^2 / (2 (n - 1))``.  Poses are grouped by their set of targets, so a file whose poses
-  carry different targets still gives what it can (a pose with one target, or a target twice, gives nothing here).
+  per-coordinate variance (the mean over those points).  For an isotropic sigma and two targets this is
+  ``var(d) = 2 sigma^2``: ``sigma^2 = sum (d_i - d_bar)^2 / (2 (n - 1))``.  A pose whose own chi2 lies beyond the
+  0.999 quantile at the scale the others show is left out as a blunder (up to three rounds).  Poses are grouped by
+  their set of targets, so a file whose poses carry different targets still gives what it can (a pose with one
+  target, or a target twice, gives nothing here).
   Not seen: anything that moves the targets against each other (a tool that bends).
 * **Both faces** (raw theodolite readings on face I and face II, a session database): the difference of the face-I
   and the reduced face-II reading of one sighting is twice the collimation/trunnion term (``2 c / sin V +
@@ -166,10 +168,10 @@ def target_sets(keys: list, target: list[str]) -> dict[tuple, list[np.ndarray]]:
     return out
 
 
-def _distance_chi2(P: np.ndarray, C: np.ndarray) -> tuple[float, int]:
-    """chi2 and degrees of freedom of the pair distances of ``P (n, t, 3)`` with covariances ``C (n, t, 3, 3)``
-    about their weighted mean (see the module docstring)."""
-    n, t = P.shape[:2]
+def _distance_chi2(P: np.ndarray, C: np.ndarray) -> tuple[np.ndarray, np.ndarray, int]:
+    """Per pose the chi2 of the pair distances of ``P (n, t, 3)`` with covariances ``C (n, t, 3, 3)`` about their
+    weighted mean, per pose the rank of their covariance, and the rank the mean takes (see the module docstring)."""
+    t = P.shape[1]
     a, b = np.triu_indices(t, 1)
     diff = P[:, a] - P[:, b]                                    # (n, m, 3)
     d = np.linalg.norm(diff, axis=-1)                           # (n, m)
@@ -184,14 +186,32 @@ def _distance_chi2(P: np.ndarray, C: np.ndarray) -> tuple[float, int]:
     Wsum = W.sum(0)
     dbar = np.linalg.lstsq(Wsum, np.einsum("npq,nq->p", W, d), rcond=1e-9)[0]
     e = d - dbar
-    return float(np.einsum("np,npq,nq->", e, W, e)), int(rank.sum() - np.linalg.matrix_rank(Wsum, rtol=1e-9))
+    return np.einsum("np,npq,nq->n", e, W, e), rank, int(np.linalg.matrix_rank(Wsum, rtol=1e-9))
+
+
+def _clipped_chi2(P: np.ndarray, C: np.ndarray, p_blunder: float = 1e-3) -> tuple[float, int, int]:
+    """chi2 and degrees of freedom of the distances, a pose left out when its chi2 is beyond the ``1 - p_blunder``
+    quantile at the scale the others show (a blunder would otherwise pass for noise); returns also how many."""
+    from scipy.stats import chi2 as chi2_dist
+
+    keep = np.ones(len(P), bool)
+    for _ in range(3):
+        c, r, r_mean = _distance_chi2(P[keep], C[keep])
+        f = int(r.sum()) - r_mean
+        if f <= 0:
+            return float("nan"), 0, int((~keep).sum())
+        bad = c > chi2_dist.isf(p_blunder, r) * (c.sum() / f)
+        if not bad.any() or keep.sum() - bad.sum() < 3:
+            break
+        keep[np.flatnonzero(keep)[bad]] = False
+    return float(c.sum()), f, int((~keep).sum())
 
 
 def from_target_distances(keys: list, target, points_mm: np.ndarray, cov_mm2: np.ndarray) -> Sample | None:
     """Several targets per pose: the scatter of their distances (see the module docstring)."""
     if target is None:
         return None
-    var, dof, poses, used = 0.0, 0, 0, set()
+    var, dof, poses, dropped, used = 0.0, 0, 0, 0, set()
     for names, idx in target_sets(keys, list(target)).items():
         if len(idx) < 3:
             continue
@@ -202,16 +222,18 @@ def from_target_distances(keys: list, target, points_mm: np.ndarray, cov_mm2: np
                    for j in range(i + 1, len(names)))
         if not dmin > MIN_DISTANCE_SIGMAS * np.sqrt(g2):
             continue
-        chi2, f = _distance_chi2(P, C)
+        chi2, f, out = _clipped_chi2(P, C)
         if not (f > 0 and np.isfinite(chi2)):
             continue
         var += chi2 * g2                                        # k_hat * g2, weighted by f
         dof += f
-        poses += len(idx)
+        poses += len(idx) - out
+        dropped += out
         used.update(names)
     if dof == 0:
         return None
-    return Sample(f"target distances ({poses} poses, targets {', '.join(sorted(used))})", var / dof, dof)
+    blunders = f", {dropped} left out as blunders" if dropped else ""
+    return Sample(f"target distances ({poses} poses{blunders}, targets {', '.join(sorted(used))})", var / dof, dof)
 
 
 def _face_differences(s: Sightings) -> dict[str, list[tuple]]:

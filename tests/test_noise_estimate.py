@@ -228,3 +228,29 @@ def test_both_faces_reach_mm_through_the_intersection():
     s.readings[1] = [r for r in s.readings[1] if r["station"] == "A"]
     per = noise.station_noise(s)
     assert per["A"][2] == 57 and per["B"][2] == 56
+
+
+def test_a_blunder_is_left_out_of_the_distances():
+    sigma = 0.03
+    _, P = _measured(5, 60, 2, sigma)
+    pts, pose, tgt = _rows(P)
+    cov = np.broadcast_to(np.eye(3) * sigma ** 2, (len(pts), 3, 3))
+    clean = noise.from_target_distances(pose, tgt, pts, cov)
+    pts = pts.copy()
+    pts[20] += [0.0, 0.0, 1.0]                              # one target of pose 10 read 1 mm off
+    s = noise.from_target_distances(pose, tgt, pts, cov)
+    assert "1 left out" in s.how and s.dof == clean.dof - 1
+    assert abs(np.sqrt(s.var_mm2) / sigma - 1) < 0.3
+
+
+def test_the_diagnosis_reads_several_targets_per_pose_from_a_pose_csv(tmp_path):
+    from calib.diagnose import noise as dnoise
+    from calib.diagnose.data import load_data
+    from calib.robot import load_robot
+
+    sigma = 0.03
+    q, P = _measured(9, 40, 2, sigma, COMPLIANCE)
+    data = load_data(_wide_csv(tmp_path / "two.csv", q, P), load_robot(_description(tmp_path)), noise_mm=0.1)
+    e = dnoise.estimate(data, heldout_rms_mm=1.0)
+    assert not e.upper_bound and "target distances (40 poses" in e.how
+    assert abs(e.estimated_mm / sigma - 1) < 0.3 and e.given_too_large

@@ -210,8 +210,8 @@ def _diagnose(data, level, n_folds, alpha, max_effects, kinds, te_orders, flag_o
 def _breakdown(data: DiagnosisData, model: MeasurementModel, geo: CVResult, sel: Selection) -> list[Factor]:
     ev = model.evaluate(data.q_rad, data.ctx, geo.all_fit.theta[: model.P], jacobian=True)
     base = ev.chain.frame_t[0, 0]
-    g = data.robot.gravity_m_s2
-    up = ev.chain.frame_R[0, 0] @ (-g / np.linalg.norm(g)) if np.linalg.norm(g) > 0 else None
+    g = ev.chain.gravity()[0]                       # the description's gravity in the measurement frame
+    up = -g / np.linalg.norm(g) if np.linalg.norm(g) > 0 else None
     t = geo.tested
     if t.all():
         return breakdown(data, geo.residual_mm, sel.final.residual_mm, base, up, ev.joint_jacobian)
