@@ -225,7 +225,7 @@ def _plan_and_setup(args):
     """(plan, set-up with old keys mapped, robot) of a session database or a set-up JSON."""
     from pathlib import Path
 
-    from acq.session.setup import session_setup
+    from acq.session.setup import session_setup, setup_robot
 
     path = Path(args.target)
     if not path.is_file():
@@ -239,5 +239,5 @@ def _plan_and_setup(args):
         setup = read_json(str(path), ("stations", "base_xyz_mm", "ruler"))
         q = read_pose_csv(args.poses).q_rad / DEG if args.poses else None
         plan = setup.get("plan") or default_plan(q)
-    robot = load_robot(args.robot or setup.get("robot") or None)
+    robot = load_robot(args.robot) if args.robot else setup_robot(setup)
     return plan, session_setup(setup, robot), robot

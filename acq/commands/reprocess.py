@@ -26,12 +26,11 @@ def add_arguments(p):
 
 def session_diagnosis(db: str) -> dict:
     """The diagnosis of a session's pose set (the same as ``robocal diagnose DB --json``), for the report."""
-    from acq.session.exchange import pose_arrays
+    from acq.session.exchange import pose_arrays, session_robot
     from calib.diagnose import diagnose
     from calib.diagnose.data import from_session_arrays
-    from calib.robot import load_robot
     arrays = pose_arrays(str(db))
-    return diagnose(from_session_arrays(load_robot(), arrays, str(db))).to_json()
+    return diagnose(from_session_arrays(session_robot(str(db)), arrays, str(db))).to_json()
 
 
 def run(args) -> int:

@@ -123,7 +123,8 @@ def real_builder(db: str, theodolites: list[str], tap: str | None, setup_path: s
     from acq.drivers import open_theodolite
     from acq.encoders import open_tap
     from acq.session.preflight import Preflight
-    from acq.session.setup import predictor, session_setup, setup_stations, station_names
+    from acq.session.setup import (predictor, record_robot, session_setup, setup_robot, setup_stations,
+                                   station_names)
     from acq.session.stations import stations_from_store
     from acq.session.procedures import all_steps
     from acq.session.rig import ManualBench, Rig
@@ -131,7 +132,6 @@ def real_builder(db: str, theodolites: list[str], tap: str | None, setup_path: s
     from acq.session.store import SessionStore
     from acq.tui.app import SessionHandle
     from calib.posecsv import read_pose_csv
-    from calib.robot import load_robot
     from calib.units import DEG
 
     specs = [parse_theodolite(t) for t in theodolites]
@@ -145,7 +145,13 @@ def real_builder(db: str, theodolites: list[str], tap: str | None, setup_path: s
                                "designs one, robocal session --write-setup FILE writes a template)")
         from acq.session.setup_file import read_setup
         setup = read_setup(setup_path)
-    robot = load_robot(robot_path or setup.get("robot") or None)
+    if not resume:
+        setup = record_robot(setup, robot_path)
+    elif record_robot(setup, robot_path) != setup:
+        raise RobocalError(f"session: {db} was recorded with the robot {setup.get('robot') or 'puma560 (default)'} "
+                           f"(chain cut {setup.get('base_link') or '-'} -> {setup.get('tip_link') or '-'}): resume "
+                           "it with the same --robot, or without --robot")
+    robot = setup_robot(setup)
     if not resume:
         q = read_pose_csv(poses, robot.n).q_rad / DEG if poses else None
         plan = default_plan(q)
@@ -199,17 +205,8 @@ def real_builder(db: str, theodolites: list[str], tap: str | None, setup_path: s
 
 def _stored_plan_setup(db: str) -> tuple[dict, dict]:
     """The plan and set-up a session database was created with (read-only: nothing is touched)."""
-    from acq.session.store import connect_readonly
-    from acq.session.setup_file import setup_from_text
-    from acq.session.store import json_column
-    conn = connect_readonly(db)
-    try:
-        row = conn.execute("SELECT plan_json, setup_json FROM session").fetchone()
-    finally:
-        conn.close()
-    if row is None:
-        raise RobocalError(f"{db}: holds no session (a database left by a crash while it was created)")
-    return json_column(row[0], f"{db}: session plan_json"), setup_from_text(row[1], f"{db}: session setup_json")
+    from acq.session.exchange import stored_plan_setup
+    return stored_plan_setup(db)
 
 
 def run(args) -> int:

@@ -55,6 +55,21 @@ def standard_setup() -> dict:
     }
 
 
+def record_robot(setup: dict, robot_path) -> dict:
+    """The set-up naming the robot a session is recorded with: ``robot_path`` (``--robot``: a path, or a
+    :class:`calib.robot.RobotPath` carrying ``--base-link`` / ``--tip-link``) as ``robot``, its chain cut as
+    ``base_link`` / ``tip_link``; the set-up itself when no ``--robot`` was given.  Why: the session keeps its
+    set-up, and reprocessing loads the robot from it (:func:`setup_robot`), so the cut must travel with the name."""
+    if not robot_path:
+        return setup
+    out = {**setup, "robot": str(robot_path)}
+    for key in ("base_link", "tip_link"):
+        out.pop(key, None)
+        if getattr(robot_path, key, None):
+            out[key] = str(getattr(robot_path, key))
+    return out
+
+
 def setup_robot(setup: dict):
     """The robot a session's set-up names: ``robot`` (a description file; empty: the shipped Puma) cut at
     ``base_link`` / ``tip_link`` when the set-up records a URDF chain cut, so a reprocess loads the same chain the
@@ -139,7 +154,7 @@ def _frame_point(fp, link: int, p_world: np.ndarray) -> list[float]:
 
 def up_direction(fp, robot) -> np.ndarray:
     """Unit vector against the description's gravity, in the measurement frame (the base carries gravity along)."""
-    g = fp.frame_R[0, 0] @ np.asarray(robot.gravity_m_s2, float)
+    g = fp.gravity()[0]
     return -g / np.linalg.norm(g)
 
 

@@ -196,7 +196,8 @@ def _diagnose(data, level, n_folds, alpha, max_effects, kinds, te_orders, flag_o
     geo_free = geometric_free(model, level)
     lib = build_library(data, kinds, te_orders)
     hfloor = heldout_floor_mm(geo, data)
-    judged = hfloor * noise.estimate(data, geo.rms_mm).floor_scale()
+    free_noise = noise.sources(data)          # model-free noise estimates: once (the both-faces one intersects)
+    judged = hfloor * noise.estimate(data, geo.rms_mm, free_noise).floor_scale()
     prog("effect selection", 0.2)
     sel = forward_select(data, geo, geo_free, lib.candidates, alpha, max_effects,
                          (lambda s, f: prog(s, 0.2 + 0.75 * f)), floor_mm=judged, loss=loss)
@@ -205,14 +206,14 @@ def _diagnose(data, level, n_folds, alpha, max_effects, kinds, te_orders, flag_o
     prog("done", 1.0)
     return Diagnosis(data, level, len(folds), noise_floor_mm(data), hfloor, geo, sel,
                      _breakdown(data, model, geo, sel), lib.skipped, out_rep.flagged, note, out_rep,
-                     noise.estimate(data, sel.final.rms_mm), judged)
+                     noise.estimate(data, sel.final.rms_mm, free_noise), judged)
 
 
 def _breakdown(data: DiagnosisData, model: MeasurementModel, geo: CVResult, sel: Selection) -> list[Factor]:
     ev = model.evaluate(data.q_rad, data.ctx, geo.all_fit.theta[: model.P], jacobian=True)
     base = ev.chain.frame_t[0, 0]
-    g = data.robot.gravity_m_s2
-    up = ev.chain.frame_R[0, 0] @ (-g / np.linalg.norm(g)) if np.linalg.norm(g) > 0 else None
+    g = ev.chain.gravity()[0]                       # the description's gravity in the measurement frame
+    up = -g / np.linalg.norm(g) if np.linalg.norm(g) > 0 else None
     t = geo.tested
     if t.all():
         return breakdown(data, geo.residual_mm, sel.final.residual_mm, base, up, ev.joint_jacobian)
