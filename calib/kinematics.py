@@ -42,6 +42,15 @@ class ChainPass:
     elem_axis: np.ndarray      # (N, E, 3) world direction of each elementary motion's axis
     elem_origin: np.ndarray    # (N, E, 3) a point on that axis (the frame origin before the motion)
     point_link: int | None = None   # frame the evaluated point is fixed in (None: the tool point, beyond frame n)
+    gravity_m_s2: np.ndarray | None = None   # (3,) the description's gravity, in frame 0
+
+    def gravity(self) -> np.ndarray:
+        """(N, 3) gravity (m/s^2) in the measurement frame: the description's, given in frame 0, carried by the base.
+        The one source of the gravity direction for loads and effects (a wall- or ceiling-mounted robot's
+        description says where down is)."""
+        if self.gravity_m_s2 is None:
+            raise ValueError("a chain pass built without the description's gravity (Kinematics.forward sets it)")
+        return self.frame_R[:, 0] @ self.gravity_m_s2
 
     @property
     def joint_axis(self) -> np.ndarray:
@@ -166,7 +175,8 @@ class Kinematics:
                 frame_R[:, 0], frame_t[:, 0] = R, t
             elif e in link_end:
                 frame_R[:, link_end[e]], frame_t[:, link_end[e]] = R, t
-        return ChainPass(point=t, frame_R=frame_R, frame_t=frame_t, elem_axis=axes, elem_origin=origins)
+        return ChainPass(point=t, frame_R=frame_R, frame_t=frame_t, elem_axis=axes, elem_origin=origins,
+                         gravity_m_s2=np.asarray(self.robot.gravity_m_s2, float))
 
     def points(self, q_rad: np.ndarray, params: np.ndarray | None = None) -> np.ndarray:
         """Tool points (N, 3) in the measurement frame."""

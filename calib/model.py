@@ -85,7 +85,7 @@ class MeasurementModel:
         a hung mass m pulls ``m * gravity_n_per_kg()`` at its point."""
         geo = (self.nominal if theta is None else np.asarray(theta, float))[: self.n_geometric]
         fp = self.kin.forward(np.zeros((1, self.robot.n)), geo)
-        return fp.frame_R[0, 0] @ self.robot.gravity_m_s2
+        return fp.gravity()[0]
 
     def _bodies(self, fp: ChainPass, ctx: PoseContext):
         """Every force acting on the chain, with the frame it is fixed in: the links' weights at their centres of
@@ -93,7 +93,7 @@ class MeasurementModel:
         ``ctx`` (frame ``point_force_link``).  Returns positions (N, B, 3) m, forces (N, B, 3) N, frames (B,)."""
         r = self.robot
         n = r.n
-        g_world = fp.frame_R[:, 0] @ r.gravity_m_s2                                   # (N, 3)
+        g_world = fp.gravity()                                                        # (N, 3)
         com = self.kin.point_on(fp, np.arange(1, n + 1), r.com_mm)                    # (N, n, 3)
         F_tool = ctx.payload_kg[:, None] * g_world + ctx.tool_force_n                 # (N, 3)
         pos = [com, fp.point[:, None, :]]

@@ -240,7 +240,7 @@ def sweep_targets(model, theta: np.ndarray, q_rad: np.ndarray, radius_mm: dict[i
     n = model.robot.n
     fp = model.kin.forward(np.asarray(q_rad, float)[None], theta[: model.n_geometric])
     R6, t6 = fp.frame_R[0, n], fp.frame_t[0, n]
-    g = fp.frame_R[0, 0] @ np.asarray(model.robot.gravity_m_s2, float)
+    g = fp.gravity()[0]
     up = -g / np.linalg.norm(g)
     toward = np.asarray(toward_mm, float)
     out = {}

@@ -18,4 +18,8 @@ def test_diagnose_the_demo_session_names_the_twins_effects():
     assert ("joint_compliance", 3) in found and ("transmission_error", 4) in found
     assert out["final_rms_mm"] < out["baseline_rms_mm"]
     assert out["final_rms_mm"] < 1.3 * out["noise_floor_mm"]
+    # the session's raw readings on both faces estimate the noise with no model (the twin reads to 3 arc seconds)
+    ne = out["noise_estimate"]
+    assert "both faces" in ne["from"] and not ne["upper_bound"]
+    assert 1 / 1.5 < ne["estimated_mm"] / ne["given_mm"] < 1.5
     assert EXAMPLE.read_bytes() == before                   # read-only

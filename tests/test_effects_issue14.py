@@ -88,6 +88,36 @@ def test_tool_flex():
     np.testing.assert_allclose(m.points(q, theta=th), [fake.tool_flex_point(arm, qi, 0.25) for qi in q], atol=1e-8)
 
 
+def test_tool_flex_sags_along_the_descriptions_gravity_on_a_wall():
+    """A wall-mounted Puma: its base turned 90 deg about y in the measurement frame, its description's gravity along
+    -x of frame 0 (down in the room).  The sag follows the room's down, computed here in plain numpy from the thesis
+    chain's frames, not -z of the base (which is horizontal on the wall); loads and tool flex share the gravity."""
+    from dataclasses import replace
+    g_desc = np.array([-9.80665, 0.0, 0.0])
+    base = dict(BASE, pitch=-np.pi / 2)
+    arm = ThesisPuma.from_toml(PUMA_TOML)
+    arm.base = base_matrix(base["xyz"], base["yaw"], base["pitch"], base["roll"])
+    arm.tool_xyz_t = tuple(-v for v in TOOL_MM)
+    e = make_effect("tool_flex")
+    m = MeasurementModel(replace(load_robot(), gravity_m_s2=g_desc), [e])
+    th = m.nominal.copy()
+    for k, v in [*zip(("x_mm", "y_mm", "z_mm"), base["xyz"]), *zip(("yaw_rad", "pitch_rad", "roll_rad"),
+                                                                   (base["yaw"], base["pitch"], base["roll"]))]:
+        th[m.index[f"base.{k}"]] = v
+    for k, v in zip(("x_mm", "y_mm", "z_mm"), TOOL_MM):
+        th[m.index[f"tool.{k}"]] = v
+    th[m.effect_slices[0]] = 0.25
+    q = np.random.default_rng(4).uniform(-1.5, 1.5, (12, 6))
+    down = arm.base[:3, :3] @ g_desc / 9.80665
+    np.testing.assert_allclose(down, [0.0, 0.0, -1.0], atol=1e-12)       # the wall mount: down is the room's -z
+    want = []
+    for qi in q:
+        z = arm.frames(qi)[6][:3, 2]
+        want.append(arm.tool_point(qi) + 0.25 * (down - (down @ z) * z))
+    np.testing.assert_allclose(m.points(q, theta=th), want, atol=1e-8)
+    np.testing.assert_allclose(m.gravity_n_per_kg(th), 9.80665 * down, atol=1e-9)
+
+
 @pytest.mark.parametrize("kind", ["joint_scale", "axis_tilt", "parallel_axes", "instrument_drift", "tool_flex"])
 def test_jacobian_of_the_new_effects_matches_finite_differences(kind):
     e = make_effect(kind, 3) if EFFECTS[kind].has_joint else make_effect(kind)

@@ -8,7 +8,7 @@ import pytest
 from calib.estimators import EstimationError
 from calib.estimators.coupling import coupling_from_repeats, further_correction
 from calib.estimators.dh import puma_thesis_dh
-from calib.estimators.resolution import design_resolution_rad, encoder_resolution
+from calib.estimators.resolution import design_resolution_rad, encoder_resolution, encoder_resolution_fitted_axis
 from calib.estimators.transmission import commanded_angle_errors
 from tests.fakes import thesis_procedures as tp
 
@@ -24,6 +24,38 @@ def test_resolution_slope_and_refusal():
     assert abs(res["scale"].value - 1.001) < 4 * res["scale"].error
     with pytest.raises(EstimationError, match="resolution is not determined"):
         encoder_resolution(counts, 2e-5 * rng.standard_normal(10), np.full(10, 2e-5 ** 2), S)
+
+
+def _tool_run(rng, span_deg, steps, sigma_mm=0.05):
+    """A1 on a tilted axis 100 mm out, A2 at 500 mm radius 600 mm out (the demo's extended tool), turned by the
+    counts at 1.002 x the design resolution, each point read with independent noise ``sigma_mm``."""
+    S = design_resolution_rad(1000, 76.686)
+    c, n = np.array([300.0, 2500.0, 200.0]), np.array([0.1, -0.05, 1.0]) / np.linalg.norm([0.1, -0.05, 1.0])
+    e1 = np.cross(n, [1.0, 0, 0])
+    e1 /= np.linalg.norm(e1)
+    counts = np.round(np.linspace(0.0, np.radians(span_deg) / S, steps))
+    th = counts * S * 1.002
+    A1 = tp.rotate(c + 100 * n, c, n, th) + sigma_mm * rng.standard_normal((steps, 3))
+    A2 = tp.rotate(c + 600 * n + 500 * e1, c, n, th) + sigma_mm * rng.standard_normal((steps, 3))
+    return counts, A1, A2, np.eye(6 * steps) * sigma_mm ** 2, S
+
+
+def test_resolution_about_the_fitted_axis_carries_the_axis_error():
+    """The run's axis is fitted from its own A2 positions; with A1->A2 as much along the axis as across it, a tilted
+    axis moves every angle, so the slope's error must exceed what the angles about a known axis give -- and the
+    stated error must cover the scatter over seeded runs (the angles-only error does not)."""
+    z_full, z_angles = [], []
+    for seed in range(40):
+        counts, A1, A2, U, S = _tool_run(np.random.default_rng(seed), 60.0, 6)
+        res = encoder_resolution_fitted_axis(counts, A1, A2, U, S)
+        bare = encoder_resolution(counts, res.extras["angle_rad"], res.extras["angle_cov_rad2"], S)
+        assert bare["scale"].value == pytest.approx(res["scale"].value, rel=1e-12)     # the same line
+        z_full.append((res["scale"].value - 1.002) / res["scale"].error)
+        z_angles.append((bare["scale"].value - 1.002) / bare["scale"].error)
+    assert 0.5 < np.median(np.abs(z_full)) < 0.9 and np.mean(np.abs(z_full) < 2) >= 0.9
+    assert np.median(np.abs(z_angles)) > 1.5                                  # the axis term is what matters here
+    with pytest.raises(EstimationError, match="targets' covariance"):
+        encoder_resolution_fitted_axis(counts, A1, A2, U[:-1, :-1], S)
 
 
 def test_commanded_angle_error_carries_the_reference_pose():

@@ -2,7 +2,7 @@
 from __future__ import annotations
 
 import json
-
+import sys
 
 from calib.errors import RobocalError
 from acq.argtypes import add_force_argument, effect_spec, output_file, positive_float
@@ -90,6 +90,7 @@ def run(args) -> int:
                      loss=args.loss)
     held_out = split_metrics(model, ident.theta[:model.P], measured) if full.split is not None else {}
     implausible += enforce(check_fit(ident.reduced_chi2, args.data), args.force_implausible, "identify")
+    noise = _noise(args, measured, obs, ident, held_out)
     prov = provenance(args.robot)
     if args.out:
         save_model(args.out, model, ident, args.out_robot, provenance=prov)
@@ -100,13 +101,17 @@ def run(args) -> int:
         atomic_write_text(args.out_robot, robot_to_toml(robot_from_theta(model, ident.theta)))
     if args.json:
         extra = {"plausibility_warnings": implausible} if implausible else {}
-        print(json.dumps({**model_document(model, ident, provenance=prov), **held_out, **extra}, indent=1))
+        print(json.dumps({**model_document(model, ident, provenance=prov), **held_out, **extra,
+                          "noise_estimated_mm": noise.estimated_mm, "noise_estimate": noise.as_dict()}, indent=1))
         return 0
     print(f"robocal identify {args.data}: {table.n} poses, {len(ident.free)} parameters estimated, "
           f"residual RMS {ident.residual_rms:.4f} mm, reduced chi-square {ident.reduced_chi2:.2f}")
     if held_out:
         print(f"  data's own split: {held_out['n_fit']} fit rows (RMS {held_out['fit_rms_mm']:.4f} mm), "
               f"{held_out['n_test']} test rows: RMS {held_out['test_rms_mm']:.4f} mm, max {held_out['test_max_mm']:.4f} mm")
+    if noise.estimated_mm is not None:
+        print(f"  noise per coordinate: given {noise.given_mm:.4f} mm, from the data {noise.estimated_mm:.4f} mm "
+              f"({noise.how})")
     for line in ident.identifiability.report(robot.description_joint_names):
         print("  " + line)
     for line in ident.outlier_report.lines():
@@ -125,3 +130,23 @@ def run(args) -> int:
     if args.out:
         print(f"  written: {args.out}" + (f", {args.out_robot}" if args.out_robot else ""))
     return 0
+
+
+def _noise(args, measured, obs, ident, held_out: dict):
+    """The noise the data show (calib.noise, shared with diagnose) against the given one; the one-line warning on
+    stderr when they disagree by more than 1.5x.  Without a model-free source the bound is the held-out residual
+    (the data's own split) or the fit's residual with its degrees of freedom (the given sigma times the square
+    root of the reduced chi-square)."""
+    import numpy as np
+    from calib import noise as est
+
+    if held_out.get("test_rms_mm") is not None:
+        bound, how = held_out["test_rms_mm"] / np.sqrt(3.0), "held-out residual (upper bound)"
+    else:
+        bound, how = est.given_sigma_mm(obs.cov_mm2) * np.sqrt(ident.reduced_chi2), "fit residual (upper bound)"
+    n = est.for_rows(measured, args.noise_mm, bound, how)
+    line = n.warning(f"robocal identify {args.data}", "the parameters' error bars assume the given noise: give "
+                                                       "--noise-mm (or the sigma columns) as the data show it")
+    if line:
+        print(f"warning: {line}", file=sys.stderr)
+    return n

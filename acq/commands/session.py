@@ -205,17 +205,8 @@ def real_builder(db: str, theodolites: list[str], tap: str | None, setup_path: s
 
 def _stored_plan_setup(db: str) -> tuple[dict, dict]:
     """The plan and set-up a session database was created with (read-only: nothing is touched)."""
-    from acq.session.store import connect_readonly
-    from acq.session.setup_file import setup_from_text
-    from acq.session.store import json_column
-    conn = connect_readonly(db)
-    try:
-        row = conn.execute("SELECT plan_json, setup_json FROM session").fetchone()
-    finally:
-        conn.close()
-    if row is None:
-        raise RobocalError(f"{db}: holds no session (a database left by a crash while it was created)")
-    return json_column(row[0], f"{db}: session plan_json"), setup_from_text(row[1], f"{db}: session setup_json")
+    from acq.session.exchange import stored_plan_setup
+    return stored_plan_setup(db)
 
 
 def run(args) -> int:

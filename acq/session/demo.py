@@ -43,6 +43,9 @@ DEMO_SETTLE_S = 0.02
 #: transmission-error runs: joint 4 inside its -110..170 deg limits (with the pre-flight's 2 deg margin), joint 6 over
 #: most of its +-266 deg
 TE_RANGE_DEG = {"4": [-105.0, 165.0], "6": [-150.0, 150.0]}
+#: the encoder-resolution run (Fig 5.14): joint 6 over 150 deg in 6 steps -- few steps keep the demo quick, the wide
+#: arc fixes the run's own axis well enough that the slope's error is a few 1e-4 of the resolution
+RESOLUTION_RUN = {"joints": [6], "points": 6, "span_deg": 150.0, "repeats": 1}
 
 
 def demo_setup(twin: Twin, base: dict | None = None) -> dict:
@@ -77,13 +80,14 @@ def demo_plan(twin: Twin, seed: int, n_poses: int = DEMO_POSES, quick: bool = Tr
         q = (lim[:, 0] + 0.2 * np.ptp(lim, 1) + 0.6 * np.ptp(lim, 1) * rng.random((n_poses, twin.robot.n))) / DEG
     return {
         "procedures": ["levelling", "instrument_check", "ruler", "sweeps", "poses", "transmission", "compliance",
-                       "link_compliance", "coupling"],
+                       "link_compliance", "coupling", "encoder_resolution"],
         "ruler": {"repeats": 2},
         "sweeps": {"points": 5, "span_deg": 60.0, "joints": [1, 2, 3, 4, 5, 6]},
         "poses": {"q_deg": np.round(q, 3).tolist()},
         "transmission": {"joints": [4, 6], "points": 25, "repeats": 2, "range_deg": TE_RANGE_DEG},
         "compliance": {"joints": [3, 4], "repeats": 3},
         "coupling": {"angle_deg": 10.0, "pairs": [[5, 6], [4, 6], [4, 5]], "repeats": 2},
+        "encoder_resolution": RESOLUTION_RUN,
         "seed": seed,
     }
 

@@ -82,24 +82,31 @@ def export_json(db: str, out: str) -> None:
         atomic_write_text(out, text)
 
 
-def session_robot(db: str):
-    """The robot a session database was recorded with: its set-up's ``robot`` and chain cut."""
-    from .setup import setup_robot
+def stored_plan_setup(db: str) -> tuple[dict, dict]:
+    """The plan and set-up a session database was created with (read-only: nothing is touched)."""
     from .setup_file import setup_from_text
     conn = connect_readonly(db)
     try:
-        row = conn.execute("SELECT setup_json FROM session ORDER BY session_id LIMIT 1").fetchone()
+        row = conn.execute("SELECT plan_json, setup_json FROM session ORDER BY session_id LIMIT 1").fetchone()
     finally:
         conn.close()
     if row is None:
-        raise RobocalError(f"{db}: holds no session")
-    return setup_robot(setup_from_text(row[0], f"{db}: session setup_json"))
+        raise RobocalError(f"{db}: holds no session (a database left by a crash while it was created)")
+    return json_column(row[0], f"{db}: session plan_json"), setup_from_text(row[1], f"{db}: session setup_json")
+
+
+def session_robot(db: str):
+    """The robot a session database was recorded with: its set-up's ``robot`` and chain cut."""
+    from .setup import setup_robot
+    return setup_robot(stored_plan_setup(db)[1])
 
 
 def pose_arrays(db: str) -> dict:
     """The pose-set steps of a session as arrays: encoder joint readings, intersected tool-target positions (with the
     stations the session's own ruler steps give) and their covariances, step keys and sighting geometry; for an
-    imported pose CSV also the conditions, split, station and pose labels its rows carried."""
+    imported pose CSV also the conditions, split, station and pose labels its rows carried; the raw readings behind
+    each intersected point (``readings``, the target they sight ``readings_target``) and the ``stations`` they were
+    intersected with (the both-faces noise estimate)."""
     from calib.estimators.points import StationFit, locate_targets
 
     from .imported import imported_conditions, imported_labels, imported_point
@@ -112,7 +119,7 @@ def pose_arrays(db: str) -> dict:
     fit = (_ruler(ruler, d.setup, sigma, _Est(None), None, {}) if ruler else None) \
         or StationFit.exact(setup_stations(d.setup))
     stations = fit.stations
-    q, P, C, keys, angle, used = [], [], [], [], [], []
+    q, P, C, keys, angle, used, raw = [], [], [], [], [], [], []
     for s in d.steps:
         if s["procedure"] != "poses":
             continue
@@ -129,6 +136,7 @@ def pose_arrays(db: str) -> dict:
         C.append(cov)
         keys.append(s["key"])
         used.append(s)
+        raw.append([r for r in s["readings"] if r["target"] == "P"] if "P" in pts else [])
         sa, sb = list(stations.values())[:2]
         ua, ub = p - sa.position, p - sb.position
         angle.append(np.degrees(np.arccos(np.clip(ua @ ub / (np.linalg.norm(ua) * np.linalg.norm(ub)), -1, 1))))
@@ -136,7 +144,8 @@ def pose_arrays(db: str) -> dict:
         raise RobocalError(f"{db}: no pose-set steps")
     out = {"q_rad": np.array(q), "points_mm": np.array(P), "cov_mm2": np.array(C), "keys": keys,
            "procedure": ["poses"] * len(q), "sighting_angle_deg": np.array(angle), "raw_angles": False,
-           **imported_conditions(used, robot.n)}
+           **imported_conditions(used, robot.n), "readings": raw, "readings_target": ["P"] * len(q),
+           "stations": stations}
     for name in ("station", "split", "target", "pose"):
         labels = imported_labels(used, name)
         if labels is not None:
@@ -150,7 +159,14 @@ def export_poses_csv(db: str, out: str) -> int:
 
     a = pose_arrays(db)
     sig = np.sqrt(np.diagonal(a["cov_mm2"], axis1=1, axis2=2))
-    write_pose_csv(out, a["q_rad"], a["points_mm"], {f"sigma_{c}_mm": sig[:, i] for i, c in enumerate("xyz")})
+    extra = {f"sigma_{c}_mm": sig[:, i] for i, c in enumerate("xyz")}
+    # what an imported pose CSV carried goes back out under its own column names
+    extra |= {col: a[key] for col, key in (("time", "time_s"), ("payload", "payload_kg"),
+                                           ("temperature", "temperature_c")) if key in a}
+    if "direction" in a:
+        extra |= {f"dir{j + 1}": a["direction"][:, j] for j in range(a["direction"].shape[1])}
+    labels = {k: a[k] for k in ("pose", "station", "split", "target") if k in a}
+    write_pose_csv(out, a["q_rad"], a["points_mm"], extra, prismatic=session_robot(db).prismatic, labels=labels)
     return len(a["q_rad"])
 
 
@@ -235,7 +251,15 @@ def _pose_steps(path: str, setup: dict) -> list[StepRecord]:
     from .setup import setup_robot
     # a set-up naming a description reads the file as identify does with it (joint names, conventions, tool points)
     robot = setup_robot(setup)
-    t = read_pose_csv(path, robot.n, robot.prismatic, robot=robot if setup.get("robot") else None)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        t = read_pose_csv(path, robot.n, robot.prismatic, robot=robot if setup.get("robot") else None)
+    for w in caught:
+        if "ignoring unknown column" not in str(w.message):
+            warnings.warn(w.message, stacklevel=2)
+    if t.ignored_columns:
+        warnings.warn(f"{path}: column(s) {', '.join(t.ignored_columns)} kept in the session as written; the "
+                      "calibration does not use them", stacklevel=2)
     if t.points_mm is None:
         raise RobocalError(f"{path}: a pose CSV to import needs the measured x, y, z columns")
     out = pose_steps(t, raw_rows(path), str(path))

@@ -283,8 +283,8 @@ def encoder_resolution(plan: dict, setup: dict) -> Iterator[Step]:
     of the measured angle on the counts is the resolution achieved.  Why the default span is wide (150 deg):
     reprocess fits the joint's axis from A2 over the run itself, and a 30 deg arc leaves it tilted enough to bias the
     slope by 0.5 % (measured on the demo's twin); it stays below 180 deg because the angles are taken from the first
-    step.  Not in the demo plan yet: on the demo's twin (seeds 0-2) the slope lands 1.1-2.2 of its sigmas from the
-    truth, as the fitted axis's own error is not yet in the slope's error (reprocess ``_resolution``)."""
+    step.  The fitted axis's own error is in the slope's error (reprocess ``_resolution``): with the extended tool's
+    A1->A2 line as much along the axis as across it, it is most of that error."""
     p = plan.get("encoder_resolution", {})
     a1, a2 = extended_targets(setup)
     n, span = int(p.get("points", 7)), float(p.get("span_deg", 150.0))

@@ -99,6 +99,7 @@ class _Est:
     def __init__(self, truth: dict | None):
         self.truth = truth
         self.items: list[dict] = []
+        self.bounds: list[dict] = []
 
     def add(self, name: str, value: float, error: float, unit: str, truth_key: str | None = None,
             truth_value: float | None = None, held: bool = False, **extra):
@@ -112,6 +113,14 @@ class _Est:
                 t = float(self.truth[truth_key])
         self.items.append({"name": name, "value": float(value), "error": float(error), "unit": unit, "truth": t,
                            "held": bool(held), **extra})
+
+    def add_bound(self, name: str, value: float, unit: str, side: str, confidence: float,
+                  truth_value: float | None = None, **extra):
+        """A one-sided bound instead of an estimate (the data show the quantity is beyond what they can resolve):
+        kept apart from ``items`` (``bounds`` in the results), since it has no 1-sigma error to compare with."""
+        t = None if self.truth is None or truth_value is None or not np.isfinite(truth_value) else float(truth_value)
+        self.bounds.append({"name": name, "value": float(value), "unit": unit, "side": side,
+                            "confidence": float(confidence), "truth": t, **extra})
 
     def add_set(self, prefix: str, es, truth_map: dict | None = None, only=None):
         for e in es.estimates():
@@ -225,6 +234,7 @@ def reprocess(path: str, n_mc: int = 0, progress=None) -> dict:
                        "code_version": code_version(), "reprocessed_unix_s": time.time(), "input_session":
                        data.session["guid"], "n_mc": n_mc, "elapsed_s": time.perf_counter() - t0},
         "estimates": est.items,
+        "bounds": est.bounds,
         "accuracy": {k: v for k, v in figs.get("accuracy", {}).items() if not k.endswith(("_err_mm", "_index"))}
         or None,
         "problems": problems,
@@ -723,9 +733,11 @@ def _commanded(sts, meas, cov, ok, j, est, figs):
 
 
 def _resolution(steps, points, robot, est, twin, figs):
-    """The encoder-resolution run (Fig 5.14): per joint, measured angle (A1, A2 about the run's own axis) against the
-    tapped counts; truth the description's resolution (the twin's encoders are the description's)."""
-    from calib.estimators.resolution import design_resolution_rad, encoder_resolution
+    """The encoder-resolution run (Fig 5.14): per joint, measured angle (A1, A2 about the run's own axis, fitted from
+    A2 over the run) against the tapped counts, the axis's error propagated into the slope's
+    (:func:`calib.estimators.resolution.encoder_resolution_fitted_axis`); truth the description's resolution (the
+    twin's encoders are the description's)."""
+    from calib.estimators.resolution import design_resolution_rad, encoder_resolution_fitted_axis
     if not steps:
         return
     by_joint: dict[int, list] = {}
@@ -733,18 +745,22 @@ def _resolution(steps, points, robot, est, twin, figs):
         by_joint.setdefault(st["spec"]["meta"]["joint"], []).append(st)
     figs["resolution"] = {}
     for j, sts in sorted(by_joint.items()):
-        sts = [s for s in sts if s.get("counts") is not None and len(s["counts"])]
-        n = _own_axis(sts, points, j, 0)
-        meas, _, cov = _joint_angles(sts, points, n, full=True)
+        sts = sorted((s for s in sts if s.get("counts") is not None and len(s["counts"])
+                      and {"A1", "A2"} <= set(points(s))), key=lambda s: s["spec"]["meta"]["index"])
+        pairs = [(points(s)["A1"], points(s)["A2"]) for s in sts]
         counts = np.array([np.mean(s["counts"], 0)[j - 1] for s in sts])
-        ok = np.isfinite(meas)
         design = design_resolution_rad(robot.counts_per_rev[j - 1], robot.gear_ratio[j - 1])
-        signed, C = counts[ok] * np.sign(robot.gear_ratio[j - 1]), cov[np.ix_(ok, ok)]
-        res = encoder_resolution(signed, meas[ok], C, design)
-        tv = _resolution_truth(twin, robot, sts, ok, j, signed, C, design) if twin is not None else {}
+        signed = counts * np.sign(robot.gear_ratio[j - 1])
+        res = encoder_resolution_fitted_axis(signed, [a.point_mm for a, _ in pairs], [b.point_mm for _, b in pairs],
+                                             _block([t for p in pairs for t in p], points), design, joint=f"j{j}")
+        meas, C = res.extras["angle_rad"], res.extras["angle_cov_rad2"]
+        tv = (_resolution_truth(twin, robot, sts, np.ones(len(sts), bool), j, signed, C, design)
+              if twin is not None else {})
         est.add_set(f"resolution.j{j}.", res, tv, only=("rad_per_count", "scale"))
         figs["resolution"][j] = {"counts": counts.tolist(), "angle_deg": (meas / DEG).tolist(),
-                                 "rad_per_count": float(res["rad_per_count"].value)}
+                                 "sigma_deg": (np.sqrt(np.diag(C)) / DEG).tolist(),
+                                 "rad_per_count": float(res["rad_per_count"].value),
+                                 "residual_deg": (res.extras["residual_rad"] / DEG).tolist()}
 
 
 def _resolution_truth(twin, robot, sts, ok, j, signed_counts, cov, design) -> dict:
@@ -862,10 +878,12 @@ def _compliance_truth(effect, j, T, sign, unload, dcov, raw: dict, single: bool)
 
 
 def _link(steps, setup, est, twin, figs, n_mc, robot=None):
-    """Flexural rigidity of the link from the dial gauges; its truth is the scenario's link compliance of that link
-    (none when the scenario has none enabled)."""
+    """Flexural rigidity of the link from the dial gauges (:func:`calib.estimators.link_compliance.link_rigidity`):
+    EI with its error when the gauges show bending, else a 95 % one-sided lower bound -- the thesis's own finding on
+    the Puma (section 5.7: link compliance negligible against joint compliance) stated as a result.  Its truth is the
+    scenario's link compliance of that link (a rigid link, none, when the scenario has none enabled)."""
     from calib.effects import LinkCompliance
-    from calib.estimators.link_compliance import flexural_rigidity
+    from calib.estimators.link_compliance import RigidityBound, link_rigidity
     if not steps:
         return
     cfg = setup["link"]
@@ -880,14 +898,28 @@ def _link(steps, setup, est, twin, figs, n_mc, robot=None):
             a.append(s["load_x_mm"])
             P.append(_link_load_n(st["inputs"], s))
             y.append(v)
-    res = flexural_rigidity(x, a, P, y, sigma_mm=0.001, second_moment_mm4=cfg.get("second_moment_mm4"), n_mc=n_mc)
+    res = link_rigidity(x, a, P, y, sigma_mm=0.001, second_moment_mm4=cfg.get("second_moment_mm4"), n_mc=n_mc)
     tv = {}
     if twin is not None:
         tv = {"EI_Nmm2": 1.0 / float(e.values[0]) for e in twin.scenario.effects
               if isinstance(e, LinkCompliance) and e.joint == cfg["joint"]}
-    est.add_set(f"link.j{cfg['joint']}.", res, tv, only=("EI_Nmm2",))
-    figs["link"] = {"x_mm": x, "load_n": P, "deflection_mm": y, "EI_Nmm2": float(res["EI_Nmm2"].value),
-                    "load_x_mm": a}
+    figs["link"] = {"x_mm": x, "load_n": P, "deflection_mm": y, "load_x_mm": a}
+    prefix = f"link.j{cfg['joint']}."
+    if isinstance(res, RigidityBound):
+        est.add_bound(f"{prefix}EI_lower_bound_Nmm2", res.EI_lower_bound_Nmm2, "N mm^2", "lower", res.confidence,
+                      tv.get("EI_Nmm2"), detection_limit_Nmm2=res.detection_limit_Nmm2,
+                      compliance_per_Nmm2=res.compliance_per_Nmm2,
+                      compliance_error_per_Nmm2=res.compliance_error_per_Nmm2,
+                      largest_deflection_mm=res.largest_deflection_mm, sigma_mm=res.sigma_mm,
+                      **({"truth_note": "rigid: the scenario has no link compliance"} if twin is not None and not tv
+                         else {}),
+                      note=f"no significant bending (largest deflection {res.largest_deflection_mm:.2g} mm, gauge "
+                           f"noise {res.sigma_mm:.2g} mm): the link is at least this stiff at "
+                           f"{100 * res.confidence:g} % confidence")
+        figs["link"]["EI_lower_bound_Nmm2"] = res.EI_lower_bound_Nmm2
+        return
+    est.add_set(prefix, res, tv, only=("EI_Nmm2",))
+    figs["link"]["EI_Nmm2"] = float(res["EI_Nmm2"].value)
 
 
 def _link_load_n(inputs: dict, spec_setup: dict) -> float:

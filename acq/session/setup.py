@@ -157,7 +157,7 @@ def _frame_point(fp, link: int, p_world: np.ndarray) -> list[float]:
 
 def up_direction(fp, robot) -> np.ndarray:
     """Unit vector against the description's gravity, in the measurement frame (the base carries gravity along)."""
-    g = fp.frame_R[0, 0] @ np.asarray(robot.gravity_m_s2, float)
+    g = fp.gravity()[0]
     return -g / np.linalg.norm(g)
 
 

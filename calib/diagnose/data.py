@@ -19,6 +19,7 @@ import numpy as np
 from calib.effects import PoseContext
 from calib.errors import RobocalError
 from calib.identify import PointObservations
+from calib.noise import Sightings
 from calib.robot import Robot
 
 SQLITE_MAGIC = b"SQLite format 3\x00"
@@ -42,6 +43,8 @@ class DiagnosisData:
     pose_id: list[str] = field(default_factory=list)
     notes: list[str] = field(default_factory=list)
     split: list[str] | None = None         # the data's own "fit"/"test" split (else the diagnosis makes folds)
+    ignored_columns: list[str] = field(default_factory=list)   # the file's columns not read (q7 of a 7-joint robot)
+    sightings: Sightings | None = None     # raw readings behind each point (both faces: the noise estimate)
 
     @property
     def n(self) -> int:
@@ -60,7 +63,8 @@ class DiagnosisData:
                              {k: [v[i] for i in idx] for k, v in self.labels.items()},
                              {k: np.asarray(v)[idx] for k, v in self.numeric.items()}, self.raw_angles,
                              [self.pose_id[i] for i in idx] if self.pose_id else [], list(self.notes),
-                             [self.split[i] for i in idx] if self.split else None)
+                             [self.split[i] for i in idx] if self.split else None,
+                             self.sightings.subset(idx) if self.sightings is not None else None)
 
     @property
     def whitening(self) -> np.ndarray:
@@ -116,7 +120,9 @@ def from_session_arrays(robot: Robot, arrays: dict, source: str) -> DiagnosisDat
     session store itself, data flow one way): ``q_rad`` (N, n), ``points_mm`` (N, 3), ``cov_mm2`` (N, 3, 3),
     optional ``direction``, ``payload_kg``, ``temperature_c``, ``time_s``, ``procedure`` (N step procedure names),
     ``sighting_angle_deg`` (N,) (intersection angle of the two sight lines), ``raw_angles`` (bool), and, as a pose
-    CSV gives them, ``pose`` ids, ``station`` and ``target`` labels and the data's own ``split``."""
+    CSV gives them, ``pose`` ids, ``station`` and ``target`` labels and the data's own ``split``; when the points were
+    intersected from raw readings, ``readings`` (per pose the reading dicts), ``readings_target`` (per pose the
+    target those readings sight) and ``stations`` (name -> Station): the both-faces noise estimate reads them."""
     d = from_arrays(robot, arrays["q_rad"], arrays["points_mm"], arrays.get("cov_mm2"), None,
                     direction=arrays.get("direction"), payload_kg=arrays.get("payload_kg"),
                     temperature_c=arrays.get("temperature_c"), time_s=arrays.get("time_s"), source=source,
@@ -129,6 +135,8 @@ def from_session_arrays(robot: Robot, arrays: dict, source: str) -> DiagnosisDat
     if arrays.get("sighting_angle_deg") is not None:
         d.numeric["sighting angle (deg)"] = np.asarray(arrays["sighting_angle_deg"], float)
     d.raw_angles = bool(arrays.get("raw_angles", False))
+    if arrays.get("readings") is not None and arrays.get("stations"):
+        d.sightings = Sightings(list(arrays["readings"]), list(arrays["readings_target"]), dict(arrays["stations"]))
     return d
 
 
@@ -161,7 +169,10 @@ def load_data(path: str | Path, robot: Robot | None = None, noise_mm: float | No
                     time_s=table.time_s, source=str(path), pose_id=table.pose_id or None)
     if getattr(table, "station", None):
         d.labels["station"] = list(table.station)
+    if table.target is not None:            # several targets per pose: the noise estimate reads their distances
+        d.labels["target"] = list(table.target)
     if getattr(table, "split", None):
         d.split = list(table.split)
+    d.ignored_columns = [str(c) for c in getattr(table, "ignored_columns", None) or ()]
     d.notes += [str(w.message) for w in caught]
     return d

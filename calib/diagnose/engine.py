@@ -20,7 +20,7 @@ from .candidates import EFFECT_NAMES, TE_ORDERS, build_library
 from . import noise
 from .data import DiagnosisData
 from .gap import CVResult, auto_level, cv_fit, data_folds, geometric_free, heldout_floor_mm, noise_floor_mm
-from .select import Selection, forward_select, leftover_structure
+from .select import MATERIAL_SHARE, Selection, forward_select, leftover_structure
 
 
 #: a final held-out RMS above this multiple of the floor is reported as an unexplained gap
@@ -69,6 +69,7 @@ class Diagnosis:
                                                       f"{f.n_tested} candidates",
                         "f_statistic": f.f_statistic, "delta_bic": f.delta_bic, "parameters": f.parameters,
                         "stability": f.stability if f.stability == f.stability else None,
+                        "stated_spread": f.stated_spread if f.stated_spread == f.stated_spread else None,
                         "aliases": f.aliases, "doubtful": f.doubtful, "leftover": f.leftover or None,
                         "excess_share": f.shrink_share})
         if self.confirmation is not None:
@@ -195,22 +196,24 @@ def _diagnose(data, level, n_folds, alpha, max_effects, kinds, te_orders, flag_o
     geo_free = geometric_free(model, level)
     lib = build_library(data, kinds, te_orders)
     hfloor = heldout_floor_mm(geo, data)
-    judged = hfloor * noise.estimate(data, geo.rms_mm).floor_scale()
+    free_noise = noise.sources(data)          # model-free noise estimates: once (the both-faces one intersects)
+    judged = hfloor * noise.estimate(data, geo.rms_mm, free_noise).floor_scale()
     prog("effect selection", 0.2)
     sel = forward_select(data, geo, geo_free, lib.candidates, alpha, max_effects,
                          (lambda s, f: prog(s, 0.2 + 0.75 * f)), floor_mm=judged, loss=loss)
-    leftover_structure(data, sel.final, sel.findings)
+    leftover_structure(data, sel.final, sel.findings, alpha,
+                       material_mm=MATERIAL_SHARE * max(0.0, geo.rms_mm - judged))
     prog("done", 1.0)
     return Diagnosis(data, level, len(folds), noise_floor_mm(data), hfloor, geo, sel,
                      _breakdown(data, model, geo, sel), lib.skipped, out_rep.flagged, note, out_rep,
-                     noise.estimate(data, sel.final.rms_mm), judged)
+                     noise.estimate(data, sel.final.rms_mm, free_noise), judged)
 
 
 def _breakdown(data: DiagnosisData, model: MeasurementModel, geo: CVResult, sel: Selection) -> list[Factor]:
     ev = model.evaluate(data.q_rad, data.ctx, geo.all_fit.theta[: model.P], jacobian=True)
     base = ev.chain.frame_t[0, 0]
-    g = data.robot.gravity_m_s2
-    up = ev.chain.frame_R[0, 0] @ (-g / np.linalg.norm(g)) if np.linalg.norm(g) > 0 else None
+    g = ev.chain.gravity()[0]                       # the description's gravity in the measurement frame
+    up = -g / np.linalg.norm(g) if np.linalg.norm(g) > 0 else None
     t = geo.tested
     if t.all():
         return breakdown(data, geo.residual_mm, sel.final.residual_mm, base, up, ev.joint_jacobian)

@@ -1,7 +1,9 @@
 """A tool that bends under its own weight: the tool point moves along the part of gravity across the tool's axis
 (flange z), ``delta = f (g - (g . z_n) z_n)`` with ``g`` the unit gravity direction, so the offset depends on the
-tool's orientation to gravity; ``f`` (mm) is the sag with the tool horizontal.  Gravity is taken along -z of the
-robot base frame (frame 0), the descriptions' convention.  A point-stage effect."""
+tool's orientation to gravity; ``f`` (mm) is the sag with the tool horizontal.  Gravity is the robot description's
+(``gravity_m_s2``, in frame 0), carried by the base (:meth:`calib.kinematics.ChainPass.gravity`): the same gravity
+the loads of joint and link compliance use, so a wall- or ceiling-mounted robot sags the right way.  A point-stage
+effect."""
 from __future__ import annotations
 
 import numpy as np
@@ -30,7 +32,8 @@ class ToolFlex(Effect):
         return cls(c["sag_mm"])
 
     def point_delta(self, fp, point, loads, values):
-        g = -fp.frame_R[:, 0, :, 2]                      # down, in the measurement frame
+        g = fp.gravity()
+        g = g / np.linalg.norm(g, axis=-1, keepdims=True)    # down, in the measurement frame
         z = fp.frame_R[:, -1, :, 2]                      # tool axis (flange z)
         unit = g - np.sum(g * z, -1)[:, None] * z
         return unit * values[0], unit[..., None]

@@ -25,12 +25,15 @@ PROC = "transmission error"
 
 # -- joint angle from two targets ------------------------------------------------------------------------------
 def joint_angle(x: np.ndarray, n: np.ndarray) -> np.ndarray:
-    """Vectorised: ``x (..., 12) = [A1_ref, A2_ref, A1, A2]`` (mm) -> ``(..., 1)`` angle (rad) turned about ``n``."""
+    """Vectorised: ``x (..., 12) = [A1_ref, A2_ref, A1, A2]`` (mm) -> ``(..., 1)`` angle (rad) turned about ``n``
+    (``(3,)``, or ``(..., 3)`` broadcasting with ``x``: an axis that is itself estimated, per Monte Carlo draw)."""
     x = np.asarray(x, float)
-    n = np.asarray(n, float) / np.linalg.norm(n)
+    n = np.asarray(n, float)
+    n = n / np.linalg.norm(n, axis=-1, keepdims=True)
     v0 = x[..., 3:6] - x[..., 0:3]
     v = x[..., 9:12] - x[..., 6:9]
-    return np.arctan2(np.cross(v0, v) @ n, np.sum(v0 * v, -1) - (v0 @ n) * (v @ n))[..., None]
+    return np.arctan2(np.sum(np.cross(v0, v) * n, -1),
+                      np.sum(v0 * v, -1) - np.sum(v0 * n, -1) * np.sum(v * n, -1))[..., None]
 
 
 def joint_angle_first_order(x: np.ndarray, n: np.ndarray) -> np.ndarray:

@@ -30,19 +30,26 @@ def station_angles(P, L, g1, g2, hB=0.0):
     return (np.mod(-(alpha + g1), TWO_PI), np.pi / 2 - phi_a, np.mod(beta + g2, TWO_PI), np.pi / 2 - phi_b)
 
 
-def sightings(P, names, L, g1, g2, hB, sigma, rng, faces=(1, 2), repeats=1):
+def sightings(P, names, L, g1, g2, hB, sigma, rng, faces=(1, 2), repeats=1, collimation=None, index=None):
     """Session-style reading rows ``{station, target, face, repeat, hz_rad, v_rad}`` of targets ``names`` at P, each
-    reading with its own Gaussian noise ``sigma`` (rad); face II is ``Hz + 180 deg, 360 deg - V``."""
+    reading with its own Gaussian noise ``sigma`` (rad); face II is ``Hz + 180 deg, 360 deg - V``.
+
+    ``collimation`` / ``index`` (per station A, B; rad): an instrument out of adjustment, as the textbooks write it:
+    the line of sight is off square to the trunnion axis by c, so Hz reads ``+ c / sin V`` on face I and ``- c / sin V``
+    on face II; the vertical circle's zero is off by k, so V reads ``+ k`` on both faces."""
     hA, vA, hB_, vB = station_angles(P, L, g1, g2, hB)
+    c = dict(zip("AB", collimation or (0.0, 0.0)))
+    k_ = dict(zip("AB", index or (0.0, 0.0)))
     rows = []
     for i, nm in enumerate(names):
         for st, h, v in (("A", hA[i], vA[i]), ("B", hB_[i], vB[i])):
             for f in faces:
                 for k in range(repeats):
-                    hz, vv = (h, v) if f == 1 else (h + np.pi, TWO_PI - v)
+                    cs = c[st] / np.sin(v)
+                    hz, vv = (h + cs, v) if f == 1 else (h + np.pi - cs, TWO_PI - v)
                     rows.append({"station": st, "target": nm, "face": f, "repeat": k,
                                  "hz_rad": float(np.mod(hz + sigma * rng.standard_normal(), TWO_PI)),
-                                 "v_rad": float(vv + sigma * rng.standard_normal())})
+                                 "v_rad": float(vv + k_[st] + sigma * rng.standard_normal())})
     return rows
 
 
