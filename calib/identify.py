@@ -260,7 +260,14 @@ class _Problem:
 
 def check_drivers(model: MeasurementModel, obs, where: str) -> None:
     """An effect whose driver does not vary over the poses (no time, temperature, approach direction or load) would
-    be a column of zeros, held silently by the guard: one line instead, naming the effect."""
+    be a column of zeros, held silently by the guard, or (a constant condition: one temperature) a constant the
+    geometry absorbs, estimated from noise: one line instead, naming the effect and the condition that does not vary
+    (the same words the diagnosis gives under "not tested": :func:`calib.effects.drivers.undriven`)."""
+    from calib.effects.drivers import undriven
+    for e in model.effects:
+        why = undriven(e, obs.q_rad, obs.ctx, model.robot)
+        if why:
+            raise RobocalError(f"{where}: effect {e.label}: nothing drives it in these data: {why}")
     theta = model.nominal.copy()
     for k in ("x_mm", "y_mm", "z_mm"):        # a tool point off every axis: the geometry must not hide the effect
         if f"tool.{k}" in model.index:

@@ -398,9 +398,10 @@ def csv_fields(line: str, src: str, lineno: int) -> list[str]:
 
 
 def write_pose_csv(path: str | Path, q_rad: np.ndarray, points_mm: np.ndarray | None = None,
-                   extra: dict[str, np.ndarray] | None = None, prismatic=None) -> None:
-    """Write poses (and optionally points and extra columns) in the pose CSV format, angles in degrees (prismatic
-    joints in mm)."""
+                   extra: dict[str, np.ndarray] | None = None, prismatic=None,
+                   labels: dict[str, list[str]] | None = None) -> None:
+    """Write poses (and optionally points, extra number columns and ``labels``: text columns such as pose, station,
+    split, target) in the pose CSV format, angles in degrees (prismatic joints in mm)."""
     q = np.atleast_2d(q_rad)
     if prismatic is not None:
         q = q / np.where(np.asarray(prismatic, bool), 1.0, DEG) * DEG
@@ -416,7 +417,8 @@ def write_pose_csv(path: str | Path, q_rad: np.ndarray, points_mm: np.ndarray | 
     arr = np.hstack(data)
     fh = io.StringIO(newline="")
     w = csv.writer(fh)
-    w.writerow(cols)
-    for row in arr:
-        w.writerow([f"{v:.6f}" for v in row])
+    labels = labels or {}
+    w.writerow(cols + list(labels))
+    for i, row in enumerate(arr):
+        w.writerow([f"{v:.6f}" for v in row] + [str(v[i]) for v in labels.values()])
     atomic_write_text(path, fh.getvalue())

@@ -250,3 +250,27 @@ def test_an_effect_nothing_drives_is_one_line(tmp_path):
         r = run_cli("identify", str(p), "--effect", spec)
         assert r.returncode == 2, r.stderr
         assert "nothing drives it" in r.stderr and r.stderr.strip().count("\n") == 0
+
+
+def test_an_effect_whose_condition_is_constant_is_refused_in_identify_and_untested_in_diagnose(tmp_path):
+    """A thermal drift at one temperature is a scale of every length the geometry absorbs: identify used to print a
+    made-up kappa; now both commands say, in the same words (one shared check), that the temperature does not vary."""
+    from calib.diagnose.candidates import build_library
+    from calib.diagnose.data import load_data
+    from calib.posecsv import write_pose_csv
+    tw = geometric_twin(11)
+    m, pts = measure_points(tw, tw.random_poses(30))
+    p = tmp_path / "p.csv"
+    write_pose_csv(p, m.q_read_rad, pts.point_mm, extra={"temperature": np.full(30, 26.0),
+                                                          "time": np.arange(30.0)})
+    r = run_cli("identify", str(p), "--effect", "thermal_drift")
+    assert r.returncode == 2, r.stdout
+    line = r.stderr.strip()
+    assert line.count("\n") == 0 and "thermal_drift" in line and "temperature does not vary" in line, line
+    skipped = build_library(load_data(p, noise_mm=0.05)).skipped
+    why = line.split("nothing drives it in these data: ")[1]
+    assert f"thermal_drift: {why}" in skipped
+    # a varying condition is accepted (time varies here: instrument_drift is driven)
+    assert "instrument_drift" not in " ".join(skipped)
+    r = run_cli("identify", str(p), "--effect", "instrument_drift")
+    assert r.returncode == 0, r.stderr

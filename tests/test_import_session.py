@@ -132,3 +132,20 @@ def test_readings_import_takes_the_setups_station_names(tmp_path, capsys):
     assert err == (f"robocal: error: {src}: line 2: column station: 'West' is not a station of the set-up "
                    "(its stations: A, B)")
     assert not (tmp_path / "d.db").exists()
+
+
+def test_export_gives_back_what_the_import_kept(tmp_path, sigmas, capsys):
+    from calib.posecsv import read_pose_csv
+    src = _pose_csv(tmp_path / "p.csv", sigmas)
+    assert main(["import", str(src), "--db", str(tmp_path / "i.db")]) == 0
+    assert "operator_note kept in the session" in capsys.readouterr().err
+    assert main(["export", str(tmp_path / "i.db"), "--poses", str(tmp_path / "back.csv")]) == 0
+    with pytest.warns(UserWarning, match="operator_note"):
+        a = read_pose_csv(src)
+    b = read_pose_csv(tmp_path / "back.csv")
+    np.testing.assert_allclose(b.q_rad, a.q_rad, atol=1e-7)
+    np.testing.assert_allclose(b.points_mm, a.points_mm, atol=1e-6)
+    np.testing.assert_allclose(b.sigma_mm, a.sigma_mm, atol=1e-6)
+    np.testing.assert_allclose(b.time_s, a.time_s)
+    np.testing.assert_allclose(b.payload_kg, a.payload_kg)
+    assert (b.station, b.split, b.pose_id) == (a.station, a.split, a.pose_id)

@@ -159,7 +159,14 @@ def export_poses_csv(db: str, out: str) -> int:
 
     a = pose_arrays(db)
     sig = np.sqrt(np.diagonal(a["cov_mm2"], axis1=1, axis2=2))
-    write_pose_csv(out, a["q_rad"], a["points_mm"], {f"sigma_{c}_mm": sig[:, i] for i, c in enumerate("xyz")})
+    extra = {f"sigma_{c}_mm": sig[:, i] for i, c in enumerate("xyz")}
+    # what an imported pose CSV carried goes back out under its own column names
+    extra |= {col: a[key] for col, key in (("time", "time_s"), ("payload", "payload_kg"),
+                                           ("temperature", "temperature_c")) if key in a}
+    if "direction" in a:
+        extra |= {f"dir{j + 1}": a["direction"][:, j] for j in range(a["direction"].shape[1])}
+    labels = {k: a[k] for k in ("pose", "station", "split", "target") if k in a}
+    write_pose_csv(out, a["q_rad"], a["points_mm"], extra, prismatic=session_robot(db).prismatic, labels=labels)
     return len(a["q_rad"])
 
 
@@ -244,7 +251,15 @@ def _pose_steps(path: str, setup: dict) -> list[StepRecord]:
     from .setup import setup_robot
     # a set-up naming a description reads the file as identify does with it (joint names, conventions, tool points)
     robot = setup_robot(setup)
-    t = read_pose_csv(path, robot.n, robot.prismatic, robot=robot if setup.get("robot") else None)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        t = read_pose_csv(path, robot.n, robot.prismatic, robot=robot if setup.get("robot") else None)
+    for w in caught:
+        if "ignoring unknown column" not in str(w.message):
+            warnings.warn(w.message, stacklevel=2)
+    if t.ignored_columns:
+        warnings.warn(f"{path}: column(s) {', '.join(t.ignored_columns)} kept in the session as written; the "
+                      "calibration does not use them", stacklevel=2)
     if t.points_mm is None:
         raise RobocalError(f"{path}: a pose CSV to import needs the measured x, y, z columns")
     out = pose_steps(t, raw_rows(path), str(path))

@@ -3,9 +3,9 @@
 Each candidate is one of the model's own effects (:mod:`calib.effects`) with zero (or negligible) initial values and
 the list of its parameters to estimate, so scoring, refitting and reporting all go through the one forward model.
 
-A candidate is only offered when its driver was measured (see :class:`calib.diagnose.data.DiagnosisData.has`):
-backlash needs approach directions, thermal drift a temperature that varies, compliance a gravity or payload torque
-(masses in the robot description or a varying payload).  Anything skipped is listed with the reason, so "no finding"
+A candidate is only offered when the data varies its driver (the effect class's own check,
+:func:`calib.effects.drivers.undriven`, shared with ``robocal identify``): backlash needs approach directions, thermal
+drift a temperature that varies, compliance a gravity or payload torque (masses in the robot description or a load).  Anything skipped is listed with the reason, so "no finding"
 is never confused with "not tested".
 
 Transmission error has an unknown order (cycles per radian of joint angle): it is offered on a grid of orders per
@@ -18,6 +18,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from calib.effects import EFFECTS, Effect, make_effect
+from calib.effects.drivers import MIN_RANGE_RAD, undriven
 from calib.units import DEG
 
 from .data import DiagnosisData
@@ -31,8 +32,6 @@ AXIS_TILT_ORDERS = (1, 2)
 DRIFT_STEPS = (0.25, 0.5, 0.75)
 #: transmission-error orders tried (cycles per radian of joint angle); the thesis found 0.9 and 1.8
 TE_ORDERS = tuple(np.round(np.arange(0.5, 4.01, 0.1), 2))
-#: a joint that moves less than this over the poses cannot show a joint-angle signature
-MIN_RANGE_RAD = 10 * DEG
 
 
 @dataclass
@@ -78,14 +77,16 @@ class Library:
 
 def build_library(data: DiagnosisData, kinds: tuple[str, ...] = EFFECT_NAMES,
                   te_orders: tuple[float, ...] = TE_ORDERS) -> Library:
-    """Every candidate the data can test, per joint where it applies; the rest listed with the reason."""
+    """Every candidate the data can test, per joint where it applies; the rest listed with the reason.
+
+    Whether the data varies what drives a candidate is the effect's own check (:func:`calib.effects.drivers.undriven`,
+    the one ``robocal identify`` refuses an ``--effect`` with): a candidate it rejects is listed under "not tested"."""
     robot = data.robot
     n = robot.n
     rev = [j for j in range(1, n + 1) if not robot.prismatic[j - 1]]
     rng = np.ptp(data.q_rad, axis=0)
     moving = [j for j in rev if rng[j - 1] >= MIN_RANGE_RAD]
     still = [j for j in rev if rng[j - 1] < MIN_RANGE_RAD]
-    loads = bool(np.any(robot.mass_kg > 0)) or data.has.get("payload", False)
     out = Library([])
     skip = out.skipped.append
     if still:
@@ -94,45 +95,21 @@ def build_library(data: DiagnosisData, kinds: tuple[str, ...] = EFFECT_NAMES,
     if any(robot.prismatic):
         skip("prismatic joints " + ", ".join(str(j + 1) for j in np.flatnonzero(robot.prismatic)) +
              ": only backlash is tested on them (the other effects are defined for revolute joints)")
-    if "transmission_error" in kinds:
-        for j in moving:
-            for o in te_orders:
-                out.candidates.append(Candidate("transmission_error", j, order=float(o), free=("s1_rad", "c1_rad")))
-    if "joint_compliance" in kinds:
-        if loads:
-            for j in rev:
-                out.candidates.append(Candidate("joint_compliance", j, free=("compliance1_rad_per_nm",)))
-        else:
-            skip("joint_compliance: the robot description has no masses and the payload does not vary")
-    if "backlash" in kinds:
-        if data.has.get("direction"):
-            d = data.ctx.direction
-            for j in range(1, n + 1):
-                if np.ptp(d[:, j - 1]) > 0:
-                    out.candidates.append(Candidate("backlash", j, free=("width_rad",)))
-                else:
-                    skip(f"backlash j{j}: every pose approached from the same side (dir{j} constant)")
-        else:
-            skip("backlash: the data carries no approach directions (dir1..dir%d columns)" % n)
-    if "cross_coupling" in kinds:
-        for j in rev:
-            for k in moving:
-                if k != j:
-                    out.candidates.append(Candidate("cross_coupling", j, source=k, free=("sigma",)))
-    if "link_compliance" in kinds:
-        if loads:
-            for j in range(1, n + 1):
-                if np.hypot(robot.a_mm[j - 1], robot.d_mm[j - 1]) > 10.0 and not robot.prismatic[j - 1]:
-                    out.candidates.append(Candidate("link_compliance", j, free=("compliance_per_nmm2",)))
-        else:
-            skip("link_compliance: the robot description has no masses and the payload does not vary")
-    if "thermal_drift" in kinds:
-        if data.has.get("temperature"):
-            ref = float(np.round(np.mean(data.ctx.temperature_c), 1))
-            out.candidates.append(Candidate("thermal_drift", None, reference_c=ref, free=("kappa_per_degc",)))
-        else:
-            skip("thermal_drift: the temperature does not vary over the poses (or is not recorded)")
-    _more_candidates(data, kinds, moving, out)
+    offer = _Offer(data, kinds, out)
+    for j in moving:
+        for o in te_orders:
+            offer(Candidate("transmission_error", j, order=float(o), free=("s1_rad", "c1_rad")))
+    offer.all([Candidate("joint_compliance", j, free=("compliance1_rad_per_nm",)) for j in rev])
+    offer.all([Candidate("backlash", j, free=("width_rad",)) for j in range(1, n + 1)])
+    for j in rev:
+        for k in moving:
+            if k != j:
+                offer(Candidate("cross_coupling", j, source=k, free=("sigma",)))
+    offer.all([Candidate("link_compliance", j, free=("compliance_per_nmm2",)) for j in range(1, n + 1)
+               if np.hypot(robot.a_mm[j - 1], robot.d_mm[j - 1]) > 10.0 and not robot.prismatic[j - 1]])
+    ref = float(np.round(np.mean(data.ctx.temperature_c), 1))
+    offer.all([Candidate("thermal_drift", None, reference_c=ref, free=("kappa_per_degc",))])
+    _more_candidates(data, moving, offer)
     if data.raw_angles:
         skip("instrument errors: raw theodolite angles are present, but the point-based diagnosis does not refit "
              "them (run robocal identify on the angles)")
@@ -141,34 +118,51 @@ def build_library(data: DiagnosisData, kinds: tuple[str, ...] = EFFECT_NAMES,
     return out
 
 
-def _more_candidates(data: DiagnosisData, kinds, moving: list[int], out: Library) -> None:
+@dataclass
+class _Offer:
+    """Adds a candidate of a wanted kind when the data drives it (the effect's own check), else notes why not."""
+
+    data: DiagnosisData
+    kinds: tuple[str, ...]
+    out: Library
+
+    def why_not(self, c: Candidate) -> str | None:
+        return undriven(c.make(), self.data.q_rad, self.data.ctx, self.data.robot)
+
+    def __call__(self, c: Candidate) -> None:
+        if c.kind in self.kinds and self.why_not(c) is None:
+            self.out.candidates.append(c)
+
+    def all(self, cands: list[Candidate]) -> None:
+        """A family of candidates (one per joint): one "not tested" line when they all fail for the same reason."""
+        cands = [c for c in cands if c.kind in self.kinds]
+        reasons = {id(c): self.why_not(c) for c in cands}
+        self.out.candidates += [c for c in cands if reasons[id(c)] is None]
+        failed = [c for c in cands if reasons[id(c)] is not None]
+        if failed and len(failed) == len(cands) and len({reasons[id(c)] for c in failed}) == 1:
+            self.out.skipped.append(f"{failed[0].kind}: {reasons[id(failed[0])]}")
+        else:
+            self.out.skipped += [f"{c.label}: {reasons[id(c)]}" for c in failed]
+
+
+def _more_candidates(data: DiagnosisData, moving: list[int], offer: _Offer) -> None:
     """Scale errors, wobbling axes, a missing Hayati term, a moving instrument and a bending tool (issue 14)."""
     robot = data.robot
     n = robot.n
-    skip = out.skipped.append
-    if "joint_scale" in kinds:
-        for j in moving:
-            out.candidates.append(Candidate("joint_scale", j, free=("scale",)))
-    if "axis_tilt" in kinds:
-        for j in moving:
-            for k in AXIS_TILT_ORDERS:
-                out.candidates.append(Candidate("axis_tilt", j, order=float(k), free=("c_rad", "s_rad")))
-    if "parallel_axes" in kinds:
+    for j in moving:
+        offer(Candidate("joint_scale", j, free=("scale",)))
+        for k in AXIS_TILT_ORDERS:
+            offer(Candidate("axis_tilt", j, order=float(k), free=("c_rad", "s_rad")))
+    if "parallel_axes" in offer.kinds:
         pairs = [j for j in range(1, n) if abs(np.sin(robot.alpha_rad[j - 1])) < 1e-3 and not robot.hayati[j - 1]
                  and not robot.prismatic[j - 1]]
         for j in pairs:
-            out.candidates.append(Candidate("parallel_axes", j, free=("beta_rad",)))
+            offer(Candidate("parallel_axes", j, free=("beta_rad",)))
         if not pairs:
-            skip("parallel_axes: no pair of parallel axes without the Hayati term in the robot description")
-    if "instrument_drift" in kinds:
-        if data.has.get("time"):
-            t = data.ctx.time_s
-            out.candidates.append(Candidate("instrument_drift", None, reference_s=float(np.mean(t)),
-                                            free=("x_mm", "y_mm", "z_mm")))
-            for qv in DRIFT_STEPS:
-                out.candidates.append(Candidate("instrument_drift", None, step_s=float(np.quantile(t, qv)),
-                                                free=("x_mm", "y_mm", "z_mm")))
-        else:
-            skip("instrument_drift: the data carries no time (or it does not vary)")
-    if "tool_flex" in kinds:
-        out.candidates.append(Candidate("tool_flex", None, free=("sag_mm",)))
+            offer.out.skipped.append("parallel_axes: no pair of parallel axes without the Hayati term in the robot "
+                                     "description")
+    t = data.ctx.time_s
+    offer.all([Candidate("instrument_drift", None, reference_s=float(np.mean(t)), free=("x_mm", "y_mm", "z_mm"))] +
+              [Candidate("instrument_drift", None, step_s=float(np.quantile(t, qv)), free=("x_mm", "y_mm", "z_mm"))
+               for qv in DRIFT_STEPS])
+    offer(Candidate("tool_flex", None, free=("sag_mm",)))

@@ -17,6 +17,7 @@ from .base import Effect, register_effect
 @register_effect
 class AxisTilt(Effect):
     kind = "axis_tilt"
+    driven_by = "joint_angle"
     stage = "point"
     param_names = ("c_rad", "s_rad")
     options = {"order": int}

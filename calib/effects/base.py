@@ -102,6 +102,9 @@ class Effect:
     text_required: ClassVar[int] = 0
     #: the keys of its ``[[effect]]`` table in a scenario file (``calib.tomlspec.Field``), besides type/enabled
     scenario_fields: ClassVar[dict[str, Any]] = {}
+    #: the pose condition whose variation makes it visible (a key of ``calib.effects.drivers.DRIVERS``), None when
+    #: the poses' geometry alone does; identify refuses and the diagnosis skips an effect whose driver is constant
+    driven_by: ClassVar[str | None] = None
 
     def __init__(self, joint: int | None, values: dict[str, float]):
         self.joint = joint                       # 1-based joint the effect disturbs, or None

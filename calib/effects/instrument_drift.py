@@ -16,6 +16,7 @@ BASE_XYZ = (0, 1, 2)
 @register_effect
 class InstrumentDrift(Effect):
     kind = "instrument_drift"
+    driven_by = "time"
     stage = "geometry"
     has_joint = False
     param_names = ("x_mm", "y_mm", "z_mm")

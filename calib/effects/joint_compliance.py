@@ -17,6 +17,7 @@ from .base import Effect, register_effect
 @register_effect
 class JointCompliance(Effect):
     kind = "joint_compliance"
+    driven_by = "load"
     needs_loads = True
     torque_driven = True
     param_names = ("compliance1_rad_per_nm", "compliance2_rad_per_nm", "breakpoint_nm", "deadzone_rad")

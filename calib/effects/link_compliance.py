@@ -20,6 +20,7 @@ from .base import Effect, Loads, register_effect
 @register_effect
 class LinkCompliance(Effect):
     kind = "link_compliance"
+    driven_by = "load"
     stage = "point"
     needs_loads = True
     param_names = ("compliance_per_nmm2",)      # 1 / EI

@@ -10,6 +10,7 @@ from .base import Effect, register_effect
 @register_effect
 class ThermalDrift(Effect):
     kind = "thermal_drift"
+    driven_by = "temperature"
     stage = "geometry"
     has_joint = False
     param_names = ("kappa_per_degc",)

@@ -15,6 +15,7 @@ from .base import Effect, register_effect
 @register_effect
 class TransmissionError(Effect):
     kind = "transmission_error"
+    driven_by = "joint_angle"
     options = {"order": float, "harmonics": int}
     text_required = 1
     scenario_fields = {"joint": Field("int", required=True, min=1),
