@@ -187,3 +187,27 @@ def test_scripted_repeat_and_skip(tmp_path):
         # both attempts' raw readings are kept: 2 attempts x 2 stations x 2 faces
         n = c.execute("SELECT count(*) FROM reading JOIN step USING (step_id) WHERE key='ruler/p0/C'").fetchone()[0]
         assert n == 8
+
+
+def test_stiff_link_is_reported_as_a_bound_not_a_failure(tmp_path):
+    """The default scenario's link has no compliance (the thesis found it negligible against the joints'): the dial
+    gauges read noise only, and the result is a 95 % lower bound on EI with the verdict "negligible" -- in the JSON,
+    the summary and the report -- not "not determined"."""
+    from acq.session.report import report_html
+    from acq.session.summary import summary_lines
+    db = tmp_path / "link.db"
+    d = build_demo(db, seed=4, plan={"procedures": ["link_compliance"], "seed": 4})
+    assert d.runner.run() == "finished"
+    d.close()
+    res = reprocess(str(db))
+    assert not [p for p in res["problems"] if p.startswith("link")], res["problems"]
+    assert not [e for e in res["estimates"] if e["name"].startswith("link.")]
+    (b,) = [b for b in res["bounds"] if b["name"] == "link.j2.EI_lower_bound_Nmm2"]
+    assert b["side"] == "lower" and b["confidence"] == 0.95 and b["truth"] is None
+    assert 0 < b["value"] <= b["detection_limit_Nmm2"]
+    assert b["value"] > 2.0e11              # stiffer than the scenario's (disabled) link, which the gauges would see
+    lines = [t for _, t in summary_lines(res)]
+    head = next(t for t in lines if t.startswith("Link compliance"))
+    assert "negligible" in head and "§5.7" in head and "not determined" not in head
+    assert any("EI ≥" in t and "95 %" in t for t in lines)
+    assert "Verdict: negligible" in report_html(res)
