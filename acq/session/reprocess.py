@@ -414,6 +414,7 @@ def _pose_model(robot, running: dict, problems: list[str], specs=None):
     procedures measured (priors with those procedures' errors), so a poorly measured stiffness cannot bias the fit.
     """
     from calib.effects import effect_from_text
+    from calib.estimators.compliance import MAX_REL_ERROR_TWO_SLOPES
     from calib.model import MeasurementModel
     specs = running_error_specs({}, running) if specs is None else specs
     effects = [effect_from_text(t, robot.n) for t in specs]
@@ -429,12 +430,10 @@ def _pose_model(robot, running: dict, problems: list[str], specs=None):
                 problems.append(f"poses: joint {e.joint} transmission error measured at order {w:.3g} +- {sw:.2g}, "
                                 f"the model uses {e.order:g}: no prior from the transmission-error run")
                 continue
-            A, phi, sA = res["amplitude1_rad"].value, res["phase1_rad"].value, res["amplitude1_rad"].error
-            # err = A sin(w q + phi) = A cos(phi) sin(w q) + A sin(phi) cos(w q)
-            for k, v in (("s1_rad", A * np.cos(phi)), ("c1_rad", A * np.sin(phi))):
-                name = f"{lab}.{k}"
+            for name, v, sv in _harmonic_prior(res):
+                name = f"{lab}.{name}"
                 theta0[model.index[name]] = v
-                priors[name] = (float(v), float(max(sA, 1e-6)))
+                priors[name] = (v, sv)
         elif e.kind == "joint_compliance" and e.joint in (running.get("compliance") or {}):
             res = running["compliance"][e.joint]
             K, sK = res["K1_Nm_per_rad"].value, res["K1_Nm_per_rad"].error
@@ -443,8 +442,24 @@ def _pose_model(robot, running: dict, problems: list[str], specs=None):
                 c = 1.0 / K
                 theta0[model.index[name]] = c
                 theta0[model.index[f"{lab}.compliance2_rad_per_nm"]] = c
-                priors[name] = (c, float(max(sK / K ** 2, 0.05 * c)))
+                # one slope over every load (the breakpoint not placed) says little of the slope at the pose set's
+                # smaller torques: it may differ by as much as two slopes the run could not tell apart
+                floor = MAX_REL_ERROR_TWO_SLOPES if res.extras.get("single_slope") else 0.05
+                priors[name] = (c, float(max(sK / K ** 2, floor * c)))
     return model, theta0, priors
+
+
+def _harmonic_prior(res) -> list[tuple[str, float, float]]:
+    """The transmission-error run's first harmonic as the pose-set model's sine and cosine coefficients with their
+    1-sigma: ``A sin(w q + phi) = A cos(phi) sin(w q) + A sin(phi) cos(w q)``, the amplitude's and the phase's errors
+    (and their correlation) both propagated -- a phase known to 0.1 rad moves the coefficients by a tenth of A."""
+    names = list(res.names)
+    i, k = names.index("amplitude1_rad"), names.index("phase1_rad")
+    A, phi = float(res.value[i]), float(res.value[k])
+    C = res.cov[np.ix_([i, k], [i, k])]
+    G = np.array([[np.cos(phi), -A * np.sin(phi)], [np.sin(phi), A * np.cos(phi)]])
+    sd = np.sqrt(np.maximum(np.diag(G @ C @ G.T), 1e-12))
+    return [("s1_rad", A * np.cos(phi), float(sd[0])), ("c1_rad", A * np.sin(phi), float(sd[1]))]
 
 
 def _poses(steps, points, robot, setup, est, twin, figs, running=None, problems=None, coupling_steps=()):
@@ -671,6 +686,7 @@ def _transmission(steps, points, robot, axes, est, twin, figs, n_mc):
         enc = np.array([(_encoder_q(s, robot) if _encoder_q(s, robot) is not None
                          else np.asarray(s["spec"]["pose_deg"]) * DEG)[j - 1] for s in sts])
         err = np.angle(np.exp(1j * (meas - (enc - enc[0]))))      # both sides wrap differently past 180 deg
+        cov = cov + _reference_quantisation(sts, robot, j)
         ok = np.isfinite(err)
         try:
             res = fit_transmission_error(enc[ok], err[ok], cov[np.ix_(ok, ok)], n_mc=n_mc)
@@ -695,6 +711,21 @@ def _transmission(steps, points, robot, axes, est, twin, figs, n_mc):
         raise RobocalError("; ".join(failed))
     figs.setdefault("problems", []).extend(f"transmission: {f}" for f in failed)
     return fits
+
+
+def _reference_quantisation(sts, robot, j: int) -> np.ndarray:
+    """Covariance the encoder's quantisation adds to ``meas - (enc - enc[0])`` over a run: each step's count is off
+    by up to half a count (uniform: 1/sqrt(12) of a count), and the first step's error enters every difference.  A
+    Puma wrist count is 0.005 deg at the joint, as large as the theodolites' angle noise; steps whose joint reading
+    is the commanded angle (no tap) carry none."""
+    from calib.estimators.coupling import quantisation_sigma
+    from calib.estimators.resolution import design_resolution_rad
+    s = quantisation_sigma(design_resolution_rad(robot.counts_per_rev[j - 1], robot.gear_ratio[j - 1]))
+    tapped = np.array([_encoder_q(st, robot) is not None for st in sts], float)
+    E = np.diag(-tapped)
+    E[:, 0] += tapped[0]
+    E[0] = 0.0
+    return s ** 2 * (E @ E.T)
 
 
 def _setup_model(robot, setup):

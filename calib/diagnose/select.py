@@ -54,6 +54,9 @@ ALIAS_SHARE = 0.8
 REFIT_BEST = 3
 #: candidates looked at per round, in the order of their linearised score
 SCAN_BEST = 10
+#: a candidate whose linearised held-out gain is below this share of the material gain is not refitted (the
+#: one-step prediction from the current fit is close to the refit: the effects enter nearly linearly)
+LINEAR_SLACK = 0.5
 
 
 @dataclass
@@ -423,6 +426,15 @@ def _round(cx: _Context, cur: CVResult, remaining: list[Candidate], rounds: list
             cx.near.append(NearMiss(cand.label, float(np.sqrt(sse[k] / cx.data.n)), float(tests.p[k]),
                                     f"not significant (corrected p = {tests.p[k]:.3g})", cand.group))
             why = why or f"best remaining candidate {cand.label} is not significant (corrected p = {tests.p[k]:.3g})"
+            continue
+        predicted = float(np.sqrt(sse[k] / cx.data.n))
+        if cur.rms_mm - predicted < LINEAR_SLACK * MATERIAL_SHARE * cx.excess_mm:
+            gain = cur.rms_mm - predicted
+            cx.near.append(NearMiss(cand.label, predicted, float(tests.p[k]),
+                                    f"shrinks the held-out RMS by {1000 * gain:.1f} um only (linearised), less than "
+                                    f"{100 * MATERIAL_SHARE:.0f} % of the excess gap ({1000 * cx.excess_mm:.1f} um)",
+                                    cand.group))
+            why = why or f"best remaining candidate {cand.label} {cx.near[-1].reason}"
             continue
         ida = analyse(np.hstack([lin.Jw[:, lin.base_idx], lin.Jw[:, ok[k][1]]]),
                       [lin.big.names[i] for i in lin.base_idx] + [f"candidate.{p}" for p in cand.free])
