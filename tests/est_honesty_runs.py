@@ -15,7 +15,7 @@ import numpy as np
 from calib.estimators.axes import fit_axis
 from calib.estimators.compliance import two_slope_fit
 from calib.estimators.coupling import coupling_from_repeats, quantisation_sigma
-from calib.estimators.link_compliance import flexural_rigidity
+from calib.estimators.link_compliance import link_rigidity
 from calib.estimators.points import StationFit, locate_targets, points_covariance
 from calib.estimators.ruler import RulerSightings, ruler_lsq
 from calib.estimators.resolution import encoder_resolution_fitted_axis
@@ -166,7 +166,7 @@ def run_link(rng, EI=2.0e11):
     P = np.repeat([100.0, 200.0, 300.0], 4)
     sig = 0.001
     y = tp.cantilever_deflection(x, a, P, EI) + sig * rng.standard_normal(12)
-    res = flexural_rigidity(x, a, P, y, sigma_mm=sig, n_mc=0)
+    res = link_rigidity(x, a, P, y, sigma_mm=sig, n_mc=0)         # as reprocess: the estimate, bending being seen
     return [("EI_Nmm2", res["EI_Nmm2"].value, res["EI_Nmm2"].error, EI)]
 
 

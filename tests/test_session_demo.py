@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 import sqlite3
 
+import numpy as np
 import pytest
 
 from acq.cli import main
@@ -107,6 +108,27 @@ def test_reprocess_recovers_the_twin(session):
     assert held and all(e["error"] == 0.0 and e["name"].startswith("ident.") and "held" in e["note"] for e in held)
 
 
+def test_the_identified_robots_truths_are_the_twins_in_the_fits_gauge(session):
+    """robot.parameters[].truth used to be the twin's raw values (base yaw 0 where the fit's gauge puts joint 1's
+    zero offset into it, j3.d 0 where it takes d2's error): now each estimated parameter's truth is the one its
+    ident.* estimate is compared with, a held parameter has none, and the z-scores are those of honest errors."""
+    db, _ = session
+    res = reprocess(str(db))
+    est = {e["name"]: e for e in res["estimates"]}
+    z = []
+    for p in res["robot"]["parameters"]:
+        if not p["estimated"]:
+            assert p["truth"] is None and "held" in p["note"], p
+            continue
+        e = est[f"ident.{p['name']}"]
+        assert p["truth"] == e["truth"], (p, e)
+        if p["truth"] is not None:
+            z.append(abs(p["value"] - p["truth"]) / p["error"])
+        else:
+            assert "truth_raw" in p or p["name"].startswith("cross_coupling"), p
+    assert len(z) >= 20 and np.median(z) < 1.5 and max(z) < 6.0, sorted(z)
+
+
 def test_reprocess_is_read_only(session):
     db, _ = session
     before = db.read_bytes()
@@ -165,3 +187,27 @@ def test_scripted_repeat_and_skip(tmp_path):
         # both attempts' raw readings are kept: 2 attempts x 2 stations x 2 faces
         n = c.execute("SELECT count(*) FROM reading JOIN step USING (step_id) WHERE key='ruler/p0/C'").fetchone()[0]
         assert n == 8
+
+
+def test_stiff_link_is_reported_as_a_bound_not_a_failure(tmp_path):
+    """The default scenario's link has no compliance (the thesis found it negligible against the joints'): the dial
+    gauges read noise only, and the result is a 95 % lower bound on EI with the verdict "negligible" -- in the JSON,
+    the summary and the report -- not "not determined"."""
+    from acq.session.report import report_html
+    from acq.session.summary import summary_lines
+    db = tmp_path / "link.db"
+    d = build_demo(db, seed=4, plan={"procedures": ["link_compliance"], "seed": 4})
+    assert d.runner.run() == "finished"
+    d.close()
+    res = reprocess(str(db))
+    assert not [p for p in res["problems"] if p.startswith("link")], res["problems"]
+    assert not [e for e in res["estimates"] if e["name"].startswith("link.")]
+    (b,) = [b for b in res["bounds"] if b["name"] == "link.j2.EI_lower_bound_Nmm2"]
+    assert b["side"] == "lower" and b["confidence"] == 0.95 and b["truth"] is None
+    assert 0 < b["value"] <= b["detection_limit_Nmm2"]
+    assert b["value"] > 2.0e11              # stiffer than the scenario's (disabled) link, which the gauges would see
+    lines = [t for _, t in summary_lines(res)]
+    head = next(t for t in lines if t.startswith("Link compliance"))
+    assert "negligible" in head and "§5.7" in head and "not determined" not in head
+    assert any("EI ≥" in t and "95 %" in t for t in lines)
+    assert "Verdict: negligible" in report_html(res)

@@ -112,14 +112,16 @@ def _read(path: str, robot, noise_mm, csv_units: dict | None = None):
 
 
 def _plausible(data, args) -> list[dict]:
-    """The data checked against the description before the fits (calib.plausibility); after them, the baseline's
-    chi-square is checked by :func:`run`."""
+    """The data (DATA, and OTHER of --confirm) checked against the description before the fits, as identify checks
+    its data (calib.plausibility: joint columns the robot lacks, units, distinct poses); after the fits, the
+    baseline's chi-square is checked by :func:`run`."""
     from calib.identify import default_free
     from calib.model import MeasurementModel
     from calib.plausibility import check_data, enforce
     nominal = MeasurementModel(data.robot)
-    return enforce(check_data(nominal, data.q_rad, data.points_mm, str(args.data),
-                              n_free=len(default_free(nominal, effects=False)), prismatic=data.robot.prismatic),
+    return enforce(check_data(nominal, data.q_rad, data.points_mm, data.source,
+                              n_free=len(default_free(nominal, effects=False)), prismatic=data.robot.prismatic,
+                              ignored_columns=data.ignored_columns),
                    args.force_implausible, "diagnose")
 
 
@@ -143,6 +145,10 @@ def run(args) -> int:
     robot = load_robot(args.robot) if args.robot else None
     data = _read(args.data, robot, args.noise_mm, units(args))
     implausible = _plausible(data, args)
+    other = None
+    if args.confirm:            # checked before the (long) diagnosis: a file for another robot is refused at once
+        other = _read(args.confirm, data.robot, args.noise_mm, units(args))
+        implausible += _plausible(other, args)
     with progress_display("robocal diagnose") as update:
         diag = diagnose(data, level=args.geometry, n_folds=args.folds, alpha=args.alpha,
                         max_effects=args.max_effects, outliers=args.outliers, loss=args.loss, progress=update)
@@ -151,7 +157,7 @@ def run(args) -> int:
                            "diagnose")
     if args.confirm:
         from calib.diagnose.confirm import confirm
-        diag.confirmation = confirm(diag, _read(args.confirm, data.robot, args.noise_mm, units(args)))
+        diag.confirmation = confirm(diag, other)
     if diag.warning():
         print(f"warning: {diag.warning()}", file=sys.stderr)
     from calib.provenance import provenance

@@ -23,8 +23,8 @@ import numpy as np
 from calib.fileio import atomic_path, atomic_write_text
 from calib.units import DEG
 
-from .sections import DETERMINED, SECTIONS, UNDETERMINED, WEAK, Section, in_session, section_estimates, \
-    section_problems, section_verdict, shown, thesis_rows
+from .sections import DETERMINED, NEGLIGIBLE, SECTIONS, UNDETERMINED, WEAK, Section, bound_text, in_session, \
+    needs_action, section_bounds, section_estimates, section_problems, section_verdict, shown, thesis_rows
 
 STYLE = """
 body { font-family: system-ui, -apple-system, "Segoe UI", sans-serif; max-width: 60rem; margin: 1.5rem auto;
@@ -186,7 +186,9 @@ def _link_fig(f: dict, res: dict):
     sc = ax.scatter(L["x_mm"], L["deflection_mm"], c=L.get("load_n"), cmap="viridis")
     fig.colorbar(sc, ax=ax, label="load (N)")
     ax.set_xlabel("gauge position along the link (mm)"), ax.set_ylabel("deflection (mm)")
-    return [(f"Link compliance: gauge deflections (EI = {L['EI_Nmm2']:.3g} N mm²)", fig)]
+    what = (f"EI = {L['EI_Nmm2']:.3g} N mm²" if L.get("EI_Nmm2") is not None else
+            f"no significant bending: EI ≥ {L['EI_lower_bound_Nmm2']:.3g} N mm², 95 %")
+    return [(f"Link compliance: gauge deflections ({what})", fig)]
 
 
 @figure("coupling")
@@ -250,7 +252,7 @@ def _accuracy_map(f: dict, res: dict):
 
 # -- text ----------------------------------------------------------------------------------------------------------
 def _verdict_class(v: str) -> str:
-    return {DETERMINED: "determined", WEAK: "weakly", UNDETERMINED: "not"}[v]
+    return {DETERMINED: "determined", NEGLIGIBLE: "determined", WEAK: "weakly", UNDETERMINED: "not"}[v]
 
 
 def accuracy_verdict(acc: dict, tolerance_mm: float | None) -> str:
@@ -383,12 +385,13 @@ def _what_was_done(sec: Section, record) -> str:
 
 
 def _section_html(sec: Section, res: dict, record, figs_png: dict[str, list[tuple[str, str]]]) -> str:
-    est, probs = res.get("estimates", []), res.get("problems", [])
+    est, probs, bounds = res.get("estimates", []), res.get("problems", []), res.get("bounds", [])
     mine = section_estimates(sec, est)
     sp = section_problems(sec, probs)
-    if not mine and not sp and (record is None or sec.key not in record.procedures):
+    sb = section_bounds(sec, bounds)
+    if not mine and not sp and not sb and (record is None or sec.key not in record.procedures):
         return ""
-    v, why = section_verdict(sec, est, probs)
+    v, why = section_verdict(sec, est, probs, bounds)
     out = [f"<section id='{sec.key}'><h2>{html.escape(sec.title)}</h2>",
            f"<p>{html.escape(sec.what)}</p>", _what_was_done(sec, record),
            f"<p class='verdict {_verdict_class(v)}'>Verdict: {v}" + ("" if v == DETERMINED else
@@ -397,8 +400,15 @@ def _section_html(sec: Section, res: dict, record, figs_png: dict[str, list[tupl
         stage, _, msg = p.partition(":")
         out.append(f"<div class='problem'><b>The {html.escape(stage.strip())} stage did not give a result:</b> "
                    f"{html.escape(msg.strip())}<br>What to do: {html.escape(sec.advice)}</div>")
-    if v != DETERMINED and not sp and sec.advice:
+    if needs_action(v) and not sp and sec.advice:
         out.append(f"<p class='muted'>What to do: {html.escape(sec.advice)}</p>")
+    for b in sb:
+        out.append(f"<p class='verdict {_verdict_class(v)}'>{html.escape(bound_text(b))}."
+                   + (f" {html.escape(b['note'][0].upper() + b['note'][1:])}." if b.get("note") else "")
+                   + (f" <span class='muted'>Emulated truth: {b['truth']:.4g} {html.escape(b.get('unit', ''))}"
+                      f"</span>" if b.get("truth") is not None else
+                      f" <span class='muted'>Emulated truth: {html.escape(b['truth_note'])}</span>"
+                      if b.get("truth_note") else "") + "</p>")
     for key in sec.figures:
         for caption, src in figs_png.get(key, []):
             out.append(f"<figure><img alt='{html.escape(caption)}' src='{src}'/><figcaption>{html.escape(caption)}"

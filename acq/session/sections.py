@@ -11,7 +11,10 @@ Verdicts (per estimate, then per section: the worst of its estimates):
 * ``weakly determined``: under 50 % / 2 mm / 0.25 deg / 0.005;
 * ``not determined``: anything larger, or a zero or non-finite error on an estimated quantity.  A parameter held at
   its design value (the data cannot separate it from another) is listed as held and does not make its section
-  undetermined: the section is judged on what it estimated.
+  undetermined: the section is judged on what it estimated;
+* ``negligible``: the procedure found the effect below what it can resolve and states a one-sided bound instead of an
+  estimate (``bounds`` in the results: e.g. the link is at least this stiff); the section's ``bounded`` words say
+  what that means (for the link, the thesis's own finding).
 """
 from __future__ import annotations
 
@@ -22,7 +25,13 @@ from dataclasses import dataclass, field
 from calib.units import DEG, NM_PER_LBIN
 
 DETERMINED, WEAK, UNDETERMINED = "determined", "weakly determined", "not determined"
-_RANK = {DETERMINED: 0, WEAK: 1, UNDETERMINED: 2}
+NEGLIGIBLE = "negligible"
+_RANK = {DETERMINED: 0, NEGLIGIBLE: 0, WEAK: 1, UNDETERMINED: 2}
+
+
+def needs_action(verdict: str) -> bool:
+    """Whether a section's verdict calls for the operator's advice (a weak or missing result, not a bound)."""
+    return _RANK[verdict] > 0
 
 #: estimate-name endings whose value is a magnitude (its error is judged against the value itself)
 MAGNITUDES = ("L_mm", "K1_Nm_per_rad", "K2_Nm_per_rad", "EI_Nmm2", "amplitude1_rad", "omega", "sigma45", "sigma46",
@@ -107,6 +116,7 @@ class Section:
     advice: str = ""                 # what the operator can do when the stage failed or is weak
     thesis: list[ThesisRow] = field(default_factory=list)
     figures: tuple[str, ...] = ()    # keys of the figure registry (acq.session.report)
+    bounded: str = ""                # what a one-sided bound (no measurable effect) means here, for the verdict
 
 
 SECTIONS: list[Section] = []
@@ -158,7 +168,9 @@ section(Section(
     "link_compliance", "Link compliance (§4.6)", ("link.",),
     "Dial gauges along a link, loads at its end; the flexural rigidity from the gauge readings.",
     ("link", "link compliance"),
-    "Repeat with larger loads or gauges farther from the joint.", [], ("link",)))
+    "Repeat with larger loads or gauges farther from the joint.", [], ("link",),
+    bounded="thesis §5.7: link compliance negligible against joint compliance; the gauges show no significant "
+            "bending"))
 section(Section(
     "coupling", "Wrist cross coupling (§4.7)", ("coupling.",),
     "A wrist joint moved alone, then with its neighbour; the tapped encoder counts give σ_jk.", ("coupling",),
@@ -197,15 +209,35 @@ def section_estimates(sec: Section, estimates: list[dict]) -> list[dict]:
     return [e for e in estimates if e["name"].startswith(sec.prefixes)]
 
 
+def section_bounds(sec: Section, bounds: list[dict]) -> list[dict]:
+    return [b for b in bounds if b["name"].startswith(sec.prefixes)]
+
+
+def bound_text(b: dict) -> str:
+    """A bound as a metrologist states it: ``j2.EI ≥ 3.1e+12 N mm² (95 %, one-sided)``."""
+    name = re.sub(r"_(lower|upper)_bound_(Nmm2|Nm_per_rad|mm|rad)$", "", b["name"]).split(".", 1)[-1]
+    sign = "≥" if b.get("side", "lower") == "lower" else "≤"
+    unit = b.get("unit", "").replace("^2", "²")
+    text = f"{name} {sign} {b['value']:.3g} {unit} ({100 * b['confidence']:g} %, one-sided)"
+    if b.get("detection_limit_Nmm2"):
+        text += f"; these loads and gauges could not tell a link stiffer than {b['detection_limit_Nmm2']:.3g} {unit} " \
+                f"from a rigid one"
+    return text
+
+
 def section_problems(sec: Section, problems: list[str]) -> list[str]:
     keys = sec.problem_prefixes or (sec.key,)
     return [p for p in problems if p.split(":", 1)[0].strip().lower() in keys]
 
 
-def section_verdict(sec: Section, estimates: list[dict], problems: list[str]) -> tuple[str, str]:
-    """(verdict, reason) of a whole section: the worst of its estimates, or not determined when it failed."""
+def section_verdict(sec: Section, estimates: list[dict], problems: list[str],
+                    bounds: list[dict] = ()) -> tuple[str, str]:
+    """(verdict, reason) of a whole section: the worst of its estimates, negligible when it states a bound instead
+    (the effect is below what the procedure resolves), or not determined when it failed."""
     mine = section_estimates(sec, estimates)
     probs = section_problems(sec, problems)
+    if not mine and section_bounds(sec, list(bounds)) and not probs:
+        return NEGLIGIBLE, sec.bounded or "below what the procedure can resolve: a one-sided bound is stated"
     if not mine:
         return UNDETERMINED, (probs[0].split(":", 1)[1].strip() if probs else "no data for this procedure")
     estimated = [e for e in mine if not e.get("held")]
@@ -238,6 +270,8 @@ def thesis_rows(sec: Section, estimates: list[dict]) -> list[dict]:
         z = diff / s.error if s.error else None
         out.append({"label": row.label, "robocal": s.value, "error": s.error, "thesis": row.thesis,
                     "thesis_error": row.thesis_error, "unit": row.unit if row.unit != "N m/rad" else "N m/rad",
-                    "difference": diff, "sigmas": z, "note": row.note,
+                    "difference": diff, "sigmas": z,
+                    "note": "; ".join(filter(None, [row.note, "robocal: one slope over every load (the breakpoint "
+                                                    "is not determined)" if e.get("single_slope") else ""])),
                     "lbin": (s.value * LB, row.thesis * LB) if row.unit == "N m/rad" else None})
     return out

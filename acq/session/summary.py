@@ -8,13 +8,13 @@ import math
 from rich.console import Console
 from rich.table import Table
 
-from .sections import DETERMINED, SECTIONS, UNDETERMINED, WEAK, in_session, section_estimates, \
-    section_problems, section_verdict, shown, verdict_of
+from .sections import DETERMINED, NEGLIGIBLE, SECTIONS, UNDETERMINED, WEAK, bound_text, in_session, needs_action, \
+    section_bounds, section_estimates, section_problems, section_verdict, shown, verdict_of
 
 #: a section with at most this many estimates lists them all; a larger one shows its counts and weakest few
 LIST_UP_TO = 6
 WEAKEST = 3
-_COLOUR = {DETERMINED: "green", WEAK: "yellow", UNDETERMINED: "red"}
+_COLOUR = {DETERMINED: "green", NEGLIGIBLE: "green", WEAK: "yellow", UNDETERMINED: "red"}
 
 
 def _short_name(e: dict) -> str:
@@ -42,9 +42,19 @@ def _value_text(e: dict) -> str:
                                                                                           else "")
     if s.extra:
         text += f" ({s.extra})"
+    if e.get("single_slope"):
+        text += " one slope over every load"
     if s.truth is not None and s.error:
         text += f"  truth {s.truth:.6g} ({(s.value - s.truth) / s.error:+.1f}σ)"
     return text
+
+
+def _bound_truth(b: dict) -> str:
+    """The emulated truth beside a bound: its value, or what the twin's scenario says instead (a rigid link)."""
+    if b.get("truth") is not None:
+        return f"  truth {b['truth']:.6g} ({'inside' if b['truth'] >= b['value'] else 'OUTSIDE'} the bound)" \
+            if b.get("side", "lower") == "lower" else f"  truth {b['truth']:.6g}"
+    return f"  truth: {b['truth_note']}" if b.get("truth_note") else ""
 
 
 def accuracy_lines(acc: dict | None, tolerance_mm: float | None = None) -> list[str]:
@@ -92,15 +102,17 @@ def summary_lines(res: dict) -> list[tuple[str, str]]:
     """(style, text) lines of the compact summary."""
     out: list[tuple[str, str]] = [("bold", f"{res['session']['title']}")]
     out += [("bold", line) for line in accuracy_lines(res.get("accuracy"))]
-    est, probs = res.get("estimates", []), res.get("problems", [])
+    est, probs, bounds = res.get("estimates", []), res.get("problems", []), res.get("bounds", [])
     shown_sections = [sec for sec in SECTIONS if in_session(sec, res)]
     for sec in shown_sections:
         mine = section_estimates(sec, est)
         sp = section_problems(sec, probs)
-        if not mine and not sp:
+        sb = section_bounds(sec, bounds)
+        if not mine and not sp and not sb:
             continue
-        v, why = section_verdict(sec, est, probs)
+        v, why = section_verdict(sec, est, probs, bounds)
         out.append((f"bold {_COLOUR[v]}", f"{sec.title}: {v}" + ("" if v == DETERMINED else f" — {why}")))
+        out += [("", f"  {bound_text(b)}" + _bound_truth(b)) for b in sb]
         if len(mine) <= LIST_UP_TO:
             out += [("", f"  {_short_name(e):<12} {_value_text(e)}") for e in mine]
         else:
@@ -115,7 +127,7 @@ def summary_lines(res: dict) -> list[tuple[str, str]]:
             held = [_short_name(e) for e in mine if e.get("held")]
             if held:
                 out.append(("", "  held at design values: " + ", ".join(held)))
-        if v != DETERMINED and sec.advice:
+        if needs_action(v) and sec.advice:
             out.append(("dim", f"  what to do: {sec.advice}"))
         out += [("yellow", f"  note: {p.split(':', 1)[1].strip()}") for p in sp
                 if p.split(":", 1)[1].strip() != why]

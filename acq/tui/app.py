@@ -406,6 +406,11 @@ class RobocalApp(App):
             truth = e.get("truth")
             table.add_row(e["name"], f"{e['value']:.6g}", f"{e['error']:.2g}", e.get("unit", ""),
                           "" if truth is None else f"{truth:.6g}")
+        for b in res.get("bounds", []):                     # no effect measurable: a one-sided bound
+            truth = b.get("truth")
+            table.add_row(b["name"], f"{'≥' if b.get('side') == 'lower' else '≤'} {b['value']:.6g}",
+                          f"{100 * b['confidence']:g} % one-sided", b.get("unit", ""),
+                          "" if truth is None else f"{truth:.6g}")
         self.results_dir = out
         where = self.handle.db_path if self.handle else ""
         self.query_one("#step", Static).update(

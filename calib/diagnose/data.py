@@ -43,6 +43,7 @@ class DiagnosisData:
     pose_id: list[str] = field(default_factory=list)
     notes: list[str] = field(default_factory=list)
     split: list[str] | None = None         # the data's own "fit"/"test" split (else the diagnosis makes folds)
+    ignored_columns: list[str] = field(default_factory=list)   # the file's columns not read (q7 of a 7-joint robot)
     sightings: Sightings | None = None     # raw readings behind each point (both faces: the noise estimate)
 
     @property
@@ -172,5 +173,6 @@ def load_data(path: str | Path, robot: Robot | None = None, noise_mm: float | No
         d.labels["target"] = list(table.target)
     if getattr(table, "split", None):
         d.split = list(table.split)
+    d.ignored_columns = [str(c) for c in getattr(table, "ignored_columns", None) or ()]
     d.notes += [str(w.message) for w in caught]
     return d
