@@ -496,11 +496,17 @@ def _poses(steps, points, robot, setup, est, twin, figs, running=None, problems=
     sigma = np.sqrt(ident.sigma ** 2 + _station_variance(model, obs, D, ident, priors, points.station_fit))
     truth = twin.true_parameters() if twin is not None else None
     gauge = _gauge_truth(twin, model, ident, q) if twin is not None else {}
+    compared = {}                  # the truth each estimate is compared with: the twin's, in the fit's gauge
+    unknown = _held_away(model, ident, truth)
     for n in ident.free:
         i = ident.names.index(n)
         raw = None if truth is None else truth.get(n)
         extra = {}
-        tv = gauge.get(n, raw)
+        tv = None if n in unknown else gauge.get(n, raw)
+        if tv is not None:
+            compared[n] = tv
+        if n in unknown and raw is not None:
+            extra = {"truth_raw": float(raw), "note": unknown[n]}
         if raw is not None and tv is not None and abs(tv - raw) > 0.1 * sigma[i]:
             extra = {"truth_raw": float(raw), "note": "truth in the gauge of the held parameters (what perfect data "
                                                       "would give with them at their design values)"}
@@ -518,7 +524,34 @@ def _poses(steps, points, robot, setup, est, twin, figs, running=None, problems=
                      "rms_mm": float(ident.residual_rms), "held": [n for n in wanted if n not in ident.free],
                      "points_mm": P.tolist(), "running_errors": list(specs)}
     _accuracy(model, obs, ident.free, theta0, priors, figs, problems)
-    return model_document(model, ident, truth)
+    return _with_truth_notes(model_document(model, ident, compared if truth is not None else None), truth, gauge,
+                             unknown)
+
+
+def _with_truth_notes(doc: dict, raw: dict | None, gauge: dict, unknown: dict[str, str]) -> dict:
+    """The identified model document's ``truth``s say what the estimates are compared with: for an estimated
+    parameter the twin's value in the fit's gauge (as the ``ident.*`` estimates; the twin's own value as
+    ``truth_raw`` where they differ), for a held one none -- its value is the design value by choice, not an
+    estimate, and the twin's own value (``truth_raw``) is not comparable with it -- nor for an effect parameter whose
+    companions are held away from the twin's (``unknown``, :func:`_held_away`).  Never a nominal value as truth."""
+    if raw is None:
+        return doc
+    for p in doc["parameters"]:
+        r = raw.get(p["name"])
+        if not p["estimated"]:
+            p["truth"] = None
+            p["note"] = "held at its design value, not estimated: no truth to compare it with"
+            if r is not None:
+                p["truth_raw"] = float(r)
+        elif p["name"] in unknown:
+            p["note"] = unknown[p["name"]]
+            if r is not None:
+                p["truth_raw"] = float(r)
+        elif r is not None and p["name"] in gauge and p["truth"] is not None and abs(p["truth"] - r) > 0:
+            p["truth_raw"] = float(r)
+            p["note"] = ("truth in the gauge of the held parameters (what perfect data would give with them at "
+                         "their design values)")
+    return doc
 
 
 def _accuracy(model, obs, free, theta0, priors, figs, problems) -> None:
@@ -583,6 +616,22 @@ def _gauge_truth(twin, model, ident, q) -> dict[str, float]:
     except RobocalError:
         return {}
     return {n: g.value(n) for n in g.free}
+
+
+def _held_away(model, ident, truth: dict | None) -> dict[str, str]:
+    """Estimated effect parameters whose effect has a parameter held away from the twin's value (a joint compliance
+    fitted with one slope, its breakpoint held at infinity, where the twin has two slopes and a breakpoint): the free
+    one absorbs the difference, so no truth in the fit's gauge is known for it -- name -> why, in words."""
+    if truth is None:
+        return {}
+    away: dict[str, list[str]] = {}
+    for n in ident.names:
+        if (n in model.index and n not in model.kin.index and n not in ident.free and n in truth
+                and not np.isclose(truth[n], ident.value(n))):
+            away.setdefault(n.rsplit(".", 1)[0], []).append(f"{n.rsplit('.', 1)[1]} held at {ident.value(n):.4g} "
+                                                             f"(twin {truth[n]:.4g})")
+    return {n: "no truth in the fit's gauge: its effect has " + ", ".join(away[n.rsplit(".", 1)[0]])
+            for n in ident.free if n not in model.kin.index and n.rsplit(".", 1)[0] in away}
 
 
 def _joint_angles(steps, points, axis_n, full: bool = False):
