@@ -1,5 +1,6 @@
 """The broadened validation on the independent generator (calib/diagnose/independent.py shares no code with the
-model): a small seeded subset, one case of every family; no family may have more than 5 % wrong (here: none)."""
+model): a small seeded subset, one case of every family; no family may have more than 5 % (confidently) wrong (here:
+none); a wrong finding flagged doubtful is its own verdict, never counted right."""
 import numpy as np
 
 from calib.diagnose.families import FAMILIES, family_cases, judge, run_families
@@ -39,8 +40,11 @@ def test_judging():
     assert judge({jc}, [(jc, True)]) == "right"
     assert judge({jc, te}, [(jc, False)]) == "honest"
     assert judge({jc}, [(jc, False), (te, False)]) == "wrong"
-    assert judge({jc}, [(jc, False), (te, True)]) == "right"
-    assert judge(set(), [(te, True)]) == "honest"
+    # a wrong finding flagged doubtful is still wrong: its own count, never right or honest
+    assert judge({jc}, [(jc, False), (te, True)]) == "wrong_doubtful"
+    assert judge(set(), [(te, True)]) == "wrong_doubtful"
+    assert judge({jc, te}, [(jc, True), (("backlash", 2), True)]) == "wrong_doubtful"
+    assert judge({jc}, [(jc, True)]) == "right"
     assert judge(set(), []) == "right"
 
 

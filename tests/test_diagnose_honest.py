@@ -48,7 +48,7 @@ def test_findings_carry_stability_and_aliases():
     assert (f["effect"], f["joint"]) == ("joint_compliance", 3)
     assert 0 <= f["stability"] < 0.25 and isinstance(f["aliases"], list)
     # forearm bending under the same gravity torque looks almost the same: reported, and the finding marked
-    assert f["doubtful"] == bool(f["aliases"] or f["leftover"] or f["stability"] > 0.25)
+    assert f["doubtful"] == bool(f["aliases"] or f["leftover"] or max(f["stability"], f["stated_spread"]) > 0.25)
     assert f["excess_share"] > 0.8
 
 

@@ -661,7 +661,8 @@ def _step_loads(st, robot, model, theta):
     """The step's joint readings, total torque about every joint (N m: the description's link weights plus the
     recorded hung masses, from geometry), the joints' axes (N, 3) at that pose in the measurement frame, and the
     torques' derivatives: w.r.t. the geometric parameters (n, P_geometric) and w.r.t. the load points' coordinates
-    in their frames (n, 3, summed over the loads: they move together when the lever is measured wrong)."""
+    in their frames (n, 3, summed over the loads: they move together when the lever is measured wrong), and the
+    torque of the hung masses alone per kg hung (n,: what a wrong mass changes, the thesis's Delta N)."""
     from .rig import c3_setup
     spec = st["spec"]
     q = _encoder_q(st, robot)
@@ -676,6 +677,8 @@ def _step_loads(st, robot, model, theta):
                         point_force_n=F[None])
     fp = model.kin.forward(q[None], theta[: model.n_geometric])
     ld = model.loads(fp, ctx, derivative=True)
+    hung_nm = ld.joint_torque_nm[0] - model.loads(fp, model.context(1)).joint_torque_nm[0]
+    mass_kg = float(sum(ld_["mass_kg"] for ld_ in loads))
     # moving a load's point by e_c in its frame j adds (R_j e_c x F) . z_i to joint i's torque (i <= j)
     z = fp.joint_axis[0]
     dpoint = np.zeros((robot.n, 3))
@@ -683,7 +686,7 @@ def _step_loads(st, robot, model, theta):
         R = fp.frame_R[0, b]
         for i in range(min(b, robot.n)):
             dpoint[i] += np.cross(R.T, f * 1e-3) @ z[i]
-    return q, ld.joint_torque_nm[0], z, ld.dtau_dgeo[0], dpoint
+    return q, ld.joint_torque_nm[0], z, ld.dtau_dgeo[0], dpoint, hung_nm / mass_kg if mass_kg > 0 else 0 * hung_nm
 
 
 def _swept_geometry(model, theta, est):
@@ -707,11 +710,13 @@ def _torque_cov(per_step, j, sig_geo) -> np.ndarray:
     """Covariance of the torques about joint j over a loading series, from the geometry they were computed with
     (``sig_geo``, per geometric parameter) and the load point's position (a lever measured with a tape: the tool
     tolerance), each common to the whole series -- the thesis's Delta L_j and Delta theta_ij terms, from the model's
-    torque derivative instead of N L cos(theta)."""
+    torque derivative instead of N L cos(theta); and the mass hung at each step (the thesis's Delta N: each step's
+    weights weighed to ``load_mass_kg``, independent from step to step)."""
     from .setup import DESCRIPTION_TOLERANCES as tol
     Jg = np.array([p[3][j - 1] for p in per_step]) * sig_geo                  # (steps, P)
     Jp = np.array([p[4][j - 1] for p in per_step]) * tol["tool_mm"]           # (steps, 3)
-    return Jg @ Jg.T + Jp @ Jp.T
+    dN = np.array([p[5][j - 1] for p in per_step]) * tol["load_mass_kg"]      # (steps,)
+    return Jg @ Jg.T + Jp @ Jp.T + np.diag(dN ** 2)
 
 
 def _commanded(sts, meas, cov, ok, j, est, figs):
@@ -813,25 +818,35 @@ def _compliance(steps, points, robot, axes, est, twin, figs, n_mc, setup=None, p
             problems.append(f"compliance: joint {j}: {exc}")
             continue
         raw, tv = {}, {}
+        single = bool(res.extras.get("single_slope"))
         if twin is not None:
             for e in twin.scenario.effects:
                 if isinstance(e, JointCompliance) and e.joint == j:
                     c1, c2, tb, h = e.values
-                    raw = {"K1_Nm_per_rad": 1 / c1, "K2_Nm_per_rad": 1 / c2, "breakpoint_Nm": tb, "offset_rad": h}
-                    tv = _compliance_truth(e, j, T, sign, unload, dcov, raw)
+                    # the fit reads unloading minus loading in its own sign (d = c(T) - h/2 x load direction)
+                    raw = {"K1_Nm_per_rad": 1 / c1, "K2_Nm_per_rad": 1 / c2, "breakpoint_Nm": tb,
+                           "offset_rad": sign * h}
+                    tv = _compliance_truth(e, j, T, sign, unload, dcov, raw, single)
         K = res["K1_Nm_per_rad"]
         if not (np.isfinite(K.value) and np.isfinite(K.error) and K.value > 0 and K.error < K.value):
             problems.append(f"compliance: joint {j}: not determined: K1 = {K.value:.4g} +- {K.error:.2g} N m/rad "
                             f"(torque range {applied:.3g} N m, deflection sigma {np.nanmean(sig):.2g} rad)")
             continue
+        span = sorted(abs(t) for t in res.extras.get("torque_range_Nm", (0.0, 0.0)))
         for e in res.estimates():
             if e.name not in ("K1_Nm_per_rad", "K2_Nm_per_rad", "breakpoint_Nm", "offset_rad"):
                 continue
             t, r = tv.get(e.name), raw.get(e.name)
             extra = {}
+            if single and e.name == "K1_Nm_per_rad":
+                extra = {"single_slope": True,
+                         "note": f"one slope over every load ({span[0]:.3g} .. {span[1]:.3g} N m): the breakpoint is "
+                                 f"not determined, so K2 and the breakpoint are not reported; hang more, smaller "
+                                 f"loads on each side of it to tell two slopes apart"}
             if t is not None and r is not None and abs(t - r) > 0.1 * e.error:
-                extra = {"truth_raw": float(r), "note": "truth as this fit would give it from the twin's noise-free "
-                                                        "deflections at the same torques (the slopes the data resolve)"}
+                extra.update(truth_raw=float(r))
+                extra["note"] = "; ".join(filter(None, [extra.get("note"), "truth: the same fit on the twin's "
+                                                        "noise-free deflections at the same torques"]))
             est.add(f"compliance.j{j}.{e.name}", e.value, e.error, e.unit, truth_value=t, **extra)
         fits[j] = res
         figs["compliance"][j] = {"torque_nm": T.tolist(), "deflection_deg": (defl / DEG).tolist(),
@@ -839,13 +854,15 @@ def _compliance(steps, points, robot, axes, est, twin, figs, n_mc, setup=None, p
     return fits
 
 
-def _compliance_truth(effect, j, T, sign, unload, dcov, raw: dict) -> dict:
-    """The twin's stiffness in the estimator's terms: the same fit on the deflections the twin's compliance effect
-    makes at the same torques, without noise.  Why: when the data cannot place the breakpoint the fit reports one
-    slope over every load, and the twin's two slopes are then not what it estimates (as ``_gauge_truth`` for the
-    pose set)."""
+def _compliance_truth(effect, j, T, sign, unload, dcov, raw: dict, single: bool) -> dict:
+    """The twin's stiffness in the estimator's terms.  When the fit told the two slopes apart (``single`` false),
+    the twin's own slopes, breakpoint and dead zone.  When it could not place the breakpoint, its ``K1`` is one
+    slope over every load: its truth is that same single-slope fit on the deflections the twin's compliance effect
+    makes at the same torques, without noise (the twin's two slopes are not what it estimates)."""
+    if not single:
+        return raw
     from calib.effects import Loads, PoseContext
-    from calib.estimators.compliance import two_slope_fit
+    from calib.estimators.compliance import single_slope_fit
     n = max(effect.joint, j)
     tau = np.zeros((len(T), n))
     tau[:, j - 1] = T
@@ -854,9 +871,9 @@ def _compliance_truth(effect, j, T, sign, unload, dcov, raw: dict) -> dict:
     ctx = PoseContext(len(T), n, load_direction=ctx_dir)
     d, _ = effect.joint_delta(np.zeros((len(T), n)), ctx, Loads(tau, np.zeros((len(T), n, 3))), effect.values)
     try:
-        clean = two_slope_fit(sign * T, sign * d[:, j - 1], unload, dcov, n_mc=0)
+        clean = single_slope_fit(sign * T, sign * d[:, j - 1], unload, dcov)
     except RobocalError:
-        return raw
+        return {}
     return {**raw, **{e.name: float(e.value) for e in clean.estimates() if e.name in raw}}
 
 

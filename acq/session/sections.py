@@ -270,6 +270,8 @@ def thesis_rows(sec: Section, estimates: list[dict]) -> list[dict]:
         z = diff / s.error if s.error else None
         out.append({"label": row.label, "robocal": s.value, "error": s.error, "thesis": row.thesis,
                     "thesis_error": row.thesis_error, "unit": row.unit if row.unit != "N m/rad" else "N m/rad",
-                    "difference": diff, "sigmas": z, "note": row.note,
+                    "difference": diff, "sigmas": z,
+                    "note": "; ".join(filter(None, [row.note, "robocal: one slope over every load (the breakpoint "
+                                                    "is not determined)" if e.get("single_slope") else ""])),
                     "lbin": (s.value * LB, row.thesis * LB) if row.unit == "N m/rad" else None})
     return out

@@ -46,8 +46,11 @@ def standard_setup() -> dict:
                        # joint 4 loaded with the forearm level (its axis horizontal): a lever clamped on the wrist
                        # housing (link 4), level, 500 mm out along joint 5's axis; joint 1 at -90 deg points the
                        # forearm at the theodolites, so the joint turns A1 -> A2 across their sight lines (across
-                       # the baseline it would move A2 in depth, the direction they measure worst)
-                       "4": {"link": 4, "point_mm": [0.0, 0.0, -500.0], "loads_n": [0, 5, 10, 15, 25, 35, 45],
+                       # the baseline it would move A2 in depth, the direction they measure worst).  Small steps up
+                       # to 5 N m: the thesis's stiffness changes at 45 lb in (5.1 N m), and a slope needs three
+                       # loads or more on each side of the breakpoint to be told apart
+                       "4": {"link": 4, "point_mm": [0.0, 0.0, -500.0],
+                             "loads_n": [0, 2, 4, 6, 8, 10, 15, 20, 25, 35, 45],
                              "pose_deg": [-90.0, -90.0, 0.0, 0.0, 0.0, 0.0]}},
         # the upper arm level (at READY it stands vertical and a weight only compresses it)
         "link": {"joint": 2, "gauges_x_mm": [150.0, 280.0, 400.0], "load_x_mm": 430.0, "loads_n": [0, 50, 100, 150],
@@ -107,7 +110,7 @@ def nominal_theta(model: MeasurementModel, setup: dict) -> np.ndarray:
 #: 10 mm off its drawing), twists and zero offsets (the thesis found misalignments up to 1.2 deg), the base placed
 #: with a tape and a level, the tool target from its drawing.
 DESCRIPTION_TOLERANCES = {"length_mm": 5.0, "angle_deg": 0.3, "base_mm": 10.0, "base_angle_deg": 0.3,
-                          "tool_mm": 2.0}
+                          "tool_mm": 2.0, "load_mass_kg": 0.01}
 
 
 def _prior_sigmas(names: list[str], tol: dict) -> np.ndarray:

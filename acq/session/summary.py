@@ -42,6 +42,8 @@ def _value_text(e: dict) -> str:
                                                                                           else "")
     if s.extra:
         text += f" ({s.extra})"
+    if e.get("single_slope"):
+        text += " one slope over every load"
     if s.truth is not None and s.error:
         text += f"  truth {s.truth:.6g} ({(s.value - s.truth) / s.error:+.1f}σ)"
     return text

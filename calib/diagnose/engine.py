@@ -20,7 +20,7 @@ from .candidates import EFFECT_NAMES, TE_ORDERS, build_library
 from . import noise
 from .data import DiagnosisData
 from .gap import CVResult, auto_level, cv_fit, data_folds, geometric_free, heldout_floor_mm, noise_floor_mm
-from .select import Selection, forward_select, leftover_structure
+from .select import MATERIAL_SHARE, Selection, forward_select, leftover_structure
 
 
 #: a final held-out RMS above this multiple of the floor is reported as an unexplained gap
@@ -69,6 +69,7 @@ class Diagnosis:
                                                       f"{f.n_tested} candidates",
                         "f_statistic": f.f_statistic, "delta_bic": f.delta_bic, "parameters": f.parameters,
                         "stability": f.stability if f.stability == f.stability else None,
+                        "stated_spread": f.stated_spread if f.stated_spread == f.stated_spread else None,
                         "aliases": f.aliases, "doubtful": f.doubtful, "leftover": f.leftover or None,
                         "excess_share": f.shrink_share})
         if self.confirmation is not None:
@@ -200,7 +201,8 @@ def _diagnose(data, level, n_folds, alpha, max_effects, kinds, te_orders, flag_o
     prog("effect selection", 0.2)
     sel = forward_select(data, geo, geo_free, lib.candidates, alpha, max_effects,
                          (lambda s, f: prog(s, 0.2 + 0.75 * f)), floor_mm=judged, loss=loss)
-    leftover_structure(data, sel.final, sel.findings)
+    leftover_structure(data, sel.final, sel.findings, alpha,
+                       material_mm=MATERIAL_SHARE * max(0.0, geo.rms_mm - judged))
     prog("done", 1.0)
     return Diagnosis(data, level, len(folds), noise_floor_mm(data), hfloor, geo, sel,
                      _breakdown(data, model, geo, sel), lib.skipped, out_rep.flagged, note, out_rep,

@@ -8,8 +8,12 @@ poses), ``wrong_noise`` (``--noise-mm`` halved or doubled) and ``clean``.
 Judging a case, with E the expected findings and the diagnosis's findings split into confident and doubtful:
 
 * **wrong**: a confident finding outside E (a confidently named wrong effect);
-* **right**: every expected finding named (doubtful or not) and, when E is empty, no finding at all;
-* **honest miss**: anything else (missed, or only doubtful extras): the diagnosis said less, not something false.
+* **wrong, flagged doubtful** (``wrong_doubtful``): no confident wrong finding, but a finding outside E marked
+  doubtful -- still a wrong name, counted on its own (the doubtful flag softens it, it does not make it right);
+* **right**: every expected finding named (doubtful or not) and nothing outside E (when E is empty: no finding);
+* **honest miss**: some expected finding missing and nothing outside E: the diagnosis said less, not something false.
+
+The issue's "no family has more than 5 % wrong" is about the confident wrong findings; both counts are printed.
 """
 from __future__ import annotations
 
@@ -91,7 +95,7 @@ class FamilyCase:
 @dataclass
 class FamilyResult:
     case: FamilyCase
-    verdict: str                 # right / honest / wrong
+    verdict: str                 # right / honest / wrong_doubtful / wrong
     named: list[str] = field(default_factory=list)
     seconds: float = 0.0
 
@@ -111,13 +115,13 @@ def _key(c) -> tuple:
 
 
 def judge(expected: set, findings: list[tuple[tuple, bool]]) -> str:
-    """right / honest / wrong (see the module docstring); ``findings``: (key, doubtful)."""
+    """right / honest / wrong_doubtful / wrong (see the module docstring); ``findings``: (key, doubtful)."""
     named = {k for k, _ in findings}
     if {k for k, doubtful in findings if not doubtful} - expected:
         return "wrong"
-    if expected:
-        return "right" if expected <= named else "honest"
-    return "right" if not named else "honest"
+    if named - expected:
+        return "wrong_doubtful"
+    return "right" if expected <= named else "honest"
 
 
 def run_family_case(case: FamilyCase) -> FamilyResult:
@@ -148,13 +152,14 @@ class FamilyValidation:
     def counts(self) -> dict[str, dict[str, int]]:
         out: dict[str, dict[str, int]] = {}
         for r in self.results:
-            row = out.setdefault(r.case.family, {"right": 0, "honest": 0, "wrong": 0})
+            row = out.setdefault(r.case.family, {"right": 0, "honest": 0, "wrong_doubtful": 0, "wrong": 0})
             row[r.verdict] += 1
         return out
 
-    def wrong_share(self, family: str) -> float:
+    def wrong_share(self, family: str, verdict: str = "wrong") -> float:
+        """Share of ``family``'s cases with ``verdict`` (default: confidently wrong)."""
         c = self.counts().get(family)
-        return c["wrong"] / sum(c.values()) if c else 0.0
+        return c[verdict] / sum(c.values()) if c else 0.0
 
     def to_json(self) -> dict:
         return {"families": self.counts(), "seconds": self.seconds,
@@ -163,9 +168,12 @@ class FamilyValidation:
 
     def render(self) -> str:
         out = [f"Independent-generator validation: {len(self.results)} cases, {self.seconds:.0f} s",
-               f"  {'family':<14}{'right':>7}{'honest':>8}{'wrong':>7}"]
+               f"  {'family':<14}{'right':>7}{'honest':>8}{'wrong, flagged doubtful':>25}{'wrong':>7}"]
+        tot = {"right": 0, "honest": 0, "wrong_doubtful": 0, "wrong": 0}
         for fam, c in self.counts().items():
-            out.append(f"  {fam:<14}{c['right']:>7}{c['honest']:>8}{c['wrong']:>7}")
+            out.append(f"  {fam:<14}{c['right']:>7}{c['honest']:>8}{c['wrong_doubtful']:>25}{c['wrong']:>7}")
+            tot = {k: tot[k] + c[k] for k in tot}
+        out.append(f"  {'all':<14}{tot['right']:>7}{tot['honest']:>8}{tot['wrong_doubtful']:>25}{tot['wrong']:>7}")
         bad = [r for r in self.results if r.verdict != "right"]
         if bad:
             out.append("Not right:")

@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 from .engine import Diagnosis
+from .select import DOUBTFUL_SPREAD
 
 
 def _p(p: float) -> str:
@@ -42,8 +43,10 @@ def render(d: Diagnosis, max_factor_rows: int = 40) -> str:
                    f"{pars}")
         flags = [f"fold spread {100 * f['stability']:.0f} %" if f["stability"] is not None
                  else "fold spread not measured (the data's own split: one fit)"]
+        if f.get("stated_spread") is not None and f["stated_spread"] > DOUBTFUL_SPREAD:
+            flags.append(f"stated error {100 * f['stated_spread']:.0f} % of the value")
         if f["aliases"]:
-            flags.append("looks like " + ", ".join(f["aliases"]))
+            flags.append("looks like " + ", ".join(f["aliases"]) + " (the data cannot tell them apart)")
         if f.get("leftover"):
             flags.append(f["leftover"])
         out.append(f"      {'DOUBTFUL: ' if f['doubtful'] else ''}" + "; ".join(flags))

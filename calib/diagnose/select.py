@@ -72,10 +72,18 @@ class Finding:
     shrink_share: float = float("nan")   # share of the baseline excess this effect removed
     fit: CVResult | None = None     # the model with this and the earlier findings, fitted (for --confirm)
     leftover: str = ""              # structure the final residual still shows along this effect's own driver
+    stated_spread: float = float("nan")  # the parameters' stated 1-sigma (Jacobian or folds, the larger) / value
+
+    @property
+    def unstable(self) -> bool:
+        """The parameters are not determined to better than :data:`DOUBTFUL_SPREAD` of their value by their own
+        stated error (the larger of the Jacobian's and the folds' spread): the amplitude is within 4 sigma of 0."""
+        spread = self.stated_spread if self.stated_spread == self.stated_spread else self.stability
+        return spread > DOUBTFUL_SPREAD
 
     @property
     def doubtful(self) -> bool:
-        return self.stability > DOUBTFUL_SPREAD or bool(self.aliases) or bool(self.leftover)
+        return self.unstable or bool(self.aliases) or bool(self.leftover)
 
 
 @dataclass
@@ -208,11 +216,15 @@ def _heldout_scores(data: DiagnosisData, cur: CVResult, lin: _Linear, ok) -> tup
 
 @dataclass
 class _Tests:
-    """Step 4: per candidate, the corrected p-value, F, delta BIC and the fitted whitened signature."""
+    """Step 4: per candidate, the corrected p-value, F, delta BIC and the fitted whitened signature; ``r0`` the
+    whitened residual the candidates were fitted to (current columns projected out) and ``dof`` its degrees of
+    freedom before a candidate."""
     p: np.ndarray
     F: np.ndarray
     dbic: np.ndarray
     signature: list[np.ndarray]
+    r0: np.ndarray | None = None
+    dof: int = 0
 
 
 def _nested_tests(data: DiagnosisData, cur: CVResult, lin: _Linear, ok) -> _Tests:
@@ -234,23 +246,48 @@ def _nested_tests(data: DiagnosisData, cur: CVResult, lin: _Linear, ok) -> _Test
         p[k] = min(1.0, float(stats.f.sf(F[k], q, dof)) * M)
         dbic[k] = rss1 - rss0 + q * np.log(m)       # whitened -2 log L difference + penalty (sigma known)
         sig.append(fitted)
-    return _Tests(p, F, dbic, sig)
+    return _Tests(p, F, dbic, sig, r0, m - len(lin.base_idx))
 
 
-def _aliases(k: int, ok, tests: _Tests) -> list[str]:
-    """Other candidates (another group) whose fitted signature is nearly the same as candidate ``k``'s."""
+def _adds_to(lin: _Linear, tests: _Tests, k: int, i: int, cols_k: list[int], cols_i: list[int]) -> float:
+    """p-value (uncorrected) of the nested F-test: does candidate ``k`` explain significantly more of the residual
+    than candidate ``i`` already does?  Large: the data cannot tell ``k`` from ``i``."""
+    r0, t = tests.r0, tests.signature[i]
+    rss_i = float((r0 - t) @ (r0 - t))
+    both = _project(lin.Qa, lin.Jw[:, cols_i + cols_k])
+    dc, *_ = np.linalg.lstsq(both, r0, rcond=None)
+    e = r0 - both @ dc
+    rss_b = float(e @ e)
+    q = len(cols_k)
+    dof = tests.dof - len(cols_i) - q
+    if rss_b <= 0 or dof <= 0:
+        return 1.0
+    return float(stats.f.sf(max(0.0, (rss_i - rss_b) / q) / (rss_b / dof), q, dof))
+
+
+def _aliases(k: int, ok, tests: _Tests, lin: _Linear, alpha: float) -> list[str]:
+    """Other candidates (another group) that are genuinely interchangeable with candidate ``k`` on these data.
+
+    Pre-selection: a fitted signature nearly the same as ``k``'s (correlation above :data:`ALIAS_CORR`) that
+    explains at least :data:`ALIAS_SHARE` as much.  Decision: ``k`` adds nothing significant to a model that already
+    holds the other one (nested F against the residual scatter, Bonferroni over the pre-selected ones, level
+    ``alpha``).  A look-alike the data tell apart -- a weaker, partial version of the same signature that ``k``
+    clearly beats -- is not an alias: only one the data cannot reject in ``k``'s favour is.
+    """
     s = tests.signature[k]
     n2 = float(s @ s)
-    out = []
     if n2 <= 0:
-        return out
+        return []
+    near = []
     for i, (c, _) in enumerate(ok):
         if i == k or c.group == ok[k][0].group:
             continue
         t = tests.signature[i]
         t2 = float(t @ t)
         if t2 >= ALIAS_SHARE * n2 and abs(float(s @ t)) / np.sqrt(n2 * t2) >= ALIAS_CORR:
-            out.append((t2, c.label))
+            near.append((t2, i))
+    out = [(t2, ok[i][0].label) for t2, i in near
+           if tests.r0 is None or _adds_to(lin, tests, k, i, ok[k][1], ok[i][1]) * len(near) >= alpha]
     return [lab for _, lab in sorted(out, reverse=True)[:3]]
 
 
@@ -269,6 +306,17 @@ def _stability(model: MeasurementModel, cv: CVResult, cand: Candidate) -> tuple[
     full = np.zeros(s.stop - s.start)
     full[[names.index(p) for p in cand.free]] = se
     return (float(np.linalg.norm(se)) / ref if ref > 0 else float("inf")), full
+
+
+def _stated_spread(model: MeasurementModel, cv: CVResult, cand: Candidate, fold_sigma: np.ndarray) -> float:
+    """The newest effect's stated 1-sigma (the larger of the Jacobian's and the folds' spread, as reported) relative
+    to its estimated value (norms over its estimated parameters)."""
+    s = model.effect_slices[len(model.effects) - 1]
+    names = model.effects[-1].param_names
+    loc = [names.index(p) for p in cand.free]
+    sig = np.maximum(cv.all_fit.sigma[s][loc], fold_sigma[loc])
+    ref = float(np.linalg.norm(cv.all_fit.theta[s][loc]))
+    return float(np.linalg.norm(sig)) / ref if ref > 0 else float("inf")
 
 
 def _param_report(cand: Candidate, model: MeasurementModel, cv: CVResult, fold_sigma: np.ndarray) -> dict:
@@ -316,7 +364,7 @@ class _Context:
             self.noted.add(text)
 
 
-def _try_accept(cx: _Context, cur: CVResult, ok, tests: _Tests, k: int,
+def _try_accept(cx: _Context, cur: CVResult, lin: _Linear, ok, tests: _Tests, k: int,
                 n_tested: int) -> tuple[Finding, CVResult] | str:
     """Refit candidate ``k`` and apply the acceptance rule; a Finding and the new fit, or why not."""
     cand = ok[k][0]
@@ -335,9 +383,23 @@ def _try_accept(cx: _Context, cur: CVResult, ok, tests: _Tests, k: int,
         cx.near.append(NearMiss(cand.label, new.rms_mm, float(tests.p[k]), why, cand.group))
         return why
     f = Finding(cand, new.rms_mm, new.max_mm, float(tests.p[k]), float(tests.F[k]), float(tests.dbic[k]), new.chi2,
-                _param_report(cand, model, new, fold_sigma), n_tested, spread, _aliases(k, ok, tests),
-                gain / cx.excess_mm if cx.excess_mm > 0 else float("nan"), new)
+                _param_report(cand, model, new, fold_sigma), n_tested, spread,
+                _aliases(k, ok, tests, lin, cx.alpha),
+                gain / cx.excess_mm if cx.excess_mm > 0 else float("nan"), new,
+                stated_spread=_stated_spread(model, new, cand, fold_sigma))
+    f.leftover = _grid_edge(cand, ok)
     return f, new
+
+
+def _grid_edge(cand: Candidate, ok) -> str:
+    """A finding whose best order is the lowest or highest of its group's grid (transmission error, axis tilt) has
+    not been resolved: the joint error follows the angle more slowly (a scale, a quadratic) or faster than every
+    candidate tried, and the fitted sinusoid only stands in for it."""
+    orders = sorted({c.order for c, _ in ok if c.group == cand.group and c.order is not None})
+    if cand.order is None or len(orders) < 3 or orders[0] < cand.order < orders[-1]:
+        return ""
+    return (f"its best order ({cand.order:g}/rad) is the {'lowest' if cand.order == orders[0] else 'highest'} tried: "
+            f"what follows joint {cand.joint}'s angle is slower or faster than every periodic candidate")
 
 
 def _round(cx: _Context, cur: CVResult, remaining: list[Candidate], rounds: list[Round]):
@@ -370,7 +432,7 @@ def _round(cx: _Context, cur: CVResult, remaining: list[Candidate], rounds: list
             held.append(cand)
             continue
         tried += 1
-        res = _try_accept(cx, cur, ok, tests, k, len(ok))
+        res = _try_accept(cx, cur, lin, ok, tests, k, len(ok))
         if isinstance(res, tuple):
             rnd.accepted = cand.label
             return res, held
@@ -411,13 +473,23 @@ def forward_select(data: DiagnosisData, base: CVResult, geo_free: list[str], can
     return Selection(findings, rounds, cur, cx.notes, stop, cx.near)
 
 
-def leftover_structure(data: DiagnosisData, final: CVResult, findings: list[Finding], alpha: float = 0.01) -> None:
-    """Mark findings whose own driver still orders the final held-out residual (Kruskal-Wallis over quartiles of
-    the joint angle, or of time for a drift; every signed component and the length, Bonferroni): the effect then
-    describes only part of what follows that driver (a step read as a sinusoid, a wobble of another order)."""
+def leftover_structure(data: DiagnosisData, final: CVResult, findings: list[Finding], alpha: float = 0.01,
+                       material_mm: float = 0.0) -> None:
+    """Mark findings whose own driver still orders the final held-out residual beyond what the noise explains: the
+    effect then describes only part of what follows that driver (a step read as a sinusoid, a wobble of another
+    order).
+
+    Test: the instrument-whitened held-out residual, grouped by quartiles of the driver (the joint's angle, or time
+    for a drift); per component a one-way analysis of variance whose error term is the larger of the scatter within
+    the groups and the instrument noise (whitened: 1), so residual scatter from elsewhere cannot make a dependence
+    look significant and a dependence smaller than the noise cannot either; Bonferroni over the three components and
+    the findings.  And the dependence must be material: the RMS of the group means (mm) at least ``material_mm``."""
     t = final.tested
-    res = final.residual_mm[t]
-    stats_ = [np.linalg.norm(res, axis=1)] + [res[:, i] for i in range(3)]
+    if not findings or not np.any(t):
+        return
+    res_mm = final.residual_mm[t]
+    res_w = np.einsum("nij,nj->ni", data.whitening[t], res_mm)
+    n_tests = 3 * len(findings)
     for f in findings:
         c = f.candidate
         if c.joint is not None:
@@ -430,7 +502,28 @@ def leftover_structure(data: DiagnosisData, final: CVResult, findings: list[Find
         if len(edges) < 3:
             continue
         keys = np.clip(np.searchsorted(edges, x, side="right") - 1, 0, len(edges) - 2)
-        groups = [keys == k for k in range(len(edges) - 1) if np.any(keys == k)]
-        p = min(float(stats.kruskal(*[v[g] for g in groups]).pvalue) for v in stats_) * len(stats_)
-        if p < alpha:
-            f.leftover = f"the residual left still depends on {what} (p = {p:.2g})"
+        groups = [keys == k for k in range(len(edges) - 1) if np.count_nonzero(keys == k) > 1]
+        p, size = _group_dependence(res_w, res_mm, groups)
+        p = min(1.0, p * n_tests)
+        if p < alpha and size >= material_mm:
+            f.leftover = "; ".join(filter(None, [f.leftover, f"the residual left still depends on {what} "
+                                                 f"(p = {p:.2g}, {1000 * size:.1f} um RMS between its quartiles)"]))
+
+
+def _group_dependence(res_w: np.ndarray, res_mm: np.ndarray, groups: list[np.ndarray]) -> tuple[float, float]:
+    """Smallest per-component ANOVA p-value of the whitened residual over ``groups`` (error term: the larger of the
+    within-group scatter and the unit noise), and the RMS (mm, 3-D) of the group means about the overall mean."""
+    g = len(groups)
+    n = sum(int(np.count_nonzero(m)) for m in groups)
+    if g < 2 or n <= g:
+        return 1.0, 0.0
+    p = 1.0
+    for v in res_w.T:
+        mu = v[np.concatenate([np.flatnonzero(m) for m in groups])].mean()
+        between = sum(np.count_nonzero(m) * (v[m].mean() - mu) ** 2 for m in groups) / (g - 1)
+        within = sum(float(np.sum((v[m] - v[m].mean()) ** 2)) for m in groups) / (n - g)
+        F = between / max(within, 1.0)
+        p = min(p, float(stats.f.sf(F, g - 1, n - g)))
+    mu_mm = res_mm.mean(0)
+    size = np.sqrt(sum(np.count_nonzero(m) * np.sum((res_mm[m].mean(0) - mu_mm) ** 2) for m in groups) / n)
+    return p, float(size)

@@ -27,6 +27,9 @@ FIT_NAMES = ["K1_Nm_per_rad", "K2_Nm_per_rad", "breakpoint_Nm", "offset_rad", "t
 FIT_UNITS = ["N m/rad", "N m/rad", "N m", "rad", "rad"]
 #: a stiffness whose 1-sigma exceeds this share of its value is "not determined" (linearised errors mean nothing there)
 MAX_REL_ERROR = 0.5
+#: the two slopes are reported only when each is known to better than this share of its value; otherwise the one slope
+#: over every load (a stiffness known to 30 % or worse on one side of a breakpoint is not a result a cell can use)
+MAX_REL_ERROR_TWO_SLOPES = 0.3
 
 
 def to_lbin_per_rad(K_Nm_per_rad):
@@ -223,10 +226,21 @@ def two_slope_fit(torque_Nm_, deflection_rad, unloading, sigma_deflection_rad, n
                 cov[2, :] = cov[:, 2] = 0.0
                 cov[2, 2] = half ** 2
     res.extras.update(residual_rad=y - two_slope_model(p, T, u), breakpoint_interval_Nm=(a, b), not_determined={})
-    if any(res[k].error > MAX_REL_ERROR * abs(res[k].value) for k in ("K1_Nm_per_rad", "K2_Nm_per_rad")):
+    if any(res[k].error > MAX_REL_ERROR_TWO_SLOPES * abs(res[k].value) for k in ("K1_Nm_per_rad", "K2_Nm_per_rad")):
         return _single_slope(T, u, y, C, a, b, n_mc, rng, "a slope on one side of the breakpoint has an error over "
-                             f"{MAX_REL_ERROR:.0%} of its value")
+                             f"{MAX_REL_ERROR_TWO_SLOPES:.0%} of its value")
     return res
+
+
+def single_slope_fit(torque_Nm_, deflection_rad, unloading, cov_rad2, n_mc: int = 0, rng=0) -> EstimateSet:
+    """One stiffness over every load and the unloading offset, whatever the data say of a breakpoint: what
+    :func:`two_slope_fit` reports when it cannot place the breakpoint, on demand.  Why: the truth of that estimate
+    for simulated data is this fit on the noise-free deflections, with the same weights."""
+    T = np.asarray(torque_Nm_, float).ravel()
+    y = np.asarray(deflection_rad, float).ravel()
+    u = np.asarray(unloading, bool).ravel().astype(float)
+    C = error_covariance(PROC, "single-slope fit", cov_rad2, y.size)
+    return _single_slope(T, u, y, C, float(T.min()), float(T.max()), n_mc, rng)
 
 
 def _single_slope(T, u, y, C, a, b, n_mc, rng, reason: str = "") -> EstimateSet:
@@ -252,6 +266,7 @@ def _single_slope(T, u, y, C, a, b, n_mc, rng, reason: str = "") -> EstimateSet:
     why = reason or (f"its profile-likelihood interval ({a:.3g} .. {b:.3g} N m) reaches the end of the loads applied")
     why = f"the breakpoint is not determined: {why}, so the two slopes are not told apart; K1 is the single slope " \
           f"over every load"
-    res.extras.update(residual_rad=y - X @ c, breakpoint_interval_Nm=(a, b),
+    res.extras.update(residual_rad=y - X @ c, breakpoint_interval_Nm=(a, b), single_slope=True,
+                      torque_range_Nm=(float(T.min()), float(T.max())),
                       not_determined={"K2_Nm_per_rad": why, "breakpoint_Nm": why})
     return res
