@@ -495,8 +495,9 @@ def _backward(cx: _Context, cur: CVResult, findings: list[Finding]) -> CVResult:
     changed = True
     while changed and len(findings) > 1:
         changed = False
+        first = len(cur.model.effects) - len(findings)     # the findings are the model's last effects
         for i in range(len(findings) - 1):
-            new = _without(cx, cur, i)
+            new = _without(cx, cur, first + i)
             if new.rms_mm - cur.rms_mm < MATERIAL_SHARE * cx.excess_mm:
                 f = findings.pop(i)
                 cx.near.append(NearMiss(f.candidate.label, new.rms_mm, f.p_value,
