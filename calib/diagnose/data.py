@@ -72,8 +72,9 @@ class DiagnosisData:
                              {k: np.asarray(v)[idx] for k, v in self.numeric.items()}, self.raw_angles,
                              [self.pose_id[i] for i in idx] if self.pose_id else [], list(self.notes),
                              [self.split[i] for i in idx] if self.split else None,
-                             self.sightings.subset(idx) if self.sightings is not None else None,
-                             list(self.geometry_effects))
+                             list(self.ignored_columns),
+                             sightings=self.sightings.subset(idx) if self.sightings is not None else None,
+                             geometry_effects=list(self.geometry_effects))
 
     @property
     def whitening(self) -> np.ndarray:
