@@ -499,6 +499,25 @@ def _without(cx: _Context, cur: CVResult, drop: int) -> CVResult:
                   loss=cx.loss)
 
 
+def _linear_keep_cost(data: DiagnosisData, cur: CVResult) -> list[float]:
+    """Per effect of the final model, the all-pose RMS (mm) its removal would add to first order: its contribution
+    J_i theta_i with the other free columns refitted (projected out).  Only a cheap screen before the refit."""
+    m = cur.model
+    theta = cur.all_fit.theta[: m.P]
+    J = m.evaluate(data.q_rad, data.ctx, theta, jacobian=True).jacobian.reshape(3 * data.n, -1)
+    free = [m.index[n] for n in cur.all_fit.free if n in m.index]
+    rms2 = cur.all_fit.residual_rms ** 2 if np.isfinite(cur.all_fit.residual_rms) else 0.0
+    out = []
+    for s in m.effect_slices:
+        own = [k for k in free if s.start <= k < s.stop]
+        others = [k for k in free if not s.start <= k < s.stop]
+        Q, _ = np.linalg.qr(J[:, others])
+        v = J[:, own] @ theta[own]
+        e = v - Q @ (Q.T @ v)
+        out.append(float(np.sqrt(rms2 + e @ e / data.n) - np.sqrt(rms2)))
+    return out
+
+
 def _backward(cx: _Context, cur: CVResult, findings: list[Finding]) -> CVResult:
     """A finding accepted early can be superseded by later ones (a joint-2 compliance standing in for a joint-3
     compliance and a joint-2 transmission error that are both there): each earlier finding is refitted out of the
@@ -507,7 +526,10 @@ def _backward(cx: _Context, cur: CVResult, findings: list[Finding]) -> CVResult:
     changed = True
     while changed and len(findings) > 1:
         changed = False
+        keep_cost = _linear_keep_cost(cx.data, cur)
         for i in range(len(findings) - 1):
+            if keep_cost[i] >= 2 * MATERIAL_SHARE * cx.excess_mm:
+                continue            # clearly needed: its linearised removal costs twice the material share
             new = _without(cx, cur, i)
             if new.rms_mm - cur.rms_mm < MATERIAL_SHARE * cx.excess_mm:
                 f = findings.pop(i)
