@@ -220,6 +220,17 @@ def fit_rows(table: PoseTable, robot):
     return fit, robot, targets + extra
 
 
+def data_rows(measured: PoseTable, fitted: PoseTable) -> tuple[list[int] | None, list[str] | None]:
+    """The file's numbering of each fitted row (a split or orientation points make the fitted rows differ from the
+    file's): its 1-based data row in ``measured`` (by source line; None when the rows carry no lines) and its pose id
+    (None without a pose column) -- how outlier reports name poses."""
+    ids = fitted.pose_id or None
+    if not measured.line or len(fitted.line) != fitted.n:
+        return None, ids
+    row_of = {ln: k + 1 for k, ln in enumerate(dict.fromkeys(measured.line))}     # several targets: one row
+    return [row_of.get(ln, i + 1) for i, ln in enumerate(fitted.line)], ids
+
+
 def station_names(table: PoseTable) -> list[str]:
     """The instrument set-ups of a table by name, the reference (station 0) first: the sorted ``station`` labels
     (``[]`` without a station column).  A model identified from the table keeps them

@@ -327,6 +327,7 @@ def _sweeps(steps, points, robot, setup, est, truth, figs, n_mc):
     dh = dh_estimate(V, C, q0, fn.frame_R[0, 0], fn.frame_t[0, 0], fn.frame_R[0, 1:-1, :, 0], robot.hayati[:-1],
                      robot.d_mm[:-1], alpha_ref=robot.alpha_rad[:-1], n_mc=n_mc)
     tv = {n: truth[n] for n in dh.names if truth is not None and n in truth}
+    tv.update(_base_gauge_truth(truth, setup, fn.frame_R[0, 0], tv))
     for k in np.flatnonzero(robot.hayati[:-1]):
         # d of a Hayati link is held at its design value; the next link's d (its axis is parallel) takes the rest
         held, nxt = f"j{k + 1}.d_mm", f"j{k + 2}.d_mm"
@@ -341,6 +342,25 @@ def _sweeps(steps, points, robot, setup, est, truth, figs, n_mc):
     except (RobocalError, KeyError, ValueError) as exc:             # the axes and DH stand without it
         figs.setdefault("problems", []).append(f"misalignment: {exc}")
     return axes
+
+
+def _base_gauge_truth(truth, setup, R0, tv: dict) -> dict:
+    """The truth of the first link's d and zero offset in the frame the sweeps measure them in: frame 0 where the
+    set-up puts the base (a tape gives it to the millimetre), not where the twin has it.  Why: the foot of joint 1's
+    common normal is measured from the set-up's origin along z0, and its zero from the set-up's yaw, so a base 0.1
+    mm lower than written reads as d1 0.1 mm larger -- a gauge, not an estimation error (as the pose set's held
+    parameters, ``_gauge_truth``)."""
+    if truth is None or "base.z_mm" not in truth:
+        return {}
+    out = {}
+    o_true = np.array([truth[f"base.{k}_mm"] for k in "xyz"])
+    o_set = np.asarray(setup.get("base_xyz_mm", o_true), float)
+    if "j1.d_mm" in tv:
+        out["j1.d_mm"] = tv["j1.d_mm"] + float((o_true - o_set) @ R0[:, 2])
+    if "j1.theta_offset_rad" in tv and "base.yaw_rad" in truth:
+        yaw_set = float(np.asarray(setup.get("base_rpy_deg", [0.0, 0.0, 0.0]), float)[2]) * DEG
+        out["j1.theta_offset_rad"] = tv["j1.theta_offset_rad"] + truth["base.yaw_rad"] - yaw_set
+    return out
 
 
 def _misalignment(axes, kin, p_design, q0, robot, est, truth, figs, n_mc):
@@ -496,11 +516,17 @@ def _poses(steps, points, robot, setup, est, twin, figs, running=None, problems=
     sigma = np.sqrt(ident.sigma ** 2 + _station_variance(model, obs, D, ident, priors, points.station_fit))
     truth = twin.true_parameters() if twin is not None else None
     gauge = _gauge_truth(twin, model, ident, q) if twin is not None else {}
+    compared = {}                  # the truth each estimate is compared with: the twin's, in the fit's gauge
+    unknown = _held_away(model, ident, truth)
     for n in ident.free:
         i = ident.names.index(n)
         raw = None if truth is None else truth.get(n)
         extra = {}
-        tv = gauge.get(n, raw)
+        tv = None if n in unknown else gauge.get(n, raw)
+        if tv is not None:
+            compared[n] = tv
+        if n in unknown and raw is not None:
+            extra = {"truth_raw": float(raw), "note": unknown[n]}
         if raw is not None and tv is not None and abs(tv - raw) > 0.1 * sigma[i]:
             extra = {"truth_raw": float(raw), "note": "truth in the gauge of the held parameters (what perfect data "
                                                       "would give with them at their design values)"}
@@ -518,7 +544,34 @@ def _poses(steps, points, robot, setup, est, twin, figs, running=None, problems=
                      "rms_mm": float(ident.residual_rms), "held": [n for n in wanted if n not in ident.free],
                      "points_mm": P.tolist(), "running_errors": list(specs)}
     _accuracy(model, obs, ident.free, theta0, priors, figs, problems)
-    return model_document(model, ident, truth)
+    return _with_truth_notes(model_document(model, ident, compared if truth is not None else None), truth, gauge,
+                             unknown)
+
+
+def _with_truth_notes(doc: dict, raw: dict | None, gauge: dict, unknown: dict[str, str]) -> dict:
+    """The identified model document's ``truth``s say what the estimates are compared with: for an estimated
+    parameter the twin's value in the fit's gauge (as the ``ident.*`` estimates; the twin's own value as
+    ``truth_raw`` where they differ), for a held one none -- its value is the design value by choice, not an
+    estimate, and the twin's own value (``truth_raw``) is not comparable with it -- nor for an effect parameter whose
+    companions are held away from the twin's (``unknown``, :func:`_held_away`).  Never a nominal value as truth."""
+    if raw is None:
+        return doc
+    for p in doc["parameters"]:
+        r = raw.get(p["name"])
+        if not p["estimated"]:
+            p["truth"] = None
+            p["note"] = "held at its design value, not estimated: no truth to compare it with"
+            if r is not None:
+                p["truth_raw"] = float(r)
+        elif p["name"] in unknown:
+            p["note"] = unknown[p["name"]]
+            if r is not None:
+                p["truth_raw"] = float(r)
+        elif r is not None and p["name"] in gauge and p["truth"] is not None and abs(p["truth"] - r) > 0:
+            p["truth_raw"] = float(r)
+            p["note"] = ("truth in the gauge of the held parameters (what perfect data would give with them at "
+                         "their design values)")
+    return doc
 
 
 def _accuracy(model, obs, free, theta0, priors, figs, problems) -> None:
@@ -583,6 +636,22 @@ def _gauge_truth(twin, model, ident, q) -> dict[str, float]:
     except RobocalError:
         return {}
     return {n: g.value(n) for n in g.free}
+
+
+def _held_away(model, ident, truth: dict | None) -> dict[str, str]:
+    """Estimated effect parameters whose effect has a parameter held away from the twin's value (a joint compliance
+    fitted with one slope, its breakpoint held at infinity, where the twin has two slopes and a breakpoint): the free
+    one absorbs the difference, so no truth in the fit's gauge is known for it -- name -> why, in words."""
+    if truth is None:
+        return {}
+    away: dict[str, list[str]] = {}
+    for n in ident.names:
+        if (n in model.index and n not in model.kin.index and n not in ident.free and n in truth
+                and not np.isclose(truth[n], ident.value(n))):
+            away.setdefault(n.rsplit(".", 1)[0], []).append(f"{n.rsplit('.', 1)[1]} held at {ident.value(n):.4g} "
+                                                             f"(twin {truth[n]:.4g})")
+    return {n: "no truth in the fit's gauge: its effect has " + ", ".join(away[n.rsplit(".", 1)[0]])
+            for n in ident.free if n not in model.kin.index and n.rsplit(".", 1)[0] in away}
 
 
 def _joint_angles(steps, points, axis_n, full: bool = False):
