@@ -72,6 +72,7 @@ def model_document(model: MeasurementModel, ident: Identification, truth: dict[s
                        "truth": None if truth is None or name not in truth else float(truth[name])})
     free = [n for n in ident.free if n in model.index]
     idx = [model.index[n] for n in free]
+    rep = ident.outlier_report
     return {
         "format": FORMAT,
         "robot_toml": robot_to_toml(robot_from_theta(model, ident.theta[:P])),
@@ -83,7 +84,11 @@ def model_document(model: MeasurementModel, ident: Identification, truth: dict[s
         "identifiability": ident.identifiability.report(model.robot.description_joint_names),
         "residual_rms": ident.residual_rms,
         "reduced_chi2": ident.reduced_chi2,
-        "outliers": ident.outliers,
+        # the flagged poses as objects (row: 1-based data row, pose_id, rejected), as diagnose's outliers.poses;
+        # outlier_report: the whole decision (mode, flagged/rejected rows, cluster), as diagnose's outliers
+        "outliers": rep.poses() if rep is not None else [{"row": i + 1, "pose_id": None, "rejected": False}
+                                                         for i in ident.outliers],
+        **({"outlier_report": rep.as_dict()} if rep is not None else {}),
         **({"provenance": provenance} if provenance is not None else {}),
     }
 

@@ -20,8 +20,7 @@ from .errors import RobocalError
 from .model import MeasurementModel
 from .effects.target_offset import TargetOffset
 from .posecsv import PoseTable
-from .targets import (TargetContext, order_targets, reference_name, station_effects, station_index, target_effects,
-                      target_index)
+from .targets import TargetContext, reference_name, station_effects, station_index, target_index, with_targets
 
 
 def with_polar_points(table: PoseTable, noise=None) -> PoseTable:
@@ -217,9 +216,19 @@ def fit_rows(table: PoseTable, robot):
     extra = station_effects(station_names(table))
     if fit.target is None:
         return fit, robot, extra
-    used = list(dict.fromkeys(table.target))
-    robot = order_targets(robot, used)
-    return fit, robot, target_effects(robot, used) + extra
+    robot, targets = with_targets(robot, list(dict.fromkeys(table.target)))
+    return fit, robot, targets + extra
+
+
+def data_rows(measured: PoseTable, fitted: PoseTable) -> tuple[list[int] | None, list[str] | None]:
+    """The file's numbering of each fitted row (a split or orientation points make the fitted rows differ from the
+    file's): its 1-based data row in ``measured`` (by source line; None when the rows carry no lines) and its pose id
+    (None without a pose column) -- how outlier reports name poses."""
+    ids = fitted.pose_id or None
+    if not measured.line or len(fitted.line) != fitted.n:
+        return None, ids
+    row_of = {ln: k + 1 for k, ln in enumerate(dict.fromkeys(measured.line))}     # several targets: one row
+    return [row_of.get(ln, i + 1) for i, ln in enumerate(fitted.line)], ids
 
 
 def station_names(table: PoseTable) -> list[str]:

@@ -202,7 +202,22 @@ class _Problem:
         return [s.with_params(theta[P + i * k:P + (i + 1) * k]) for i, s in enumerate(self.obs.stations)]
 
     def residuals(self, theta, jac: bool = True):
-        """Whitened residuals (m,) and their Jacobian (m, P_total) w.r.t. all parameters."""
+        """Whitened residuals (m,) and their Jacobian (m, P_total) w.r.t. all parameters.
+
+        The last evaluation with its Jacobian is kept (read-only): the identifiability analysis, the solver's first
+        step and the covariance at its last point ask for the same one, and with a torque-driven effect a Jacobian
+        is most of a fit's time."""
+        theta = np.asarray(theta, float)
+        last = getattr(self, "_last", None)
+        if last is not None and last[0].shape == theta.shape and np.array_equal(last[0], theta):
+            return last[1].copy(), (last[2] if jac else None)
+        r, J = self._residuals(theta, jac)
+        if jac:
+            J.flags.writeable = False
+            self._last = (theta.copy(), r.copy(), J)
+        return r, J
+
+    def _residuals(self, theta, jac: bool):
         P = self.model.P
         if not self.angles:
             ev = self.model.evaluate(self.obs.q_rad, self.ctx, theta[:P], jacobian=jac)

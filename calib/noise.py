@@ -324,6 +324,8 @@ def model_free(q_rad: np.ndarray, points_mm: np.ndarray, cov_mm2: np.ndarray, *,
     """Every source the data allow; a source the data cannot feed (inconsistent targets, a degenerate geometry) is
     left out rather than stopping the caller."""
     out = []
+    if target is not None and len(target) != len(q_rad):        # labels that do not match the rows: not used
+        target = None
     keys = pose_keys(q_rad, pose_id)
     for make in (lambda: from_repeats(q_rad, points_mm, target),
                  lambda: from_target_distances(keys, target, points_mm, cov_mm2),

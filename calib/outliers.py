@@ -31,23 +31,58 @@ CLUSTER_ALPHA = 0.01
 SYSTEMATIC_SHARE = 0.1
 
 
+#: what the pose numbers of the JSON mean (identify and diagnose alike; the README's identification section)
+NUMBERING = ("row: 1-based data row of the file as printed (header, unit and comment lines not counted); "
+             "pose_id: the file's pose column, null without one")
+
+
 @dataclass
 class OutlierReport:
     mode: str
     flagged: list[int] = field(default_factory=list)      # 0-based poses with an implausible residual
     rejected: list[int] = field(default_factory=list)     # left out of the fit (reject mode, no cluster)
     cluster: str = ""              # why the flagged poses look systematic ("cluster in joint 3"; "" blunders)
+    #: per fitted pose: its 1-based data row in the file (empty: the pose index + 1) and the file's pose id (empty:
+    #: none); set by the caller that knows the file (:meth:`numbered`), so every reader sees the file's numbering
+    rows: list[int] = field(default_factory=list)
+    pose_ids: list[str] = field(default_factory=list)
+
+    def numbered(self, rows=None, pose_ids=None) -> "OutlierReport":
+        """This report with the file's numbering of the fitted poses (data rows, pose ids)."""
+        self.rows = [int(r) for r in rows] if rows is not None else []
+        self.pose_ids = [str(p) for p in pose_ids] if pose_ids else []
+        return self
+
+    def row(self, i: int) -> int:
+        return self.rows[i] if self.rows else i + 1
+
+    def name(self, i: int) -> str:
+        """How the terminal names pose ``i``: the file's pose id where it has them, else its data row."""
+        return self.pose_ids[i] if self.pose_ids else str(self.row(i))
+
+    def poses(self) -> list[dict]:
+        """The flagged poses as objects, each once: ``row`` (1-based data row), ``pose_id``, ``rejected``."""
+        out: dict[int, dict] = {}
+        rejected = set(self.rejected)
+        for i in self.flagged:
+            d = out.setdefault(self.row(i), {"row": self.row(i),
+                                             "pose_id": self.pose_ids[i] if self.pose_ids else None,
+                                             "rejected": False})
+            d["rejected"] = d["rejected"] or i in rejected
+        return list(out.values())
 
     def as_dict(self) -> dict:
-        """JSON form, poses 1-based as the operator counts them."""
-        return {"mode": self.mode, "flagged": [i + 1 for i in self.flagged],
-                "rejected": [i + 1 for i in self.rejected], "cluster": self.cluster or None}
+        """JSON form: ``flagged``/``rejected`` as 1-based data rows (as the terminal counts them), ``poses`` the
+        same as objects with the file's pose ids, ``numbering`` what the numbers mean."""
+        return {"mode": self.mode, "flagged": sorted({self.row(i) for i in self.flagged}),
+                "rejected": sorted({self.row(i) for i in self.rejected}), "cluster": self.cluster or None,
+                "poses": self.poses(), "numbering": NUMBERING}
 
     def lines(self) -> list[str]:
         """What the terminal says (nothing when nothing was flagged)."""
         if not self.flagged:
             return []
-        poses = ", ".join(str(i + 1) for i in self.flagged)
+        poses = ", ".join(dict.fromkeys(self.name(i) for i in self.flagged))
         if self.cluster:
             return [f"poses {poses} have implausible residuals, but they {self.cluster}: a systematic effect, not "
                     f"blunders -- kept"]

@@ -3,6 +3,7 @@ is an internal error, one line naming the command and the exception, exit 3; ato
 from __future__ import annotations
 
 import argparse
+import json
 import os
 import subprocess
 import sys
@@ -123,3 +124,68 @@ def test_base_rotation_matches_an_independent_library():
     for rpy in rng.uniform([-3.0, -1.5, -3.0], [3.0, 1.5, 3.0], (50, 3)):
         np.testing.assert_allclose(_rpy_matrix(rpy), Rotation.from_euler("xyz", rpy).as_matrix(), atol=1e-12)
         np.testing.assert_allclose(rpy_from_matrix(_rpy_matrix(rpy)), rpy, atol=1e-12)
+
+
+_BAD_SETUPS = {"garbage": '{"x": 1}', "ruler_int": '{"ruler": 5, "stations": {}}',
+               "stations_int": '{"ruler": {"marks_mm": [0, 1000], "placements": [{"C_mm": [0, 0, 0], '
+                               '"dir": [1, 0, 0]}]}, "stations": 3, "base_xyz_mm": [0, 0, 0]}'}
+
+
+@pytest.mark.parametrize("bad", sorted(_BAD_SETUPS))
+def test_a_bad_setup_file_is_one_line_wherever_it_is_given(tmp_path, capsys, bad):
+    """demo, plan setup (with and without --out), plan check and session --emulate: a damaged set-up file is one line
+    naming it (demo and plan setup used to crash with a TypeError, or ignore it)."""
+    f = tmp_path / "setup.json"
+    f.write_text(_BAD_SETUPS[bad])
+    for argv in (["demo", "--db", str(tmp_path / "d.db"), "--setup", str(f)],
+                 ["demo", "--resume", "--db", str(tmp_path / "d.db"), "--setup", str(f)],
+                 ["plan", "setup", "ruler", "--setup", str(f), "--out", str(tmp_path / "o.json")],
+                 ["plan", "setup", "ruler", "--setup", str(f)],
+                 ["plan", "check", str(f)],
+                 ["session", "--emulate", "--db", str(tmp_path / "s.db"), "--setup", str(f)]):
+        assert cli.main(argv) == 2, argv
+        err = capsys.readouterr().err.strip()
+        assert err.startswith(f"robocal: error: {f}: ") and "\n" not in err, (argv, err)
+    assert not (tmp_path / "d.db").exists() and not (tmp_path / "s.db").exists()
+    assert not (tmp_path / "o.json").exists()
+
+
+def test_an_option_that_cannot_apply_is_an_error(tmp_path, capsys):
+    """--setup on a resumed demo, on an emulated session, or on plan setup without --out was silently ignored."""
+    from acq.commands.session import setup_template
+    good = tmp_path / "setup.json"
+    good.write_text(json.dumps(setup_template()))
+    cases = {("demo", "--resume", "--db", str(tmp_path / "d.db"), "--setup", str(good)):
+             "demo: --setup cannot change a resumed session's set-up",
+             ("plan", "setup", "ruler", "--setup", str(good)): "it needs --out",
+             ("session", "--emulate", "--db", str(tmp_path / "s.db"), "--setup", str(good)):
+             "--setup does not apply to --emulate"}
+    for argv, words in cases.items():
+        assert cli.main(list(argv)) == 2, argv
+        err = capsys.readouterr().err.strip()
+        assert words in err and "\n" not in err, (argv, err)
+    assert not (tmp_path / "d.db").exists() and not (tmp_path / "s.db").exists()
+
+
+def test_a_resumed_session_keeps_its_setup(tmp_path):
+    """robocal session resumed with --setup: the same file is fine, another one (or a bad one) is one line, and the
+    stored set-up is untouched."""
+    import sqlite3
+
+    from acq.commands.session import real_builder, setup_template
+    theo = ["A=geocom:robocal://geocom?seed=3&station=A", "B=gsi:robocal://gsi?seed=3&station=B"]
+    setup = setup_template()
+    f = tmp_path / "setup.json"
+    f.write_text(json.dumps(setup))
+    db = str(tmp_path / "s.db")
+    real_builder(db, theo, None, str(f), None, None, ["ruler/p0"])(None).close()
+    stored = sqlite3.connect(db).execute("SELECT setup_json FROM session").fetchone()[0]
+    real_builder(db, theo, None, str(f), None, None, ["ruler/p0"])         # the same file: resumes
+    other = tmp_path / "other.json"
+    other.write_text(json.dumps({**setup, "base_xyz_mm": [1.0, 2.0, 3.0]}))
+    with pytest.raises(RobocalError, match=r"cannot change a resumed session's set-up"):
+        real_builder(db, theo, None, str(other), None, None, ["ruler/p0"])
+    other.write_text('{"x": 1}')
+    with pytest.raises(RobocalError, match=str(other)):
+        real_builder(db, theo, None, str(other), None, None, ["ruler/p0"])
+    assert sqlite3.connect(db).execute("SELECT setup_json FROM session").fetchone()[0] == stored

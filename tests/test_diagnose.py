@@ -188,3 +188,33 @@ def test_outliers_reject_blunders_and_identify_gives_the_same_geometric_fit():
     assert np.abs(gap).max() < 1e-3
     flag = diagnose(d, level="full", max_effects=0).to_json()["outliers"]
     assert flag["mode"] == "flag" and flag["flagged"] == [i + 1 for i in bad] and flag["rejected"] == []
+
+
+def test_outlier_numbering_is_the_files_in_identify_and_diagnose_json_and_terminal(tmp_path, capsys):
+    """identify's JSON used to list 0-based indices of the fitted rows (and not say which were rejected), diagnose's
+    1-based rows: both now name a flagged pose by its 1-based data row and the file's pose id, and mark it rejected.
+    The file has a split with test rows first, so a fitted-row index is not a file row."""
+    d, _ = make_case_data(Case(None, None, None, 0.0, seed=21, n_poses=80))
+    bad = [25, 53, 71]                      # 0-based file rows, all in the fit part
+    d.points_mm[bad] += [2.0, -3.0, 2.5]
+    sig = np.sqrt(np.diagonal(d.cov_mm2, axis1=1, axis2=2))
+    p = tmp_path / "ids.csv"
+    write_pose_csv(p, d.q_rad, d.points_mm, {f"sigma_{c}_mm": sig[:, i] for i, c in enumerate("xyz")})
+    lines = p.read_text().splitlines()
+    lines[0] += ",pose,split"
+    for i in range(1, len(lines)):
+        lines[i] += f",P{i:03d}," + ("test" if i <= 20 else "fit")
+    p.write_text("\n".join(lines) + "\n")
+    want_rows = [i + 1 for i in bad]
+    want_ids = [f"P{i + 1:03d}" for i in bad]
+    assert main(["identify", str(p), "--json", "--outliers", "reject"]) == 0
+    ij = json.loads(capsys.readouterr().out)
+    assert [o["row"] for o in ij["outliers"]] == want_rows, ij["outliers"]
+    assert [o["pose_id"] for o in ij["outliers"]] == want_ids and all(o["rejected"] for o in ij["outliers"])
+    assert ij["outlier_report"]["rejected"] == want_rows
+    assert main(["diagnose", str(p), "--json", "--outliers", "reject", "--max-effects", "0"]) == 0
+    dj = json.loads(capsys.readouterr().out)
+    assert dj["outliers"]["poses"] == ij["outliers"] and dj["outliers"]["flagged"] == want_rows
+    assert dj["gross_errors_flagged"] == want_rows
+    assert main(["identify", str(p), "--outliers", "reject"]) == 0
+    assert "left out: poses " + ", ".join(want_ids) in capsys.readouterr().out

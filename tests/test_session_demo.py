@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 import sqlite3
 
+import numpy as np
 import pytest
 
 from acq.cli import main
@@ -105,6 +106,27 @@ def test_reprocess_recovers_the_twin(session):
     # held parameters are flagged, carry no error and say why; estimated ones are not flagged
     held = [e for e in res["estimates"] if e["held"]]
     assert held and all(e["error"] == 0.0 and e["name"].startswith("ident.") and "held" in e["note"] for e in held)
+
+
+def test_the_identified_robots_truths_are_the_twins_in_the_fits_gauge(session):
+    """robot.parameters[].truth used to be the twin's raw values (base yaw 0 where the fit's gauge puts joint 1's
+    zero offset into it, j3.d 0 where it takes d2's error): now each estimated parameter's truth is the one its
+    ident.* estimate is compared with, a held parameter has none, and the z-scores are those of honest errors."""
+    db, _ = session
+    res = reprocess(str(db))
+    est = {e["name"]: e for e in res["estimates"]}
+    z = []
+    for p in res["robot"]["parameters"]:
+        if not p["estimated"]:
+            assert p["truth"] is None and "held" in p["note"], p
+            continue
+        e = est[f"ident.{p['name']}"]
+        assert p["truth"] == e["truth"], (p, e)
+        if p["truth"] is not None:
+            z.append(abs(p["value"] - p["truth"]) / p["error"])
+        else:
+            assert "truth_raw" in p or p["name"].startswith("cross_coupling"), p
+    assert len(z) >= 20 and np.median(z) < 1.5 and max(z) < 6.0, sorted(z)
 
 
 def test_reprocess_is_read_only(session):

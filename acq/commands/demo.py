@@ -51,11 +51,14 @@ def run(args) -> int:
             Path(str(db) + suffix).unlink(missing_ok=True)
     if db.exists() and not args.resume:
         raise RobocalError(f"{db}: exists already; use --resume to continue it, --overwrite to replace it")
-    t0 = time.perf_counter()
     base = None
-    if args.setup and not args.resume:
-        from calib.jsonfile import read_json
-        base = read_json(args.setup, ("ruler",))
+    if args.setup:
+        from acq.session.setup_file import read_partial_setup
+        base = read_partial_setup(args.setup, ("ruler",))        # a bad file is reported as such, resumed or not
+        if args.resume:
+            raise RobocalError(f"demo: --setup cannot change a resumed session's set-up ({db} keeps the one it was "
+                               f"recorded with): resume without --setup, or start a new --db with it")
+    t0 = time.perf_counter()
     demo = build_demo(db, seed=args.seed, resume=args.resume, setup=base)
     try:
         with progress_display("recording session", after_s=0.5) as update:

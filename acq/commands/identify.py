@@ -47,8 +47,8 @@ def add_arguments(p):
 def run(args) -> int:
     from calib.compensate import model_document, save_model, unit_of
     from calib.effects import THESIS_RUNNING_ERRORS, effect_from_text
-    from calib.evaluation import (context_of, fit_rows, point_covariance, split_metrics, station_names, station_start,
-                                  with_orientation_points, with_polar_points)
+    from calib.evaluation import (context_of, data_rows, fit_rows, point_covariance, split_metrics, station_names,
+                                  station_start, with_orientation_points, with_polar_points)
     from calib.polar import PolarNoise
     from calib.identify import PointObservations, check_drivers, default_free, identify
     from calib.priors import free_from_patterns, priors_for
@@ -88,6 +88,8 @@ def run(args) -> int:
         theta0, start = station_start(model, table), False        # each set-up placed by its own rigid fit
     ident = identify(model, obs, free=free, priors=priors, start=start, theta0=theta0, outliers=args.outliers,
                      loss=args.loss)
+    if ident.outlier_report is not None:       # flagged poses named as the file numbers them (rows, pose ids)
+        ident.outlier_report.numbered(*data_rows(measured, table))
     held_out = split_metrics(model, ident.theta[:model.P], measured) if full.split is not None else {}
     implausible += enforce(check_fit(ident.reduced_chi2, args.data), args.force_implausible, "identify")
     noise = _noise(args, measured, obs, ident, held_out)

@@ -157,13 +157,14 @@ def _setup(args) -> int:
                            "positive")
     c = Constraints(room_x_mm=(lo, hi), room_y_mm=args.room_y, min_focus_mm=args.min_focus_mm,
                     sigma_arcsec=args.sigma_arcsec)
+    base = _base_setup(args)
     names = list(PROCEDURES) if args.procedure == "all" else [args.procedure]
     plans = []
     for name in names:
         with progress_display(f"plan setup {name}") as update:
             plans.append(PROCEDURES[name](c, seed=args.seed, progress=update))
     if args.out:
-        _write_setup(args, plans)
+        _write_setup(args, plans, base)
     if args.json:
         docs = [{"procedure": p.procedure, "variables": p.variables, "errors": p.errors, "objective": p.objective,
                  "trend": p.trend} for p in plans]
@@ -176,13 +177,25 @@ def _setup(args) -> int:
     return 0
 
 
-def _write_setup(args, plans) -> None:
+def _base_setup(args) -> dict:
+    """The set-up the design is written into: --setup (checked: a bad file is one line) or the standard template.
+    --setup without --out would be read for nothing: an error, not a silently ignored option."""
     from acq.session.setup import standard_setup
+    from acq.session.setup_file import read_partial_setup
+
+    if not args.base_setup:
+        return standard_setup()
+    base = read_partial_setup(args.base_setup, ("stations", "ruler"))
+    if not args.out:
+        raise RobocalError(f"plan setup: --setup {args.base_setup} is the set-up the design is written into; it "
+                           f"needs --out SETUP.json (nothing is written without it)")
+    return base
+
+
+def _write_setup(args, plans, base: dict) -> None:
     from calib.fileio import atomic_write_text
-    from calib.jsonfile import read_json
     from calib.setup_plan import into_setup
 
-    base = read_json(args.base_setup, ("stations", "ruler")) if args.base_setup else standard_setup()
     base["stations"]["sigma_arcsec"] = args.sigma_arcsec
     base["min_focus_mm"] = args.min_focus_mm
     atomic_write_text(args.out, json.dumps(into_setup(plans, base), indent=2, default=float))
@@ -235,8 +248,8 @@ def _plan_and_setup(args):
         plan, setup = _stored_plan_setup(str(path))
     else:
         from acq.commands.session import default_plan
-        from calib.jsonfile import read_json
-        setup = read_json(str(path), ("stations", "base_xyz_mm", "ruler"))
+        from acq.session.setup_file import read_partial_setup
+        setup = read_partial_setup(path, ("stations", "base_xyz_mm", "ruler"))
         q = read_pose_csv(args.poses).q_rad / DEG if args.poses else None
         plan = setup.get("plan") or default_plan(q)
     robot = load_robot(args.robot) if args.robot else setup_robot(setup)

@@ -147,7 +147,9 @@ def real_builder(db: str, theodolites: list[str], tap: str | None, setup_path: s
         setup = read_setup(setup_path)
     if not resume:
         setup = record_robot(setup, robot_path)
-    elif record_robot(setup, robot_path) != setup:
+    elif setup_path:
+        _same_setup(db, setup, setup_path, robot_path)
+    if resume and record_robot(setup, robot_path) != setup:
         raise RobocalError(f"session: {db} was recorded with the robot {setup.get('robot') or 'puma560 (default)'} "
                            f"(chain cut {setup.get('base_link') or '-'} -> {setup.get('tip_link') or '-'}): resume "
                            "it with the same --robot, or without --robot")
@@ -203,6 +205,24 @@ def real_builder(db: str, theodolites: list[str], tap: str | None, setup_path: s
     return build
 
 
+def _same_setup(db: str, stored: dict, setup_path: str, robot_path) -> None:
+    """Resuming with --setup: the file is checked like any set-up file, and must be the one the session was recorded
+    with -- a resumed session keeps its set-up (what was measured was measured with it), so another one is an error,
+    not an option silently ignored."""
+    from acq.session.setup import record_robot, session_setup, setup_robot
+    from acq.session.setup_file import read_setup
+
+    given = record_robot(read_setup(setup_path), robot_path)
+    try:
+        same = (json.dumps(session_setup(given, setup_robot(given)), sort_keys=True, default=float) ==
+                json.dumps(stored, sort_keys=True, default=float))
+    except RobocalError:
+        same = False
+    if not same:
+        raise RobocalError(f"session: --setup {setup_path} cannot change a resumed session's set-up ({db} keeps the "
+                           f"one it was recorded with): resume without --setup")
+
+
 def _stored_plan_setup(db: str) -> tuple[dict, dict]:
     """The plan and set-up a session database was created with (read-only: nothing is touched)."""
     from acq.session.exchange import stored_plan_setup
@@ -215,6 +235,11 @@ def run(args) -> int:
         print(f"robocal session: set-up template written to {args.write_setup}")
         return 0
     if args.emulate:
+        if args.setup:
+            from acq.session.setup_file import read_setup
+            read_setup(args.setup)                       # a bad file is reported as such wherever it is given
+            raise RobocalError("session: --setup does not apply to --emulate (the emulated cell has its own "
+                               "set-up; robocal demo --setup records an emulated session with a set-up file)")
         builder = emulated_builder(args.db, args.seed, args.only)
     elif args.theodolite:
         builder = real_builder(args.db, args.theodolite, args.tap, args.setup, args.poses, args.robot, args.only)

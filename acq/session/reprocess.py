@@ -327,6 +327,7 @@ def _sweeps(steps, points, robot, setup, est, truth, figs, n_mc):
     dh = dh_estimate(V, C, q0, fn.frame_R[0, 0], fn.frame_t[0, 0], fn.frame_R[0, 1:-1, :, 0], robot.hayati[:-1],
                      robot.d_mm[:-1], alpha_ref=robot.alpha_rad[:-1], n_mc=n_mc)
     tv = {n: truth[n] for n in dh.names if truth is not None and n in truth}
+    tv.update(_base_gauge_truth(truth, setup, fn.frame_R[0, 0], tv))
     for k in np.flatnonzero(robot.hayati[:-1]):
         # d of a Hayati link is held at its design value; the next link's d (its axis is parallel) takes the rest
         held, nxt = f"j{k + 1}.d_mm", f"j{k + 2}.d_mm"
@@ -341,6 +342,25 @@ def _sweeps(steps, points, robot, setup, est, truth, figs, n_mc):
     except (RobocalError, KeyError, ValueError) as exc:             # the axes and DH stand without it
         figs.setdefault("problems", []).append(f"misalignment: {exc}")
     return axes
+
+
+def _base_gauge_truth(truth, setup, R0, tv: dict) -> dict:
+    """The truth of the first link's d and zero offset in the frame the sweeps measure them in: frame 0 where the
+    set-up puts the base (a tape gives it to the millimetre), not where the twin has it.  Why: the foot of joint 1's
+    common normal is measured from the set-up's origin along z0, and its zero from the set-up's yaw, so a base 0.1
+    mm lower than written reads as d1 0.1 mm larger -- a gauge, not an estimation error (as the pose set's held
+    parameters, ``_gauge_truth``)."""
+    if truth is None or "base.z_mm" not in truth:
+        return {}
+    out = {}
+    o_true = np.array([truth[f"base.{k}_mm"] for k in "xyz"])
+    o_set = np.asarray(setup.get("base_xyz_mm", o_true), float)
+    if "j1.d_mm" in tv:
+        out["j1.d_mm"] = tv["j1.d_mm"] + float((o_true - o_set) @ R0[:, 2])
+    if "j1.theta_offset_rad" in tv and "base.yaw_rad" in truth:
+        yaw_set = float(np.asarray(setup.get("base_rpy_deg", [0.0, 0.0, 0.0]), float)[2]) * DEG
+        out["j1.theta_offset_rad"] = tv["j1.theta_offset_rad"] + truth["base.yaw_rad"] - yaw_set
+    return out
 
 
 def _misalignment(axes, kin, p_design, q0, robot, est, truth, figs, n_mc):
@@ -414,6 +434,7 @@ def _pose_model(robot, running: dict, problems: list[str], specs=None):
     procedures measured (priors with those procedures' errors), so a poorly measured stiffness cannot bias the fit.
     """
     from calib.effects import effect_from_text
+    from calib.estimators.compliance import MAX_REL_ERROR_TWO_SLOPES
     from calib.model import MeasurementModel
     specs = running_error_specs({}, running) if specs is None else specs
     effects = [effect_from_text(t, robot.n) for t in specs]
@@ -429,12 +450,10 @@ def _pose_model(robot, running: dict, problems: list[str], specs=None):
                 problems.append(f"poses: joint {e.joint} transmission error measured at order {w:.3g} +- {sw:.2g}, "
                                 f"the model uses {e.order:g}: no prior from the transmission-error run")
                 continue
-            A, phi, sA = res["amplitude1_rad"].value, res["phase1_rad"].value, res["amplitude1_rad"].error
-            # err = A sin(w q + phi) = A cos(phi) sin(w q) + A sin(phi) cos(w q)
-            for k, v in (("s1_rad", A * np.cos(phi)), ("c1_rad", A * np.sin(phi))):
-                name = f"{lab}.{k}"
+            for name, v, sv in _harmonic_prior(res):
+                name = f"{lab}.{name}"
                 theta0[model.index[name]] = v
-                priors[name] = (float(v), float(max(sA, 1e-6)))
+                priors[name] = (v, sv)
         elif e.kind == "joint_compliance" and e.joint in (running.get("compliance") or {}):
             res = running["compliance"][e.joint]
             K, sK = res["K1_Nm_per_rad"].value, res["K1_Nm_per_rad"].error
@@ -443,8 +462,24 @@ def _pose_model(robot, running: dict, problems: list[str], specs=None):
                 c = 1.0 / K
                 theta0[model.index[name]] = c
                 theta0[model.index[f"{lab}.compliance2_rad_per_nm"]] = c
-                priors[name] = (c, float(max(sK / K ** 2, 0.05 * c)))
+                # one slope over every load (the breakpoint not placed) says little of the slope at the pose set's
+                # smaller torques: it may differ by as much as two slopes the run could not tell apart
+                floor = MAX_REL_ERROR_TWO_SLOPES if res.extras.get("single_slope") else 0.05
+                priors[name] = (c, float(max(sK / K ** 2, floor * c)))
     return model, theta0, priors
+
+
+def _harmonic_prior(res) -> list[tuple[str, float, float]]:
+    """The transmission-error run's first harmonic as the pose-set model's sine and cosine coefficients with their
+    1-sigma: ``A sin(w q + phi) = A cos(phi) sin(w q) + A sin(phi) cos(w q)``, the amplitude's and the phase's errors
+    (and their correlation) both propagated -- a phase known to 0.1 rad moves the coefficients by a tenth of A."""
+    names = list(res.names)
+    i, k = names.index("amplitude1_rad"), names.index("phase1_rad")
+    A, phi = float(res.value[i]), float(res.value[k])
+    C = res.cov[np.ix_([i, k], [i, k])]
+    G = np.array([[np.cos(phi), -A * np.sin(phi)], [np.sin(phi), A * np.cos(phi)]])
+    sd = np.sqrt(np.maximum(np.diag(G @ C @ G.T), 1e-12))
+    return [("s1_rad", A * np.cos(phi), float(sd[0])), ("c1_rad", A * np.sin(phi), float(sd[1]))]
 
 
 def _poses(steps, points, robot, setup, est, twin, figs, running=None, problems=None, coupling_steps=()):
@@ -481,11 +516,17 @@ def _poses(steps, points, robot, setup, est, twin, figs, running=None, problems=
     sigma = np.sqrt(ident.sigma ** 2 + _station_variance(model, obs, D, ident, priors, points.station_fit))
     truth = twin.true_parameters() if twin is not None else None
     gauge = _gauge_truth(twin, model, ident, q) if twin is not None else {}
+    compared = {}                  # the truth each estimate is compared with: the twin's, in the fit's gauge
+    unknown = _held_away(model, ident, truth)
     for n in ident.free:
         i = ident.names.index(n)
         raw = None if truth is None else truth.get(n)
         extra = {}
-        tv = gauge.get(n, raw)
+        tv = None if n in unknown else gauge.get(n, raw)
+        if tv is not None:
+            compared[n] = tv
+        if n in unknown and raw is not None:
+            extra = {"truth_raw": float(raw), "note": unknown[n]}
         if raw is not None and tv is not None and abs(tv - raw) > 0.1 * sigma[i]:
             extra = {"truth_raw": float(raw), "note": "truth in the gauge of the held parameters (what perfect data "
                                                       "would give with them at their design values)"}
@@ -503,7 +544,34 @@ def _poses(steps, points, robot, setup, est, twin, figs, running=None, problems=
                      "rms_mm": float(ident.residual_rms), "held": [n for n in wanted if n not in ident.free],
                      "points_mm": P.tolist(), "running_errors": list(specs)}
     _accuracy(model, obs, ident.free, theta0, priors, figs, problems)
-    return model_document(model, ident, truth)
+    return _with_truth_notes(model_document(model, ident, compared if truth is not None else None), truth, gauge,
+                             unknown)
+
+
+def _with_truth_notes(doc: dict, raw: dict | None, gauge: dict, unknown: dict[str, str]) -> dict:
+    """The identified model document's ``truth``s say what the estimates are compared with: for an estimated
+    parameter the twin's value in the fit's gauge (as the ``ident.*`` estimates; the twin's own value as
+    ``truth_raw`` where they differ), for a held one none -- its value is the design value by choice, not an
+    estimate, and the twin's own value (``truth_raw``) is not comparable with it -- nor for an effect parameter whose
+    companions are held away from the twin's (``unknown``, :func:`_held_away`).  Never a nominal value as truth."""
+    if raw is None:
+        return doc
+    for p in doc["parameters"]:
+        r = raw.get(p["name"])
+        if not p["estimated"]:
+            p["truth"] = None
+            p["note"] = "held at its design value, not estimated: no truth to compare it with"
+            if r is not None:
+                p["truth_raw"] = float(r)
+        elif p["name"] in unknown:
+            p["note"] = unknown[p["name"]]
+            if r is not None:
+                p["truth_raw"] = float(r)
+        elif r is not None and p["name"] in gauge and p["truth"] is not None and abs(p["truth"] - r) > 0:
+            p["truth_raw"] = float(r)
+            p["note"] = ("truth in the gauge of the held parameters (what perfect data would give with them at "
+                         "their design values)")
+    return doc
 
 
 def _accuracy(model, obs, free, theta0, priors, figs, problems) -> None:
@@ -570,6 +638,22 @@ def _gauge_truth(twin, model, ident, q) -> dict[str, float]:
     return {n: g.value(n) for n in g.free}
 
 
+def _held_away(model, ident, truth: dict | None) -> dict[str, str]:
+    """Estimated effect parameters whose effect has a parameter held away from the twin's value (a joint compliance
+    fitted with one slope, its breakpoint held at infinity, where the twin has two slopes and a breakpoint): the free
+    one absorbs the difference, so no truth in the fit's gauge is known for it -- name -> why, in words."""
+    if truth is None:
+        return {}
+    away: dict[str, list[str]] = {}
+    for n in ident.names:
+        if (n in model.index and n not in model.kin.index and n not in ident.free and n in truth
+                and not np.isclose(truth[n], ident.value(n))):
+            away.setdefault(n.rsplit(".", 1)[0], []).append(f"{n.rsplit('.', 1)[1]} held at {ident.value(n):.4g} "
+                                                             f"(twin {truth[n]:.4g})")
+    return {n: "no truth in the fit's gauge: its effect has " + ", ".join(away[n.rsplit(".", 1)[0]])
+            for n in ident.free if n not in model.kin.index and n.rsplit(".", 1)[0] in away}
+
+
 def _joint_angles(steps, points, axis_n, full: bool = False):
     """Angle turned about ``axis_n`` from the first step, per step, from A1 -> A2, and each one's 1-sigma
     (:func:`calib.estimators.transmission.joint_angles`); NaN where a step lacks A1 or A2.  ``full``: also the
@@ -622,6 +706,7 @@ def _transmission(steps, points, robot, axes, est, twin, figs, n_mc):
         enc = np.array([(_encoder_q(s, robot) if _encoder_q(s, robot) is not None
                          else np.asarray(s["spec"]["pose_deg"]) * DEG)[j - 1] for s in sts])
         err = np.angle(np.exp(1j * (meas - (enc - enc[0]))))      # both sides wrap differently past 180 deg
+        cov = cov + _reference_quantisation(sts, robot, j)
         ok = np.isfinite(err)
         try:
             res = fit_transmission_error(enc[ok], err[ok], cov[np.ix_(ok, ok)], n_mc=n_mc)
@@ -646,6 +731,21 @@ def _transmission(steps, points, robot, axes, est, twin, figs, n_mc):
         raise RobocalError("; ".join(failed))
     figs.setdefault("problems", []).extend(f"transmission: {f}" for f in failed)
     return fits
+
+
+def _reference_quantisation(sts, robot, j: int) -> np.ndarray:
+    """Covariance the encoder's quantisation adds to ``meas - (enc - enc[0])`` over a run: each step's count is off
+    by up to half a count (uniform: 1/sqrt(12) of a count), and the first step's error enters every difference.  A
+    Puma wrist count is 0.005 deg at the joint, as large as the theodolites' angle noise; steps whose joint reading
+    is the commanded angle (no tap) carry none."""
+    from calib.estimators.coupling import quantisation_sigma
+    from calib.estimators.resolution import design_resolution_rad
+    s = quantisation_sigma(design_resolution_rad(robot.counts_per_rev[j - 1], robot.gear_ratio[j - 1]))
+    tapped = np.array([_encoder_q(st, robot) is not None for st in sts], float)
+    E = np.diag(-tapped)
+    E[:, 0] += tapped[0]
+    E[0] = 0.0
+    return s ** 2 * (E @ E.T)
 
 
 def _setup_model(robot, setup):

@@ -53,6 +53,13 @@ def read_setup(path: str | Path) -> dict:
     return read_json(path, schema=SETUP_SCHEMA)
 
 
+def read_partial_setup(path: str | Path, required: tuple[str, ...]) -> dict:
+    """A set-up file that a command completes with its own values (``robocal demo --setup`` keeps the emulated
+    cell's stations and base, ``robocal plan setup --setup`` writes its design into it): every key it has is checked
+    as in a full set-up, but only ``required`` must be present.  A bad file is one line naming it and the key."""
+    return read_json(path, schema={**SETUP_SCHEMA, "required": list(required)})
+
+
 def setup_from_text(text: str, where: str) -> dict:
     """A set-up stored as text (the session database's ``setup_json``), checked."""
     return check_setup(parse_json(text, where), where)

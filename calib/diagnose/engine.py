@@ -114,7 +114,7 @@ class Diagnosis:
                        for r in self.selection.rounds],
             "breakdown": [f.as_dict() for f in self.factors],
             "not_tested": self.skipped, "guard_notes": self.selection.skipped,
-            "gross_errors_flagged": [i + 1 for i in self.outliers],
+            "gross_errors_flagged": [self.outlier_report.row(i) for i in self.outliers],
             "outliers": self.outlier_report.as_dict(),
             "notes": d.notes + ([self.level_note] if self.level_note else []),
             "noise_estimated_mm": self.noise.estimated_mm if self.noise else None,
@@ -138,7 +138,7 @@ def _outlier_step(data: DiagnosisData, model: MeasurementModel, level: str, mode
         level = "full" if data.n >= len(geometric_free(model, "full")) else "offsets"
     free = geometric_free(model, level)
     rep = identify(model, data.observations(), free=free, outliers=mode, loss=loss,
-                   labels=data.labels or None).outlier_report
+                   labels=data.labels or None).outlier_report.numbered(None, data.pose_id)
     if rep.rejected:
         data = data.subset(np.setdiff1d(np.arange(data.n), rep.rejected))
     return data, rep
@@ -188,7 +188,7 @@ def _diagnose(data, level, n_folds, alpha, max_effects, kinds, te_orders, flag_o
         raise RobocalError(f"--geometry must be full, offsets or auto, got {level!r}")
     check_mode(outliers, loss)
     prog = progress or (lambda s, f: None)
-    model = MeasurementModel(data.robot)
+    model = data.model()                # the chain and the data's own geometry (a tool point per target)
     prog("geometric fit", 0.0)
     data, out_rep = _outlier_step(data, model, level, outliers if flag_outliers else "off", loss)
     folds = data_folds(data, n_folds)

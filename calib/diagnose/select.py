@@ -54,6 +54,9 @@ ALIAS_SHARE = 0.8
 REFIT_BEST = 3
 #: candidates looked at per round, in the order of their linearised score
 SCAN_BEST = 10
+#: a candidate whose linearised held-out gain is below this share of the material gain is not refitted (the
+#: one-step prediction from the current fit is close to the refit: the effects enter nearly linearly)
+LINEAR_SLACK = 0.5
 
 
 @dataclass
@@ -424,6 +427,15 @@ def _round(cx: _Context, cur: CVResult, remaining: list[Candidate], rounds: list
                                     f"not significant (corrected p = {tests.p[k]:.3g})", cand.group))
             why = why or f"best remaining candidate {cand.label} is not significant (corrected p = {tests.p[k]:.3g})"
             continue
+        predicted = float(np.sqrt(sse[k] / cx.data.n))
+        if cur.rms_mm - predicted < LINEAR_SLACK * MATERIAL_SHARE * cx.excess_mm:
+            gain = cur.rms_mm - predicted
+            cx.near.append(NearMiss(cand.label, predicted, float(tests.p[k]),
+                                    f"shrinks the held-out RMS by {1000 * gain:.1f} um only (linearised), less than "
+                                    f"{100 * MATERIAL_SHARE:.0f} % of the excess gap ({1000 * cx.excess_mm:.1f} um)",
+                                    cand.group))
+            why = why or f"best remaining candidate {cand.label} {cx.near[-1].reason}"
+            continue
         ida = analyse(np.hstack([lin.Jw[:, lin.base_idx], lin.Jw[:, ok[k][1]]]),
                       [lin.big.names[i] for i in lin.base_idx] + [f"candidate.{p}" for p in cand.free])
         if any(n.startswith("candidate.") for n in ida.fixed):
@@ -470,7 +482,66 @@ def forward_select(data: DiagnosisData, base: CVResult, geo_free: list[str], can
             break
         findings.append(res[0])
         cur = res[1]
+    cur = _backward(cx, cur, findings)
     return Selection(findings, rounds, cur, cx.notes, stop, cx.near)
+
+
+def _without(cx: _Context, cur: CVResult, drop: int) -> CVResult:
+    """The final model without its effect ``drop``, refitted in every fold (warm start) and on all poses."""
+    m = cur.model
+    keep = np.ones(m.P, bool)
+    keep[m.effect_slices[drop]] = False
+    model = MeasurementModel(cx.data.robot, [e for i, e in enumerate(m.effects) if i != drop])
+    prefix = m.effects[drop].label + "."
+    free = [n for n in cur.all_fit.free if not n.startswith(prefix)]
+    return cv_fit(model, cx.data, free, [(f.train, f.test) for f in cur.folds],
+                  theta0=[f.theta[keep] for f in cur.folds], theta0_all=cur.all_fit.theta[keep], start=False,
+                  loss=cx.loss)
+
+
+def _linear_keep_cost(data: DiagnosisData, cur: CVResult) -> list[float]:
+    """Per effect of the final model, the all-pose RMS (mm) its removal would add to first order: its contribution
+    J_i theta_i with the other free columns refitted (projected out).  Only a cheap screen before the refit."""
+    m = cur.model
+    theta = cur.all_fit.theta[: m.P]
+    J = m.evaluate(data.q_rad, data.ctx, theta, jacobian=True).jacobian.reshape(3 * data.n, -1)
+    free = [m.index[n] for n in cur.all_fit.free if n in m.index]
+    rms2 = cur.all_fit.residual_rms ** 2 if np.isfinite(cur.all_fit.residual_rms) else 0.0
+    out = []
+    for s in m.effect_slices:
+        own = [k for k in free if s.start <= k < s.stop]
+        others = [k for k in free if not s.start <= k < s.stop]
+        Q, _ = np.linalg.qr(J[:, others])
+        v = J[:, own] @ theta[own]
+        e = v - Q @ (Q.T @ v)
+        out.append(float(np.sqrt(rms2 + e @ e / data.n) - np.sqrt(rms2)))
+    return out
+
+
+def _backward(cx: _Context, cur: CVResult, findings: list[Finding]) -> CVResult:
+    """A finding accepted early can be superseded by later ones (a joint-2 compliance standing in for a joint-3
+    compliance and a joint-2 transmission error that are both there): each earlier finding is refitted out of the
+    final model, and dropped when the held-out RMS without it is less than the material share of the excess gap
+    worse.  Greedy forward selection then backward elimination, with the acceptance rule's own threshold."""
+    changed = True
+    while changed and len(findings) > 1:
+        changed = False
+        keep_cost = _linear_keep_cost(cx.data, cur)
+        first = len(cur.model.effects) - len(findings)     # the findings are the model's last effects
+        for i in range(len(findings) - 1):
+            if keep_cost[first + i] >= 2 * MATERIAL_SHARE * cx.excess_mm:
+                continue            # clearly needed: its linearised removal costs twice the material share
+            new = _without(cx, cur, first + i)
+            if new.rms_mm - cur.rms_mm < MATERIAL_SHARE * cx.excess_mm:
+                f = findings.pop(i)
+                cx.near.append(NearMiss(f.candidate.label, new.rms_mm, f.p_value,
+                                        f"superseded by the later findings: without it the held-out RMS is "
+                                        f"{new.rms_mm:.4f} mm (with it {cur.rms_mm:.4f} mm)", f.candidate.group))
+                cur = new
+                findings[-1].fit = cur
+                changed = True
+                break
+    return cur
 
 
 def leftover_structure(data: DiagnosisData, final: CVResult, findings: list[Finding], alpha: float = 0.01,
