@@ -187,7 +187,8 @@ def _link_fig(f: dict, res: dict):
     fig.colorbar(sc, ax=ax, label="load (N)")
     ax.set_xlabel("gauge position along the link (mm)"), ax.set_ylabel("deflection (mm)")
     what = (f"EI = {L['EI_Nmm2']:.3g} N mm²" if L.get("EI_Nmm2") is not None else
-            f"no significant bending: EI ≥ {L['EI_lower_bound_Nmm2']:.3g} N mm², 95 %")
+            f"no significant bending: EI ≥ {L['EI_lower_bound_Nmm2']:.3g} N mm², "
+            f"{100 * L.get('confidence', 0.95):g} % one-sided")
     return [(f"Link compliance: gauge deflections ({what})", fig)]
 
 
