@@ -20,8 +20,7 @@ from .errors import RobocalError
 from .model import MeasurementModel
 from .effects.target_offset import TargetOffset
 from .posecsv import PoseTable
-from .targets import (TargetContext, order_targets, reference_name, station_effects, station_index, target_effects,
-                      target_index)
+from .targets import TargetContext, reference_name, station_effects, station_index, target_index, with_targets
 
 
 def with_polar_points(table: PoseTable, noise=None) -> PoseTable:
@@ -217,9 +216,8 @@ def fit_rows(table: PoseTable, robot):
     extra = station_effects(station_names(table))
     if fit.target is None:
         return fit, robot, extra
-    used = list(dict.fromkeys(table.target))
-    robot = order_targets(robot, used)
-    return fit, robot, target_effects(robot, used) + extra
+    robot, targets = with_targets(robot, list(dict.fromkeys(table.target)))
+    return fit, robot, targets + extra
 
 
 def data_rows(measured: PoseTable, fitted: PoseTable) -> tuple[list[int] | None, list[str] | None]:

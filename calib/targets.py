@@ -54,6 +54,14 @@ def target_effects(robot, names_used: list[str]) -> list[TargetOffset]:
     return [TargetOffset(k, pts[k][1] - ref) for k in range(1, len(pts)) if pts[k][0] in used]
 
 
+def with_targets(robot, names_used: list[str]) -> tuple:
+    """A tool point per target: the robot whose tool points are the targets ``names_used`` (the reference first) and
+    the offset effects of the other targets, to be fitted jointly with the chain.  The one way identify and diagnose
+    model several targets per pose."""
+    robot = order_targets(robot, names_used)
+    return robot, target_effects(robot, names_used)
+
+
 def target_index(robot, target: list[str] | None, n: int) -> np.ndarray:
     names = list(robot.tool_points_mm)
     if target is None:

@@ -329,6 +329,7 @@ def _sweeps(steps, points, robot, setup, est, truth, figs, n_mc):
     dh = dh_estimate(V, C, q0, fn.frame_R[0, 0], fn.frame_t[0, 0], fn.frame_R[0, 1:-1, :, 0], robot.hayati[:-1],
                      robot.d_mm[:-1], alpha_ref=robot.alpha_rad[:-1], n_mc=n_mc)
     tv = {n: truth[n] for n in dh.names if truth is not None and n in truth}
+    tv.update(_base_gauge_truth(truth, setup, fn.frame_R[0, 0], tv))
     for k in np.flatnonzero(robot.hayati[:-1]):
         # d of a Hayati link is held at its design value; the next link's d (its axis is parallel) takes the rest
         held, nxt = f"j{k + 1}.d_mm", f"j{k + 2}.d_mm"
@@ -412,6 +413,25 @@ def _compensation_truth(kin, p_design, q0, truth, setup, zd, xf, lp, base_R, nam
     out = dict(zip(names, vals))
     if "d3_mm" in out and f"j{n_links}.d_mm" in truth:
         out["d3_mm"] = float(truth[f"j{n_links}.d_mm"])
+    return out
+
+
+def _base_gauge_truth(truth, setup, R0, tv: dict) -> dict:
+    """The truth of the first link's d and zero offset in the frame the sweeps measure them in: frame 0 where the
+    set-up puts the base (a tape gives it to the millimetre), not where the twin has it.  Why: the foot of joint 1's
+    common normal is measured from the set-up's origin along z0, and its zero from the set-up's yaw, so a base 0.1
+    mm lower than written reads as d1 0.1 mm larger -- a gauge, not an estimation error (as the pose set's held
+    parameters, ``_gauge_truth``)."""
+    if truth is None or "base.z_mm" not in truth:
+        return {}
+    out = {}
+    o_true = np.array([truth[f"base.{k}_mm"] for k in "xyz"])
+    o_set = np.asarray(setup.get("base_xyz_mm", o_true), float)
+    if "j1.d_mm" in tv:
+        out["j1.d_mm"] = tv["j1.d_mm"] + float((o_true - o_set) @ R0[:, 2])
+    if "j1.theta_offset_rad" in tv and "base.yaw_rad" in truth:
+        yaw_set = float(np.asarray(setup.get("base_rpy_deg", [0.0, 0.0, 0.0]), float)[2]) * DEG
+        out["j1.theta_offset_rad"] = tv["j1.theta_offset_rad"] + truth["base.yaw_rad"] - yaw_set
     return out
 
 
@@ -1068,7 +1088,7 @@ def _link(steps, setup, est, twin, figs, n_mc, robot=None):
                       note=f"no significant bending (largest deflection {res.largest_deflection_mm:.2g} mm, gauge "
                            f"noise {res.sigma_mm:.2g} mm): the link is at least this stiff at "
                            f"{100 * res.confidence:g} % confidence")
-        figs["link"]["EI_lower_bound_Nmm2"] = res.EI_lower_bound_Nmm2
+        figs["link"].update(EI_lower_bound_Nmm2=res.EI_lower_bound_Nmm2, confidence=res.confidence)
         return
     est.add_set(prefix, res, tv, only=("EI_Nmm2",))
     figs["link"]["EI_Nmm2"] = float(res["EI_Nmm2"].value)

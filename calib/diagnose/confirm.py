@@ -74,11 +74,30 @@ def restationed_residual(fit: CVResult, other: DiagnosisData) -> np.ndarray:
     return res
 
 
+def _targets_of(data: DiagnosisData, other: DiagnosisData) -> DiagnosisData:
+    """OTHER with its rows' targets numbered as the diagnosed model's tool points (OTHER alone may order them
+    differently); a target the diagnosed data did not measure is one line."""
+    names = other.labels.get("target")
+    if names is None:
+        return other
+    from calib.targets import TargetContext, target_index
+    known = list(dict.fromkeys(data.labels.get("target", [])))
+    missing = sorted(set(names) - set(known))
+    if missing:
+        raise RobocalError(f"--confirm {other.source}: target {missing[0]!r} was not measured in {data.source} "
+                           f"(its targets: {', '.join(known) or 'none, no target column'})")
+    fields = {k: getattr(other.ctx, k) for k in other.ctx.__dataclass_fields__ if k not in ("target", "station")}
+    out = other.subset(np.arange(other.n))
+    out.ctx = TargetContext(**fields, target=target_index(data.robot, names, other.n))
+    return out
+
+
 def confirm(diag, other: DiagnosisData) -> Confirmation:
     """Each step of ``diag``'s selection (geometric, then + each finding) predicts OTHER."""
     if other.robot.n != diag.data.robot.n:
         raise RobocalError(f"--confirm {other.source}: {other.robot.n} joints, the diagnosed robot has "
                            f"{diag.data.robot.n}")
+    other = _targets_of(diag.data, other)
     steps = [("geometric", rms_mm(restationed_residual(diag.geometric, other)))]
     if steps[0][1] > max(10.0, NOT_THE_SAME * diag.baseline_rms_mm):
         raise RobocalError(f"--confirm {other.source}: the geometric model of {diag.data.source} predicts it to "

@@ -19,6 +19,7 @@ import numpy as np
 from calib.effects import PoseContext
 from calib.errors import RobocalError
 from calib.identify import PointObservations
+from calib.model import MeasurementModel
 from calib.noise import Sightings
 from calib.robot import Robot
 
@@ -45,10 +46,17 @@ class DiagnosisData:
     split: list[str] | None = None         # the data's own "fit"/"test" split (else the diagnosis makes folds)
     ignored_columns: list[str] = field(default_factory=list)   # the file's columns not read (q7 of a 7-joint robot)
     sightings: Sightings | None = None     # raw readings behind each point (both faces: the noise estimate)
+    #: the geometry beyond the chain every fit of the diagnosis carries: a tool point per extra target (an offset
+    #: effect each, from :func:`calib.targets.with_targets`, as identify fits them), empty for one target
+    geometry_effects: list = field(default_factory=list)
 
     @property
     def n(self) -> int:
         return len(self.q_rad)
+
+    def model(self, effects=()) -> MeasurementModel:
+        """The measurement model of this data: the robot, the data's own geometry effects, then ``effects``."""
+        return MeasurementModel(self.robot, list(self.geometry_effects) + list(effects))
 
     def observations(self, idx=None) -> PointObservations:
         """The points as :class:`calib.identify.PointObservations` (all poses or a subset)."""
@@ -64,7 +72,9 @@ class DiagnosisData:
                              {k: np.asarray(v)[idx] for k, v in self.numeric.items()}, self.raw_angles,
                              [self.pose_id[i] for i in idx] if self.pose_id else [], list(self.notes),
                              [self.split[i] for i in idx] if self.split else None,
-                             self.sightings.subset(idx) if self.sightings is not None else None)
+                             list(self.ignored_columns),
+                             sightings=self.sightings.subset(idx) if self.sightings is not None else None,
+                             geometry_effects=list(self.geometry_effects))
 
     @property
     def whitening(self) -> np.ndarray:
@@ -78,8 +88,10 @@ def _varies(a: np.ndarray | None) -> bool:
 
 def from_arrays(robot: Robot, q_rad, points_mm, cov_mm2=None, noise_mm: float | None = None, *, direction=None,
                 payload_kg=None, temperature_c=None, time_s=None, source: str = "<memory>",
-                pose_id=None) -> DiagnosisData:
-    """Build :class:`DiagnosisData`; the covariance comes from ``cov_mm2`` or, failing that, ``noise_mm``."""
+                pose_id=None, target: list[str] | None = None) -> DiagnosisData:
+    """Build :class:`DiagnosisData`; the covariance comes from ``cov_mm2`` or, failing that, ``noise_mm``.
+    ``target``: per row the tool point it measures (several targets per pose): each target is its own tool point
+    on the flange, fitted jointly with the chain as identify does (:func:`calib.targets.with_targets`)."""
     q = np.atleast_2d(np.asarray(q_rad, float))
     p = np.atleast_2d(np.asarray(points_mm, float))
     N = len(q)
@@ -99,12 +111,34 @@ def from_arrays(robot: Robot, q_rad, points_mm, cov_mm2=None, noise_mm: float | 
     cov_mm2 = np.asarray(cov_mm2, float)
     if N < 8:
         raise RobocalError(f"{source}: {N} poses are too few to diagnose (need at least 8 for a held-out test)")
-    ctx = PoseContext(N, robot.n, direction=direction, payload_kg=payload_kg, temperature_c=temperature_c,
-                      time_s=time_s)
+    conditions = dict(direction=direction, payload_kg=payload_kg, temperature_c=temperature_c, time_s=time_s)
+    geometry: list = []
+    if target is None:
+        ctx = PoseContext(N, robot.n, **conditions)
+    else:
+        robot, geometry, ctx = _targets(robot, [str(t) for t in target], N, source, conditions)
     has = {"direction": direction is not None and bool(np.any(np.asarray(direction) != 0)),
            "temperature": _varies(temperature_c), "time": _varies(time_s), "payload": _varies(payload_kg)}
-    return DiagnosisData(robot, q, p, cov_mm2, ctx, source, noise_from, has,
-                         pose_id=list(pose_id) if pose_id is not None else [])
+    d = DiagnosisData(robot, q, p, cov_mm2, ctx, source, noise_from, has,
+                      pose_id=list(pose_id) if pose_id is not None else [], geometry_effects=geometry)
+    if target is not None:                  # the noise estimate reads the targets' distances per pose
+        d.labels["target"] = [str(t) for t in target]
+    return d
+
+
+def _targets(robot: Robot, target: list[str], n: int, source: str, conditions: dict):
+    """The robot with a tool point per target (reference first), the other targets' offset effects and the pose
+    context that says which tool point each row measures."""
+    from calib.targets import TargetContext, target_index, with_targets
+
+    if len(target) != n:
+        raise RobocalError(f"{source}: {n} rows but {len(target)} target labels")
+    unknown = sorted(set(target) - set(robot.tool_points_mm))
+    if unknown:
+        raise RobocalError(f"{source}: target {unknown[0]!r} names no tool point of {robot.name!r} (tool points: "
+                           f"{', '.join(robot.tool_points_mm) or 'none'})")
+    robot, geometry = with_targets(robot, list(dict.fromkeys(target)))
+    return robot, geometry, TargetContext(n, robot.n, **conditions, target=target_index(robot, target, n))
 
 
 def is_session_db(path: str | Path) -> bool:
@@ -166,11 +200,9 @@ def load_data(path: str | Path, robot: Robot | None = None, noise_mm: float | No
         cov = np.einsum("ni,ij->nij", table.sigma_mm ** 2, np.eye(3))
     d = from_arrays(robot, table.q_rad, table.points_mm, cov, noise_mm,
                     direction=table.direction, payload_kg=table.payload_kg, temperature_c=table.temperature_c,
-                    time_s=table.time_s, source=str(path), pose_id=table.pose_id or None)
+                    time_s=table.time_s, source=str(path), pose_id=table.pose_id or None, target=table.target)
     if getattr(table, "station", None):
         d.labels["station"] = list(table.station)
-    if table.target is not None:            # several targets per pose: the noise estimate reads their distances
-        d.labels["target"] = list(table.target)
     if getattr(table, "split", None):
         d.split = list(table.split)
     d.ignored_columns = [str(c) for c in getattr(table, "ignored_columns", None) or ()]

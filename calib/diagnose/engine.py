@@ -188,7 +188,7 @@ def _diagnose(data, level, n_folds, alpha, max_effects, kinds, te_orders, flag_o
         raise RobocalError(f"--geometry must be full, offsets or auto, got {level!r}")
     check_mode(outliers, loss)
     prog = progress or (lambda s, f: None)
-    model = MeasurementModel(data.robot)
+    model = data.model()                # the chain and the data's own geometry (a tool point per target)
     prog("geometric fit", 0.0)
     data, out_rep = _outlier_step(data, model, level, outliers if flag_outliers else "off", loss)
     folds = data_folds(data, n_folds)

@@ -14,6 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from calib.effects.target_offset import TargetOffset
 from calib.errors import RobocalError
 from calib.identify import Identification, default_free, identify
 from calib.model import MeasurementModel
@@ -28,6 +29,8 @@ def data_folds(data: DiagnosisData, k: int | None = None) -> list[tuple[np.ndarr
     """The data's own split (one fold: fit rows train, test rows are held out) when it has one, else
     :func:`make_folds`."""
     if not data.split:
+        if data.pose_id and len(set(data.pose_id)) < data.n:     # several targets per pose: held out together
+            return grouped_folds(data.pose_id, k)
         return make_folds(data.n, k)
     s = np.asarray(data.split)
     fit, test = np.flatnonzero(s == "fit"), np.flatnonzero(s == "test")
@@ -57,16 +60,27 @@ def make_folds(n: int, k: int | None = None, seed: int = 0) -> list[tuple[np.nda
     return [(np.sort(np.concatenate(parts[:i] + parts[i + 1:])), np.sort(parts[i])) for i in range(k)]
 
 
+def grouped_folds(pose_id: list[str], k: int | None = None, seed: int = 0) -> list[tuple[np.ndarray, np.ndarray]]:
+    """:func:`make_folds` over poses rather than rows: the rows of one pose (its targets) are held out together, so
+    a pose is never predicted by a fit that saw the same configuration through another target."""
+    _, group = np.unique(np.asarray(pose_id), return_inverse=True)
+    return [(np.flatnonzero(np.isin(group, tr)), np.flatnonzero(np.isin(group, te)))
+            for tr, te in make_folds(int(group.max()) + 1, k, seed)]
+
+
 def geometric_free(model: MeasurementModel, level: str = "full") -> list[str]:
     """The geometric parameters to fit: ``full`` (identify's conventional set) or ``offsets`` (base, tool and the
-    joint zero offsets only: for small data sets, as FIGAROH's ``joint_offset`` level)."""
+    joint zero offsets only: for small data sets, as FIGAROH's ``joint_offset`` level).  Either way with the tool
+    points of the data's extra targets (their offsets from the reference point), as identify fits them."""
+    targets = [q for e in model.effects if isinstance(e, TargetOffset) for q in e.qualified_names()]
     if level == "full":
-        return default_free(model, effects=False)
-    names = [n for n in model.kin.names if n.startswith(("base.", "tool."))]
-    for j in range(model.robot.n):
-        names.append(f"j{j + 1}.d_mm" if model.robot.prismatic[j] else f"j{j + 1}.theta_offset_rad")
+        names = default_free(model, effects=False)
+    else:
+        names = [n for n in model.kin.names if n.startswith(("base.", "tool."))]
+        for j in range(model.robot.n):
+            names.append(f"j{j + 1}.d_mm" if model.robot.prismatic[j] else f"j{j + 1}.theta_offset_rad")
     order = {n: i for i, n in enumerate(model.names)}
-    return sorted(names, key=order.get)
+    return sorted(names + targets, key=order.get)
 
 
 def auto_level(model: MeasurementModel, n_poses: int, n_folds: int, n_train: int | None = None) -> str:

@@ -527,10 +527,11 @@ def _backward(cx: _Context, cur: CVResult, findings: list[Finding]) -> CVResult:
     while changed and len(findings) > 1:
         changed = False
         keep_cost = _linear_keep_cost(cx.data, cur)
+        first = len(cur.model.effects) - len(findings)     # the findings are the model's last effects
         for i in range(len(findings) - 1):
-            if keep_cost[i] >= 2 * MATERIAL_SHARE * cx.excess_mm:
+            if keep_cost[first + i] >= 2 * MATERIAL_SHARE * cx.excess_mm:
                 continue            # clearly needed: its linearised removal costs twice the material share
-            new = _without(cx, cur, i)
+            new = _without(cx, cur, first + i)
             if new.rms_mm - cur.rms_mm < MATERIAL_SHARE * cx.excess_mm:
                 f = findings.pop(i)
                 cx.near.append(NearMiss(f.candidate.label, new.rms_mm, f.p_value,
