@@ -1016,7 +1016,7 @@ def _link(steps, setup, est, twin, figs, n_mc, robot=None):
                       note=f"no significant bending (largest deflection {res.largest_deflection_mm:.2g} mm, gauge "
                            f"noise {res.sigma_mm:.2g} mm): the link is at least this stiff at "
                            f"{100 * res.confidence:g} % confidence")
-        figs["link"]["EI_lower_bound_Nmm2"] = res.EI_lower_bound_Nmm2
+        figs["link"].update(EI_lower_bound_Nmm2=res.EI_lower_bound_Nmm2, confidence=res.confidence)
         return
     est.add_set(prefix, res, tv, only=("EI_Nmm2",))
     figs["link"]["EI_Nmm2"] = float(res["EI_Nmm2"].value)
