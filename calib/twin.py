@@ -61,6 +61,7 @@ NOISE = {
     "gross_rate": Field("number", default=0.0, min=0, max=1),
     "gross_arcsec": Field("number", default=60.0, positive=True),
     "encoder_quantisation": Field("bool", default=True),
+    "repeatability_deg": Field("number", default=0.0, min=0),      # 1-sigma joint positioning scatter per move
 }
 #: each effect kind's ``[[effect]]`` keys (the registry's; kept for readers of this module)
 EFFECT_SPECS: dict[str, dict[str, Field]] = {k: cls.scenario_fields for k, cls in EFFECTS.items()}
@@ -80,6 +81,7 @@ class Scenario:
     gross_rate: float = 0.0
     gross_rad: float = 60 * ARCSEC
     encoder_quantisation: bool = True
+    repeatability_rad: float = 0.0    # where a commanded move really ends: servo scatter, 1-sigma per joint
     source: str = "<memory>"
     disabled: list[str] = field(default_factory=list)
 
@@ -111,7 +113,7 @@ def _scenario(chk: Checker, data: dict) -> Scenario:
     return Scenario(name=tw["name"], seed=tw["seed"], robot=robot, true_params=truth, effects=effects,
                     stations=stations, angle_noise=noise["angles"], gross_rate=noise["gross_rate"],
                     gross_rad=noise["gross_arcsec"] * ARCSEC, encoder_quantisation=noise["encoder_quantisation"],
-                    source=chk.source, disabled=disabled)
+                    repeatability_rad=noise["repeatability_deg"] * DEG, source=chk.source, disabled=disabled)
 
 
 def _true_geometry(chk: Checker, top: dict, robot: Robot, rng: np.random.Generator) -> np.ndarray:

@@ -92,6 +92,10 @@ def test_reprocess_recovers_the_twin(session):
     for n in ("ruler.L_mm", "ruler.gamma1_rad", "ruler.gamma2_rad", "dh.j2.a_mm", "dh.j4.d_mm", "dh.j3.a_mm",
               "te.j4.amplitude1_rad", "coupling.sigma56"):
         within(n)
+    # the thesis's reduction (compensation scheme, eqs 4.3.12-15) and d3 from point P and L_p
+    for n in ("comp.a1_mm", "comp.a2_mm", "comp.d1_mm", "comp.d2_mm", "comp.d3_mm"):
+        within(n, k=3.0)
+    assert est["comp.d3_mm"]["error"] < 0.5, est["comp.d3_mm"]
     within("ident.j2.a_mm")                 # running errors are in the pose-set model now
     # the gauges read the bending of the scenario's link compliance, the stiffness comes from torques computed from
     # the geometry: both within 3 of their stated errors, and the errors small enough to mean something

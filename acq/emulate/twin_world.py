@@ -70,7 +70,8 @@ class TwinWorld:
         self._rng = np.random.default_rng(twin.scenario.seed if seed is None else seed)
         self._lock = threading.RLock()
         n = self.robot.n
-        self._q = np.asarray(q0_deg, float) * DEG
+        self._q = np.asarray(q0_deg, float) * DEG          # where the joints are
+        self._q_cmd = self._q.copy()                          # where they were last commanded to
         self._direction = np.zeros(n)
         self._torque = np.zeros(n)
         self._load_dir = np.zeros(n)
@@ -84,14 +85,19 @@ class TwinWorld:
 
     # -- what the session's physical layer sets -------------------------------------------------------------------
     def command(self, q_rad) -> None:
-        """Move the robot to joint readings ``q_rad``; remembers the direction of each joint's last motion."""
+        """Move the robot to joint readings ``q_rad``; remembers the direction of each joint's last motion.  A joint
+        that moves stops where its servo puts it: the command plus the scenario's positioning scatter
+        (``repeatability_deg``), which the encoders read like any other position."""
         q = np.asarray(q_rad, float)
         if q.shape != (self.robot.n,) or not np.all(np.isfinite(q)):
             raise RobocalError(f"twin world: expected {self.robot.n} finite joint angles, got {q!r}")
         with self._lock:
-            moved = np.abs(q - self._q) > 1e-12
-            self._direction = np.where(moved, np.sign(q - self._q), self._direction)
-            self._q = q.copy()
+            moved = np.abs(q - self._q_cmd) > 1e-12
+            self._direction = np.where(moved, np.sign(q - self._q_cmd), self._direction)
+            self._q_cmd = q.copy()
+            rep = self.twin.scenario.repeatability_rad
+            scatter = rep * self._rng.standard_normal(q.size) * moved if rep > 0 else 0.0
+            self._q = np.where(moved, q + scatter, self._q)
             self._cache = None
 
     def set_load(self, joint_torque_nm=None, load_direction=None, payload_kg: float = 0.0) -> None:

@@ -86,7 +86,7 @@ def demo_plan(twin: Twin, seed: int, n_poses: int = DEMO_POSES, quick: bool = Tr
         "poses": {"q_deg": np.round(q, 3).tolist()},
         "transmission": {"joints": [4, 6], "points": 25, "repeats": 2, "range_deg": TE_RANGE_DEG},
         "compliance": {"joints": [3, 4], "repeats": 3},
-        "coupling": {"angle_deg": 10.0, "pairs": [[5, 6], [4, 6], [4, 5]], "repeats": 2},
+        "coupling": {"angle_deg": 10.0, "pairs": [[5, 6], [4, 6], [4, 5]], "repeats": 4},
         "encoder_resolution": RESOLUTION_RUN,
         "seed": seed,
     }

@@ -342,6 +342,8 @@ def _meta_from_key(key: str) -> dict:
     try:
         if parts[0] == "ruler":
             meta = {"placement": int(parts[1][1:]), "mark": mark_index(parts[2])}
+        elif parts[0] == "sweep" and parts[1] == "p":              # point P of d3 (eq 4.3.15); L_p from the set-up
+            meta = {"point": "P"}
         elif parts[0] in ("sweep", "te", "compliance"):
             meta = {"joint": int(parts[1][1:]), "index": int(parts[2])}
         elif parts[0] == "poses":

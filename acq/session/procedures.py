@@ -14,7 +14,7 @@ from typing import Callable, Iterator
 import numpy as np
 
 from . import checks as ck
-from .setup import station_names
+from .setup import point_p, station_names
 from .steps import READY_DEG, InputSpec, Step, TargetSpec
 
 MARKS = ("C", "D", "E")
@@ -139,6 +139,15 @@ def sweeps(plan: dict, setup: dict) -> Iterator[Step]:
                              f"the positive direction), sight target P with {_both(setup)}."),
                 pose_deg=q, targets=(sweep_target(setup, j),), repeats=p.get("repeats", 1),
                 meta={"joint": j, "index": i, "swept_joint": j})
+    pp = point_p(setup)
+    if pp is not None and p.get("point_p", True):
+        link, tool, lp = pp
+        yield Step(
+            key="sweep/p", procedure="sweep", title="Point P on the tool's axis (d3, eq 4.3.15)",
+            instruction=(f"All joints at READY {_fmt(READY_DEG)}. Sight point P, the mark on the tool's axis "
+                         f"{lp:g} mm beyond the flange (L_p), with {_both(setup)}."),
+            pose_deg=tuple(READY_DEG), targets=(TargetSpec("P", tool_mm=tool, link=link),),
+            repeats=p.get("repeats", 1), meta={"point": "P", "L_p_mm": lp})
 
 
 # -- Chapter 6 pose set ----------------------------------------------------------------------------------------------

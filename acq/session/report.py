@@ -187,7 +187,8 @@ def _link_fig(f: dict, res: dict):
     fig.colorbar(sc, ax=ax, label="load (N)")
     ax.set_xlabel("gauge position along the link (mm)"), ax.set_ylabel("deflection (mm)")
     what = (f"EI = {L['EI_Nmm2']:.3g} N mm²" if L.get("EI_Nmm2") is not None else
-            f"no significant bending: EI ≥ {L['EI_lower_bound_Nmm2']:.3g} N mm², 95 %")
+            f"no significant bending: EI ≥ {L['EI_lower_bound_Nmm2']:.3g} N mm², "
+            f"{100 * L.get('confidence', 0.95):g} % one-sided")
     return [(f"Link compliance: gauge deflections ({what})", fig)]
 
 
@@ -440,8 +441,9 @@ def _diagnosis_html(diag: dict | None) -> str:
             f"{diag['final_rms_mm']:.3f} mm with the findings below, against an instrument floor of "
             f"{diag['noise_floor_mm']:.3f} mm — {html.escape(str(diag.get('stop_reason', '')))}.</p>{table}{un}"
             "<p class='muted'>A finding is accepted only when it is significant, shrinks the held-out excess over "
-            "the floor materially and keeps its parameters across folds; <i>doubtful</i> marks one that another "
-            "candidate explains nearly as well (its alias) or whose parameters vary across folds.</p></section>")
+            "the floor materially and keeps its parameters across folds; <i>doubtful</i> marks one that the data "
+            "cannot tell apart from another candidate (its alias), whose stated error exceeds a quarter of its value, "
+            "or whose own driver still orders the residual beyond the noise.</p></section>")
 
 
 def _estimation_errors(est: list[dict]):

@@ -290,8 +290,10 @@ def _sweeps(steps, points, robot, setup, est, truth, figs, n_mc):
     if not steps:
         return {}
     by_joint: dict[int, list] = {}
+    p_steps = [st for st in steps if st["spec"]["meta"].get("point") == "P"]   # point P (d3), not a sweep
     for st in steps:
-        by_joint.setdefault(st["spec"]["meta"]["joint"], []).append(st)
+        if "joint" in st["spec"]["meta"]:
+            by_joint.setdefault(st["spec"]["meta"]["joint"], []).append(st)
     axes = {}
     figs["sweeps"] = {}
     for j, sts in sorted(by_joint.items()):
@@ -341,7 +343,77 @@ def _sweeps(steps, points, robot, setup, est, truth, figs, n_mc):
         _misalignment(axes, kin, p, q0, robot, est, truth, figs, n_mc)
     except (RobocalError, KeyError, ValueError) as exc:             # the axes and DH stand without it
         figs.setdefault("problems", []).append(f"misalignment: {exc}")
+    try:
+        _compensation_scheme(axes, p_steps, points, kin, p, q0, robot, setup, est, truth, figs, n_mc)
+    except (RobocalError, KeyError, ValueError, np.linalg.LinAlgError) as exc:
+        figs.setdefault("problems", []).append(f"compensation scheme: {exc}")
     return axes
+
+
+def _compensation_scheme(axes, p_steps, points, kin, p_design, q0, robot, setup, est, truth, figs, n_mc):
+    """The thesis's own reduction (eqs 4.3.12-15): the joint centres compensated into S_fj, then a1, a2, d1, d2, and
+    d3 from point P and L_p when P was sighted.  Only for a six-axis Puma-like arm (the formulas are the Puma's).
+    Truth: the same reduction of the twin's exact axes and P (what noise-free sightings give), and for d3 the
+    twin's flange offset itself."""
+    from calib.estimators.misalignment import thesis_route
+    if robot.n != 6:
+        return
+    design = kin.forward(q0[None], p_design)
+    zd = np.array([design.frame_R[0, j][:, 2] for j in range(6)])
+    xf = np.array([design.frame_R[0, j + 1][:, 0] for j in range(6)])
+    V = np.concatenate([axes[j].value[:6] for j in range(1, 7)])
+    C = np.zeros((36, 36))
+    for j in range(6):
+        C[6 * j:6 * j + 6, 6 * j:6 * j + 6] = axes[j + 1].cov[:6, :6]
+    P = Pc = lp = None
+    if p_steps:
+        pts = [points(s)["P"] for s in p_steps]
+        Pc = _block(pts, points)
+        m = len(pts)
+        W = np.kron(np.ones((1, m)), np.eye(3)) / m                          # mean of the repeats
+        P, Pc = W @ np.concatenate([t[0] for t in pts]), W @ Pc @ W.T
+        lp = p_steps[0]["spec"]["meta"].get("L_p_mm")
+        if lp is None:                                   # an imported step: L_p from the set-up
+            from .setup import point_p
+            pp = point_p(setup)
+            lp = None if pp is None else pp[2]
+        if lp is None:
+            P = Pc = None
+            figs.setdefault("problems", []).append("compensation scheme: point P sighted but the set-up gives no "
+                                                   "L_p (point_p.L_p_mm): d3 not computed")
+    base_R = design.frame_R[0, 0]
+    res = thesis_route(V, C, zd, xf, P, Pc, lp, base_R, n_mc=n_mc)
+    tv = {}
+    if truth is not None:
+        tv = _compensation_truth(kin, p_design, q0, truth, setup, zd, xf, lp, base_R, res.names)
+    est.add_set("comp.", res, tv)
+    figs["compensation"] = [{"name": nm, "value": float(res[nm].value), "error": float(res[nm].error),
+                             "truth": tv.get(nm)} for nm in res.names]
+
+
+def _compensation_truth(kin, p_design, q0, truth, setup, zd, xf, lp, base_R, names) -> dict:
+    """The thesis route on the twin's exact geometry at the reference pose: each sweep target's foot on its true
+    axis as the centre, the true axis directions, P where the twin puts it."""
+    from calib.estimators.dh import puma_formulas
+    from calib.estimators.misalignment import compensated_puma_inputs
+    from .procedures import sweep_target
+    from .setup import point_p
+    pt = np.array([truth.get(nm, v) for nm, v in zip(kin.names, p_design)])
+    fp = kin.forward(q0[None], pt)
+    n_links = kin.robot.n
+    ax = []
+    for j in range(6):
+        z, o = fp.joint_axis[0, j], fp.joint_origin[0, j]
+        tg = sweep_target(setup, j + 1)
+        x = kin.point_on(fp, [n_links if tg.link is None else tg.link], np.asarray(tg.tool_mm, float))[0, 0]
+        ax.append(np.concatenate([o + ((x - o) @ z) * z, z]))
+    pp = point_p(setup)
+    P = kin.point_on(fp, [pp[0]], np.asarray(pp[1]))[0, 0] if pp is not None else np.zeros(3)
+    vals = puma_formulas(compensated_puma_inputs(np.array(ax), zd, xf, P, lp or 0.0, base_R))
+    out = dict(zip(names, vals))
+    if "d3_mm" in out and f"j{n_links}.d_mm" in truth:
+        out["d3_mm"] = float(truth[f"j{n_links}.d_mm"])
+    return out
 
 
 def _base_gauge_truth(truth, setup, R0, tv: dict) -> dict:
@@ -1016,7 +1088,7 @@ def _link(steps, setup, est, twin, figs, n_mc, robot=None):
                       note=f"no significant bending (largest deflection {res.largest_deflection_mm:.2g} mm, gauge "
                            f"noise {res.sigma_mm:.2g} mm): the link is at least this stiff at "
                            f"{100 * res.confidence:g} % confidence")
-        figs["link"]["EI_lower_bound_Nmm2"] = res.EI_lower_bound_Nmm2
+        figs["link"].update(EI_lower_bound_Nmm2=res.EI_lower_bound_Nmm2, confidence=res.confidence)
         return
     est.add_set(prefix, res, tv, only=("EI_Nmm2",))
     figs["link"]["EI_Nmm2"] = float(res["EI_Nmm2"].value)

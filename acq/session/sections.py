@@ -137,14 +137,22 @@ section(Section(
      ThesisRow("γ1 (Fig 5.4)", "ruler.gamma1_rad", -1.489, "deg", 0.013),
      ThesisRow("γ2 (Fig 5.4)", "ruler.gamma2_rad", 1.358, "deg", 0.010)], ("ruler",)))
 section(Section(
-    "sweep", "Joint axes and DH parameters (circle point analysis, §4.3)", ("dh.", "misalign."),
+    "sweep", "Joint axes and DH parameters (circle point analysis, §4.3)", ("dh.", "misalign.", "comp."),
     "Each joint swept alone while a target on its link is sighted; a circle and its axis fitted per joint; the DH "
-    "parameters follow from successive axes.", ("sweeps", "sweep"),
+    "parameters follow from successive axes.  Beside them the thesis's own reduction (comp.*): the joint centres "
+    "expressed in S_fj by the compensation scheme (eqs 4.3.12-13), then eq 4.3.15, with d3 from point P sighted on "
+    "the tool's axis L_p beyond the flange (its a2 reads X along the robot base's x, the opposite sign of Fig 5.10's).",
+    ("sweeps", "sweep", "compensation scheme"),
     "Widen the sweep of a joint whose axis is weakly determined, or put its target farther from the axis "
     "(100-1200 mm, about 600 mm suggested).",
     [ThesisRow("a1 (Fig 5.10)", "dh.j2.a_mm", 431.0, "mm"),
      ThesisRow("a2 (Fig 5.10)", "dh.j3.a_mm", -29.7, "mm"),
-     ThesisRow("d2 (Fig 5.10)", "dh.j4.d_mm", 432.2, "mm")], ("sweeps", "dh_lengths", "dh_angles")))
+     ThesisRow("d2 (Fig 5.10)", "dh.j4.d_mm", 432.2, "mm"),
+     ThesisRow("a1, compensation scheme (eqs 4.3.12-15)", "comp.a1_mm", 431.0, "mm"),
+     ThesisRow("d1, compensation scheme", "comp.d1_mm", 154.5, "mm"),
+     ThesisRow("d2, compensation scheme", "comp.d2_mm", 432.2, "mm",
+               note="eq 4.3.15's d2 is the elbow-wrist distance √(d2² + a2²); Fig 5.10 prints it corrected"),
+     ThesisRow("d3 from P and L_p (eq 4.3.15)", "comp.d3_mm", 56.4, "mm")], ("sweeps", "dh_lengths", "dh_angles")))
 section(Section(
     "transmission", "Transmission error (§4.4)", ("te.",),
     "The joint angle from two targets on an extended tool, against the encoder, over the joint's range; a harmonic "

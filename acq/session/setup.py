@@ -35,6 +35,8 @@ def standard_setup() -> dict:
         "preflight": {"link_radius_mm": 50.0},
         "tool_target_mm": [50.0, 0.0, 100.0],
         "sweep_radius_mm": 600.0,
+        # point P of eq 4.3.15's d3: a mark on the tool's axis L_p beyond the flange (frame 6), sighted once at READY
+        "point_p": {"link": 6, "L_p_mm": 150.0},
         "extended_tool": {"A1_mm": [0.0, 0.0, 100.0], "A2_mm": [500.0, 0.0, 600.0]},      # 707 mm apart
         "far_target_mm": [-1000.0, 3000.0, 300.0],        # a mark on the wall left of the robot, 3-4 m away
         "ruler": {"marks_mm": [0.0, 930.0, 1860.0],
@@ -85,6 +87,19 @@ def station_names(setup: dict) -> tuple[str, str]:
     """The two stations' names as the set-up gives them (``stations.names``; default A and B)."""
     names = setup.get("stations", {}).get("names") or ["A", "B"]
     return str(names[0]), str(names[1])
+
+
+def point_p(setup: dict):
+    """The set-up's point P (eq 4.3.15's d3): ``(link, point in that frame (mm), L_p_mm)`` -- a mark on the tool's
+    axis ``L_p_mm`` beyond the flange -- or None when the set-up has none (older set-ups: no P step)."""
+    cfg = setup.get("point_p")
+    if not cfg:
+        return None
+    with _section("point_p"):
+        lp = float(cfg["L_p_mm"])
+        if not np.isfinite(lp) or lp <= 0:
+            raise ValueError(f"L_p_mm must be a positive length, got {cfg['L_p_mm']}")
+        return int(cfg.get("link", 6)), (0.0, 0.0, lp), lp
 
 
 def setup_stations(setup: dict) -> dict:

@@ -104,3 +104,21 @@ def cantilever_deflection(x_mm, a_mm, P_N, EI):
 def quantise(angle_rad, rad_per_count):
     """An incremental encoder's reading: whole counts."""
     return np.round(np.asarray(angle_rad, float) / rad_per_count) * rad_per_count
+
+
+def puma_ready_axes(a1, a2, d1, d2, d3, L_p, base, tilt_axis, tilt):
+    """A Puma at READY drawn from Fig 3.4's lengths with plain vectors: six axes (centre where a target's circle
+    would be, unit direction) and the point P on joint 6's axis L_p beyond the flange; the whole arm placed at
+    ``base`` and tilted rigidly by ``tilt`` (rad) about ``tilt_axis`` through the base.  Returns (axes (6, 6), P,
+    design directions (6, 3))."""
+    ex, ey, ez = np.eye(3)
+    wrist = np.array([a2, d1, a1 + d2])
+    centres = [np.array([0.0, 0.0, 300.0]), np.array([0.0, -250.0, 0.0]), np.array([0.0, -200.0, a1]),
+               wrist + 120.0 * ez, wrist - 180.0 * ey, wrist + np.array([0.0, 0.0, d3 + 40.0])]
+    dirs = [ez, ey, ey, ez, ey, ez]
+    P = wrist + (d3 + L_p) * ez
+    b = np.asarray(base, float)
+    k = np.asarray(tilt_axis, float) / np.linalg.norm(tilt_axis)
+    moved = rotate(np.array([c + b for c in centres] + [P + b]), b, k, np.full(7, tilt))
+    turned = rotate(np.array(dirs), np.zeros(3), k, np.full(6, tilt))
+    return np.hstack([moved[:6], turned]), moved[6], np.array(dirs)
