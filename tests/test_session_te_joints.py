@@ -64,3 +64,11 @@ def test_demo_of_joint_3_reports_no_periodic_error(tmp_path):
         assert abs(w["value"] - 1.0) < 3 * w["error"], w
         assert 1e-4 < a["value"] < 3e-3 and a["error"] < 0.3 * a["value"], a
     assert "dh.j3.a_mm" in est and np.isfinite(est["dh.j3.a_mm"]["value"])
+
+
+def test_te_joints_on_a_resumed_session_is_refused(tmp_path, capsys):
+    db = tmp_path / "old.db"
+    db.write_bytes(b"x")                                # an existing session: its plan is fixed
+    assert main(["session", "--emulate", "--db", str(db), "--te-joints", "2,3"]) == 2
+    err = capsys.readouterr().err
+    assert "--te-joints" in err and "resumed" in err and "Traceback" not in err

@@ -58,8 +58,7 @@ def emulated_builder(db: str, seed: int, only: list[str] | tuple = (), te_joints
 
     def build(operator):
         resume = Path(db).exists() and Path(db).stat().st_size > 0
-        rig = build_demo(db, seed=seed, resume=resume, operator=operator, steps_filter=keep,
-                         te_joints=None if resume else te_joints)
+        rig = build_demo(db, seed=seed, resume=resume, operator=operator, steps_filter=keep, te_joints=te_joints)
         return SessionHandle(rig.runner, rig.close, f"emulated Puma 560 — {db}", db,
                              identities=rig.runner.rig.identities())
 
@@ -239,6 +238,9 @@ def run(args) -> int:
         atomic_write_text(args.write_setup, json.dumps(setup_template(), indent=2))
         print(f"robocal session: set-up template written to {args.write_setup}")
         return 0
+    if args.te_joints and Path(args.db).exists() and Path(args.db).stat().st_size > 0:
+        raise RobocalError(f"session: --te-joints cannot change a resumed session's plan ({args.db} keeps the one it "
+                           f"was recorded with): resume without --te-joints, or start a new --db with it")
     if args.emulate:
         if args.setup:
             from acq.session.setup_file import read_setup
