@@ -140,7 +140,9 @@ def sweeps(plan: dict, setup: dict) -> Iterator[Step]:
                 pose_deg=q, targets=(sweep_target(setup, j),), repeats=p.get("repeats", 1),
                 meta={"joint": j, "index": i, "swept_joint": j})
     pp = point_p(setup)
-    if pp is not None and p.get("point_p", True):
+    joints = p.get("joints", [1, 2, 3, 4, 5, 6])
+    # P serves d3 with the wrist centre (joints 5 and 6's axes): sighted only when the plan sweeps those
+    if pp is not None and p.get("point_p", True) and {5, 6} <= set(joints):
         link, tool, lp = pp
         yield Step(
             key="sweep/p", procedure="sweep", title="Point P on the tool's axis (d3, eq 4.3.15)",
