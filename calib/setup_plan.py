@@ -138,6 +138,7 @@ class SetupPlan:
     errors: dict[str, float]
     objective: str
     trend: list[dict] = field(default_factory=list)
+    note: str = ""                   # what the design took as given (e.g. the set-up's robot base)
 
 
 def _search(fun: Callable[[np.ndarray], float], bounds, seed: int, progress=None, maxiter: int = 40):
@@ -192,22 +193,33 @@ def plan_ruler(c: Constraints, seed: int = 0, progress=None) -> SetupPlan:
 
 
 def plan_sweep(c: Constraints, seed: int = 0, progress=None, link_mm: float = 432.0,
-               axis=(0.0, 1.0, 0.0)) -> SetupPlan:
+               axis=(0.0, 1.0, 0.0), centre_mm=None) -> SetupPlan:
     """Robot placement (joint centre X_c, Y_c, Z_c) and radius of rotation R_j minimising the link-parameter error
-    for a joint whose axis points along ``axis`` (default: towards the theodolites, the circle facing them)."""
+    for a joint whose axis points along ``axis`` (default: towards the theodolites, the circle facing them).
+
+    ``centre_mm``: the joint centre where a set-up already puts the robot (its ``base_xyz_mm``): only R_j is then
+    designed, so the predicted errors describe the set-up the design is written into (a set-up file keeps its robot
+    where it stands; a centre chosen here would not move it)."""
     def f(x):
         Rj, Xc, Yc, Zc = x
         if Yc - Rj < c.min_focus_mm or Yc + Rj > c.room_y_mm:
             return 1e9
         return sweep_errors(Rj, (Xc, Yc, Zc), c, link_mm=link_mm, axis=axis)["link_mm"]
 
-    bounds = [c.Rj_mm, c.room_x_mm, (c.min_focus_mm, c.room_y_mm), (-1000.0, 1000.0)]
-    Rj, Xc, Yc, Zc = _search(_safe(f), bounds, seed, progress)
+    note = ""
+    if centre_mm is None:
+        bounds = [c.Rj_mm, c.room_x_mm, (c.min_focus_mm, c.room_y_mm), (-1000.0, 1000.0)]
+        Rj, Xc, Yc, Zc = _search(_safe(f), bounds, seed, progress)
+    else:
+        Xc, Yc, Zc = (float(v) for v in centre_mm)
+        Rj = float(_search(_safe(lambda x: f([x[0], Xc, Yc, Zc])), [c.Rj_mm], seed, progress)[0])
+        note = (f"joint centre fixed where the set-up puts the robot's base (X {Xc:.0f}, Y {Yc:.0f}, Z {Zc:.0f} mm): "
+                f"only R_j designed")
     trend = [{"Rj_mm": r, **sweep_errors(r, (Xc, Yc, Zc), c, link_mm=link_mm, axis=axis)}
              for r in np.linspace(*c.Rj_mm, 12)]
     return SetupPlan("sweep", {"Rj_mm": Rj, "Xc_mm": Xc, "Yc_mm": Yc, "Zc_mm": Zc},
                      sweep_errors(Rj, (Xc, Yc, Zc), c, link_mm=link_mm, axis=axis), "link-parameter error (mm)",
-                     trend)
+                     trend, note)
 
 
 def plan_te(c: Constraints, seed: int = 0, progress=None) -> SetupPlan:
@@ -226,6 +238,9 @@ def plan_te(c: Constraints, seed: int = 0, progress=None) -> SetupPlan:
 
 
 PROCEDURES: dict[str, Callable[..., SetupPlan]] = {"ruler": plan_ruler, "sweep": plan_sweep, "te": plan_te}
+#: the keyword through which a procedure's design takes the set-up's robot base (``base_xyz_mm``) as given, when the
+#: design is written into a set-up (``robocal plan setup --out``)
+FIXED_BY_SETUP: dict[str, str] = {"sweep": "centre_mm"}
 
 
 # -- per-link sweep targets ------------------------------------------------------------------------------------------
@@ -299,6 +314,7 @@ def into_setup(plans: list[SetupPlan], setup: dict) -> dict:
     out = json.loads(json.dumps(setup))
     for p in plans:
         INTO_SETUP[p.procedure](p.variables, out)
-    out["design"] = {**out.get("design", {}), **{p.procedure: {"variables": p.variables, "errors": p.errors}
+    out["design"] = {**out.get("design", {}), **{p.procedure: {"variables": p.variables, "errors": p.errors,
+                                                                **({"note": p.note} if p.note else {})}
                                                   for p in plans}}
     return out

@@ -67,3 +67,24 @@ def test_plan_setup_command():
     r = subprocess.run([sys.executable, "-m", "acq.cli", "plan", "setup", "ruler", "--room-y", "500"],
                        capture_output=True, text=True, timeout=60)
     assert r.returncode == 2 and "minimum focus" in r.stderr
+
+
+def test_sweep_design_written_into_a_setup_keeps_its_robot(tmp_path):
+    """The design written into a set-up describes that set-up: the joint centre where its robot base stands (not a
+    centre the design chose and the file drops), only R_j designed, and the errors are those of that geometry."""
+    centre = (475.0, 2853.0, 185.0)
+    plan = plan_sweep(C, seed=1, centre_mm=centre)
+    v = plan.variables
+    assert (v["Xc_mm"], v["Yc_mm"], v["Zc_mm"]) == centre and C.Rj_mm[0] <= v["Rj_mm"] <= C.Rj_mm[1]
+    assert plan.errors == sweep_errors(v["Rj_mm"], centre, C, axis=(0, 1, 0))
+    assert plan.errors["link_mm"] <= sweep_errors(600.0, centre, C, axis=(0, 1, 0))["link_mm"] + 1e-9
+    assert "fixed" in plan.note
+    out = tmp_path / "s.json"
+    r = subprocess.run([sys.executable, "-m", "acq.cli", "plan", "setup", "sweep", "--out", str(out)],
+                       capture_output=True, text=True, timeout=120)
+    assert r.returncode == 0, r.stderr
+    assert "given:" in r.stdout and "base" in r.stdout
+    written = json.loads(out.read_text())
+    d = written["design"]["sweep"]["variables"]
+    assert [d["Xc_mm"], d["Yc_mm"], d["Zc_mm"]] == written["base_xyz_mm"]
+    assert written["sweep_radius_mm"] == round(d["Rj_mm"], 0)

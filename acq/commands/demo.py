@@ -11,7 +11,7 @@ from pathlib import Path
 
 from calib.errors import RobocalError
 from calib.fileio import atomic_write_text
-from acq.argtypes import output_dir, output_file, seed_int
+from acq.argtypes import output_dir, output_file, seed_int, te_joints
 
 NAME = "demo"
 HELP = "record an emulated calibration session of every procedure, then reprocess it"
@@ -28,6 +28,8 @@ def add_arguments(p):
     p.add_argument("--setup", metavar="SETUP.json",
                    help="set-up file (robocal plan setup --out): ruler, targets, loads; the emulated cell keeps its "
                         "own stations and robot base")
+    p.add_argument("--te-joints", type=te_joints, metavar="J,J,...", default=None,
+                   help="joints whose transmission error the session measures (default 4,6; 2 and 3 on request)")
     add_report_options(p)
 
 
@@ -58,8 +60,11 @@ def run(args) -> int:
         if args.resume:
             raise RobocalError(f"demo: --setup cannot change a resumed session's set-up ({db} keeps the one it was "
                                f"recorded with): resume without --setup, or start a new --db with it")
+    if args.resume and args.te_joints:
+        raise RobocalError(f"demo: --te-joints cannot change a resumed session's plan ({db} keeps the one it was "
+                           f"recorded with): resume without --te-joints, or start a new --db with it")
     t0 = time.perf_counter()
-    demo = build_demo(db, seed=args.seed, resume=args.resume, setup=base)
+    demo = build_demo(db, seed=args.seed, resume=args.resume, setup=base, te_joints=args.te_joints)
     try:
         with progress_display("recording session", after_s=0.5) as update:
             pp = ProgressPrinter(lambda done, total, key: update(key, done / max(total, 1)))

@@ -149,7 +149,7 @@ def _evaluate(args, model: MeasurementModel, names: list[str]) -> int:
 
 
 def _setup(args) -> int:
-    from calib.setup_plan import PROCEDURES, Constraints
+    from calib.setup_plan import FIXED_BY_SETUP, PROCEDURES, Constraints
 
     lo, hi = args.room_x
     if not lo < hi or args.room_y <= args.min_focus_mm or args.min_focus_mm <= 0 or args.sigma_arcsec <= 0:
@@ -161,13 +161,16 @@ def _setup(args) -> int:
     names = list(PROCEDURES) if args.procedure == "all" else [args.procedure]
     plans = []
     for name in names:
+        # written into a set-up, a design takes the robot where the set-up stands it (its errors describe that file)
+        fixed = {FIXED_BY_SETUP[name]: base["base_xyz_mm"]} if args.out and name in FIXED_BY_SETUP and \
+            base.get("base_xyz_mm") else {}
         with progress_display(f"plan setup {name}") as update:
-            plans.append(PROCEDURES[name](c, seed=args.seed, progress=update))
+            plans.append(PROCEDURES[name](c, seed=args.seed, progress=update, **fixed))
     if args.out:
         _write_setup(args, plans, base)
     if args.json:
         docs = [{"procedure": p.procedure, "variables": p.variables, "errors": p.errors, "objective": p.objective,
-                 "trend": p.trend} for p in plans]
+                 "trend": p.trend, **({"note": p.note} if p.note else {})} for p in plans]
         print(json.dumps(docs[0] if len(docs) == 1 else docs, indent=2, default=float))
         return 0
     for plan in plans:
@@ -205,6 +208,8 @@ def _print_setup(plan) -> None:
     print(f"robocal plan setup {plan.procedure}: minimising the {plan.objective}")
     print("  set-up:  " + "  ".join(f"{k} {v:.1f}" for k, v in plan.variables.items()))
     print("  errors (1 sigma):  " + "  ".join(f"{k} {v:.4g}" for k, v in plan.errors.items()))
+    if plan.note:
+        print(f"  given:   {plan.note}")
     if plan.trend:
         keys = list(plan.trend[0])
         print("  trend with the other variables at their best values:")

@@ -17,7 +17,7 @@ from pathlib import Path
 
 from calib.errors import RobocalError
 from calib.fileio import atomic_write_text
-from acq.argtypes import output_file, seed_int
+from acq.argtypes import output_file, seed_int, te_joints
 
 NAME = "session"
 HELP = "guide the operator through a calibration session (Textual TUI)"
@@ -38,6 +38,9 @@ def add_arguments(p):
     p.add_argument("--setup", metavar="SETUP.json", help="bench geometry (see --write-setup)")
     p.add_argument("--poses", metavar="POSES.csv", help="Chapter 6 pose set (q1..q6, deg)")
     p.add_argument("--robot", metavar="FILE", help="robot description TOML (default: the thesis's Puma 560)")
+    p.add_argument("--te-joints", type=te_joints, metavar="J,J,...", default=None,
+                   help="joints whose transmission error a new session measures (default 4,6; 2 and 3 on request), "
+                        "plan key transmission.joints")
     p.add_argument("--write-setup", type=output_file, metavar="FILE", help="write a set-up template (JSON) and exit")
 
 
@@ -46,7 +49,7 @@ def _only(prefixes):
     return (lambda step: step.key.startswith(prefixes)) if prefixes else None
 
 
-def emulated_builder(db: str, seed: int, only: list[str] | tuple = ()):
+def emulated_builder(db: str, seed: int, only: list[str] | tuple = (), te_joints=None):
     """A TUI builder on the emulated rig (the demo's wiring: real drivers, emulated devices)."""
     from acq.session.demo import build_demo
     from acq.tui.app import SessionHandle
@@ -55,7 +58,8 @@ def emulated_builder(db: str, seed: int, only: list[str] | tuple = ()):
 
     def build(operator):
         resume = Path(db).exists() and Path(db).stat().st_size > 0
-        rig = build_demo(db, seed=seed, resume=resume, operator=operator, steps_filter=keep)
+        rig = build_demo(db, seed=seed, resume=resume, operator=operator, steps_filter=keep,
+                         te_joints=None if resume else te_joints)
         return SessionHandle(rig.runner, rig.close, f"emulated Puma 560 — {db}", db,
                              identities=rig.runner.rig.identities())
 
@@ -83,15 +87,16 @@ def parse_tap(text: str) -> tuple[str, dict]:
     raise RobocalError(f"session: --tap {text!r}: expected can:INTERFACE:CHANNEL or serial:URL")
 
 
-def default_plan(poses_deg=None) -> dict:
-    """The standard plan for a real cell (the demo's, with the operator's pose set when given)."""
-    from acq.session.demo import TE_RANGE_DEG
+def default_plan(poses_deg=None, te_joints=None) -> dict:
+    """The standard plan for a real cell (the demo's, with the operator's pose set when given); ``te_joints``: the
+    transmission-error joints (``--te-joints``, plan key ``transmission.joints``; default 4 and 6)."""
+    from acq.session.demo import transmission_plan
     plan = {
         "procedures": ["levelling", "instrument_check", "ruler", "sweeps", "transmission", "compliance",
                        "link_compliance", "coupling"],
         "ruler": {"repeats": 2},
         "sweeps": {"points": 8, "span_deg": 90.0, "joints": [1, 2, 3, 4, 5, 6]},
-        "transmission": {"joints": [4, 6], "points": 25, "repeats": 2, "range_deg": dict(TE_RANGE_DEG)},
+        "transmission": transmission_plan(te_joints),
         "compliance": {"joints": [3, 4]},
         "coupling": {"angle_deg": 10.0, "pairs": [[5, 6], [4, 6], [4, 5]]},
         "seed": 0,
@@ -118,7 +123,7 @@ def setup_template() -> dict:
 
 
 def real_builder(db: str, theodolites: list[str], tap: str | None, setup_path: str | None, poses: str | None,
-                 robot_path: str | None, only: list[str] | tuple = ()):
+                 robot_path: str | None, only: list[str] | tuple = (), te_joints=None):
     """A TUI builder on real devices (or any device URL): opens them, creates or resumes the session."""
     from acq.drivers import open_theodolite
     from acq.encoders import open_tap
@@ -156,7 +161,7 @@ def real_builder(db: str, theodolites: list[str], tap: str | None, setup_path: s
     robot = setup_robot(setup)
     if not resume:
         q = read_pose_csv(poses, robot.n).q_rad / DEG if poses else None
-        plan = default_plan(q)
+        plan = default_plan(q, te_joints)
     setup = session_setup(setup, robot)
     want = sorted(station_names(setup))
     if sorted(s[0] for s in specs) != want:
@@ -240,9 +245,10 @@ def run(args) -> int:
             read_setup(args.setup)                       # a bad file is reported as such wherever it is given
             raise RobocalError("session: --setup does not apply to --emulate (the emulated cell has its own "
                                "set-up; robocal demo --setup records an emulated session with a set-up file)")
-        builder = emulated_builder(args.db, args.seed, args.only)
+        builder = emulated_builder(args.db, args.seed, args.only, args.te_joints)
     elif args.theodolite:
-        builder = real_builder(args.db, args.theodolite, args.tap, args.setup, args.poses, args.robot, args.only)
+        builder = real_builder(args.db, args.theodolite, args.tap, args.setup, args.poses, args.robot, args.only,
+                               args.te_joints)
     else:
         raise RobocalError("session: give --emulate, or the devices (--theodolite A=KIND:URL --theodolite "
                            "B=KIND:URL [--tap ...]) and --setup")

@@ -42,7 +42,20 @@ DEMO_POSES = 48
 DEMO_SETTLE_S = 0.02
 #: transmission-error runs: joint 4 inside its -110..170 deg limits (with the pre-flight's 2 deg margin), joint 6 over
 #: most of its +-266 deg
-TE_RANGE_DEG = {"4": [-105.0, 165.0], "6": [-150.0, 150.0]}
+TE_RANGE_DEG = {"4": [-105.0, 165.0], "6": [-150.0, 150.0],
+                #: joints 2 and 3 (options, ``--te-joints``): +-90 deg about READY, the upper arm from horizontal
+                #: to horizontal and the forearm from along it to folded back level, inside their limits with the
+                #: pre-flight's margin and in both stations' sight (checked by the pre-flight like every step)
+                "2": [-90.0, 90.0], "3": [-90.0, 90.0]}
+#: the joints whose transmission error the default plans measure (the thesis's: the wrist's)
+DEFAULT_TE_JOINTS = (4, 6)
+
+
+def transmission_plan(joints=None, points: int = 25, repeats: int = 2) -> dict:
+    """The plan's ``transmission`` entry for ``joints`` (default :data:`DEFAULT_TE_JOINTS`), each over its range in
+    :data:`TE_RANGE_DEG`; what ``--te-joints`` of ``robocal session`` and ``robocal demo`` maps to."""
+    js = [int(j) for j in (joints or DEFAULT_TE_JOINTS)]
+    return {"joints": js, "points": points, "repeats": repeats, "range_deg": {str(j): TE_RANGE_DEG[str(j)] for j in js}}
 #: the encoder-resolution run (Fig 5.14): joint 6 over 150 deg in 6 steps -- few steps keep the demo quick, the wide
 #: arc fixes the run's own axis well enough that the slope's error is a few 1e-4 of the resolution
 RESOLUTION_RUN = {"joints": [6], "points": 6, "span_deg": 150.0, "repeats": 1}
@@ -66,7 +79,7 @@ def demo_setup(twin: Twin, base: dict | None = None) -> dict:
     return setup
 
 
-def demo_plan(twin: Twin, seed: int, n_poses: int = DEMO_POSES, quick: bool = True) -> dict:
+def demo_plan(twin: Twin, seed: int, n_poses: int = DEMO_POSES, quick: bool = True, te_joints=None) -> dict:
     """Which procedures with which parameters; the pose set is chosen now so a resume replays the same poses."""
     from calib.plan import select_poses
     model = MeasurementModel(twin.robot)
@@ -84,7 +97,7 @@ def demo_plan(twin: Twin, seed: int, n_poses: int = DEMO_POSES, quick: bool = Tr
         "ruler": {"repeats": 2},
         "sweeps": {"points": 5, "span_deg": 60.0, "joints": [1, 2, 3, 4, 5, 6]},
         "poses": {"q_deg": np.round(q, 3).tolist()},
-        "transmission": {"joints": [4, 6], "points": 25, "repeats": 2, "range_deg": TE_RANGE_DEG},
+        "transmission": transmission_plan(te_joints),
         "compliance": {"joints": [3, 4], "repeats": 3},
         "coupling": {"angle_deg": 10.0, "pairs": [[5, 6], [4, 6], [4, 5]], "repeats": 4},
         "encoder_resolution": RESOLUTION_RUN,
@@ -138,12 +151,13 @@ class DemoRig:
 
 def build_demo(db: str | Path, seed: int = 0, resume: bool = False, script: dict | None = None,
                plan: dict | None = None, steps_filter=None, operator=None, setup: dict | None = None,
-               scenario: str | None = None) -> DemoRig:
+               scenario: str | None = None, te_joints=None) -> DemoRig:
     """Open (or create) the demo session in ``db`` and wire emulated devices, bench, operator and runner.
 
     ``setup``: a set-up file's content (``robocal plan setup --out``) for a new session; its stations and base are
     replaced by the emulated cell's (:func:`demo_setup`).  ``scenario``: a twin scenario TOML (default: the default
-    scenario); a resumed session keeps its own."""
+    scenario); a resumed session keeps its own.  ``te_joints``: the transmission-error joints of the default plan
+    (``--te-joints``; default :data:`DEFAULT_TE_JOINTS`)."""
     import can
 
     from acq.drivers import open_theodolite
@@ -173,7 +187,7 @@ def build_demo(db: str | Path, seed: int = 0, resume: bool = False, script: dict
     twin = Twin(load_scenario(scenario or None), seed=seed)
     if not resume:
         setup = session_setup(demo_setup(twin, setup), twin.robot)
-        plan_d = plan or demo_plan(twin, seed)
+        plan_d = plan or demo_plan(twin, seed, te_joints=te_joints)
         store = SessionStore.create(db, DEMO_TITLE, plan_d, setup, operator="scripted demo operator",
                                     metadata={"emulated": True, "scenario": "default" if not scenario else "file",
                                               "scenario_path": str(Path(scenario).resolve()) if scenario else None,
