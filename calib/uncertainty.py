@@ -223,6 +223,30 @@ def propagate(f: VecFn, x: np.ndarray, cov_x: np.ndarray, names: Sequence[str], 
     return EstimateSet(list(names), y0, list(units), cov_gum, cov_mc, first_order_cov, iv)
 
 
+def spread_sd(f: VecFn, x: np.ndarray, cov_x: np.ndarray, n: int, rng) -> np.ndarray:
+    """Half the central 68 % of ``f``'s outputs over ``n`` draws of the inputs: a standard deviation that a few
+    wild draws (a nonlinear fit running off) cannot inflate, unlike the sample covariance."""
+    drawn = f(sample_inputs(np.asarray(x, float), np.asarray(cov_x, float), n, np.random.default_rng(rng)))
+    lo, hi = np.nanquantile(drawn, [0.15866, 0.84134], axis=0)
+    return 0.5 * (hi - lo)
+
+
+def widen(cov: np.ndarray, sd_floor: np.ndarray) -> None:
+    """Scale rows and columns of ``cov`` in place so that each standard deviation is at least ``sd_floor``
+    (correlations kept; a zero variance becomes the floor).  Why: where an estimator is not linear in its data
+    the linearised covariance can be far too small, and its Monte Carlo spread is the honest error."""
+    for i, f in enumerate(np.asarray(sd_floor, float)):
+        if not np.isfinite(f) or cov[i, i] >= f ** 2:
+            continue
+        if cov[i, i] > 1e-12 * f ** 2:
+            k = f / np.sqrt(cov[i, i])
+            cov[i, :] *= k
+            cov[:, i] *= k
+        else:
+            cov[i, :] = cov[:, i] = 0.0
+            cov[i, i] = f ** 2
+
+
 def coverage_fraction(estimates: np.ndarray, errors: np.ndarray, truth: np.ndarray, k: float = 1.959964) -> np.ndarray:
     """Fraction of runs (axis 0) whose ``estimate +- k error`` interval covers the truth, per quantity."""
     return np.mean(np.abs(np.asarray(estimates) - np.asarray(truth)) <= k * np.asarray(errors), axis=0)

@@ -998,7 +998,7 @@ def _compliance(steps, points, robot, axes, est, twin, figs, n_mc, setup=None, p
                     # the fit reads unloading minus loading in its own sign (d = c(T) - h/2 x load direction)
                     raw = {"K1_Nm_per_rad": 1 / c1, "K2_Nm_per_rad": 1 / c2, "breakpoint_Nm": tb,
                            "offset_rad": sign * h}
-                    tv = _compliance_truth(e, j, T, sign, unload, dcov, raw, single)
+                    tv = _compliance_truth(e, j, T, sign, unload, res.extras.get("cov_rad2", dcov), raw, single)
         K = res["K1_Nm_per_rad"]
         if not (np.isfinite(K.value) and np.isfinite(K.error) and K.value > 0 and K.error < K.value):
             problems.append(f"compliance: joint {j}: not determined: K1 = {K.value:.4g} +- {K.error:.2g} N m/rad "
@@ -1026,11 +1026,12 @@ def _compliance(steps, points, robot, axes, est, twin, figs, n_mc, setup=None, p
     return fits
 
 
-def _compliance_truth(effect, j, T, sign, unload, dcov, raw: dict, single: bool) -> dict:
+def _compliance_truth(effect, j, T, sign, unload, cov, raw: dict, single: bool) -> dict:
     """The twin's stiffness in the estimator's terms.  When the fit told the two slopes apart (``single`` false),
     the twin's own slopes, breakpoint and dead zone.  When it could not place the breakpoint, its ``K1`` is one
-    slope over every load: its truth is that same single-slope fit on the deflections the twin's compliance effect
-    makes at the same torques, without noise (the twin's two slopes are not what it estimates)."""
+    slope over every load: its truth is that same single-slope fit, with the same weights ``cov``, on the
+    deflections the twin's compliance effect makes at the same torques, without noise (the twin's two slopes are
+    not what it estimates, and which mean of them it is depends on the weights)."""
     if not single:
         return raw
     from calib.effects import Loads, PoseContext
@@ -1043,7 +1044,7 @@ def _compliance_truth(effect, j, T, sign, unload, dcov, raw: dict, single: bool)
     ctx = PoseContext(len(T), n, load_direction=ctx_dir)
     d, _ = effect.joint_delta(np.zeros((len(T), n)), ctx, Loads(tau, np.zeros((len(T), n, 3))), effect.values)
     try:
-        clean = single_slope_fit(sign * T, sign * d[:, j - 1], unload, dcov)
+        clean = single_slope_fit(sign * T, sign * d[:, j - 1], unload, cov)
     except RobocalError:
         return {}
     return {**raw, **{e.name: float(e.value) for e in clean.estimates() if e.name in raw}}

@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..uncertainty import EstimateSet, propagate
+from ..uncertainty import EstimateSet, propagate, spread_sd, widen
 from ..units import LBIN_PER_NM
 from ._common import EstimationError, at_least, error_covariance, finite
 
@@ -157,21 +157,6 @@ def _profile_interval(T, u, y, W, min_side, Tb_hat, n_grid: int = 400):
     return a, b, bool(wide.min() <= lo + step or wide.max() >= hi - step)
 
 
-def _widen(cov: np.ndarray, sd_floor: np.ndarray) -> None:
-    """Scale rows and columns of ``cov`` in place so that each standard deviation is at least ``sd_floor``
-    (correlations kept; a zero variance becomes the floor)."""
-    for i, f in enumerate(sd_floor):
-        if not np.isfinite(f) or cov[i, i] >= f ** 2:
-            continue
-        if cov[i, i] > 1e-12 * f ** 2:
-            k = f / np.sqrt(cov[i, i])
-            cov[i, :] *= k
-            cov[:, i] *= k
-        else:
-            cov[i, :] = cov[:, i] = 0.0
-            cov[i, i] = f ** 2
-
-
 def two_slope_fit(torque_Nm_, deflection_rad, unloading, sigma_deflection_rad, n_mc: int = 5000, rng=0, *,
                   load_N=None, lever_mm=None, theta_i_rad=0.0, sigma_load_N=0.0, sigma_lever_mm=0.0,
                   sigma_theta_i_rad=0.0, sigma_torque_Nm=None) -> EstimateSet:
@@ -238,16 +223,13 @@ def two_slope_fit(torque_Nm_, deflection_rad, unloading, sigma_deflection_rad, n
     # its Monte Carlo spread).  Where the central 68 % of the fit's own Monte Carlo spread is over twice the
     # linearised error, the linearisation has failed and that spread is the error; the breakpoint's error is at
     # least its profile-likelihood half-width
-    drawn = _outputs(_fit(T, u, np.random.default_rng(rng).multivariate_normal(y, C, TWO_SLOPE_MC_DRAWS),
-                          min_side=3, W=W))
-    lo68, hi68 = np.nanquantile(drawn, [0.16, 0.84], axis=0)
-    spread = 0.5 * (hi68 - lo68)
+    spread = spread_sd(lambda z: _outputs(_fit(T, u, z, min_side=3, W=W)), y, C, TWO_SLOPE_MC_DRAWS, rng)
     for cov in (res.cov_gum, res.cov_first_order):
         if cov is not None:
             sd = np.sqrt(np.maximum(np.diag(cov), 0.0))
             floor = np.where(spread > NONLINEAR_FACTOR * sd, spread, 0.0)
             floor[2] = max(floor[2], 0.5 * (b - a))
-            _widen(cov, floor)
+            widen(cov, floor)
     res.extras.update(residual_rad=y - two_slope_model(p, T, u), breakpoint_interval_Nm=(a, b), not_determined={})
     if any(res[k].error > MAX_REL_ERROR_TWO_SLOPES * abs(res[k].value) for k in ("K1_Nm_per_rad", "K2_Nm_per_rad")):
         return _single_slope(T, u, y, C, a, b, n_mc, rng, "a slope on one side of the breakpoint has an error over "
@@ -289,7 +271,7 @@ def _single_slope(T, u, y, C, a, b, n_mc, rng, reason: str = "") -> EstimateSet:
     why = reason or (f"its profile-likelihood interval ({a:.3g} .. {b:.3g} N m) reaches the end of the loads applied")
     why = f"the breakpoint is not determined: {why}, so the two slopes are not told apart; K1 is the single slope " \
           f"over every load"
-    res.extras.update(residual_rad=y - X @ c, breakpoint_interval_Nm=(a, b), single_slope=True,
+    res.extras.update(residual_rad=y - X @ c, breakpoint_interval_Nm=(a, b), single_slope=True, cov_rad2=C,
                       torque_range_Nm=(float(T.min()), float(T.max())),
                       not_determined={"K2_Nm_per_rad": why, "breakpoint_Nm": why})
     return res

@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..uncertainty import EstimateSet, propagate
+from ..uncertainty import EstimateSet, propagate, spread_sd, widen
 from ._common import EstimationError, angles_in_range, at_least, error_covariance, finite
 
 PROC = "transmission error"
@@ -231,6 +231,10 @@ def _outputs(p, H):
     return np.stack(out, -1)
 
 
+#: Monte Carlo draws behind the harmonic fit's stated errors
+TE_MC_DRAWS = 400
+
+
 def te_names(H):
     names = ["omega", "period_rad", "offset_rad"]
     units = ["1", "rad", "rad"]
@@ -308,6 +312,12 @@ def fit_transmission_error(theta_rad, error_rad, sigma_rad=None, max_harmonics: 
     names, units = te_names(H)
     res = propagate(lambda z: _outputs(_gn(p, th, z, H, W), H), y, C, names, units,
                     n_mc=n_mc, rng=rng, first_order_cov=G @ Cp @ G.T, value=_outputs(p, H))
+    # order, amplitude and phase are not linear in the data (a sweep shorter than a period trades the order against
+    # the amplitude): each error is at least the fit's own Monte Carlo spread (central 68 %)
+    spread = spread_sd(lambda z: _outputs(_gn(p, th, z, H, W), H), y, C, TE_MC_DRAWS, rng)
+    for cov in (res.cov_gum, res.cov_first_order):
+        if cov is not None:
+            widen(cov, spread)
     res.extras.update(harmonics=H, sigma_rad=np.sqrt(np.diag(C)), residual_rad=y - _model(p, th, H),
                       not_determined={})
     w_err = res["omega"].error
