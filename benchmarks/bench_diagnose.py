@@ -36,6 +36,13 @@ from acq.cli import main
 sys.exit(main(["diagnose", {path!r}, "--json"]) and 1)
 """
 
+#: the plain baseline measured in the same run: one geometric least-squares fit of the same file, whole process
+IDENTIFY = """
+import sys
+from acq.cli import main
+sys.exit(main(["identify", {path!r}, "--json"]) and 1)
+"""
+
 CHAIN = """
 import numpy as np
 from calib.diagnose.data import from_arrays
@@ -106,10 +113,15 @@ def main() -> None:
     for key, (title, code) in cases.items():
         if a.only and key != a.only:
             continue
+        base = ""
         if key == "twin":
-            code = code.format(path=_twin_csv())
+            path = _twin_csv()
+            code = code.format(path=path)
+            b_wall, b_cpu, _ = run("identify", IDENTIFY.format(path=path), a.threads)
+            base = f"; a plain identify of the same file {b_wall:.1f} s wall, {b_cpu:.1f} s CPU"
         wall, cpu, out = run(key, code, a.threads)
-        print(f"{title}: {wall:.1f} s wall, {cpu:.1f} s CPU (target < {BASELINE[key]:.0f} s whole process); {out}")
+        print(f"{title}: {wall:.1f} s wall, {cpu:.1f} s CPU (target < {BASELINE[key]:.0f} s whole process){base}; "
+              f"{out}")
 
 
 if __name__ == "__main__":
