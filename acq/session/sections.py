@@ -255,8 +255,9 @@ def section_verdict(sec: Section, estimates: list[dict], problems: list[str],
     v = verdict_of(worst)
     if v == DETERMINED:
         return v, "every estimate's error is small against its value"
-    why = worst.get("note") or ("held at its design value" if worst.get("held") else
-                                f"{shown(worst).name}: error {_fmt_err(worst)}")
+    # the reason is the estimate's error against its value (a note on an estimate may be about its truth, which is
+    # no reason for a verdict; the notes are shown beside the estimates)
+    why = "held at its design value" if worst.get("held") else f"{shown(worst).name}: error {_fmt_err(worst)}"
     return v, why
 
 

@@ -39,10 +39,15 @@ def standard_setup() -> dict:
         "point_p": {"link": 6, "L_p_mm": 150.0},
         "extended_tool": {"A1_mm": [0.0, 0.0, 100.0], "A2_mm": [500.0, 0.0, 600.0]},      # 707 mm apart
         "far_target_mm": [-1000.0, 3000.0, 300.0],        # a mark on the wall left of the robot, 3-4 m away
-        "ruler": {"marks_mm": [0.0, 930.0, 1860.0],
-                  "placements": [{"where": "1.2 m in front, left", "C_mm": [-300.0, 1200.0, 0.0], "dir": [1, 0, 0]},
+        # the series varies R as the thesis does (Fig 5.4: R 1792-1860 mm): mark E at three distances, one sighted
+        # per placement with C, D and the last; each placement steps back and turns
+        "ruler": {"marks_mm": [0.0, 930.0, 1800.0, 1830.0, 1860.0],
+                  "placements": [{"where": "1.2 m in front, left", "C_mm": [-300.0, 1200.0, 0.0], "dir": [1, 0, 0],
+                                  "marks": ["C", "D", "E1", "E3"]},
+                                 {"where": "1.5 m in front, turned a little", "C_mm": [-250.0, 1500.0, 0.0],
+                                  "dir": [1, 0.075, 0], "marks": ["C", "D", "E2", "E3"]},
                                  {"where": "1.8 m in front, turned", "C_mm": [-200.0, 1800.0, 0.0],
-                                  "dir": [1, 0.15, 0]}]},
+                                  "dir": [1, 0.15, 0], "marks": ["C", "D", "E3"]}]},
         "compliance": {"3": {"lever_mm": 500.0, "loads_n": [0, 10, 20, 30, 45, 60, 75], "theta_i_deg": 0.0,
                              "pose_deg": list(READY_DEG)},
                        # joint 4 loaded with the forearm level (its axis horizontal): a lever clamped on the wrist
