@@ -24,7 +24,8 @@ sys.path.insert(0, str(ROOT))
 
 #: how an estimate's name maps to the procedure it comes from (first matching prefix)
 PROCEDURES = (("ruler.", "ruler (L, gammas, B's height)"), ("dh.", "sweeps: DH parameters"),
-              ("misalign.", "sweeps: misalignments"), ("te.", "transmission error"),
+              ("misalign.", "sweeps: misalignments"), ("comp.", "sweeps: compensation scheme (eqs 4.3.12-15)"),
+              ("te.", "transmission error"),
               ("compliance.", "joint compliance"), ("link.", "link compliance"), ("coupling.", "coupling"),
               ("resolution.", "encoder resolution"), ("ident.j", "pose set: geometry"),
               ("ident.base", "pose set: geometry"), ("ident.tool", "pose set: geometry"),
