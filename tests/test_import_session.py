@@ -102,10 +102,12 @@ def _ruler_readings(path, names, setup):
     from tests.fakes.thesis_puma import leica_readings
     st = setup["stations"]
     lines = ["step,procedure,station,target,face,hz_deg,v_deg"]
+    from acq.session.procedures import mark_index, mark_names
+    marks_mm = setup["ruler"]["marks_mm"]
     for k, pl in enumerate(setup["ruler"]["placements"]):
         d = np.asarray(pl["dir"], float) / np.linalg.norm(pl["dir"])
-        for mark, m_mm in zip("CDE", setup["ruler"]["marks_mm"]):
-            p = np.asarray(pl["C_mm"], float) + m_mm * d
+        for mark in pl.get("marks", mark_names(len(marks_mm))):
+            p = np.asarray(pl["C_mm"], float) + marks_mm[mark_index(mark)] * d
             r = np.degrees(leica_readings(p[None], st["L_mm"], np.radians(st["gamma1_deg"]),
                                           np.radians(st["gamma2_deg"]))[0])
             for s, (hz, v) in zip(names, (r[:2], r[2:])):

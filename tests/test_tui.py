@@ -39,6 +39,13 @@ def run(coro):
     return asyncio.run(coro)
 
 
+def _ruler_steps(placement: int | None = None) -> int:
+    """Ruler steps of the standard set-up (every placement's sighted marks), or of one placement."""
+    from acq.session.setup import standard_setup
+    pls = standard_setup()["ruler"]["placements"]
+    return sum(len(p["marks"]) for p in (pls if placement is None else [pls[placement]]))
+
+
 def test_ruler_and_one_joint_sweep_end_to_end(tmp_path):
     db = tmp_path / "s.db"
 
@@ -48,7 +55,7 @@ def test_ruler_and_one_joint_sweep_end_to_end(tmp_path):
             n = await answer_all(app, pilot, lambda a: a.finished is not None)
             assert app.finished["exit_status"] == "success", app.finished
             saved = [k for k, d in app.data.items() if d.status == "accepted"]
-            assert len(saved) == 11 and n >= 22
+            assert len(saved) == _ruler_steps() + 5 and n >= 2 * len(saved)       # ruler + 5 sweep positions
             # the plan shows every step done, the sweep's plot has data, the live panel shows angles and counts
             assert all(str(app.nodes[k].label)[0] in "✔⚠" for k in saved)     # accepted (⚠: a check failed)
             live = str(app.query_one("#live").render())
@@ -285,7 +292,7 @@ def test_devices_by_url_through_the_same_drivers(tmp_path):
         node.stop()
     from acq.session.store import SessionStore
     store = SessionStore.open(str(db))
-    assert len([k for k in store.done_keys() if k.startswith("ruler/p0")]) == 3
+    assert len([k for k in store.done_keys() if k.startswith("ruler/p0")]) == _ruler_steps(placement=0)
     store.close()
 
 
