@@ -10,6 +10,7 @@ with one line and a non-zero exit instead of leaving a process that no longer an
 """
 from __future__ import annotations
 
+import signal
 import threading
 
 from acq import argtypes as at
@@ -88,19 +89,22 @@ def run(args) -> int:
         failures.append((host, exc))
         stop.set()
 
+    # Ctrl-C (SIGINT) or SIGTERM is the normal way to stop an emulator: it sets the stop event instead of raising
+    # KeyboardInterrupt wherever the main thread happens to be (in a host's close, say), so the exit is always clean
+    previous = ({sig: signal.signal(sig, lambda *_: stop.set()) for sig in (signal.SIGINT, signal.SIGTERM)}
+                if threading.current_thread() is threading.main_thread() else {})
     try:
         where, info = _start(args, world, hosts, failed)
         print(where, flush=True)
         print(f"{info} [twin scenario: {world.twin.scenario.name}]", flush=True)
-        try:
-            stop.wait(args.duration if args.duration is not None else None)
-        except KeyboardInterrupt:
-            pass
+        stop.wait(args.duration if args.duration is not None else None)
     except OSError as exc:
         raise RobocalError(f"emulate {args.device}: cannot start: {exc}") from None
     finally:
         for h in hosts:
             h.close()
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
     if failures:
         host, exc = failures[0]
         raise ServerFailed(f"{host.describe()} stopped: {type(exc).__name__}: {exc}")
