@@ -130,6 +130,14 @@ class _Est:
             self.add(f"{prefix}{e.name}", e.value, e.error, e.unit, truth_value=tv)
 
 
+def _by_joint(steps) -> dict[int, list]:
+    """A procedure's steps grouped by the joint they exercise (``spec.meta.joint``), in the order recorded."""
+    out: dict[int, list] = {}
+    for st in steps:
+        out.setdefault(st["spec"]["meta"]["joint"], []).append(st)
+    return out
+
+
 def _twin_for(data: SessionData):
     meta = json_column(data.session.get("metadata_json") or "{}", f"{data.path}: session metadata_json")
     if not meta.get("emulated"):
@@ -289,11 +297,8 @@ def _sweeps(steps, points, robot, setup, est, truth, figs, n_mc):
     from calib.kinematics import Kinematics
     if not steps:
         return {}
-    by_joint: dict[int, list] = {}
     p_steps = [st for st in steps if st["spec"]["meta"].get("point") == "P"]   # point P (d3), not a sweep
-    for st in steps:
-        if "joint" in st["spec"]["meta"]:
-            by_joint.setdefault(st["spec"]["meta"]["joint"], []).append(st)
+    by_joint = _by_joint([st for st in steps if "joint" in st["spec"]["meta"]])
     axes = {}
     figs["sweeps"] = {}
     for j, sts in sorted(by_joint.items()):
@@ -763,9 +768,7 @@ def _transmission(steps, points, robot, axes, est, twin, figs, n_mc):
     from calib.effects import TransmissionError
     if not steps:
         return
-    by_joint: dict[int, list] = {}
-    for st in steps:
-        by_joint.setdefault(st["spec"]["meta"]["joint"], []).append(st)
+    by_joint = _by_joint(steps)
     figs["transmission"] = {}
     fits, failed = {}, []
     for j, sts in sorted(by_joint.items()):
@@ -912,9 +915,7 @@ def _resolution(steps, points, robot, est, twin, figs):
     from calib.estimators.resolution import design_resolution_rad, encoder_resolution_fitted_axis
     if not steps:
         return
-    by_joint: dict[int, list] = {}
-    for st in steps:
-        by_joint.setdefault(st["spec"]["meta"]["joint"], []).append(st)
+    by_joint = _by_joint(steps)
     figs["resolution"] = {}
     for j, sts in sorted(by_joint.items()):
         sts = sorted((s for s in sts if s.get("counts") is not None and len(s["counts"])
@@ -963,9 +964,7 @@ def _compliance(steps, points, robot, axes, est, twin, figs, n_mc, setup=None, p
     problems = [] if problems is None else problems
     model, theta = _setup_model(robot, setup or {})
     theta, sig_geo = _swept_geometry(model, theta, est)
-    by_joint: dict[int, list] = {}
-    for st in steps:
-        by_joint.setdefault(st["spec"]["meta"]["joint"], []).append(st)
+    by_joint = _by_joint(steps)
     figs["compliance"] = {}
     fits = {}
     for j, sts in sorted(by_joint.items()):

@@ -17,14 +17,13 @@ The issue's "no family has more than 5 % wrong" is about the confident wrong fin
 """
 from __future__ import annotations
 
-import os
 import time
-from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from .independent import Spec, generate
+from .parallel import map_cases
 
 FAMILIES = ("single", "two", "near_floor", "outside", "heavy_tails", "poses", "wrong_noise", "clean")
 SIGMA_MM = 0.05
@@ -185,18 +184,5 @@ class FamilyValidation:
 def run_families(case_list: list[FamilyCase], workers: int | None = None, progress=None) -> FamilyValidation:
     """Every case, in ``workers`` processes (default: the CPU count)."""
     t = time.perf_counter()
-    workers = workers or min(len(case_list), os.cpu_count() or 1)
-    results = []
-    if workers <= 1:
-        for i, c in enumerate(case_list):
-            results.append(run_family_case(c))
-            if progress:
-                progress("validation", (i + 1) / len(case_list))
-    else:
-        import multiprocessing
-        with ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("spawn")) as ex:
-            for i, r in enumerate(ex.map(run_family_case, case_list, chunksize=1)):
-                results.append(r)
-                if progress:
-                    progress("validation", (i + 1) / len(case_list))
+    results = map_cases(run_family_case, case_list, workers, progress)
     return FamilyValidation(results, time.perf_counter() - t)

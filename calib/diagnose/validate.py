@@ -14,10 +14,8 @@ floor, so every effect is tried at the same visibility whatever its unit.  Score
 """
 from __future__ import annotations
 
-import os
 import time
 import zlib
-from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass
 
 import numpy as np
@@ -30,6 +28,7 @@ from calib.twin import Twin, load_scenario
 
 from .candidates import EFFECT_NAMES
 from .data import DiagnosisData, from_arrays
+from .parallel import map_cases
 
 #: (kind, joint, source) of the withheld effects: the thesis's wrist joints and the big arm joints
 DEFAULT_CONFIGS: tuple[tuple[str, int | None, int | None], ...] = (
@@ -262,29 +261,5 @@ class Validation:
 def run_validation(case_list: list[Case], workers: int | None = None, progress=None) -> Validation:
     """Run every case (in ``workers`` processes; default: the CPU count) and collect the scores."""
     t = time.perf_counter()
-    workers = workers or min(len(case_list), os.cpu_count() or 1)
-    results: list[CaseResult] = []
-    if workers <= 1:
-        for i, c in enumerate(case_list):
-            results.append(run_case(c))
-            if progress:
-                progress("validation", (i + 1) / len(case_list))
-    else:
-        # one BLAS thread per worker process: the workers are the parallelism (spawned, so the setting applies)
-        import multiprocessing
-        saved = {k: os.environ.get(k) for k in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS")}
-        os.environ.update({k: "1" for k in saved})
-        try:
-            ex = ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("spawn"))
-        finally:
-            for k, v in saved.items():
-                if v is None:
-                    os.environ.pop(k, None)
-                else:
-                    os.environ[k] = v
-        with ex:
-            for i, r in enumerate(ex.map(run_case, case_list, chunksize=1)):
-                results.append(r)
-                if progress:
-                    progress("validation", (i + 1) / len(case_list))
+    results = map_cases(run_case, case_list, workers, progress)
     return Validation(results, time.perf_counter() - t)

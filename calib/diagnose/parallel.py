@@ -1,0 +1,45 @@
+"""Running validation cases in worker processes: one implementation for the twin suite and the independent families.
+
+Why a module of its own: both suites map a case function over many cases, report progress, and want one BLAS thread
+per worker (the workers are the parallelism; spawned processes read the setting when they start)."""
+from __future__ import annotations
+
+import os
+from concurrent.futures import ProcessPoolExecutor
+from typing import Callable, Sequence, TypeVar
+
+C = TypeVar("C")
+R = TypeVar("R")
+_BLAS = ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS")
+
+
+def map_cases(fn: Callable[[C], R], cases: Sequence[C], workers: int | None = None, progress=None) -> list[R]:
+    """``[fn(c) for c in cases]`` in ``workers`` spawned processes (default: the CPU count; 1: in this process),
+    calling ``progress("validation", share_done)`` after each case."""
+    workers = workers or min(len(cases), os.cpu_count() or 1)
+    results: list[R] = []
+
+    def done(r: R) -> None:
+        results.append(r)
+        if progress:
+            progress("validation", len(results) / len(cases))
+
+    if workers <= 1:
+        for c in cases:
+            done(fn(c))
+        return results
+    import multiprocessing
+    saved = {k: os.environ.get(k) for k in _BLAS}
+    os.environ.update({k: "1" for k in _BLAS})
+    try:
+        ex = ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("spawn"))
+    finally:
+        for k, v in saved.items():
+            if v is None:
+                os.environ.pop(k, None)
+            else:
+                os.environ[k] = v
+    with ex:
+        for r in ex.map(fn, cases, chunksize=1):
+            done(r)
+    return results
