@@ -227,6 +227,17 @@ def _section(where: str):
         raise RobocalError(f"set-up: {where}: {exc}") from None
 
 
+def _ruler_marks(placement: dict, marks_mm) -> None:
+    """Every mark a placement sights must be one the ruler has (C, D, E -- or E1, E2 ... when E is marked at
+    several distances)."""
+    from .procedures import mark_index, mark_names
+    names = mark_names(len(marks_mm))
+    for name in placement.get("marks", names):
+        if name not in names:
+            raise ValueError(f"unknown mark {name!r}: this ruler's marks are {', '.join(names)}")
+        mark_index(name)
+
+
 def _check_entry(where: str, robot, joint: int, pose, link: int, masses) -> None:
     n = robot.n
     if not 1 <= joint <= n:
@@ -304,6 +315,9 @@ def session_setup(setup: dict, robot) -> dict:
     if out.get("link"):
         with _section("link"):
             _link_entry(out["link"], robot, chain, g)
+    for k, pl in enumerate(out.get("ruler", {}).get("placements", [])):
+        with _section(f"ruler.placements[{k}].marks"):
+            _ruler_marks(pl, out["ruler"].get("marks_mm", []))
     if "sweep_targets" not in out:
         with _section("sweep_radius_mm"):
             out["sweep_targets"] = design_sweep_targets(m, out, robot)
