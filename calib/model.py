@@ -250,6 +250,13 @@ class MeasurementModel:
             ev.jacobian, ev.joint_jacobian = self._jacobian(ev, torque_derivative)
         return ev
 
+    def torque_gain(self, ev: Evaluation) -> np.ndarray | None:
+        """(N, n) d deflection / d torque of every joint at an evaluation (None: no torque-driven effect)."""
+        st = ev.state
+        if ev.loads is None or st is None or not any(e.torque_driven for e in self.effects):
+            return None
+        return sum(e.torque_gain(st.q, st.ctx, ev.loads, v) for e, v in zip(self.effects, st.vals) if e.torque_driven)
+
     def _stage(self, stage: str, vals, call) -> tuple:
         """The effects of one stage: the sum of their changes (0.0 when there are none) and each one's derivative
         w.r.t. its own parameters, keyed by the effect's index."""
@@ -270,15 +277,14 @@ class MeasurementModel:
         J = np.zeros((len(q), 3, self.P))
         J[:, :, :ng] = Je
         Jq = Je[:, :, self.kin.joint_elements]
-        if loads is not None and any(e.torque_driven for e in self.effects):
+        gain = self.torque_gain(ev)
+        if gain is not None:
             # joint deflections follow the torques, and the torques move with the geometry
-            gain = sum(e.torque_gain(q, ctx, loads, v) for e, v in zip(self.effects, vals) if e.torque_driven)
             if torque_derivative is None:
                 torque_derivative = torque_term_matters(gain, loads)
             if torque_derivative:
                 joints = np.flatnonzero(np.any(gain != 0, axis=0))
                 dtau = self._torque_derivative(st.load_pass, *self._torque_parts(st.load_pass, ctx), joints=joints)
-                loads.dtau_dgeo = dtau
                 J[:, :, :ng] += np.einsum("nij,nje->nie", Jq[:, :, joints], gain[:, joints, None] * dtau[:, joints])
         through = {"joint": Jq, "geometry": Je}
         for i, (e, s, v) in enumerate(zip(self.effects, self.effect_slices, vals)):
@@ -316,10 +322,10 @@ class MeasurementModel:
 
 
 #: the torque term's largest relative size in the Jacobian below which it is left out (see torque_term_matters)
-TORQUE_TERM_THRESHOLD = 0.0  # TEMP measuring
+TORQUE_TERM_THRESHOLD = 0.01
 
 
-def torque_term_matters(gain: np.ndarray, loads: Loads, threshold: float = TORQUE_TERM_THRESHOLD) -> bool:
+def torque_term_matters(gain: np.ndarray, loads: Loads, threshold: float | None = None) -> bool:
     """Whether the Jacobian needs the change of the joint deflections with the torques a geometric parameter moves.
 
     The term adds to the column of a geometric parameter e ``J_q,j * c_j * d tau_j / d e`` for every joint j whose
@@ -331,10 +337,16 @@ def torque_term_matters(gain: np.ndarray, loads: Loads, threshold: float = TORQU
     measured compliances is at about 0.3 %) the converged parameters, sigmas and held-out RMS are unchanged
     (benchmarks/bench_scaling.py --torque-term measures it) while the term is most of a torque-aware Jacobian's cost.
     """
+    threshold = TORQUE_TERM_THRESHOLD if threshold is None else threshold
+    return bool(torque_term_size(gain, loads) > threshold)
+
+
+def torque_term_size(gain: np.ndarray, loads: Loads) -> float:
+    """``max c_j |M_j|`` over poses and joints (radians): the torque term's largest relative size in the Jacobian
+    (see :func:`torque_term_matters`); infinite when the loads carry no moments to bound it with."""
     if loads.joint_moment_nm is None:
-        return True
-    eps = np.max(np.abs(gain) * np.linalg.norm(loads.joint_moment_nm, axis=-1), initial=0.0)
-    return bool(eps > threshold)
+        return float("inf")
+    return float(np.max(np.abs(gain) * np.linalg.norm(loads.joint_moment_nm, axis=-1), initial=0.0))
 
 
 def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
