@@ -22,7 +22,6 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy import optimize
 
 from .effects import PoseContext
 from .errors import RobocalError
@@ -414,6 +413,8 @@ def _identifiability(model: MeasurementModel, st: _Setup, priors: dict, start: b
 
 def _solve(problem: _Problem, theta_full: np.ndarray, kidx: np.ndarray, loss: str, max_nfev: int) -> np.ndarray:
     """Step 3: trust-region least squares over the kept parameters (the rest held in ``theta_full``)."""
+    from scipy import optimize      # 0.3-0.5 s to import: only the commands that fit pay it (not plan, compensate)
+
     def fun(x):
         th = theta_full.copy()
         th[kidx] = x

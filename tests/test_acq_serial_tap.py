@@ -10,13 +10,14 @@ from hypothesis import given, settings, strategies as st
 
 from acq.emulate import registry
 from acq.emulate.pty_host import PtyHost
-from acq.emulate.tap_device import (RawSample, SerialTapDevice, cobs_encode_simple, crc16_ccitt_false_bitwise,
-                                    serial_frame)
+from acq.emulate.tap_device import RawSample, SerialTapDevice, serial_frame
 from acq.encoders.cobs_codec import (FrameError, TapFrame, cobs_decode, cobs_encode, crc16_ccitt_false,
                                      decode_frame, encode_frame)
 from acq.encoders.serial_tap import open_serial_tap
 from calib.robot import load_robot
 from tests.fakes.faults import FaultyDevice
+from tests.fakes.serial_tap_codec import (cobs_encode_simple, crc16_ccitt_false_bitwise, legacy_cobs_decode,
+                                          legacy_crc16_ccitt_false, serial_frame_simple)
 from tests.fakes.worlds import quiet_world
 
 ROBOT = load_robot()
@@ -44,6 +45,34 @@ def test_crc_and_reference_frame():
 def test_cobs_round_trip_both_writers(data):
     for enc in (cobs_encode(data), cobs_encode_simple(data)):
         assert 0 not in enc and cobs_decode(enc) == data
+
+
+def test_crc_hqx_is_crc16_ccitt_false():
+    """The codec's CRC is binascii.crc_hqx with init 0xFFFF: the catalogue check value and the former table loop."""
+    import binascii
+    assert binascii.crc_hqx(b"123456789", 0xFFFF) == 0x29B1
+    data = bytes(range(256)) * 3
+    assert crc16_ccitt_false(data) == legacy_crc16_ccitt_false(data) == crc16_ccitt_false_bitwise(data)
+
+
+@settings(max_examples=300)
+@given(st.one_of(st.binary(max_size=80), st.binary(min_size=1, max_size=80).map(lambda b: b.replace(b"\0", b"\1"))))
+def test_cobs_decode_agrees_with_the_former_decoder(data):
+    """Same output on every frame, and the same message on every damaged one, as the hand-written decoder."""
+    try:
+        want = legacy_cobs_decode(data)
+    except FrameError as exc:
+        with pytest.raises(FrameError, match=str(exc)):
+            cobs_decode(data)
+    else:
+        assert cobs_decode(data) == want
+
+
+@settings(max_examples=100)
+@given(seq=st.integers(0, 0xFFFF), t_us=st.integers(0, 0xFFFFFFFF),
+       counts=st.tuples(*[st.integers(-2 ** 31, 2 ** 31 - 1)] * 6))
+def test_emulated_tap_frames_equal_the_independent_writer(seq, t_us, counts):
+    assert serial_frame(RawSample(seq, t_us, counts)) == serial_frame_simple(1, seq, t_us, counts)
 
 
 @settings(max_examples=200)

@@ -1,7 +1,9 @@
 """Emulated encoder tap: the world's joint angles -> six latched motor-encoder counts, at a fixed rate.
 
-Packing is written here from protocols.md §6.2/§6.4 with :mod:`struct` (not with the driver's cantools codec or its
-COBS/CRC code), so the receiver is checked against an independent writer of the same documents.
+CAN packing is written here from protocols.md §6.2 with :mod:`struct` (not with the driver's cantools codec), so the
+receiver is checked against an independent writer; serial frames go through the driver's codec
+(``acq.encoders.cobs_codec``: C-backed CRC and COBS, one formula), and the tests check that codec against the
+independent writer in ``tests/fakes/serial_tap_codec.py``.
 
 * CAN: TapStatus (0x103: seq u16, t_us u32, flags u8, pot_valid u8) opens a sample, then JointEnc12/34/56
   (0x100-0x102: two int32 little-endian each).
@@ -23,6 +25,7 @@ import numpy as np
 from calib.errors import RobocalError
 from calib.robot import Robot
 
+from ..encoders.cobs_codec import TapFrame, encode_frame
 from .device import DeviceBase
 from .world import World
 
@@ -31,7 +34,6 @@ STATUS_ID, DATA_IDS = 0x103, (0x100, 0x101, 0x102)
 MAX_RATE_HZ = 10_000.0
 _STATUS = struct.Struct("<HIBB")
 _PAIR = struct.Struct("<ii")
-_PAYLOAD = struct.Struct("<BHI6i")
 
 
 @dataclass(frozen=True)
@@ -101,40 +103,9 @@ def can_frames(s: RawSample) -> list[tuple[int, bytes]]:
             (DATA_IDS[2], _PAIR.pack(c[4], c[5]))]
 
 
-def crc16_ccitt_false_bitwise(data: bytes) -> int:
-    """CRC-16/CCITT-FALSE (poly 0x1021, init 0xFFFF), bit by bit; check(b"123456789") == 0x29B1."""
-    crc = 0xFFFF
-    for b in data:
-        crc ^= b << 8
-        for _ in range(8):
-            crc = ((crc << 1) ^ 0x1021) & 0xFFFF if crc & 0x8000 else (crc << 1) & 0xFFFF
-    return crc
-
-
-def cobs_encode_simple(data: bytes) -> bytes:
-    """Consistent Overhead Byte Stuffing, written straight from Cheshire & Baker (no 0x00 in the output)."""
-    out = bytearray()
-    block = bytearray()
-    for b in data:
-        if b == 0:
-            out.append(len(block) + 1)
-            out += block
-            block.clear()
-        else:
-            block.append(b)
-            if len(block) == 254:
-                out.append(255)
-                out += block
-                block.clear()
-    out.append(len(block) + 1)
-    out += block
-    return bytes(out)
-
-
 def serial_frame(s: RawSample, version: int = 1) -> bytes:
-    payload = _PAYLOAD.pack(version, s.seq, s.t_us, *s.counts)
-    crc = crc16_ccitt_false_bitwise(payload)
-    return cobs_encode_simple(payload + struct.pack("<H", crc)) + b"\x00"
+    """The sample as the serial tap sends it, framed by the driver's codec (the wire format is written once)."""
+    return encode_frame(TapFrame(version, s.seq, s.t_us, s.counts))
 
 
 class SerialTapDevice(DeviceBase):

@@ -2,11 +2,19 @@
 
 Why COBS: 0x00 never occurs inside a frame, so the receiver resynchronises at the next 0x00 after any garbage or a
 mid-frame start, with a fixed 1-byte overhead; the CRC then rejects whatever survived by chance.
+
+Why these calls: the CRC is the C ``binascii.crc_hqx`` (CRC-16/CCITT-FALSE is its polynomial with init 0xFFFF) and
+COBS is the C extension of the ``cobs`` package (Cheshire & Baker's basic COBS): the emulated tap and the driver
+both frame through this module, so the wire format is written once (``benchmarks/bench_tap_serial.py`` shows the
+decode rate against the former pure-Python loops, kept in ``tests/fakes/serial_tap_codec.py``).
 """
 from __future__ import annotations
 
+import binascii
 import struct
 from dataclasses import dataclass
+
+from cobs import cobs as _cobs
 
 PAYLOAD = struct.Struct("<BHI6i")        # ver u8 | seq u16 | t_us u32 | j1..j6 i32
 FRAME_LEN = PAYLOAD.size + 2             # 33 bytes decoded
@@ -17,60 +25,39 @@ class FrameError(ValueError):
     pass
 
 
-def _ccitt_table() -> list[int]:
-    table = []
-    for byte in range(256):
-        crc = byte << 8
-        for _ in range(8):
-            crc = ((crc << 1) ^ 0x1021) if crc & 0x8000 else crc << 1
-        table.append(crc & 0xFFFF)
-    return table
-
-
-_CCITT = _ccitt_table()
-
-
 def crc16_ccitt_false(data: bytes) -> int:
     """Poly 0x1021, init 0xFFFF, no reflection, no xorout; check(b"123456789") == 0x29B1."""
-    crc = 0xFFFF
-    for b in data:
-        crc = ((crc << 8) & 0xFFFF) ^ _CCITT[((crc >> 8) ^ b) & 0xFF]
-    return crc
+    return binascii.crc_hqx(data, 0xFFFF)
 
 
 def cobs_encode(data: bytes) -> bytes:
-    out = bytearray([0])
-    code_at, code = 0, 1
-    for b in data:
-        if b:
-            out.append(b)
-            code += 1
-        if not b or code == 0xFF:
-            out[code_at] = code
-            code_at, code = len(out), 1
-            out.append(0)
-    out[code_at] = code
-    return bytes(out)
+    """COBS without the 0x00 delimiter (a trailing run of exactly 254 non-zero bytes ends without a 0x01 block;
+    decoders accept both forms)."""
+    return _cobs.encode(data)
 
 
 def cobs_decode(data: bytes) -> bytes:
-    out = bytearray()
+    """Inverse of :func:`cobs_encode`; FrameError saying what is wrong with a damaged frame."""
+    try:
+        return _cobs.decode(data)
+    except _cobs.DecodeError:
+        raise FrameError(_cobs_fault(data)) from None
+
+
+def _cobs_fault(data: bytes) -> str:
+    """Why ``data`` is no COBS frame: walks the block codes (only on the error path, for the message)."""
     i, n = 0, len(data)
     while i < n:
         code = data[i]
         if code == 0:
-            raise FrameError("zero byte inside a COBS frame")
+            return "zero byte inside a COBS frame"
         end = i + code
         if end > n:
-            raise FrameError("COBS block runs past the end of the frame")
-        block = data[i + 1:end]
-        if 0 in block:
-            raise FrameError("zero byte inside a COBS block")
-        out += block
+            return "COBS block runs past the end of the frame"
+        if 0 in data[i + 1:end]:
+            return "zero byte inside a COBS block"
         i = end
-        if code != 0xFF and i < n:
-            out.append(0)
-    return bytes(out)
+    return "not a COBS frame"
 
 
 @dataclass(frozen=True)
