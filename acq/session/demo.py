@@ -116,9 +116,11 @@ def _visible(twin: Twin, q_rad: np.ndarray) -> np.ndarray:
     setup = session_setup(demo_setup(twin), twin.robot)
     pf = Preflight(twin.robot, setup)
     target = tool_target(setup)
-    for i in np.flatnonzero(ok):
-        step = Step("pose", "poses", "", "", pose_deg=tuple(np.asarray(q_rad[i]) / DEG), targets=(target,))
-        ok[i] = not pf.check_step(step)
+    cand = np.flatnonzero(ok)
+    steps = [Step(f"pose/{i}", "poses", "", "", pose_deg=tuple(np.asarray(q_rad[i]) / DEG), targets=(target,))
+             for i in cand]
+    failed = {f.key for f in pf.check(steps)}
+    ok[cand] = [s.key not in failed for s in steps]
     return ok
 
 
@@ -176,7 +178,7 @@ def build_demo(db: str | Path, seed: int = 0, resume: bool = False, script: dict
     db = str(db)
     clock = SimClock() if clock is None else clock
     if resume:
-        store = SessionStore.open(db)
+        store = SessionStore.open(db, durable=not clock.simulated)
         meta = store.session_row()
         from .setup_file import setup_from_text
         from .store import json_column
@@ -197,7 +199,8 @@ def build_demo(db: str | Path, seed: int = 0, resume: bool = False, script: dict
         store = SessionStore.create(db, DEMO_TITLE, plan_d, setup, operator="scripted demo operator",
                                     metadata={"emulated": True, "scenario": "default" if not scenario else "file",
                                               "scenario_path": str(Path(scenario).resolve()) if scenario else None,
-                                              "seed": seed})
+                                              "seed": seed},
+                                    durable=not clock.simulated)       # a simulated session can be recorded again
     world = TwinWorld(twin, seed=seed * 1000 + seed_offset)
     tag = uuid.uuid4().hex[:8]
     names = []
