@@ -9,8 +9,10 @@ Wiring (the same a real cell uses, only the devices are emulated):
 * :class:`~acq.session.rig.EmulatedBench` plays the technician's hands (robot motion, loads, aiming), and
   :class:`~acq.session.headless.ScriptedOperator` the technician's answers (dial gauges read from the world).
 
-Session parameters are chosen so ``robocal demo`` stays well under a minute on 2 cores: fewer positions and repeats
-than a real session, but every procedure is present.
+Time: the emulated devices and the rig run on a :class:`~acq.clock.SimClock` (an encoder window is an advance of
+simulated time, not a sleep), except where a human watches (the TUI's ``--emulate`` passes a real clock).  Session
+parameters are chosen so ``robocal demo`` stays quick on 2 cores (``benchmarks/bench_demo.py``): fewer positions and
+repeats than a real session, but every procedure is present.
 """
 from __future__ import annotations
 
@@ -21,6 +23,7 @@ from pathlib import Path
 
 import numpy as np
 
+from acq.clock import Clock, SimClock
 from calib.model import MeasurementModel
 from calib.twin import Twin, load_scenario
 from calib.units import ARCSEC, DEG
@@ -36,7 +39,7 @@ from .store import SessionStore
 
 DEMO_TITLE = "robocal demo: emulated Puma 560 (twin) and two GeoCOM theodolites"
 #: poses in the demo's Chapter 6 set: enough to identify the geometry with the running errors (about 30 free
-#: parameters) at a few sigma of the truth, still a ~15 s recording
+#: parameters) at a few sigma of the truth, still a quick recording
 DEMO_POSES = 48
 #: wait after each move before recording encoders (the tap's frames in flight carry the previous pose)
 DEMO_SETTLE_S = 0.02
@@ -151,13 +154,15 @@ class DemoRig:
 
 def build_demo(db: str | Path, seed: int = 0, resume: bool = False, script: dict | None = None,
                plan: dict | None = None, steps_filter=None, operator=None, setup: dict | None = None,
-               scenario: str | None = None, te_joints=None) -> DemoRig:
+               scenario: str | None = None, te_joints=None, clock: Clock | None = None) -> DemoRig:
     """Open (or create) the demo session in ``db`` and wire emulated devices, bench, operator and runner.
 
     ``setup``: a set-up file's content (``robocal plan setup --out``) for a new session; its stations and base are
     replaced by the emulated cell's (:func:`demo_setup`).  ``scenario``: a twin scenario TOML (default: the default
     scenario); a resumed session keeps its own.  ``te_joints``: the transmission-error joints of the default plan
-    (``--te-joints``; default :data:`DEFAULT_TE_JOINTS`)."""
+    (``--te-joints``; default :data:`DEFAULT_TE_JOINTS`).  ``clock``: the emulated devices' and the rig's time; by
+    default a :class:`~acq.clock.SimClock` (the encoder windows take no wall time), a
+    :class:`~acq.clock.RealClock` where a human watches the session (the TUI's ``--emulate``)."""
     import can
 
     from acq.drivers import open_theodolite
@@ -169,6 +174,7 @@ def build_demo(db: str | Path, seed: int = 0, resume: bool = False, script: dict
     from acq.encoders import open_tap
 
     db = str(db)
+    clock = SimClock() if clock is None else clock
     if resume:
         store = SessionStore.open(db)
         meta = store.session_row()
@@ -198,15 +204,18 @@ def build_demo(db: str | Path, seed: int = 0, resume: bool = False, script: dict
     drivers = {}
     for st, serial in (("A", 1001), ("B", 1002)):
         name = f"demo-{tag}-{st}"
-        url = registry.publish(name, GeoComDevice(world, st, serial_no=serial, seed=seed))
+        url = registry.publish(name, GeoComDevice(world, st, serial_no=serial, seed=seed, clock=clock))
         names.append(name)
         drivers[st] = open_theodolite("geocom", url, name=f"theodolite {st}")
     channel = f"robocal-demo-{tag}"
-    node = CanTapNode(can.Bus(interface="virtual", channel=channel), TapModel(world, twin.robot, rate_hz=500.0),
-                      own_bus=True).start()
+    node = CanTapNode(can.Bus(interface="virtual", channel=channel),
+                      TapModel(world, twin.robot, rate_hz=500.0, clock=clock), own_bus=True)
     tap = open_tap("can", interface="virtual", channel=channel, robot=twin.robot)
-    rig = Rig(drivers, tap)
-    rig.start()
+    rig = Rig(drivers, tap, clock=clock)
+    rig.start()                                 # the reader listens before the node sends its first sample
+    node.start()
+    if clock.simulated:
+        clock.add_drain(_tap_drain(rig, node))
     known = _device_ids(store)               # a crash may have left some devices recorded and others not
     for role, driver, url, ident in rig.identities():
         if role in known:
@@ -240,6 +249,19 @@ def build_demo(db: str | Path, seed: int = 0, resume: bool = False, script: dict
     d = DemoRig(runner, world, twin, store, names)
     d._nodes = [node]
     return d
+
+
+def _tap_drain(rig: Rig, node, timeout_s: float = 1.0):
+    """A :class:`~acq.clock.SimClock` drain: wait until the tap reader has delivered every sample the node sent, so a
+    simulated wait returns with its window's samples in the rig (a lost sample is waited for once, then written
+    off)."""
+    lost = 0
+
+    def drain() -> None:
+        nonlocal lost
+        if not rig.wait_received(node.samples_sent - lost, timeout_s):
+            lost = node.samples_sent - rig.received
+    return drain
 
 
 def _has_devices(store: SessionStore) -> bool:
