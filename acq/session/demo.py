@@ -41,7 +41,7 @@ DEMO_TITLE = "robocal demo: emulated Puma 560 (twin) and two GeoCOM theodolites"
 #: poses in the demo's Chapter 6 set: enough to identify the geometry with the running errors (about 30 free
 #: parameters) at a few sigma of the truth, still a quick recording
 DEMO_POSES = 48
-#: wait after each move before recording encoders (the tap's frames in flight carry the previous pose)
+#: wait after each move before recording encoders (the tap's frames in flight carry the previous pose); real time only
 DEMO_SETTLE_S = 0.02
 #: transmission-error runs: joint 4 inside its -110..170 deg limits (with the pre-flight's 2 deg margin), joint 6 over
 #: most of its +-266 deg
@@ -244,9 +244,11 @@ def build_demo(db: str | Path, seed: int = 0, resume: bool = False, script: dict
 
     op = operator or ScriptedOperator(script, inputs=inputs)
     from .stations import stations_from_store
-    # settle_s: frames already on the bus when the robot "moves" carry the old counts; real cells wait for the servo
+    # settle_s: frames already on the bus when the robot "moves" carry the old counts; real cells wait for the servo.
+    # On the simulated clock nothing is in flight at a move (each advance ends when the reader has every frame sent)
+    # and the twin's robot stops at once: no settle, and half the frames to emulate
     runner = Runner(store, rig, steps, op, bench=bench, stations=setup_stations(setup),
-                    predict=predictor(twin.robot, setup), settle_s=DEMO_SETTLE_S,
+                    predict=predictor(twin.robot, setup), settle_s=0.0 if clock.simulated else DEMO_SETTLE_S,
                     refit_stations=lambda st: stations_from_store(st, setup),
                     preflight=Preflight(twin.robot, setup))
     d = DemoRig(runner, world, twin, store, names)
