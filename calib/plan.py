@@ -184,7 +184,8 @@ def select_poses(model: MeasurementModel, count: int, names: list[str] | None = 
         Ainv = np.linalg.inv(A)
         avail = np.setdiff1d(np.arange(len(cand)), chosen)
         if index == "O1" or k < p // 3 + 1:
-            S = np.einsum("cip,pq,cjq->cij", Bs[avail], Ainv, Bs[avail])
+            Ba = Bs[avail]
+            S = (Ba @ Ainv) @ Ba.transpose(0, 2, 1)             # B_c A^-1 B_c^T, as two products
             gain = np.linalg.slogdet(np.eye(3) + S)[1]
         else:
             sub = rng.choice(avail, size=min(200, len(avail)), replace=False)
@@ -199,22 +200,22 @@ def select_poses(model: MeasurementModel, count: int, names: list[str] | None = 
         if progress:
             progress("choosing poses", (k + 1) / count)
     # exchange pass: swap a chosen pose for a candidate when the index improves
-    def index_of(sel):
-        s = np.linalg.svd(Bs[sel].reshape(-1, p), compute_uv=False)
-        return _score(index, s, 3 * len(sel))
+    def indices_of(sels: np.ndarray) -> list[float]:
+        """The index of each selection (T, count): the singular values of all T designs in one batched call."""
+        s = np.linalg.svd(Bs[sels].reshape(len(sels), -1, p), compute_uv=False)
+        return [_score(index, si, 3 * sels.shape[1]) for si in s]
 
-    current = index_of(chosen)
+    current = indices_of(np.array([chosen]))[0]
     for sweep in range(2):
         improved = False
         for i in range(len(chosen)):
             trial = rng.choice(np.setdiff1d(np.arange(len(cand)), chosen), size=min(40, len(cand) - count),
                                replace=False)
-            for c in trial:
-                sel = chosen.copy()
-                sel[i] = int(c)
-                v = index_of(sel)
+            sels = np.repeat(np.array([chosen]), len(trial), axis=0)
+            sels[:, i] = trial
+            for c, v in zip(trial, indices_of(sels)):    # each trial swaps only pose i: judged one after another
                 if v > current + 1e-12:
-                    chosen, current, improved = sel, v, True
+                    chosen, current, improved = chosen[:i] + [int(c)] + chosen[i + 1:], v, True
             if progress:
                 progress("exchanging", (sweep * len(chosen) + i + 1) / (2 * len(chosen)))
         if not improved:

@@ -13,8 +13,8 @@ from __future__ import annotations
 
 import os
 import sys
+from collections.abc import MutableMapping
 from contextlib import AbstractContextManager, nullcontext
-from typing import MutableMapping
 
 #: the variables BLAS and OpenMP runtimes read for their thread count (OpenBLAS also reads OMP_NUM_THREADS)
 BLAS_ENV_VARS = ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS", "VECLIB_MAXIMUM_THREADS",
