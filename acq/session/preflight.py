@@ -26,7 +26,7 @@ Limits: :data:`PREFLIGHT_LIMITS`, overridden by the set-up's ``preflight`` table
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, fields, replace
+from dataclasses import dataclass
 from typing import Callable
 
 import numpy as np
@@ -146,11 +146,8 @@ class Preflight:
 
 
 def _one_pose(fp, k: int):
-    """Pose ``k`` of a batched chain pass as a one-pose pass (views, no copies): every per-pose array -- (N, ...)
-    with at least two axes; the description's gravity (3,) is not per pose -- cut to its row k."""
-    n = len(fp.point)
-    return replace(fp, **{f.name: v[k:k + 1] for f in fields(fp)
-                          if isinstance(v := getattr(fp, f.name), np.ndarray) and v.ndim >= 2 and len(v) == n})
+    """Pose ``k`` of a batched chain pass as a one-pose pass (views, no copies)."""
+    return fp.pose(k)
 
 
 def failing_lines(findings: list[Finding]) -> list[str]:
