@@ -159,8 +159,12 @@ def position_sigma(design: Design, q_plan: np.ndarray, q_test: np.ndarray) -> np
 def select_poses(model: MeasurementModel, count: int, names: list[str] | None = None, index: str = "O1",
                  noise_mm: float = 0.05, seed: int = 0, pool: int = 2000, test: int = 500,
                  progress: Callable[[str, float], None] | None = None,
-                 accept: Callable[[np.ndarray], np.ndarray] | None = None) -> PosePlan:
-    """Choose ``count`` poses maximising an observability index (see the module docstring)."""
+                 accept: Callable[[np.ndarray], np.ndarray] | None = None, compare: bool = True) -> PosePlan:
+    """Choose ``count`` poses maximising an observability index (see the module docstring).
+
+    ``compare=False`` skips what only a report needs -- the predicted uncertainty on ``test`` poses and the same
+    for random pose sets (``predicted_sigma_mm``, ``random_*`` left empty) -- for callers that want the poses only;
+    the poses are the same either way (those draws come after the choice)."""
     if index not in INDICES:
         raise RobocalError(f"plan: unknown index {index!r} (known: {', '.join(INDICES)})")
     names = names or parameter_set(model, "geometric")
@@ -221,6 +225,8 @@ def select_poses(model: MeasurementModel, count: int, names: list[str] | None = 
         if not improved:
             break
     q_plan = cand[chosen]
+    if not compare:
+        return PosePlan(q_plan, design.names, index, observability(design.jacobian(q_plan) / col), ident, {}, {})
     q_test = candidate_poses(model, test, rng, accept=accept)
     sig = position_sigma(design, q_plan, q_test)
     rand = []
