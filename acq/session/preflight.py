@@ -99,9 +99,9 @@ class Preflight:
         self.g_n_per_kg = self.model.gravity_n_per_kg(self.theta)
 
     # -- geometry ------------------------------------------------------------------------------------------------
-    def geometry(self, step: Step) -> StepGeometry:
-        fp = None
-        if step.pose_deg is not None and len(step.pose_deg) == self.robot.n:
+    def geometry(self, step: Step, fp=None) -> StepGeometry:
+        """``fp``: the chain at the step's pose when the caller ran it already (:meth:`check` runs all poses at once)."""
+        if fp is None and self._posed(step):
             q = np.asarray(step.pose_deg, float)[None] * DEG
             fp = self.model.kin.forward(q, self.theta[: self.model.n_geometric])
         pts = {}
@@ -121,18 +121,33 @@ class Preflight:
         return self.model.kin.point_on(fp, [j], np.asarray(t.tool_mm, float)[None])[0, 0]
 
     # -- running -------------------------------------------------------------------------------------------------
-    def check_step(self, step: Step) -> list[Finding]:
-        geo = self.geometry(step)
+    def _posed(self, step: Step) -> bool:
+        return step.pose_deg is not None and len(step.pose_deg) == self.robot.n
+
+    def check_step(self, step: Step, fp=None) -> list[Finding]:
+        geo = self.geometry(step, fp)
         out: list[Finding] = []
         for fn in CHECKS.values():
             out += fn(self, geo)
         return out
 
     def check(self, steps: list[Step]) -> list[Finding]:
+        """Every step's findings, in step order; the chain runs once for all the steps' poses."""
+        posed = [i for i, s in enumerate(steps) if self._posed(s)]
+        fps = {}
+        if posed:
+            q = np.array([steps[i].pose_deg for i in posed], float) * DEG
+            fp = self.model.kin.forward(q, self.theta[: self.model.n_geometric])
+            fps = {i: _one_pose(fp, k) for k, i in enumerate(posed)}
         out: list[Finding] = []
-        for s in steps:
-            out += self.check_step(s)
+        for i, s in enumerate(steps):
+            out += self.check_step(s, fps.get(i))
         return out
+
+
+def _one_pose(fp, k: int):
+    """Pose ``k`` of a batched chain pass as a one-pose pass (views, no copies)."""
+    return fp.pose(k)
 
 
 def failing_lines(findings: list[Finding]) -> list[str]:
@@ -198,14 +213,15 @@ def _reach(pf: Preflight, geo: StepGeometry) -> list[Finding]:
     return out
 
 
-def _segment_distance(a0, a1, b0, b1, n: int = 40) -> float:
-    """Shortest distance between segments a0-a1 and b0-b1 (sampled along b, exact along a)."""
+def _segment_distances(a0, a1, b0, b1, n: int = 40) -> np.ndarray:
+    """Shortest distances (K,) between the segment a0-a1 and each segment b0[k]-b1[k] (sampled along b, exact along
+    a); all K at once."""
     u = a1 - a0
     uu = float(u @ u)
-    s = np.linspace(0.0, 1.0, n)[:, None]
-    pts = b0 + s * (b1 - b0)
-    t = np.clip((pts - a0) @ u / uu, 0.0, 1.0) if uu > 0 else np.zeros(n)
-    return float(np.min(np.linalg.norm(pts - (a0 + t[:, None] * u), axis=1)))
+    s = np.linspace(0.0, 1.0, n)[None, :, None]
+    pts = b0[:, None] + s * (b1 - b0)[:, None]                            # (K, n, 3)
+    t = np.clip((pts - a0) @ u / uu, 0.0, 1.0) if uu > 0 else np.zeros(pts.shape[:2])
+    return np.min(np.linalg.norm(pts - (a0 + t[..., None] * u), axis=-1), axis=1)
 
 
 @preflight_check("sight")
@@ -247,13 +263,10 @@ def _blocking_link(pf: Preflight, geo: StepGeometry, station_mm: np.ndarray, p: 
     L = float(np.linalg.norm(d))
     end = station_mm + d * max(0.0, 1.0 - 2.0 * float(r) / L)
     org = geo.fp.frame_t[0]
-    for j in range(1, len(org)):
-        if np.linalg.norm(org[j] - org[j - 1]) < 1e-6:
-            continue
-        dist = _segment_distance(station_mm, end, org[j - 1], org[j])
-        if dist < r:
-            return j, dist
-    return None
+    links = np.flatnonzero(np.linalg.norm(org[1:] - org[:-1], axis=1) >= 1e-6) + 1
+    dist = _segment_distances(station_mm, end, org[links - 1], org[links])
+    hit = np.flatnonzero(dist < r)
+    return (int(links[hit[0]]), float(dist[hit[0]])) if hit.size else None
 
 
 @preflight_check("intersection")

@@ -670,7 +670,9 @@ def _station_variance(model, obs, D, ident, priors, fit) -> np.ndarray:
     Why: every pose point was intersected with the same ruler-fitted stations, so an error in L (a scale) or B's
     height moves all of them together and does not average down over the poses; the identification's covariance
     treats the points as independent.  Each station parameter is moved by its 1-sigma, the points follow through
-    their sensitivities, and the identification is re-solved from its own estimate: ``G U_station G^T``."""
+    their sensitivities, and the identification is re-solved from its own estimate: ``G U_station G^T``.  A re-solve
+    is a small step from a converged fit: no linear start and no second outlier search (the main fit flagged them and
+    kept every pose), only the final least squares."""
     from calib.identify import PointObservations, identify
     out = np.zeros(len(ident.theta))
     if not fit.cov.size or any(d is None for d in D):
@@ -680,7 +682,8 @@ def _station_variance(model, obs, D, ident, priors, fit) -> np.ndarray:
     for k, sd in enumerate(np.sqrt(np.diag(fit.cov))):
         moved = PointObservations(obs.q_rad, obs.points_mm + Dk[:, :, k] * sd, cov_mm2=obs.cov_mm2)
         try:
-            g = identify(model, moved, free=list(ident.free), theta0=ident.theta, priors=priors)
+            g = identify(model, moved, free=list(ident.free), theta0=ident.theta, priors=priors, robust=False,
+                         start=False)
         except RobocalError:
             return out
         with np.errstate(invalid="ignore"):
