@@ -108,16 +108,17 @@ class Preflight:
         """The nominal chain at the step's pose (one pose), or None; kept per pose: the runner checks every step
         once before the session and again, with the refitted stations, before it runs (the chain does not depend on
         the stations)."""
-        if step.pose_deg is None or len(step.pose_deg) != self.robot.n:
+        if not self._posed(step):
             return None
         key = tuple(step.pose_deg)
         fp = self._chains.get(key)
         if fp is None:
-            q = np.asarray(step.pose_deg, float)[None] * DEG
-            fp = self.model.kin.forward(q, self.theta[: self.model.n_geometric])
-            if len(self._chains) < 10_000:
-                self._chains[key] = fp
+            fp = self.model.kin.forward(np.asarray(key, float)[None] * DEG, self.theta[: self.model.n_geometric])
+            self._keep(key, fp)
         return fp
+
+    def _posed(self, step: Step) -> bool:
+        return step.pose_deg is not None and len(step.pose_deg) == self.robot.n
 
     def _points(self, step: Step, fp) -> dict[str, np.ndarray]:
         pts = {}
@@ -145,10 +146,21 @@ class Preflight:
         return out
 
     def check(self, steps: list[Step]) -> list[Finding]:
+        """Every step's findings, in step order; the chain runs once for all the steps' poses not seen yet."""
+        new = {tuple(s.pose_deg) for s in steps if self._posed(s)} - self._chains.keys()
+        if new:
+            poses = sorted(new)
+            fp = self.model.kin.forward(np.array(poses, float) * DEG, self.theta[: self.model.n_geometric])
+            for k, pose in enumerate(poses):
+                self._keep(pose, fp.pose(k))
         out: list[Finding] = []
         for s in steps:
             out += self.check_step(s)
         return out
+
+    def _keep(self, pose: tuple, fp) -> None:
+        if len(self._chains) < 10_000:
+            self._chains[pose] = fp
 
 
 def failing_lines(findings: list[Finding]) -> list[str]:
