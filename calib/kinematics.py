@@ -49,6 +49,17 @@ class ChainPass:
         self.point_link = point_link                # frame the evaluated point is fixed in (None: the tool point)
         self.gravity_m_s2 = gravity_m_s2            # (3,) the description's gravity, in frame 0
 
+    def pose(self, k: int) -> "ChainPass":
+        """Pose ``k`` as a one-pose pass (views, no copies): for code that looks at a batch one pose at a time."""
+        N = len(self.point)
+
+        def cut(v):
+            return v[..., k:k + 1] if isinstance(v, np.ndarray) and v.ndim >= 2 and v.shape[-1] == N else v
+
+        local = None if self._local is None else {key: cut(v) for key, v in self._local.items()}
+        return ChainPass(self.point[k:k + 1], self._R[..., k:k + 1], self._t[..., k:k + 1], local,
+                         self.gravity_m_s2, self.point_link)
+
     def _pose_first(self, key: str, make) -> np.ndarray:
         if key not in self._cache:
             self._cache[key] = np.ascontiguousarray(make())
@@ -316,8 +327,21 @@ def _rot_zyx(yaw, pitch, roll) -> np.ndarray:
     return R
 
 
+#: below this many poses a link step is one batched ``matmul`` (fewer numpy calls); above, rows of multiply-adds
+SMALL_BATCH = 32
+
+
 def _chain_step(R, t, A, off, R_out, t_out) -> None:
-    """One link of the chain, pose-last: ``R_out = R A``, ``t_out = t + R off`` ((3, 3, N), (3, N))."""
+    """One link of the chain, pose-last: ``R_out = R A``, ``t_out = t + R off`` ((3, 3, N), (3, N)).
+
+    The same product either way: for a handful of poses (a session's one pose at a time) as one batched matmul over
+    pose-first views, where the per-call overhead dominates; for many, as three multiply-adds of contiguous rows,
+    about twice as fast as ``matmul`` on stacks of 3x3."""
+    if R.shape[-1] < SMALL_BATCH:
+        Rp = R.transpose(2, 0, 1)
+        np.matmul(Rp, A.transpose(2, 0, 1), out=R_out.transpose(2, 0, 1))
+        np.add(t.T, np.matmul(Rp, off.T[:, :, None])[..., 0], out=t_out.T)
+        return
     np.multiply(R[:, 0, None], A[0], out=R_out)
     R_out += R[:, 1, None] * A[1]
     R_out += R[:, 2, None] * A[2]

@@ -225,7 +225,10 @@ class MeasurementModel:
         dq, g = self._stage("joint", vals, lambda e, v: e.joint_delta(q, ctx, loads, v))
         th = q + dq
         grads.update(g)
-        fp = self.kin.forward(th, geo_pose)
+        if load_pass is not None and np.isscalar(dq) and link is None:
+            fp = load_pass              # no joint-stage effect: the loads' pass is the chain at the true angles
+        else:
+            fp = self.kin.forward(th, geo_pose)
         if link is not None:
             fp.point_link = link
             fp.point = self.kin.point_on(fp, [link], np.reshape(tool_mm, (-1, 1, 3)))[:, 0]

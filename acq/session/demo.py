@@ -89,7 +89,7 @@ def demo_plan(twin: Twin, seed: int, n_poses: int = DEMO_POSES, quick: bool = Tr
     lim = twin.robot.limits_rad
     try:
         plan = select_poses(model, n_poses, seed=seed, pool=300 if quick else 2000, test=100,
-                            accept=lambda q: _visible(twin, q))
+                            accept=lambda q: _visible(twin, q), compare=False)
         q = np.asarray(plan.q_rad) / DEG
     except Exception:           # planning is an aid; fall back to seeded random poses within the limits
         rng = np.random.default_rng(seed)
