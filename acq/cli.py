@@ -11,6 +11,11 @@ Exit status and messages (the README's "Errors" section):
 - 3: an internal error (a bug).  The last-resort handler prints one line naming the command and the exception;
   ``robocal --debug ...`` (or ``ROBOCAL_DEBUG=1``) prints the traceback as well.
 - 130: interrupted with Ctrl-C.
+
+Threads: the command runs BLAS/LAPACK on one thread (robocal's matrices are too small to gain from more; see
+:mod:`calib.threads`) unless the user sets ``--threads N``, ``ROBOCAL_THREADS=N`` or a BLAS variable of their own.
+The count is set before numpy is imported, so this module and everything it imports at module level stay free of
+numpy; each command's module is imported only when that command runs.
 """
 from __future__ import annotations
 
@@ -18,12 +23,11 @@ import argparse
 import ast
 import importlib
 import os
-import pkgutil
 import re
 import sys
-import traceback
 import warnings
 
+from calib import threads
 from calib.errors import RobocalError
 
 from . import commands
@@ -42,11 +46,26 @@ class _Parser(argparse.ArgumentParser):
         self.exit(EXIT_INPUT, f"robocal: error: {where}{' '.join(message.split())} (see --help)\n")
 
 
+#: where a module's body starts: the constants stand above it, so only the head is parsed (the whole file is the
+#: fallback); parsing every command file whole took half of ``robocal --help``
+_BODY_START = re.compile(r"^(?:def |class |async def |@|if __name__)", re.M)
+
+
 def _constants(path: str) -> dict[str, str]:
     """The module-level string constants of a source file (``NAME``, ``HELP``, ``DESCRIPTION``), read without
     importing it: a command's module imports numpy, scipy and the model, which ``robocal --help`` does not need."""
     with open(path, encoding="utf-8") as fh:
-        tree = ast.parse(fh.read(), path)
+        text = fh.read()
+    body = _BODY_START.search(text)
+    out: dict[str, str] = {}
+    for source in ([text[:body.start()]] if body else []) + [text]:
+        out = _literal_constants(ast.parse(source, path))
+        if "NAME" in out and "HELP" in out:
+            break
+    return out
+
+
+def _literal_constants(tree: ast.Module) -> dict[str, str]:
     out = {}
     for node in tree.body:
         if isinstance(node, ast.Assign) and len(node.targets) == 1 and isinstance(node.targets[0], ast.Name) \
@@ -61,11 +80,11 @@ def _constants(path: str) -> dict[str, str]:
 def command_index() -> dict[str, tuple[str, str, str]]:
     """Every command: NAME -> (module, HELP, DESCRIPTION), by scanning the package (a new command is one new file)."""
     index = {}
-    for info in sorted(pkgutil.iter_modules(commands.__path__), key=lambda m: m.name):
-        if info.name.startswith("_"):
-            continue
-        module = f"{commands.__name__}.{info.name}"
-        c = _constants(os.path.join(commands.__path__[0], f"{info.name}.py"))
+    folder = commands.__path__[0]
+    # the folder listed directly (pkgutil costs more to import than the listing takes)
+    for name in sorted(f[:-3] for f in os.listdir(folder) if f.endswith(".py") and not f.startswith("_")):
+        module = f"{commands.__name__}.{name}"
+        c = _constants(os.path.join(folder, f"{name}.py"))
         if "NAME" not in c or "HELP" not in c:
             mod = importlib.import_module(module)
             if not (hasattr(mod, "NAME") and hasattr(mod, "run")):
@@ -76,15 +95,23 @@ def command_index() -> dict[str, tuple[str, str, str]]:
 
 
 def build_parser(only: str | None = None) -> argparse.ArgumentParser:
-    """The whole command line; with ``only``, only that command's module is imported and given its options (the
-    others are listed for ``--help``), so a command starts without loading every other command's dependencies."""
+    """The whole command line; with ``only`` naming a command, only that command's module is imported and only its
+    parser is built (16 argparse parsers cost ~20 ms), so a command starts without loading every other command's
+    dependencies; with none (``robocal --help``) or an unknown word, every command is listed and none imported."""
     parser = _Parser(
         prog="robocal",
         description="Calibrate an industrial robot with two theodolites and a joint-encoder tap.")
     parser.add_argument("--debug", action="store_true",
                         help="on an internal error (exit 3) show the Python traceback (also ROBOCAL_DEBUG=1)")
+    parser.add_argument("--threads", metavar="N", type=int,
+                        help=f"threads for the linear algebra (BLAS); default {threads.DEFAULT_THREADS}, or "
+                             f"${threads.THREADS_ENV}; a BLAS variable you set yourself (OMP_NUM_THREADS, "
+                             "OPENBLAS_NUM_THREADS, MKL_NUM_THREADS) is respected when neither is given")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
-    for name, (module, help_, description) in command_index().items():
+    index = command_index()
+    if only in index:
+        index = {only: index[only]}
+    for name, (module, help_, description) in index.items():
         p = sub.add_parser(name, help=help_, description=description)
         if only is None or only == name:
             mod = importlib.import_module(module)
@@ -121,6 +148,35 @@ def _apply_chain_cut(args: argparse.Namespace) -> None:
         args.robot = RobotPath(args.robot, base, tip)
 
 
+def _threads_option(argv: list[str]) -> tuple[int | None, list[str]]:
+    """``--threads N`` / ``--threads=N`` taken out of ``argv`` (accepted anywhere on the line, like ``--debug``):
+    it must act before the command's module, and with it numpy, is imported."""
+    rest, requested, i = [], None, 0
+    while i < len(argv):
+        a = argv[i]
+        if a == "--threads" or a.startswith("--threads="):
+            raw = a.partition("=")[2] if "=" in a else (argv[i + 1] if i + 1 < len(argv) else "")
+            i += 1 if "=" in a else 2
+            try:
+                requested = threads.parse_threads(raw, "--threads")
+            except ValueError as exc:
+                raise RobocalError(str(exc)) from None
+            continue
+        rest.append(a)
+        i += 1
+    return requested, rest
+
+
+def _blas_threads(requested: int | None):
+    """Fix the BLAS thread count for this run (see :mod:`calib.threads`): through the environment when numpy is not
+    loaded yet (the ``robocal`` command), else a limit on the loaded libraries (robocal called from Python)."""
+    try:
+        n = threads.wanted(requested) if "numpy" in sys.modules else threads.configure(requested)
+    except ValueError as exc:
+        raise RobocalError(str(exc)) from None
+    return threads.limit(n)
+
+
 def _debug_wanted(argv: list[str]) -> bool:
     return "--debug" in argv or os.environ.get("ROBOCAL_DEBUG", "") not in ("", "0")
 
@@ -133,6 +189,7 @@ def _command_name(argv: list[str]) -> str:
 def _internal_error(exc: BaseException, argv: list[str], debug: bool) -> int:
     """The last-resort handler: an exception nobody turned into a RobocalError is a bug, reported in one line."""
     if debug:
+        import traceback
         traceback.print_exception(exc, file=sys.stderr)
     text = " ".join(str(exc).split())[:300]
     detail = f"{type(exc).__name__}: {text}" if text else type(exc).__name__
@@ -157,6 +214,16 @@ def _main(argv: list[str] | None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
     debug = _debug_wanted(argv)
     argv = [a for a in argv if a != "--debug"]  # accepted anywhere on the line, not only before the command
+    try:
+        requested, argv = _threads_option(argv)
+        with _blas_threads(requested):
+            return _run(argv, debug)
+    except RobocalError as exc:
+        print(f"robocal: error: {exc}", file=sys.stderr)
+        return EXIT_INPUT
+
+
+def _run(argv: list[str], debug: bool) -> int:
     try:
         parser = build_parser(only=_selected_command(argv))
         try:

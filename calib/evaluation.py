@@ -14,7 +14,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.spatial.transform import Rotation
 
 from .errors import RobocalError
 from .model import MeasurementModel
@@ -112,6 +111,7 @@ class Location:
         return p @ self.R.T + self.t_mm
 
     def as_dict(self) -> dict:
+        from scipy.spatial.transform import Rotation     # 0.3-0.8 s to import (all of scipy.spatial): when used
         # R = Rz(yaw) Ry(pitch) Rx(roll), the base convention: scipy's extrinsic "xyz"
         roll, pitch, yaw = Rotation.from_matrix(self.R).as_euler("xyz", degrees=True)
         return {"station": self.station, "xyz_mm": [float(v) for v in self.t_mm],
@@ -122,6 +122,7 @@ def fit_location(station: str, pred: np.ndarray, meas: np.ndarray) -> Location:
     """The rigid transform taking predicted points onto measured ones (least squares)."""
     if len(pred) < 3:
         raise RobocalError(f"locate: station {station!r} has {len(pred)} measured points; at least 3 are needed")
+    from scipy.spatial.transform import Rotation
     cp, cm = pred.mean(axis=0), meas.mean(axis=0)
     rot, _ = Rotation.align_vectors(meas - cm, pred - cp)
     R = rot.as_matrix()
@@ -284,6 +285,7 @@ def with_orientation_points(table: PoseTable, robot, noise_mm: float, sigma_angl
     names = table.target or [reference_name(list(robot.tool_points_mm) or ["P"])] * table.n
     if not robot.tool_points_mm:
         robot = robot.with_tool({"P": robot.tool_point()})
+    from scipy.spatial.transform import Rotation
     R = Rotation.from_euler("xyz", table.orientation_rad).as_matrix()          # (N, 3, 3)
     cov = point_covariance(table)
     if cov is None:

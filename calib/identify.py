@@ -22,7 +22,6 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy import optimize
 
 from .effects import PoseContext
 from .errors import RobocalError
@@ -204,52 +203,57 @@ class _Problem:
     def residuals(self, theta, jac: bool = True):
         """Whitened residuals (m,) and their Jacobian (m, P_total) w.r.t. all parameters.
 
-        The last evaluation with its Jacobian is kept (read-only): the identifiability analysis, the solver's first
-        step and the covariance at its last point ask for the same one, and with a torque-driven effect a Jacobian
-        is most of a fit's time."""
+        The last evaluation is kept: the solver asks for the residuals at a point and then, when it accepts the step,
+        for the Jacobian at the same point, which is completed from that evaluation's forward pass
+        (:meth:`calib.model.MeasurementModel.complete_jacobian`) instead of a second one; the identifiability
+        analysis, the solver's first step and the covariance at its last point ask for the same Jacobian (read-only)."""
         theta = np.asarray(theta, float)
         last = getattr(self, "_last", None)
-        if last is not None and last[0].shape == theta.shape and np.array_equal(last[0], theta):
-            return last[1].copy(), (last[2] if jac else None)
-        r, J = self._residuals(theta, jac)
-        if jac:
+        if last is None or last[0].shape != theta.shape or not np.array_equal(last[0], theta):
+            r, ev = self._evaluate(theta)
+            last = self._last = [theta.copy(), r, ev, None]
+        if jac and last[3] is None:
+            J = self._jacobian(theta, last[2])
             J.flags.writeable = False
-            self._last = (theta.copy(), r.copy(), J)
-        return r, J
+            last[3] = J
+        return last[1].copy(), (last[3] if jac else None)
 
-    def _residuals(self, theta, jac: bool):
+    def _evaluate(self, theta):
         P = self.model.P
+        ev = self.model.evaluate(self.obs.q_rad, self.ctx, theta[:P])
         if not self.angles:
-            ev = self.model.evaluate(self.obs.q_rad, self.ctx, theta[:P], jacobian=jac)
             r = np.einsum("nij,nj->ni", self.obs._white, self.obs.points_mm - ev.point_mm).ravel()
-            J = -np.einsum("nij,njp->nip", self.obs._white, ev.jacobian).reshape(-1, P) if jac else None
         else:
             st = self.stations(theta)
-            ev = self.model.evaluate(self.obs.q_rad, self.ctx, theta[:P], jacobian=jac)
-            pred = self.model.readings_of(ev, st, self.obs.faces, jacobian=jac)
-            if jac:
-                pred, Jm = pred
-            d = self.obs.readings_rad - pred
+            d = self.obs.readings_rad - self.model.readings_of(ev, st, self.obs.faces)
             d[:, 0::2] = np.angle(np.exp(1j * d[:, 0::2]))
-            sig = np.concatenate([[s.sigma_hz_rad, s.sigma_v_rad] for s in st])
-            r = (d / sig).ravel()
-            J = None
-            if jac:
-                Js = self._station_jacobian(st, ev.point_mm)
-                J = -np.concatenate([Jm, Js], axis=2) / sig[None, :, None]
-                J = J.reshape(-1, len(self.names))
+            r = (d / self._sigmas(st)).ravel()
         if self.priors:
-            rp, Jp = [], []
-            for n, (val, sd) in self.priors.items():
-                i = self.names.index(n)
-                rp.append((val - theta[i]) / sd)
-                row = np.zeros(len(self.names))
-                row[i] = -1.0 / sd
-                Jp.append(row)
-            r = np.concatenate([r, rp])
-            if jac:
-                J = np.vstack([J, Jp])
-        return r, J
+            r = np.concatenate([r, [(val - theta[self.names.index(n)]) / sd for n, (val, sd) in self.priors.items()]])
+        return r, ev
+
+    @staticmethod
+    def _sigmas(st):
+        return np.concatenate([[s.sigma_hz_rad, s.sigma_v_rad] for s in st])
+
+    def _jacobian(self, theta, ev):
+        P = self.model.P
+        self.model.complete_jacobian(ev)
+        if not self.angles:
+            J = -np.einsum("nij,njp->nip", self.obs._white, ev.jacobian).reshape(-1, P)
+        else:
+            st = self.stations(theta)
+            sig = self._sigmas(st)
+            _, Jm = self.model.readings_of(ev, st, self.obs.faces, jacobian=True)
+            Js = self._station_jacobian(st, ev.point_mm)
+            J = -np.concatenate([Jm, Js], axis=2) / sig[None, :, None]
+            J = J.reshape(-1, len(self.names))
+        if self.priors:
+            Jp = np.zeros((len(self.priors), len(self.names)))
+            for k, (n, (_, sd)) in enumerate(self.priors.items()):
+                Jp[k, self.names.index(n)] = -1.0 / sd
+            J = np.vstack([J, Jp])
+        return J
 
     def _station_jacobian(self, st, points_mm):
         """d readings / d station parameters by central differences (a few cheap observe calls, no kinematics)."""
@@ -414,6 +418,8 @@ def _identifiability(model: MeasurementModel, st: _Setup, priors: dict, start: b
 
 def _solve(problem: _Problem, theta_full: np.ndarray, kidx: np.ndarray, loss: str, max_nfev: int) -> np.ndarray:
     """Step 3: trust-region least squares over the kept parameters (the rest held in ``theta_full``)."""
+    from scipy import optimize      # 0.3-0.5 s to import: only the commands that fit pay it (not plan, compensate)
+
     def fun(x):
         th = theta_full.copy()
         th[kidx] = x

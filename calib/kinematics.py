@@ -17,8 +17,6 @@ Units: mm and radians.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import numpy as np
 
 from .robot import Robot
@@ -32,17 +30,66 @@ BASE_PARAMS = (("x_mm", TX), ("y_mm", TY), ("z_mm", TZ), ("yaw_rad", RZ), ("pitc
 TOOL_PARAMS = (("x_mm", TX), ("y_mm", TY), ("z_mm", TZ))
 
 
-@dataclass
 class ChainPass:
-    """Everything one forward pass computes, for N poses of an n-joint robot.  All in the measurement frame."""
+    """Everything one forward pass computes, for N poses of an n-joint robot.  All in the measurement frame.
 
-    point: np.ndarray          # (N, 3) tool point
-    frame_R: np.ndarray        # (N, n+1, 3, 3) frames 0..n (frame 0 = robot base after the base transform)
-    frame_t: np.ndarray        # (N, n+1, 3)
-    elem_axis: np.ndarray      # (N, E, 3) world direction of each elementary motion's axis
-    elem_origin: np.ndarray    # (N, E, 3) a point on that axis (the frame origin before the motion)
-    point_link: int | None = None   # frame the evaluated point is fixed in (None: the tool point, beyond frame n)
-    gravity_m_s2: np.ndarray | None = None   # (3,) the description's gravity, in frame 0
+    The pass works pose-last (``_R`` (n+1, 3, 3, N), ``_t`` (n+1, 3, N)): every product of the chain is then a few
+    multiply-adds of contiguous rows over the poses, the fastest numpy offers for 3x3 matrices.  The pose-first views
+    the rest of robocal reads (:attr:`frame_R`, :attr:`elem_axis` ...) are made on first use and kept, and the
+    elementary motions' screws (what a Jacobian needs) are derived from the frames only when asked: a caller that
+    wants points pays for points.
+    """
+
+    def __init__(self, point: np.ndarray, R: np.ndarray, t: np.ndarray, local: dict | None = None,
+                 gravity_m_s2: np.ndarray | None = None, point_link: int | None = None):
+        self.point = point                          # (N, 3) tool point
+        self._R, self._t = R, t                     # (n+1, 3, 3, N), (n+1, 3, N): frames 0..n, pose-last
+        self._local = local                         # what the element screws need (Kinematics.forward)
+        self._cache: dict[str, np.ndarray] = {}
+        self.point_link = point_link                # frame the evaluated point is fixed in (None: the tool point)
+        self.gravity_m_s2 = gravity_m_s2            # (3,) the description's gravity, in frame 0
+
+    def pose(self, k: int) -> "ChainPass":
+        """Pose ``k`` as a one-pose pass (views, no copies): for code that looks at a batch one pose at a time."""
+        N = len(self.point)
+
+        def cut(v):
+            return v[..., k:k + 1] if isinstance(v, np.ndarray) and v.ndim >= 2 and v.shape[-1] == N else v
+
+        local = None if self._local is None else {key: cut(v) for key, v in self._local.items()}
+        return ChainPass(self.point[k:k + 1], self._R[..., k:k + 1], self._t[..., k:k + 1], local,
+                         self.gravity_m_s2, self.point_link)
+
+    def _pose_first(self, key: str, make) -> np.ndarray:
+        if key not in self._cache:
+            self._cache[key] = np.ascontiguousarray(make())
+        return self._cache[key]
+
+    @property
+    def frame_R(self) -> np.ndarray:
+        """(N, n+1, 3, 3) frames 0..n (frame 0 = robot base after the base transform)."""
+        return self._pose_first("frame_R", lambda: self._R.transpose(3, 0, 1, 2))
+
+    @property
+    def frame_t(self) -> np.ndarray:
+        """(N, n+1, 3) origins of frames 0..n."""
+        return self._pose_first("frame_t", lambda: self._t.transpose(2, 0, 1))
+
+    def screws(self) -> tuple[np.ndarray, np.ndarray]:
+        """The axis and a point on the axis of every elementary motion, element-major and pose-last (E, 3, N)."""
+        if "ax" not in self._cache:
+            self._cache["ax"], self._cache["org"] = _element_screws(self)
+        return self._cache["ax"], self._cache["org"]
+
+    @property
+    def elem_axis(self) -> np.ndarray:
+        """(N, E, 3) world direction of each elementary motion's axis."""
+        return self._pose_first("elem_axis", lambda: self.screws()[0].transpose(2, 0, 1))
+
+    @property
+    def elem_origin(self) -> np.ndarray:
+        """(N, E, 3) a point on each elementary motion's axis (the frame origin before the motion)."""
+        return self._pose_first("elem_origin", lambda: self.screws()[1].transpose(2, 0, 1))
 
     def gravity(self) -> np.ndarray:
         """(N, 3) gravity (m/s^2) in the measurement frame: the description's, given in frame 0, carried by the base.
@@ -50,7 +97,9 @@ class ChainPass:
         description says where down is)."""
         if self.gravity_m_s2 is None:
             raise ValueError("a chain pass built without the description's gravity (Kinematics.forward sets it)")
-        return self.frame_R[:, 0] @ self.gravity_m_s2
+        g = self.gravity_m_s2
+        R0 = self._R[0]
+        return (R0[:, 0] * g[0] + R0[:, 1] * g[1] + R0[:, 2] * g[2]).T
 
     @property
     def joint_axis(self) -> np.ndarray:
@@ -124,6 +173,15 @@ class Kinematics:
         for j, first in enumerate(self.link_first_element):
             self.link_of[first:first + len(LINK_PARAMS)] = j + 1
         self.link_of[self.index["tool.x_mm"]:] = n + 1
+        # what the closed-form pass reads: each link's five parameters, the tool point, which joints turn or slide
+        self._link_cols = np.array(self.link_first_element, int)[:, None] + np.arange(len(LINK_PARAMS))  # (n, 5)
+        self._tool_cols = np.arange(self.index["tool.x_mm"], self.index["tool.z_mm"] + 1)
+        self._prismatic = np.asarray(robot.prismatic, bool)
+        self._revolute = (~self._prismatic).astype(float)
+        self._prismatic = self._prismatic.astype(float)
+        self._gravity = np.asarray(robot.gravity_m_s2, float)
+        self._rot = self.kinds >= RX
+        self._trans = ~self._rot
 
     @property
     def P(self) -> int:
@@ -140,43 +198,56 @@ class Kinematics:
 
     # -- forward pass ---------------------------------------------------------------------------------------------
     def forward(self, q_rad: np.ndarray, params: np.ndarray | None = None) -> ChainPass:
-        """Run the chain for joint angles ``q_rad`` (N, n)."""
+        """Run the chain for joint angles ``q_rad`` (N, n).
+
+        Each link's motions ``Rz(theta) Tz(d) Tx(a) Rx(alpha) Ry(beta)`` are multiplied out in closed form (one
+        rotation and one offset per link, for all links and poses at once), then the links are chained by one batched
+        3x3 product each: the cost of a plain DH product.  The elementary motions' screws are derived from these
+        frames only when a Jacobian asks (:attr:`ChainPass.elem_axis`)."""
         q = np.atleast_2d(np.asarray(q_rad, float))
         if q.shape[-1] != self.n:
             raise ValueError(f"expected {self.n} joint angles per pose, got {q.shape[-1]}")
-        N = q.shape[0]
+        N, n = q.shape[0], self.n
         p = self.nominal if params is None else np.asarray(params, float)
-        vals = np.broadcast_to(p, (N, self.P)).copy()
-        vals[:, self.joint_elements] += q
-        E = self.P
-        R = np.broadcast_to(np.eye(3), (N, 3, 3)).copy()
-        t = np.zeros((N, 3))
-        axes = np.empty((N, E, 3))
-        origins = np.empty((N, E, 3))
-        frame_R = np.empty((N, self.n + 1, 3, 3))
-        frame_t = np.empty((N, self.n + 1, 3))
-        link_end = {first + len(LINK_PARAMS) - 1: j + 1 for j, first in enumerate(self.link_first_element)}
-        base_end = len(BASE_PARAMS) - 1
-        for e in range(E):
-            kind = self.kinds[e]
-            k = _AXIS[kind]
-            v = vals[:, e]
-            axes[:, e] = R[:, :, k]
-            origins[:, e] = t
-            if kind <= TZ:
-                t = t + R[:, :, k] * v[:, None]
-            else:
-                i, j = [(1, 2), (2, 0), (0, 1)][k]     # the two columns a rotation about axis k mixes
-                c, s = np.cos(v)[:, None], np.sin(v)[:, None]
-                ci, cj = R[:, :, i].copy(), R[:, :, j]
-                R[:, :, i] = ci * c + cj * s
-                R[:, :, j] = cj * c - ci * s
-            if e == base_end:
-                frame_R[:, 0], frame_t[:, 0] = R, t
-            elif e in link_end:
-                frame_R[:, link_end[e]], frame_t[:, link_end[e]] = R, t
-        return ChainPass(point=t, frame_R=frame_R, frame_t=frame_t, elem_axis=axes, elem_origin=origins,
-                         gravity_m_s2=np.asarray(self.robot.gravity_m_s2, float))
+        if p.ndim == 2 and len(p) == 1 and N > 1:
+            p = p[0]
+        # link parameters link-major and pose-last: (5, n, 1) for one parameter vector, (5, n, N) for one per pose
+        lk = p[..., self._link_cols].T if p.ndim == 2 else p[self._link_cols].T[:, :, None]
+        qT = q.T
+        theta = lk[0] + qT * self._revolute[:, None]
+        d = lk[1] + qT * self._prismatic[:, None] if self._prismatic.any() else lk[1]
+        a, ca, sa, cb, sb = lk[2], np.cos(lk[3]), np.sin(lk[3]), np.cos(lk[4]), np.sin(lk[4])
+        ct, st = np.cos(theta), np.sin(theta)                                          # (n, N)
+        # link rotation Rz(theta) Rx(alpha) Ry(beta) and offset Rz(theta) (a, 0, d), for every link and pose
+        A = np.empty((n, 3, 3, N))
+        sta, cta = st * sa, ct * sa
+        A[:, 0, 0] = cb * ct - sb * sta
+        A[:, 1, 0] = cb * st + sb * cta
+        A[:, 2, 0] = -sb * ca
+        A[:, 0, 1] = -st * ca
+        A[:, 1, 1] = ct * ca
+        A[:, 2, 1] = sa
+        A[:, 0, 2] = sb * ct + cb * sta
+        A[:, 1, 2] = sb * st - cb * cta
+        A[:, 2, 2] = cb * ca
+        off = np.empty((n, 3, N))
+        off[:, 0] = a * ct
+        off[:, 1] = a * st
+        off[:, 2] = d
+        R = np.empty((n + 1, 3, 3, N))
+        t = np.empty((n + 1, 3, N))
+        base = p[..., :len(BASE_PARAMS)].T                                             # (6,) or (6, N)
+        R0 = _rot_zyx(base[3], base[4], base[5])
+        R[0] = R0.transpose(1, 2, 0) if R0.ndim == 3 else R0[..., None]
+        t[0] = base[:3] if base.ndim == 2 else base[:3, None]
+        for j in range(n):
+            _chain_step(R[j], t[j], A[j], off[j], R[j + 1], t[j + 1])
+        tool = p[..., self._tool_cols].T
+        tool = tool if tool.ndim == 2 else tool[:, None]                               # (3, N) or (3, 1)
+        Rn = R[n]
+        point = (t[n] + Rn[:, 0] * tool[0] + Rn[:, 1] * tool[1] + Rn[:, 2] * tool[2]).T.copy()
+        local = {"ct": ct, "st": st, "d": d, "base": base, "tool": tool}
+        return ChainPass(point, R, t, local, gravity_m_s2=self._gravity)
 
     def points(self, q_rad: np.ndarray, params: np.ndarray | None = None) -> np.ndarray:
         """Tool points (N, 3) in the measurement frame."""
@@ -195,7 +266,7 @@ class Kinematics:
         link = np.asarray(link, int)
         R, t = fp.frame_R[:, link], fp.frame_t[:, link]                      # (N, K, 3, 3), (N, K, 3)
         p = np.broadcast_to(np.asarray(point_mm, float), t.shape)
-        return t + np.einsum("nkij,nkj->nki", R, p)
+        return t + np.matmul(R, p[..., None])[..., 0]
 
     # -- Jacobians ------------------------------------------------------------------------------------------------
     def element_jacobian(self, fp: ChainPass, point: np.ndarray | None = None, link: int | None = None) -> np.ndarray:
@@ -204,15 +275,36 @@ class Kinematics:
         With ``link=j`` the point is fixed in frame j: the motions beyond frame j do not move it, and the tool columns
         hold its derivative with respect to its own coordinates in frame j (the tool point's role for such a point).
         """
-        p = fp.point if point is None else point
-        J = fp.elem_axis.copy()
-        rot = self.kinds >= RX
-        J[:, rot] = np.cross(fp.elem_axis[:, rot], p[:, None, :] - fp.elem_origin[:, rot])
+        p = (fp.point if point is None else point).T                                   # (3, N)
+        R, t, loc = fp._R, fp._t, fp._local
+        n, N = self.n, p.shape[-1]
+        nb, nl = len(BASE_PARAMS), len(LINK_PARAMS)
+        J = np.empty((N, 3, self.P))
+        Jv = J.transpose(2, 1, 0)                                                      # (E, 3, N) view, written once
+        # base: the measurement axes, then z, the yawed y and the base's x through the base origin
+        Jv[:3] = np.eye(3)[:, :, None]
+        arm = p - t[0]
+        ax4 = np.stack([-np.sin(loc["base"][3]), np.cos(loc["base"][3]), 0.0 * loc["base"][3]])
+        _cross_into(Jv[3], np.array([0.0, 0.0, 1.0])[:, None], arm)
+        _cross_into(Jv[4], ax4.reshape(3, -1), arm)
+        _cross_into(Jv[5], R[0, :, 0], arm)
+        # links: theta about z_{j-1} through o_{j-1}; d along it; a along the x after theta; alpha about that x and
+        # beta about y_j, both through o_j
+        lJ = Jv[nb:nb + nl * n].reshape(n, nl, 3, N)
+        z = R[:-1, :, 2]
+        u = R[:-1, :, 0] * loc["ct"][:, None] + R[:-1, :, 1] * loc["st"][:, None]
+        arm_in, arm_out = p - t[:-1], p - t[1:]
+        _cross_into(lJ[:, 0], z, arm_in)
+        lJ[:, 1] = z
+        lJ[:, 2] = u
+        _cross_into(lJ[:, 3], u, arm_out)
+        _cross_into(lJ[:, 4], R[1:, :, 1], arm_out)
         if link is not None:
-            J[:, self.link_of > link] = 0.0
-            tool = slice(self.index["tool.x_mm"], self.index["tool.z_mm"] + 1)
-            J[:, tool] = fp.frame_R[:, link].transpose(0, 2, 1)           # row c = d p / d p_c = column c of R_j
-        return J.transpose(0, 2, 1)
+            Jv[self.link_of > link] = 0.0
+            Jv[self._tool_cols] = R[link].transpose(1, 0, 2)                            # d p_c / d p_k = R_j[c, k]
+        else:
+            Jv[self._tool_cols] = R[n].transpose(1, 0, 2)
+        return J
 
     def jacobians(self, q_rad: np.ndarray, params: np.ndarray | None = None):
         """Tool points (N, 3), their Jacobian w.r.t. every parameter (N, 3, P) and w.r.t. the joint angles (N, 3, n).
@@ -223,3 +315,87 @@ class Kinematics:
         fp = self.forward(q_rad, params)
         J = self.element_jacobian(fp)
         return fp.point, J, J[:, :, self.joint_elements]
+
+
+def _rot_zyx(yaw, pitch, roll) -> np.ndarray:
+    """Rz(yaw) Ry(pitch) Rx(roll) (..., 3, 3) for scalar or per-pose angles."""
+    cy, sy, cp, sp, cr, sr = np.cos(yaw), np.sin(yaw), np.cos(pitch), np.sin(pitch), np.cos(roll), np.sin(roll)
+    R = np.empty(np.shape(yaw) + (3, 3))
+    R[..., 0, 0], R[..., 0, 1], R[..., 0, 2] = cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr
+    R[..., 1, 0], R[..., 1, 1], R[..., 1, 2] = sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr
+    R[..., 2, 0], R[..., 2, 1], R[..., 2, 2] = -sp, cp * sr, cp * cr
+    return R
+
+
+#: below this many poses a link step is one batched ``matmul`` (fewer numpy calls); above, rows of multiply-adds
+SMALL_BATCH = 32
+
+
+def _chain_step(R, t, A, off, R_out, t_out) -> None:
+    """One link of the chain, pose-last: ``R_out = R A``, ``t_out = t + R off`` ((3, 3, N), (3, N)).
+
+    The same product either way: for a handful of poses (a session's one pose at a time) as one batched matmul over
+    pose-first views, where the per-call overhead dominates; for many, as three multiply-adds of contiguous rows,
+    about twice as fast as ``matmul`` on stacks of 3x3."""
+    if R.shape[-1] < SMALL_BATCH:
+        Rp = R.transpose(2, 0, 1)
+        np.matmul(Rp, A.transpose(2, 0, 1), out=R_out.transpose(2, 0, 1))
+        np.add(t.T, np.matmul(Rp, off.T[:, :, None])[..., 0], out=t_out.T)
+        return
+    np.multiply(R[:, 0, None], A[0], out=R_out)
+    R_out += R[:, 1, None] * A[1]
+    R_out += R[:, 2, None] * A[2]
+    t_out[:] = t + R[:, 0] * off[0] + R[:, 1] * off[1] + R[:, 2] * off[2]
+
+
+def _cross_into(out: np.ndarray, a: np.ndarray, b: np.ndarray) -> None:
+    """``out = a x b`` over axis -2 (pose-last vectors (..., 3, N), broadcast), written in place."""
+    out[..., 0, :] = a[..., 1, :] * b[..., 2, :] - a[..., 2, :] * b[..., 1, :]
+    out[..., 1, :] = a[..., 2, :] * b[..., 0, :] - a[..., 0, :] * b[..., 2, :]
+    out[..., 2, :] = a[..., 0, :] * b[..., 1, :] - a[..., 1, :] * b[..., 0, :]
+
+
+def _element_screws(fp: ChainPass) -> tuple[np.ndarray, np.ndarray]:
+    """The axis and a point on the axis of every elementary motion (E, 3, N) each, from a pass's frames.
+
+    Base ``Tx Ty Tz Rz Ry Rx``: the measurement axes, then z, the yawed y and the base's x, through the base origin.
+    Link j ``Rz Tz Tx Rx Ry``: z of frame j-1 through its origin (theta, d); the x axis after the theta rotation
+    (``R_{j-1} (cos theta, sin theta, 0)``) through the point d along z (a), and through frame j's origin (alpha);
+    y of frame j through its origin (beta: the rotation before it leaves y alone).  Tool ``Tx Ty Tz``: frame n's
+    axes."""
+    loc, R, t = fp._local, fp._R, fp._t
+    n, N = R.shape[0] - 1, R.shape[-1]
+    nb, nl = len(BASE_PARAMS), len(LINK_PARAMS)
+    E = nb + nl * n + len(TOOL_PARAMS)
+    ax = np.empty((E, 3, N))
+    org = np.empty((E, 3, N))
+    base = loc["base"]
+    ax[:3] = np.eye(3)[:, :, None]
+    org[:3] = 0.0
+    org[1:3, 0] = base[0]
+    org[2, 1] = base[1]
+    ax[3] = np.array([0.0, 0.0, 1.0])[:, None]
+    ax[4, 0], ax[4, 1], ax[4, 2] = -np.sin(base[3]), np.cos(base[3]), 0.0
+    ax[5] = R[0, :, 0]
+    org[3:6] = t[0]
+    lax = ax[nb:nb + nl * n].reshape(n, nl, 3, N)
+    lorg = org[nb:nb + nl * n].reshape(n, nl, 3, N)
+    z = R[:-1, :, 2]                                                               # (n, 3, N)
+    lax[:, 0] = z
+    lax[:, 1] = z
+    lax[:, 2] = R[:-1, :, 0] * loc["ct"][:, None] + R[:-1, :, 1] * loc["st"][:, None]
+    lax[:, 3] = lax[:, 2]
+    lax[:, 4] = R[1:, :, 1]
+    lorg[:, 0] = t[:-1]
+    lorg[:, 1] = t[:-1]
+    lorg[:, 2] = t[:-1] + z * loc["d"][:, None]
+    lorg[:, 3] = t[1:]
+    lorg[:, 4] = t[1:]
+    f = nb + nl * n
+    tool = loc["tool"]
+    ax[f:] = R[n].transpose(1, 0, 2)
+    org[f] = t[n]
+    org[f + 1] = t[n] + R[n, :, 0] * tool[0]
+    org[f + 2] = org[f + 1] + R[n, :, 1] * tool[1]
+    return ax, org
+

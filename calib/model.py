@@ -18,7 +18,7 @@ change of torque with a geometric parameter).
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -38,6 +38,18 @@ class Evaluation:
     joint_jacobian: np.ndarray | None     # (N, 3, n) d point / d joint angle
     loads: Loads | None
     chain: ChainPass
+    #: what :meth:`MeasurementModel.complete_jacobian` needs to add the Jacobian later without a second pass
+    state: "_State | None" = field(default=None, repr=False)
+
+
+@dataclass
+class _State:
+    q: np.ndarray
+    ctx: PoseContext
+    vals: list
+    grads: dict
+    link: int | None
+    load_pass: ChainPass | None       # the chain at the joint readings, where the loads were evaluated
 
 
 class MeasurementModel:
@@ -114,24 +126,32 @@ class MeasurementModel:
         the forces act and the joint axes), while gravity and the external forces keep their direction.
         """
         n = self.robot.n
-        pos, F, link = self._bodies(fp, ctx)
-        carried = (link[None, :] >= np.arange(1, n + 1)[:, None]).astype(float)     # (n, B) joint j carries body b
-        z, o = fp.joint_axis, fp.joint_origin * 1e-3                                  # (N, n, 3)
-        mom = np.cross(pos, F)                                                        # (N, B, 3)
-        tail_mom = np.einsum("jb,nbc->njc", carried, mom)
-        tail_F = np.einsum("jb,nbc->njc", carried, F)
-        M = tail_mom - np.cross(o, tail_F)                                            # (N, n, 3)
+        parts = self._torque_parts(fp, ctx)
+        pos, F, link, _, z, _, M, _ = parts
         tau = np.einsum("njc,njc->nj", M, z) + ctx.joint_torque_nm
         beyond = (link[None, :] > np.arange(1, n + 1)[:, None]).astype(float)
         tip = np.einsum("jb,nbc->njc", beyond, F)                                     # force beyond link j's end
         loads = Loads(joint_torque_nm=tau, tip_force_n=tip, point_force_n=F[:, n + 1:],
-                      point_at_mm=pos[:, n + 1:] * 1e3, point_link=link[n + 1:])
+                      point_at_mm=pos[:, n + 1:] * 1e3, point_link=link[n + 1:], joint_moment_nm=M)
         if derivative:
-            loads.dtau_dgeo = self._torque_derivative(fp, pos, F, link, carried, z, o, M, tail_F)
+            loads.dtau_dgeo = self._torque_derivative(fp, *parts)
         return loads
 
-    def _torque_derivative(self, fp, pos, F, link, carried, z, o, M, tail_F):
-        """d(torque)/d(geometric element) (N, n, E); see :meth:`loads`.
+    def _torque_parts(self, fp: ChainPass, ctx: PoseContext):
+        """The bodies and the moment about every joint of what it carries (see :meth:`loads`)."""
+        n = self.robot.n
+        pos, F, link = self._bodies(fp, ctx)
+        carried = (link[None, :] >= np.arange(1, n + 1)[:, None]).astype(float)     # (n, B) joint j carries body b
+        z, o = fp.joint_axis, fp.joint_origin * 1e-3                                  # (N, n, 3)
+        mom = _cross(pos, F)                                                          # (N, B, 3)
+        tail_mom = np.einsum("jb,nbc->njc", carried, mom)
+        tail_F = np.einsum("jb,nbc->njc", carried, F)
+        M = tail_mom - _cross(o, tail_F)                                              # (N, n, 3)
+        return pos, F, link, carried, z, o, M, tail_F
+
+    def _torque_derivative(self, fp, pos, F, link, carried, z, o, M, tail_F, joints=None):
+        """d(torque)/d(geometric element) (N, n, E); see :meth:`loads`.  ``joints`` (0-based): only those rows
+        (the rest zero) -- the Jacobian needs the joints whose deflection follows the torque, not all.
 
         Element e (a rotation about axis a through o_e, or a translation along a) moves every body beyond it, and
         joint j carries the bodies of link j or beyond: the bodies of link m = max(j, link of e) or beyond.  Their
@@ -142,6 +162,7 @@ class MeasurementModel:
         kin = self.kin
         n = self.robot.n
         N = len(pos)
+        js = np.arange(n) if joints is None else np.asarray(joints, int)
         link_of = kin.link_of                                                         # base 0, link k, tool n + 1
         rot = (kin.kinds >= 3)[None, :, None, None]
         a, oe = fp.elem_axis, fp.elem_origin * 1e-3                                   # (N, E, 3)
@@ -150,7 +171,7 @@ class MeasurementModel:
         S = np.matmul(beyond, F)                                                      # (N, M, 3)
         P = np.einsum("mb,nbc,nbd->nmcd", beyond, pos, F)                             # (N, M, 3, 3)
         trP = np.einsum("nmcc->nm", P)
-        m_idx = np.maximum(np.arange(1, n + 1)[None, :], np.minimum(link_of, n + 1)[:, None])   # (E, n)
+        m_idx = np.maximum((js + 1)[None, :], np.minimum(link_of, n + 1)[:, None])    # (E, k)
         e_idx = np.arange(len(link_of))[:, None]
         Pa = np.matmul(a, P.transpose(0, 3, 1, 2).reshape(N, 3, -1)).reshape(N, -1, n + 2, 3)  # (N, E, M, 3)
         aS = np.matmul(a, S.transpose(0, 2, 1))                                       # (N, E, M)
@@ -158,24 +179,30 @@ class MeasurementModel:
         g = (slice(None), e_idx, m_idx)
         d_rot = Pa[g] - oe[:, :, None, :] * aS[g][..., None] - a[:, :, None, :] * (trP[:, m_idx] - oS[g])[..., None]
         d_tr = 1e-3 * _cross(a[:, :, None, :], S[:, m_idx])
-        tail_dmom = np.where(rot, d_rot, d_tr)                                        # (N, E, n, 3)
-        distal_f = (link_of[:, None] <= np.arange(n)[None, :]).astype(float)[None, :, :, None]  # frame j-1 beyond e
+        tail_dmom = np.where(rot, d_rot, d_tr)                                        # (N, E, k, 3)
+        distal_f = (link_of[:, None] <= js[None, :]).astype(float)[None, :, :, None]  # frame j-1 beyond e
         ax = a[:, :, None, :]
-        do = np.where(rot, _cross(ax, o[:, None, :, :] - oe[:, :, None, :]), ax * 1e-3) * distal_f
-        dz = np.where(rot, _cross(ax, z[:, None, :, :]), 0.0) * distal_f
-        dM = tail_dmom - _cross(do, tail_F[:, None, :, :])
-        dtau = np.sum(dz * M[:, None] + dM * z[:, None], axis=-1).transpose(0, 2, 1)  # (N, n, E)
+        zj, oj = z[:, None, js, :], o[:, None, js, :]
+        do = np.where(rot, _cross(ax, oj - oe[:, :, None, :]), ax * 1e-3) * distal_f
+        dz = np.where(rot, _cross(ax, zj), 0.0) * distal_f
+        dM = tail_dmom - _cross(do, tail_F[:, None, js, :])
+        dtau = np.zeros((N, n, len(link_of)))
+        dtau[:, js] = np.sum(dz * M[:, None, js] + dM * zj, axis=-1).transpose(0, 2, 1)   # (N, k, E)
         dtau[:, :, link_of == 0] = 0.0      # gravity is given in frame 0: the base carries it along
         return dtau
 
     # -- evaluation ----------------------------------------------------------------------------------------------
     def evaluate(self, q_rad, ctx: PoseContext | None = None, theta: np.ndarray | None = None,
-                 jacobian: bool = False, tool_mm=None, link: int | None = None) -> Evaluation:
+                 jacobian: bool = False, tool_mm=None, link: int | None = None,
+                 torque_derivative: bool | None = None) -> Evaluation:
         """Predict tool points for joint readings ``q_rad`` (N, n); optionally the Jacobian w.r.t. ``theta``.
 
         ``tool_mm`` overrides the tool point: (3,) for all poses or (N, 3) per pose (targets A1/A2, ruler points).
         With ``link=j`` (0..n), ``tool_mm`` is a point fixed in frame j instead: it moves with link j, the joints
         beyond j do not move it, and the tool columns of the Jacobian are its derivative w.r.t. its own coordinates.
+        Without ``jacobian`` only the points are computed; :meth:`complete_jacobian` adds the Jacobian to such an
+        evaluation later without a second forward pass (identification asks for residuals, then for the Jacobian
+        at the same parameters).  ``torque_derivative``: see :meth:`complete_jacobian`.
         """
         q = np.atleast_2d(np.asarray(q_rad, float))
         N, n = q.shape
@@ -190,24 +217,48 @@ class MeasurementModel:
             geo = self.kin.params_with_tool(tool_mm, geo)
         vals = [theta[s] for s in self.effect_slices]
         dgeo, grads = self._stage("geometry", vals, lambda e, v: e.geometry_delta(geo, self.length_idx, ctx, v))
-        geo_pose = np.broadcast_to(geo, (N, self.n_geometric)) + dgeo
-        torque_driven = any(e.torque_driven for e in self.effects)
-        loads = (self.loads(self.kin.forward(q, geo_pose), ctx, derivative=jacobian and torque_driven)
-                 if any(e.needs_loads for e in self.effects) else None)
+        geo_pose = geo if np.isscalar(dgeo) else np.broadcast_to(geo, (N, self.n_geometric)) + dgeo
+        load_pass, loads = None, None
+        if any(e.needs_loads for e in self.effects):
+            load_pass = self.kin.forward(q, geo_pose)
+            loads = self.loads(load_pass, ctx)
         dq, g = self._stage("joint", vals, lambda e, v: e.joint_delta(q, ctx, loads, v))
         th = q + dq
         grads.update(g)
-        fp = self.kin.forward(th, geo_pose)
+        if load_pass is not None and np.isscalar(dq) and link is None:
+            fp = load_pass              # no joint-stage effect: the loads' pass is the chain at the true angles
+        else:
+            fp = self.kin.forward(th, geo_pose)
         if link is not None:
             fp.point_link = link
             fp.point = self.kin.point_on(fp, [link], np.reshape(tool_mm, (-1, 1, 3)))[:, 0]
         dp, g = self._stage("point", vals, lambda e, v: e.point_delta(fp, fp.point, loads, v))
         point = fp.point + dp
         grads.update(g)
-        if not jacobian:
-            return Evaluation(point, th, None, None, loads, fp)
-        J, Jq = self._jacobian(fp, link, q, ctx, vals, loads, grads)
-        return Evaluation(point, th, J, Jq, loads, fp)
+        ev = Evaluation(point, th, None, None, loads, fp, _State(q, ctx, vals, grads, link, load_pass))
+        if jacobian:
+            self.complete_jacobian(ev, torque_derivative)
+        return ev
+
+    def complete_jacobian(self, ev: Evaluation, torque_derivative: bool | None = None) -> Evaluation:
+        """Fill ``ev.jacobian`` (N, 3, P) and ``ev.joint_jacobian`` (N, 3, n) from the evaluation's own pass.
+
+        ``torque_derivative``: whether the geometric columns carry the change of the joint deflections with the
+        torques that a geometric parameter moves (torque-driven effects only).  None (default) applies the rule of
+        :func:`torque_term_matters`; True or False force it."""
+        if ev.jacobian is None:
+            st = ev.state
+            if st is None:
+                raise ValueError("this evaluation keeps no state to add a Jacobian to")
+            ev.jacobian, ev.joint_jacobian = self._jacobian(ev, torque_derivative)
+        return ev
+
+    def torque_gain(self, ev: Evaluation) -> np.ndarray | None:
+        """(N, n) d deflection / d torque of every joint at an evaluation (None: no torque-driven effect)."""
+        st = ev.state
+        if ev.loads is None or st is None or not any(e.torque_driven for e in self.effects):
+            return None
+        return sum(e.torque_gain(st.q, st.ctx, ev.loads, v) for e, v in zip(self.effects, st.vals) if e.torque_driven)
 
     def _stage(self, stage: str, vals, call) -> tuple:
         """The effects of one stage: the sum of their changes (0.0 when there are none) and each one's derivative
@@ -219,18 +270,25 @@ class MeasurementModel:
                 delta = delta + d
         return delta, grads
 
-    def _jacobian(self, fp: ChainPass, link, q, ctx: PoseContext, vals, loads: Loads | None, grads: dict):
+    def _jacobian(self, ev: Evaluation, torque_derivative: bool | None):
         """d point / d theta (N, 3, P) and d point / d joint angle (N, 3, n), from the chain's screws and each
         effect's own derivative carried through what its stage moves (the joints, the geometry or the point)."""
+        st, fp, loads = ev.state, ev.chain, ev.loads
+        q, ctx, vals, grads = st.q, st.ctx, st.vals, st.grads
         ng = self.n_geometric
-        Je = self.kin.element_jacobian(fp, link=link)           # (N, 3, Pg)
+        Je = self.kin.element_jacobian(fp, link=st.link)        # (N, 3, Pg)
         J = np.zeros((len(q), 3, self.P))
         J[:, :, :ng] = Je
         Jq = Je[:, :, self.kin.joint_elements]
-        if loads is not None and any(e.torque_driven for e in self.effects):
+        gain = self.torque_gain(ev)
+        if gain is not None:
             # joint deflections follow the torques, and the torques move with the geometry
-            gain = sum(e.torque_gain(q, ctx, loads, v) for e, v in zip(self.effects, vals) if e.torque_driven)
-            J[:, :, :ng] += np.einsum("nij,nje->nie", Jq, gain[:, :, None] * loads.dtau_dgeo)
+            if torque_derivative is None:
+                torque_derivative = torque_term_matters(gain, loads)
+            if torque_derivative:
+                joints = np.flatnonzero(np.any(gain != 0, axis=0))
+                dtau = self._torque_derivative(st.load_pass, *self._torque_parts(st.load_pass, ctx), joints=joints)
+                J[:, :, :ng] += np.einsum("nij,nje->nie", Jq[:, :, joints], gain[:, joints, None] * dtau[:, joints])
         through = {"joint": Jq, "geometry": Je}
         for i, (e, s, v) in enumerate(zip(self.effects, self.effect_slices, vals)):
             if e.stage == "geometry":
@@ -264,6 +322,34 @@ class MeasurementModel:
         if jacobian:
             return out, np.concatenate(Js, axis=1)
         return out
+
+
+#: the torque term's largest relative size in the Jacobian below which it is left out (see torque_term_matters)
+TORQUE_TERM_THRESHOLD = 0.01
+
+
+def torque_term_matters(gain: np.ndarray, loads: Loads, threshold: float | None = None) -> bool:
+    """Whether the Jacobian needs the change of the joint deflections with the torques a geometric parameter moves.
+
+    The term adds to the column of a geometric parameter e ``J_q,j * c_j * d tau_j / d e`` for every joint j whose
+    deflection follows its torque with compliance c_j (``gain``).  Moving the chain by a rotation changes tau_j by at
+    most the moment M_j of everything joint j carries (``loads.joint_moment_nm``), so relative to the column the term
+    is at most ``eps = max c_j |M_j|``: the joint deflection that moment would cause, in radians (a translation gives
+    the same bound through the lever arm).  The residuals stay exact either way, so leaving the term out changes only
+    the solver's steps and the covariance, by a relative eps: below 1 % (a stiff robot; the thesis's Puma with its
+    measured compliances is at about 0.3 %) the converged parameters, sigmas and held-out RMS are unchanged
+    (benchmarks/bench_scaling.py --torque-term measures it) while the term is most of a torque-aware Jacobian's cost.
+    """
+    threshold = TORQUE_TERM_THRESHOLD if threshold is None else threshold
+    return bool(torque_term_size(gain, loads) > threshold)
+
+
+def torque_term_size(gain: np.ndarray, loads: Loads) -> float:
+    """``max c_j |M_j|`` over poses and joints (radians): the torque term's largest relative size in the Jacobian
+    (see :func:`torque_term_matters`); infinite when the loads carry no moments to bound it with."""
+    if loads.joint_moment_nm is None:
+        return float("inf")
+    return float(np.max(np.abs(gain) * np.linalg.norm(loads.joint_moment_nm, axis=-1), initial=0.0))
 
 
 def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:

@@ -38,6 +38,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
+from .distributions import chi2_isf
 from .errors import GeometryError, RobocalError
 from .units import ARCSEC
 
@@ -192,15 +193,13 @@ def _distance_chi2(P: np.ndarray, C: np.ndarray) -> tuple[np.ndarray, np.ndarray
 def _clipped_chi2(P: np.ndarray, C: np.ndarray, p_blunder: float = 1e-3) -> tuple[float, int, int]:
     """chi2 and degrees of freedom of the distances, a pose left out when its chi2 is beyond the ``1 - p_blunder``
     quantile at the scale the others show (a blunder would otherwise pass for noise); returns also how many."""
-    from scipy.stats import chi2 as chi2_dist
-
     keep = np.ones(len(P), bool)
     for _ in range(3):
         c, r, r_mean = _distance_chi2(P[keep], C[keep])
         f = int(r.sum()) - r_mean
         if f <= 0:
             return float("nan"), 0, int((~keep).sum())
-        bad = c > chi2_dist.isf(p_blunder, r) * (c.sum() / f)
+        bad = c > chi2_isf(p_blunder, r) * (c.sum() / f)
         if not bad.any() or keep.sum() - bad.sum() < 3:
             break
         keep[np.flatnonzero(keep)[bad]] = False

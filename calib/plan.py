@@ -159,8 +159,12 @@ def position_sigma(design: Design, q_plan: np.ndarray, q_test: np.ndarray) -> np
 def select_poses(model: MeasurementModel, count: int, names: list[str] | None = None, index: str = "O1",
                  noise_mm: float = 0.05, seed: int = 0, pool: int = 2000, test: int = 500,
                  progress: Callable[[str, float], None] | None = None,
-                 accept: Callable[[np.ndarray], np.ndarray] | None = None) -> PosePlan:
-    """Choose ``count`` poses maximising an observability index (see the module docstring)."""
+                 accept: Callable[[np.ndarray], np.ndarray] | None = None, compare: bool = True) -> PosePlan:
+    """Choose ``count`` poses maximising an observability index (see the module docstring).
+
+    ``compare=False`` skips what only a report needs -- the predicted uncertainty on ``test`` poses and the same
+    for random pose sets (``predicted_sigma_mm``, ``random_*`` left empty) -- for callers that want the poses only;
+    the poses are the same either way (those draws come after the choice)."""
     if index not in INDICES:
         raise RobocalError(f"plan: unknown index {index!r} (known: {', '.join(INDICES)})")
     names = names or parameter_set(model, "geometric")
@@ -184,7 +188,8 @@ def select_poses(model: MeasurementModel, count: int, names: list[str] | None = 
         Ainv = np.linalg.inv(A)
         avail = np.setdiff1d(np.arange(len(cand)), chosen)
         if index == "O1" or k < p // 3 + 1:
-            S = np.einsum("cip,pq,cjq->cij", Bs[avail], Ainv, Bs[avail])
+            Ba = Bs[avail]
+            S = (Ba @ Ainv) @ Ba.transpose(0, 2, 1)             # B_c A^-1 B_c^T, as two products
             gain = np.linalg.slogdet(np.eye(3) + S)[1]
         else:
             sub = rng.choice(avail, size=min(200, len(avail)), replace=False)
@@ -199,27 +204,37 @@ def select_poses(model: MeasurementModel, count: int, names: list[str] | None = 
         if progress:
             progress("choosing poses", (k + 1) / count)
     # exchange pass: swap a chosen pose for a candidate when the index improves
-    def index_of(sel):
-        s = np.linalg.svd(Bs[sel].reshape(-1, p), compute_uv=False)
-        return _score(index, s, 3 * len(sel))
+    def indices_of(sels: np.ndarray, i: int) -> list[float]:
+        """The index of each selection (T, count), which differ from ``chosen`` in pose ``i`` only.  O1 (the sum of
+        the log singular values) is half the log-determinant of the normal matrix, which a swap changes by two
+        rank-3 terms: T small determinants instead of T SVDs.  The others need the singular values: one batched
+        SVD."""
+        if index == "O1":
+            G = np.einsum("kap,kaq->pq", Bs[chosen], Bs[chosen]) - Bs[chosen[i]].T @ Bs[chosen[i]]
+            Bt = Bs[sels[:, i]]
+            sign, logdet = np.linalg.slogdet(G + Bt.transpose(0, 2, 1) @ Bt)
+            return [0.5 * float(ld) if sg > 0 else -np.inf for sg, ld in zip(sign, logdet)]
+        s = np.linalg.svd(Bs[sels].reshape(len(sels), -1, p), compute_uv=False)
+        return [_score(index, si, 3 * sels.shape[1]) for si in s]
 
-    current = index_of(chosen)
+    current = indices_of(np.array([chosen]), 0)[0]
     for sweep in range(2):
         improved = False
         for i in range(len(chosen)):
             trial = rng.choice(np.setdiff1d(np.arange(len(cand)), chosen), size=min(40, len(cand) - count),
                                replace=False)
-            for c in trial:
-                sel = chosen.copy()
-                sel[i] = int(c)
-                v = index_of(sel)
+            sels = np.repeat(np.array([chosen]), len(trial), axis=0)
+            sels[:, i] = trial
+            for c, v in zip(trial, indices_of(sels, i)):  # each trial swaps only pose i: judged one after another
                 if v > current + 1e-12:
-                    chosen, current, improved = sel, v, True
+                    chosen, current, improved = chosen[:i] + [int(c)] + chosen[i + 1:], v, True
             if progress:
                 progress("exchanging", (sweep * len(chosen) + i + 1) / (2 * len(chosen)))
         if not improved:
             break
     q_plan = cand[chosen]
+    if not compare:
+        return PosePlan(q_plan, design.names, index, observability(design.jacobian(q_plan) / col), ident, {}, {})
     q_test = candidate_poses(model, test, rng, accept=accept)
     sig = position_sigma(design, q_plan, q_test)
     rand = []

@@ -22,7 +22,6 @@ from dataclasses import dataclass, field
 from typing import Callable
 
 import numpy as np
-from scipy import optimize
 
 from .errors import GeometryError, RobocalError
 from .estimators import axes, ruler, transmission
@@ -142,6 +141,7 @@ class SetupPlan:
 
 
 def _search(fun: Callable[[np.ndarray], float], bounds, seed: int, progress=None, maxiter: int = 40):
+    from scipy import optimize      # 0.3-0.5 s to import: only the set-up search needs it
     state = {"k": 0}
 
     def cb(xk, convergence=0.0):

@@ -21,6 +21,7 @@ The thesis's own parameterisation (L, gamma1, gamma2; section 4.2 and eq 4.3.1) 
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
+from functools import cached_property
 
 import numpy as np
 
@@ -41,11 +42,19 @@ def station_rotation(yaw_rad, tilt_x_rad=0.0, tilt_y_rad=0.0) -> np.ndarray:
     The one yaw convention: ``yaw`` is the world direction (counter-clockwise from +X) of the circle's zero."""
     yaw, tx, ty = np.broadcast_arrays(*(np.asarray(a, float) for a in (yaw_rad, tilt_x_rad, tilt_y_rad)))
     cz, sz, cx, sx, cy, sy = np.cos(yaw), np.sin(yaw), np.cos(tx), np.sin(tx), np.cos(ty), np.sin(ty)
-    o, z = np.ones_like(yaw), np.zeros_like(yaw)
-    Rz = np.stack([np.stack([cz, -sz, z], -1), np.stack([sz, cz, z], -1), np.stack([z, z, o], -1)], -2)
-    Rx = np.stack([np.stack([o, z, z], -1), np.stack([z, cx, -sx], -1), np.stack([z, sx, cx], -1)], -2)
-    Ry = np.stack([np.stack([cy, z, sy], -1), np.stack([z, o, z], -1), np.stack([-sy, z, cy], -1)], -2)
-    return Ry @ Rx @ Rz
+    # the product Ry Rx Rz written out, filled into one array (a stack of nine stacks cost more than the maths)
+    R = np.empty(yaw.shape + (3, 3))
+    sysx, cysx = sy * sx, cy * sx
+    R[..., 0, 0] = cy * cz + sysx * sz
+    R[..., 0, 1] = -cy * sz + sysx * cz
+    R[..., 0, 2] = sy * cx
+    R[..., 1, 0] = cx * sz
+    R[..., 1, 1] = cx * cz
+    R[..., 1, 2] = -sx
+    R[..., 2, 0] = -sy * cz + cysx * sz
+    R[..., 2, 1] = sy * sz + cysx * cz
+    R[..., 2, 2] = cy * cx
+    return R
 
 
 def _readings_local(d, collimation_rad, trunnion_rad, index_rad, face):
@@ -95,10 +104,13 @@ class Station:
     def position(self) -> np.ndarray:
         return np.array([self.x_mm, self.y_mm, self.z_mm])
 
-    @property
+    @cached_property
     def rotation(self) -> np.ndarray:
-        """World <- instrument rotation: Ry(tilt_y) Rx(tilt_x) Rz(yaw)."""
-        return station_rotation(self.yaw_rad, self.tilt_x_rad, self.tilt_y_rad)
+        """World <- instrument rotation: Ry(tilt_y) Rx(tilt_x) Rz(yaw) (the station is frozen: computed once; read-only
+        so no caller can change the cached matrix)."""
+        R = station_rotation(self.yaw_rad, self.tilt_x_rad, self.tilt_y_rad)
+        R.flags.writeable = False
+        return R
 
     def params(self) -> np.ndarray:
         return np.array([getattr(self, k) for k in self.PARAMS])

@@ -7,7 +7,7 @@ import pytest
 
 from calib.effects import (Backlash, CrossCoupling, JointCompliance, LinkCompliance, ThermalDrift,
                            TransmissionError, thesis_effects)
-from calib.model import MeasurementModel
+from calib.model import TORQUE_TERM_THRESHOLD, MeasurementModel, torque_term_size
 from calib.units import DEG, G0_M_S2, NM_PER_LBIN
 from tests.fakes import thesis_puma as fake
 from tests.fakes.thesis_puma import ThesisPuma
@@ -163,13 +163,55 @@ def test_geometric_jacobian_includes_the_torque_change(puma, rng):
     q = poses(rng, n)
     ctx = m.context(n, payload_kg=3.0)
     theta = m.nominal
-    J = m.evaluate(q, ctx, theta=theta, jacobian=True).jacobian
+    J = m.evaluate(q, ctx, theta=theta, jacobian=True, torque_derivative=True).jacobian
     for i in range(m.n_geometric):
         h = 1e-6 if m.names[i].endswith("_rad") else 1e-4
         d = np.zeros(m.P)
         d[i] = h
         fd = (m.points(q, ctx, theta + d) - m.points(q, ctx, theta - d)) / (2 * h)
         np.testing.assert_allclose(J[:, :, i], fd, atol=2e-6 * max(1.0, np.abs(fd).max()), err_msg=m.names[i])
+
+
+@pytest.mark.parametrize("softer", [1.0, 30.0])
+def test_torque_term_is_left_out_only_where_it_is_small(puma, rng, softer):
+    """The rule of calib.model.torque_term_matters: with the thesis's compliances the bound eps = max c |M| is below
+    1 % and the term is left out -- each geometric column then differs from the exact one by about eps; a robot 30x
+    more compliant keeps it, and its default Jacobian is the exact one."""
+    effects = thesis_effects()
+    for e in effects:
+        if isinstance(e, JointCompliance):
+            e.values[:2] *= softer
+    m = MeasurementModel(puma.with_tool({"P": [30.0, 0.0, 80.0]}), effects)
+    n = 20
+    q = poses(rng, n)
+    ctx = m.context(n, payload_kg=3.0)
+    exact = m.evaluate(q, ctx, jacobian=True, torque_derivative=True).jacobian
+    without = m.evaluate(q, ctx, jacobian=True, torque_derivative=False).jacobian
+    ev = m.evaluate(q, ctx, jacobian=True)
+    eps = torque_term_size(m.torque_gain(ev), ev.loads)
+    g = slice(0, m.n_geometric)
+    col = np.linalg.norm(exact[:, :, g] - without[:, :, g], axis=(0, 1)) / np.linalg.norm(exact[:, :, g], axis=(0, 1))
+    assert 0.1 * eps < col.max() < 3 * eps                   # the bound describes the term's size
+    if eps < TORQUE_TERM_THRESHOLD:
+        assert softer == 1.0
+        np.testing.assert_array_equal(ev.jacobian, without)
+    else:
+        assert softer > 1.0
+        np.testing.assert_array_equal(ev.jacobian, exact)
+
+
+def test_jacobian_completed_later_equals_the_one_asked_at_once(puma, rng):
+    """evaluate() without a Jacobian keeps its pass; complete_jacobian() adds the same Jacobian (identify's reuse)."""
+    m = MeasurementModel(puma.with_tool({"P": [30.0, 0.0, 80.0]}), thesis_effects())
+    q = poses(rng, 15)
+    ctx = m.context(15, payload_kg=2.0)
+    once = m.evaluate(q, ctx, jacobian=True, torque_derivative=True)
+    later = m.evaluate(q, ctx)
+    assert later.jacobian is None
+    m.complete_jacobian(later, torque_derivative=True)
+    np.testing.assert_array_equal(later.jacobian, once.jacobian)
+    np.testing.assert_array_equal(later.joint_jacobian, once.joint_jacobian)
+    np.testing.assert_array_equal(later.point_mm, once.point_mm)
 
 
 def test_two_effects_of_one_kind_on_one_joint_get_distinct_names(puma):

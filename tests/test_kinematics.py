@@ -157,3 +157,17 @@ def test_pose_csv_reads_prismatic_joints_in_mm(tmp_path):
     np.testing.assert_allclose(t.q_rad, [[250.0, np.pi / 2]])
     write_pose_csv(tmp_path / "o.csv", t.q_rad, prismatic=[True, False])
     np.testing.assert_allclose(read_pose_csv(tmp_path / "o.csv", 2, prismatic=[True, False]).q_rad, t.q_rad)
+
+
+def test_one_pose_of_a_batch_is_that_pose_alone(puma, rng):
+    """ChainPass.pose(k): what code that walks a batch pose by pose reads (frames, screws, gravity)."""
+    kin = Kinematics(puma.with_tool({"P": [30.0, -20.0, 120.0]}))
+    q = rng.uniform(-2, 2, (6, 6))                      # as many poses as base parameters: no shape confusion
+    params = kin.nominal + rng.normal(0, 1e-3, kin.P)
+    batch = kin.forward(q, params)
+    for k in (0, 4):
+        one, alone = batch.pose(k), kin.forward(q[k:k + 1], params)
+        for attr in ("point", "frame_R", "frame_t", "elem_axis", "elem_origin"):
+            np.testing.assert_allclose(getattr(one, attr), getattr(alone, attr), atol=1e-12, err_msg=attr)
+        np.testing.assert_allclose(one.gravity(), alone.gravity(), atol=1e-12)
+        np.testing.assert_allclose(kin.element_jacobian(one), kin.element_jacobian(alone), atol=1e-12)

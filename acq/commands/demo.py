@@ -73,8 +73,10 @@ def run(args) -> int:
     finally:
         demo.close()
     t_rec = time.perf_counter() - t0
+    clock = demo.runner.rig.clock
+    simulated = f", {clock.now():.1f} s of instrument time simulated" if clock.simulated else ""
     print(f"session {db}: {state}, {pp.saved}/{pp.total} steps saved in {t_rec:.1f} s "
-          f"({pp.failed_checks} failed checks, repeated or noted)", file=sys.stderr)
+          f"({pp.failed_checks} failed checks, repeated or noted{simulated})", file=sys.stderr)
     if state == "refused":
         for line in pp.preflight_lines:
             print(f"pre-flight: {line}", file=sys.stderr)

@@ -50,7 +50,9 @@ def _only(prefixes):
 
 
 def emulated_builder(db: str, seed: int, only: list[str] | tuple = (), te_joints=None):
-    """A TUI builder on the emulated rig (the demo's wiring: real drivers, emulated devices)."""
+    """A TUI builder on the emulated rig (the demo's wiring: real drivers, emulated devices) in real time: a human
+    watches the encoder windows and readings arrive at the pace a real cell gives them."""
+    from acq.clock import RealClock
     from acq.session.demo import build_demo
     from acq.tui.app import SessionHandle
 
@@ -58,7 +60,8 @@ def emulated_builder(db: str, seed: int, only: list[str] | tuple = (), te_joints
 
     def build(operator):
         resume = Path(db).exists() and Path(db).stat().st_size > 0
-        rig = build_demo(db, seed=seed, resume=resume, operator=operator, steps_filter=keep, te_joints=te_joints)
+        rig = build_demo(db, seed=seed, resume=resume, operator=operator, steps_filter=keep, te_joints=te_joints,
+                         clock=RealClock())
         return SessionHandle(rig.runner, rig.close, f"emulated Puma 560 — {db}", db,
                              identities=rig.runner.rig.identities())
 

@@ -290,7 +290,7 @@ def decode_reply(frame: bytes, expect_checksum: bool = False) -> Reply:
         text = frame.decode("ascii")
     except UnicodeDecodeError:
         raise CodecError(f"non-ASCII bytes in reply {frame[:60]!r}") from None
-    if any(not 0x20 <= ord(c) <= 0x7E for c in text):
+    if not text.isprintable():              # ASCII already: printable is exactly 0x20..0x7E
         raise CodecError(f"control characters in reply {frame[:60]!r}")
     m = _REPLY.match(text)
     if not m:

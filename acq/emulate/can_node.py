@@ -1,7 +1,11 @@
-"""The emulated tap as a node on a python-can bus (normally ``virtual``): a thread sending its frames on schedule.
+"""The emulated tap as a node on a python-can bus (normally ``virtual``): frames sent on the tap's schedule.
 
 Any bus object with ``send(msg)`` works, so tests wrap the bus to lose frames or inject errors, and a real
 ``socketcan`` vcan channel works the same way when one exists.
+
+On a real clock (the model's default) a thread sends what the schedule owes every period.  On a simulated clock
+(:class:`acq.clock.SimClock`, the demo) there is no thread: the clock calls :meth:`CanTapNode.pump` each time it
+advances, and the frames of the elapsed window go out at once, stamped with their scheduled times.
 """
 from __future__ import annotations
 
@@ -24,15 +28,24 @@ class CanTapNode:
         self.own_bus = own_bus
         self.frames_sent = 0
         self.send_errors = 0
+        self.samples_sent = 0               # samples whose four frames all went out (a lossless bus delivers them)
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._run, name="can-tap-node", daemon=True)
+        self._driven = None
 
     def start(self) -> "CanTapNode":
-        self._thread.start()
+        clock = self.model.clock
+        if getattr(clock, "simulated", False):
+            self._driven = clock.drive(self.pump)
+            self.pump(clock.now())              # the tap streams from now on, like a node powered up now
+        else:
+            self._thread.start()
         return self
 
     def stop(self) -> None:
         self._stop.set()
+        if self._driven is not None:
+            self._driven.stop()
         if self._thread.is_alive():
             self._thread.join(2.0)
         if self.own_bus:
@@ -57,12 +70,27 @@ class CanTapNode:
         period = 1.0 / self.model.rate_hz
         step = max(period, 0.001)
         while not self._stop.is_set():
-            for _ in range(self.model.due()):
-                for fid, data in can_frames(self.model.latch()):
-                    try:
-                        self.bus.send(can.Message(arbitration_id=fid, data=data, is_extended_id=False))
-                        self.frames_sent += 1
-                    except can.CanError:
-                        self.send_errors += 1
+            self.pump()
             self._stop.wait(step)
             time.sleep(0)
+
+    def pump(self, now: float | None = None) -> int:
+        """Send the samples the schedule owes at ``now`` (default the model's clock), the last one stamped ``now`` and
+        the others a period apart before it; returns how many."""
+        n = self.model.due(now)
+        if n and now is not None:
+            period = 1.0 / self.model.rate_hz
+            times = [now - (n - 1 - k) * period for k in range(n)]
+        else:
+            times = [None] * n
+        for t in times:
+            ok = True
+            for fid, data in can_frames(self.model.latch(t)):
+                try:
+                    self.bus.send(can.Message(arbitration_id=fid, data=data, is_extended_id=False))
+                    self.frames_sent += 1
+                except can.CanError:
+                    self.send_errors += 1
+                    ok = False
+            self.samples_sent += ok
+        return n

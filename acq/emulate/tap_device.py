@@ -69,10 +69,13 @@ class TapModel:
         self.max_backlog = max(1, int(self.rate_hz * max_backlog_s))
         self.skipped = 0
 
-    def latch(self) -> RawSample:
+    def latch(self, t: float | None = None) -> RawSample:
+        """The sample the tap latches now, stamped ``t`` (default the clock's now: a simulated clock's harness latches
+        a window's samples at once and passes each one's scheduled time)."""
         counts = np.rint(self.robot.counts_from_joint(self.world.joint_angles_rad())).astype(np.int64)
         counts += self.count_offset
-        s = RawSample(self.seq & 0xFFFF, int(self.clock() * 1e6) & 0xFFFFFFFF,
+        t = self.clock() if t is None else t
+        s = RawSample(self.seq & 0xFFFF, int(t * 1e6) & 0xFFFFFFFF,
                       tuple(wrap_i32(c) for c in counts), self.flags)
         self.seq += 1
         return s

@@ -9,8 +9,10 @@ Wiring (the same a real cell uses, only the devices are emulated):
 * :class:`~acq.session.rig.EmulatedBench` plays the technician's hands (robot motion, loads, aiming), and
   :class:`~acq.session.headless.ScriptedOperator` the technician's answers (dial gauges read from the world).
 
-Session parameters are chosen so ``robocal demo`` stays well under a minute on 2 cores: fewer positions and repeats
-than a real session, but every procedure is present.
+Time: the emulated devices and the rig run on a :class:`~acq.clock.SimClock` (an encoder window is an advance of
+simulated time, not a sleep), except where a human watches (the TUI's ``--emulate`` passes a real clock).  Session
+parameters are chosen so ``robocal demo`` stays quick on 2 cores (``benchmarks/bench_demo.py``): fewer positions and
+repeats than a real session, but every procedure is present.
 """
 from __future__ import annotations
 
@@ -21,6 +23,7 @@ from pathlib import Path
 
 import numpy as np
 
+from acq.clock import Clock, SimClock
 from calib.model import MeasurementModel
 from calib.twin import Twin, load_scenario
 from calib.units import ARCSEC, DEG
@@ -36,9 +39,9 @@ from .store import SessionStore
 
 DEMO_TITLE = "robocal demo: emulated Puma 560 (twin) and two GeoCOM theodolites"
 #: poses in the demo's Chapter 6 set: enough to identify the geometry with the running errors (about 30 free
-#: parameters) at a few sigma of the truth, still a ~15 s recording
+#: parameters) at a few sigma of the truth, still a quick recording
 DEMO_POSES = 48
-#: wait after each move before recording encoders (the tap's frames in flight carry the previous pose)
+#: wait after each move before recording encoders (the tap's frames in flight carry the previous pose); real time only
 DEMO_SETTLE_S = 0.02
 #: transmission-error runs: joint 4 inside its -110..170 deg limits (with the pre-flight's 2 deg margin), joint 6 over
 #: most of its +-266 deg
@@ -86,7 +89,7 @@ def demo_plan(twin: Twin, seed: int, n_poses: int = DEMO_POSES, quick: bool = Tr
     lim = twin.robot.limits_rad
     try:
         plan = select_poses(model, n_poses, seed=seed, pool=300 if quick else 2000, test=100,
-                            accept=lambda q: _visible(twin, q))
+                            accept=lambda q: _visible(twin, q), compare=False)
         q = np.asarray(plan.q_rad) / DEG
     except Exception:           # planning is an aid; fall back to seeded random poses within the limits
         rng = np.random.default_rng(seed)
@@ -113,9 +116,11 @@ def _visible(twin: Twin, q_rad: np.ndarray) -> np.ndarray:
     setup = session_setup(demo_setup(twin), twin.robot)
     pf = Preflight(twin.robot, setup)
     target = tool_target(setup)
-    for i in np.flatnonzero(ok):
-        step = Step("pose", "poses", "", "", pose_deg=tuple(np.asarray(q_rad[i]) / DEG), targets=(target,))
-        ok[i] = not pf.check_step(step)
+    cand = np.flatnonzero(ok)
+    steps = [Step(f"pose/{i}", "poses", "", "", pose_deg=tuple(np.asarray(q_rad[i]) / DEG), targets=(target,))
+             for i in cand]
+    failed = {f.key for f in pf.check(steps)}
+    ok[cand] = [s.key not in failed for s in steps]
     return ok
 
 
@@ -151,13 +156,15 @@ class DemoRig:
 
 def build_demo(db: str | Path, seed: int = 0, resume: bool = False, script: dict | None = None,
                plan: dict | None = None, steps_filter=None, operator=None, setup: dict | None = None,
-               scenario: str | None = None, te_joints=None) -> DemoRig:
+               scenario: str | None = None, te_joints=None, clock: Clock | None = None) -> DemoRig:
     """Open (or create) the demo session in ``db`` and wire emulated devices, bench, operator and runner.
 
     ``setup``: a set-up file's content (``robocal plan setup --out``) for a new session; its stations and base are
     replaced by the emulated cell's (:func:`demo_setup`).  ``scenario``: a twin scenario TOML (default: the default
     scenario); a resumed session keeps its own.  ``te_joints``: the transmission-error joints of the default plan
-    (``--te-joints``; default :data:`DEFAULT_TE_JOINTS`)."""
+    (``--te-joints``; default :data:`DEFAULT_TE_JOINTS`).  ``clock``: the emulated devices' and the rig's time; by
+    default a :class:`~acq.clock.SimClock` (the encoder windows take no wall time), a
+    :class:`~acq.clock.RealClock` where a human watches the session (the TUI's ``--emulate``)."""
     import can
 
     from acq.drivers import open_theodolite
@@ -169,8 +176,9 @@ def build_demo(db: str | Path, seed: int = 0, resume: bool = False, script: dict
     from acq.encoders import open_tap
 
     db = str(db)
+    clock = SimClock() if clock is None else clock
     if resume:
-        store = SessionStore.open(db)
+        store = SessionStore.open(db, durable=not clock.simulated)
         meta = store.session_row()
         from .setup_file import setup_from_text
         from .store import json_column
@@ -191,22 +199,26 @@ def build_demo(db: str | Path, seed: int = 0, resume: bool = False, script: dict
         store = SessionStore.create(db, DEMO_TITLE, plan_d, setup, operator="scripted demo operator",
                                     metadata={"emulated": True, "scenario": "default" if not scenario else "file",
                                               "scenario_path": str(Path(scenario).resolve()) if scenario else None,
-                                              "seed": seed})
+                                              "seed": seed},
+                                    durable=not clock.simulated)       # a simulated session can be recorded again
     world = TwinWorld(twin, seed=seed * 1000 + seed_offset)
     tag = uuid.uuid4().hex[:8]
     names = []
     drivers = {}
     for st, serial in (("A", 1001), ("B", 1002)):
         name = f"demo-{tag}-{st}"
-        url = registry.publish(name, GeoComDevice(world, st, serial_no=serial, seed=seed))
+        url = registry.publish(name, GeoComDevice(world, st, serial_no=serial, seed=seed, clock=clock))
         names.append(name)
         drivers[st] = open_theodolite("geocom", url, name=f"theodolite {st}")
     channel = f"robocal-demo-{tag}"
-    node = CanTapNode(can.Bus(interface="virtual", channel=channel), TapModel(world, twin.robot, rate_hz=500.0),
-                      own_bus=True).start()
+    node = CanTapNode(can.Bus(interface="virtual", channel=channel),
+                      TapModel(world, twin.robot, rate_hz=500.0, clock=clock), own_bus=True)
     tap = open_tap("can", interface="virtual", channel=channel, robot=twin.robot)
-    rig = Rig(drivers, tap)
-    rig.start()
+    rig = Rig(drivers, tap, clock=clock)
+    rig.start()                                 # the reader listens before the node sends its first sample
+    node.start()
+    if clock.simulated:
+        clock.add_drain(_tap_drain(rig, node))
     known = _device_ids(store)               # a crash may have left some devices recorded and others not
     for role, driver, url, ident in rig.identities():
         if role in known:
@@ -232,14 +244,29 @@ def build_demo(db: str | Path, seed: int = 0, resume: bool = False, script: dict
 
     op = operator or ScriptedOperator(script, inputs=inputs)
     from .stations import stations_from_store
-    # settle_s: frames already on the bus when the robot "moves" carry the old counts; real cells wait for the servo
+    # settle_s: frames already on the bus when the robot "moves" carry the old counts; real cells wait for the servo.
+    # On the simulated clock nothing is in flight at a move (each advance ends when the reader has every frame sent)
+    # and the twin's robot stops at once: no settle, and half the frames to emulate
     runner = Runner(store, rig, steps, op, bench=bench, stations=setup_stations(setup),
-                    predict=predictor(twin.robot, setup), settle_s=DEMO_SETTLE_S,
+                    predict=predictor(twin.robot, setup), settle_s=0.0 if clock.simulated else DEMO_SETTLE_S,
                     refit_stations=lambda st: stations_from_store(st, setup),
                     preflight=Preflight(twin.robot, setup))
     d = DemoRig(runner, world, twin, store, names)
     d._nodes = [node]
     return d
+
+
+def _tap_drain(rig: Rig, node, timeout_s: float = 1.0):
+    """A :class:`~acq.clock.SimClock` drain: wait until the tap reader has delivered every sample the node sent, so a
+    simulated wait returns with its window's samples in the rig (a lost sample is waited for once, then written
+    off)."""
+    lost = 0
+
+    def drain() -> None:
+        nonlocal lost
+        if not rig.wait_received(node.samples_sent - lost, timeout_s):
+            lost = node.samples_sent - rig.received
+    return drain
 
 
 def _has_devices(store: SessionStore) -> bool:

@@ -97,19 +97,36 @@ class Preflight:
         lim = {**PREFLIGHT_LIMITS, **({"min_focus_mm": setup["min_focus_mm"]} if "min_focus_mm" in setup else {})}
         self.limits = {**lim, **setup.get("preflight", {}), **(limits or {})}
         self.g_n_per_kg = self.model.gravity_n_per_kg(self.theta)
+        self._chains: dict[tuple, object] = {}     # pose -> one-pose chain pass (nominal model: stations do not matter)
 
     # -- geometry ------------------------------------------------------------------------------------------------
     def geometry(self, step: Step) -> StepGeometry:
-        fp = None
-        if step.pose_deg is not None and len(step.pose_deg) == self.robot.n:
-            q = np.asarray(step.pose_deg, float)[None] * DEG
-            fp = self.model.kin.forward(q, self.theta[: self.model.n_geometric])
+        fp = self.chain(step)
+        return StepGeometry(step, fp, self._points(step, fp))
+
+    def chain(self, step: Step):
+        """The nominal chain at the step's pose (one pose), or None; kept per pose: the runner checks every step
+        once before the session and again, with the refitted stations, before it runs (the chain does not depend on
+        the stations)."""
+        if not self._posed(step):
+            return None
+        key = tuple(step.pose_deg)
+        fp = self._chains.get(key)
+        if fp is None:
+            fp = self.model.kin.forward(np.asarray(key, float)[None] * DEG, self.theta[: self.model.n_geometric])
+            self._keep(key, fp)
+        return fp
+
+    def _posed(self, step: Step) -> bool:
+        return step.pose_deg is not None and len(step.pose_deg) == self.robot.n
+
+    def _points(self, step: Step, fp) -> dict[str, np.ndarray]:
         pts = {}
         for t in step.targets:
             p = self.target_point(fp, t)
             if p is not None:
                 pts[t.name] = p
-        return StepGeometry(step, fp, pts)
+        return pts
 
     def target_point(self, fp, t: TargetSpec) -> np.ndarray | None:
         """A target's point in the measurement frame: fixed (``point_mm``) or carried by link ``t.link``."""
@@ -129,10 +146,21 @@ class Preflight:
         return out
 
     def check(self, steps: list[Step]) -> list[Finding]:
+        """Every step's findings, in step order; the chain runs once for all the steps' poses not seen yet."""
+        new = {tuple(s.pose_deg) for s in steps if self._posed(s)} - self._chains.keys()
+        if new:
+            poses = sorted(new)
+            fp = self.model.kin.forward(np.array(poses, float) * DEG, self.theta[: self.model.n_geometric])
+            for k, pose in enumerate(poses):
+                self._keep(pose, fp.pose(k))
         out: list[Finding] = []
         for s in steps:
             out += self.check_step(s)
         return out
+
+    def _keep(self, pose: tuple, fp) -> None:
+        if len(self._chains) < 10_000:
+            self._chains[pose] = fp
 
 
 def failing_lines(findings: list[Finding]) -> list[str]:
@@ -198,14 +226,15 @@ def _reach(pf: Preflight, geo: StepGeometry) -> list[Finding]:
     return out
 
 
-def _segment_distance(a0, a1, b0, b1, n: int = 40) -> float:
-    """Shortest distance between segments a0-a1 and b0-b1 (sampled along b, exact along a)."""
+def _segment_distances(a0, a1, b0, b1, n: int = 40) -> np.ndarray:
+    """Shortest distances (K,) between the segment a0-a1 and each segment b0[k]-b1[k] (sampled along b, exact along
+    a); all K at once."""
     u = a1 - a0
     uu = float(u @ u)
-    s = np.linspace(0.0, 1.0, n)[:, None]
-    pts = b0 + s * (b1 - b0)
-    t = np.clip((pts - a0) @ u / uu, 0.0, 1.0) if uu > 0 else np.zeros(n)
-    return float(np.min(np.linalg.norm(pts - (a0 + t[:, None] * u), axis=1)))
+    s = np.linspace(0.0, 1.0, n)[None, :, None]
+    pts = b0[:, None] + s * (b1 - b0)[:, None]                            # (K, n, 3)
+    t = np.clip((pts - a0) @ u / uu, 0.0, 1.0) if uu > 0 else np.zeros(pts.shape[:2])
+    return np.min(np.linalg.norm(pts - (a0 + t[..., None] * u), axis=-1), axis=1)
 
 
 @preflight_check("sight")
@@ -247,13 +276,10 @@ def _blocking_link(pf: Preflight, geo: StepGeometry, station_mm: np.ndarray, p: 
     L = float(np.linalg.norm(d))
     end = station_mm + d * max(0.0, 1.0 - 2.0 * float(r) / L)
     org = geo.fp.frame_t[0]
-    for j in range(1, len(org)):
-        if np.linalg.norm(org[j] - org[j - 1]) < 1e-6:
-            continue
-        dist = _segment_distance(station_mm, end, org[j - 1], org[j])
-        if dist < r:
-            return j, dist
-    return None
+    links = np.flatnonzero(np.linalg.norm(org[1:] - org[:-1], axis=1) >= 1e-6) + 1
+    dist = _segment_distances(station_mm, end, org[links - 1], org[links])
+    hit = np.flatnonzero(dist < r)
+    return (int(links[hit[0]]), float(dist[hit[0]])) if hit.size else None
 
 
 @preflight_check("intersection")

@@ -590,7 +590,8 @@ def _poses(steps, points, robot, setup, est, twin, figs, running=None, problems=
     # the dead zone needs loading and unloading, which a pose set has not: it stays out
     wanted = [n for n in default_free(model, effects=True) if not n.endswith("deadzone_rad")]
     ident = identify(model, obs, free=wanted, theta0=theta0, priors=priors)
-    sigma = np.sqrt(ident.sigma ** 2 + _station_variance(model, obs, D, ident, priors, points.station_fit))
+    var = ident.sigma ** 2 + _station_variance(model, obs, D, ident, priors, points.station_fit)
+    sigma = np.sqrt(np.clip(var + _te_run_variance(robot, running or {}, specs, obs, ident, priors), 0.0, None))
     truth = twin.true_parameters() if twin is not None else None
     gauge = _gauge_truth(twin, model, ident, q) if twin is not None else {}
     compared = {}                  # the truth each estimate is compared with: the twin's, in the fit's gauge
@@ -670,7 +671,9 @@ def _station_variance(model, obs, D, ident, priors, fit) -> np.ndarray:
     Why: every pose point was intersected with the same ruler-fitted stations, so an error in L (a scale) or B's
     height moves all of them together and does not average down over the poses; the identification's covariance
     treats the points as independent.  Each station parameter is moved by its 1-sigma, the points follow through
-    their sensitivities, and the identification is re-solved from its own estimate: ``G U_station G^T``."""
+    their sensitivities, and the identification is re-solved from its own estimate: ``G U_station G^T``.  A re-solve
+    is a small step from a converged fit: no linear start and no second outlier search (the main fit flagged them and
+    kept every pose), only the final least squares."""
     from calib.identify import PointObservations, identify
     out = np.zeros(len(ident.theta))
     if not fit.cov.size or any(d is None for d in D):
@@ -680,13 +683,59 @@ def _station_variance(model, obs, D, ident, priors, fit) -> np.ndarray:
     for k, sd in enumerate(np.sqrt(np.diag(fit.cov))):
         moved = PointObservations(obs.q_rad, obs.points_mm + Dk[:, :, k] * sd, cov_mm2=obs.cov_mm2)
         try:
-            g = identify(model, moved, free=list(ident.free), theta0=ident.theta, priors=priors)
+            g = identify(model, moved, free=list(ident.free), theta0=ident.theta, priors=priors, robust=False,
+                         start=False)
         except RobocalError:
             return out
         with np.errstate(invalid="ignore"):
             G.append(np.nan_to_num((g.theta - ident.theta) / sd))  # parameters at +-inf (none free) give 0
     G = np.stack(G, -1)
     return np.einsum("pk,kl,pl->p", G, fit.cov, G)
+
+
+def _te_run_variance(robot, running: dict, specs: list[str], obs, ident, priors) -> np.ndarray:
+    """What the transmission-error run's order, and the correlation of its coefficients, add to each identified
+    parameter's variance.
+
+    Why: the pose set's model holds a joint's transmission-error order at the run's estimate and takes the run's sine
+    and cosine coefficients as independent priors.  But the order is known only to its error (joint 4's 0.9 to about
+    5 % over a 270 deg run), a different order moves the coefficients the pose set finds, and the run's order,
+    amplitude and phase are correlated.  So the run's whole covariance of (order, sine, cosine) goes through the fit:
+    ``J U J^T`` with the sensitivity to the order from refits with the order moved by a tenth of its error either
+    way, and to the prior values from the priors' gain ``C P`` -- in place of the independent-prior term
+    ``C P C`` the identification's covariance holds.  Left out, the pose set's joint-4 coefficients scattered
+    1.15 times their errors over 40 seeded demo runs."""
+    from calib.identify import identify
+    out = np.zeros(len(ident.theta))
+    scale = max(1.0, float(ident.reduced_chi2))
+    for j, res in sorted((running.get("transmission") or {}).items()):
+        at = [i for i, t in enumerate(specs) if t.startswith(f"transmission_error:{j}:")]
+        pri = [f"transmission_error.j{j}.{k}_rad" for k in ("s1", "c1")]
+        if len(at) != 1 or not all(n in priors and n in ident.free for n in pri) or "omega" not in res.names:
+            continue
+        idx = [list(res.names).index(n) for n in ("omega", "amplitude1_rad", "phase1_rad")]
+        A, phi = (float(res.value[i]) for i in idx[1:])
+        G = np.array([[1.0, 0.0, 0.0], [0.0, np.cos(phi), -A * np.sin(phi)], [0.0, np.sin(phi), A * np.cos(phi)]])
+        U = G @ res.cov[np.ix_(idx, idx)] @ G.T
+        order = float(specs[at[0]].rsplit(":", 1)[1])
+        h = 0.1 * float(np.sqrt(U[0, 0]))
+        moved = []
+        for sgn in (1.0, -1.0):
+            sp = list(specs)
+            sp[at[0]] = f"transmission_error:{j}:{order + sgn * h:.8g}"
+            model, _, _ = _pose_model(robot, running, [], sp)
+            try:
+                moved.append(identify(model, obs, free=list(ident.free), theta0=ident.theta, priors=priors).theta)
+            except RobocalError:
+                break
+        if len(moved) < 2:
+            continue
+        gain = [ident.cov[:, ident.names.index(n)] / (priors[n][1] ** 2 * scale) for n in pri]
+        with np.errstate(invalid="ignore"):
+            dw = np.nan_to_num((moved[0] - moved[1]) / (2 * h))      # parameters held at +-inf move by nothing
+        J = np.stack([dw, *gain], -1)
+        out += np.einsum("pk,kl,pl->p", J, U, J) - sum(g * g * priors[n][1] ** 2 for g, n in zip(gain, pri))
+    return out
 
 
 def _unit(name: str) -> str:
@@ -750,14 +799,24 @@ def _joint_angles(steps, points, axis_n, full: bool = False):
     return (out, sig, cov) if full else (out, sig)
 
 
-def _own_axis(sts, points, j, n_mc):
-    """The joint's axis from A2 over the run itself: a wide span at a large radius beats the short sweep."""
+def _own_axis_angles(sts, points, j: int):
+    """Angles of a run about the joint's own axis, fitted from A2 over the run itself (a wide span at a large radius
+    beats the short sweep), with the axis's error in their covariance
+    (:func:`calib.estimators.transmission.joint_angles_fitted_axis`): ``(angles, sigmas, cov)`` as
+    :func:`_joint_angles`, NaN where a step lacks A1 or A2; None when fewer than 4 steps have both."""
     from calib.estimators.axes import fit_axis
-    pts = [points(s).get("A2") for s in sts]
-    pts = [p for p in pts if p is not None]
-    P = np.array([p[0] for p in pts])
-    # points more than 180 deg apart are fine for a circle fit, but keep the sweep order for the normal's sign
-    return fit_axis(P, _block(pts, points), n_mc=0, joint=f"j{j}").value[3:6]
+    from calib.estimators.transmission import joint_angles_fitted_axis
+    ok = [i for i, st in enumerate(sts) if {"A1", "A2"} <= set(points(st))]
+    if len(ok) < 4:
+        return None
+    pairs = [(points(sts[i])["A1"], points(sts[i])["A2"]) for i in ok]
+    U = _block([t for p in pairs for t in p], points)
+    A1, A2 = (np.array([p[k].point_mm for p in pairs]) for k in (0, 1))
+    iA2 = (np.arange(len(ok))[:, None] * 6 + np.arange(3, 6)).ravel()
+    fit_axis(A2, U[np.ix_(iA2, iA2)], n_mc=0, joint=f"j{j}")       # its checks: the points lie on a circle
+    out, cov = np.full(len(sts), np.nan), np.full((len(sts), len(sts)), np.nan)
+    out[ok], cov[np.ix_(ok, ok)], _ = joint_angles_fitted_axis(A1, A2, U)
+    return out, np.sqrt(np.diag(cov)), cov
 
 
 def _transmission(steps, points, robot, axes, est, twin, figs, n_mc):
@@ -776,8 +835,8 @@ def _transmission(steps, points, robot, axes, est, twin, figs, n_mc):
             failed.append(f"joint {j}: no swept axis to measure the angle about")
             continue
         sts.sort(key=lambda s: s["spec"]["meta"]["index"])
-        n = _own_axis(sts, points, j, n_mc) if len(sts) >= 4 else axes[j].value[3:6]
-        meas, sig, cov = _joint_angles(sts, points, n, full=True)
+        own = _own_axis_angles(sts, points, j)
+        meas, sig, cov = own if own is not None else _joint_angles(sts, points, axes[j].value[3:6], full=True)
         enc = np.array([(_encoder_q(s, robot) if _encoder_q(s, robot) is not None
                          else np.asarray(s["spec"]["pose_deg"]) * DEG)[j - 1] for s in sts])
         err = np.angle(np.exp(1j * (meas - (enc - enc[0]))))      # both sides wrap differently past 180 deg

@@ -13,12 +13,13 @@ actions the scripted operator "performs".
 from __future__ import annotations
 
 import collections
+import itertools
 import threading
-import time
 from dataclasses import dataclass, field
 
 import numpy as np
 
+from acq.clock import Clock, RealClock
 from acq.drivers.base import AngleReading
 
 from .steps import Step, TargetSpec
@@ -40,13 +41,24 @@ class EncoderCapture:
 
 @dataclass
 class Rig:
-    """Opened devices.  ``theodolites`` maps station name (A, B) to a driver; ``tap`` is optional."""
+    """Opened devices.  ``theodolites`` maps station name (A, B) to a driver; ``tap`` is optional.  ``clock``
+    (:mod:`acq.clock`) times the encoder windows: real time for a real cell (the default), the emulated bench's
+    :class:`~acq.clock.SimClock` for the demo.
+
+    The tap's samples go into a bounded buffer with a running count, so a capture polls one integer and copies only
+    its own window, whatever the buffer holds."""
 
     theodolites: dict
     tap: object | None = None
     device_ids: dict = field(default_factory=dict)      # role -> store device_id
+    clock: Clock = field(default_factory=RealClock)
     _buf: collections.deque = field(default_factory=lambda: collections.deque(maxlen=200_000))
     _lock: threading.Lock = field(default_factory=threading.Lock)
+    _arrived: threading.Condition = field(init=False)
+    received: int = field(default=0, init=False)        # samples delivered by the tap since start
+
+    def __post_init__(self) -> None:
+        self._arrived = threading.Condition(self._lock)
 
     def start(self) -> None:
         if self.tap is not None:
@@ -55,6 +67,13 @@ class Rig:
     def _sink(self, sample) -> None:
         with self._lock:
             self._buf.append(sample)
+            self.received += 1
+            self._arrived.notify_all()
+
+    def wait_received(self, n: int, timeout_s: float) -> bool:
+        """Block (real time) until ``n`` samples have arrived since start; False on timeout."""
+        with self._lock:
+            return self._arrived.wait_for(lambda: self.received >= n, timeout_s)
 
     def identities(self) -> list[tuple[str, str, str, dict]]:
         """(role, driver, url, identity) per device, for the session record."""
@@ -78,29 +97,28 @@ class Rig:
 
     def capture(self, seconds: float, settle_s: float = 0.0, min_samples: int = 5,
                 timeout_s: float = 2.0) -> EncoderCapture | None:
-        """Encoder samples that arrive after ``settle_s`` during ``seconds`` (at least ``min_samples``)."""
+        """Encoder samples that arrive after ``settle_s`` during ``seconds`` (at least ``min_samples``; waiting at
+        most ``timeout_s`` after the settle time)."""
         if self.tap is None:
             return None
-        t0 = time.monotonic() + settle_s
-        deadline = t0 + max(seconds, 0.0)
-        hard = t0 + timeout_s
-        while True:
-            now = time.monotonic()
-            with self._lock:
-                got = [s for s in self._buf if s.t_mono >= t0]
-            if (now >= deadline and len(got) >= min_samples) or now >= hard:
-                break
-            time.sleep(0.002)
+        clock = self.clock
+        clock.sleep(settle_s)
+        t0 = clock.now()
         with self._lock:
+            first = self.received                       # the window's first sample, counted since start
+        deadline, hard = t0 + max(seconds, 0.0), t0 + timeout_s
+        while True:
+            now = clock.now()
+            with self._lock:
+                n = self.received - first
+            if (now >= deadline and n >= min_samples) or now >= hard:
+                break
+            clock.sleep(max(deadline - now, 0.002))
+        with self._lock:
+            n = min(self.received - first, len(self._buf))
+            got = list(itertools.islice(self._buf, len(self._buf) - n, None))
             self._buf.clear()
-        if not got:
-            return EncoderCapture(*(np.zeros((0,), np.int64),) * 2, np.zeros(0), np.zeros((0, 6), np.int64),
-                                  np.zeros((0, 6), np.int64), np.zeros((0, 6)))
-        return EncoderCapture(
-            np.array([s.seq for s in got], np.int64), np.array([s.t_device_us for s in got], np.int64),
-            np.array([s.t_mono for s in got]), np.array([s.counts_wire for s in got], np.int64),
-            np.array([s.counts for s in got], np.int64),
-            np.array([s.joint_rad if s.joint_rad is not None else np.full(len(s.counts), np.nan) for s in got]))
+        return _capture(got)
 
     def close(self) -> None:
         if self.tap is not None:
@@ -113,6 +131,17 @@ class Rig:
                 drv.close()
             except Exception:
                 pass
+
+
+def _capture(got: list) -> EncoderCapture:
+    if not got:
+        return EncoderCapture(*(np.zeros((0,), np.int64),) * 2, np.zeros(0), np.zeros((0, 6), np.int64),
+                              np.zeros((0, 6), np.int64), np.zeros((0, 6)))
+    return EncoderCapture(
+        np.array([s.seq for s in got], np.int64), np.array([s.t_device_us for s in got], np.int64),
+        np.array([s.t_mono for s in got]), np.array([s.counts_wire for s in got], np.int64),
+        np.array([s.counts for s in got], np.int64),
+        np.array([s.joint_rad if s.joint_rad is not None else np.full(len(s.counts), np.nan) for s in got]))
 
 
 class Bench:

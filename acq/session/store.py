@@ -5,7 +5,8 @@ session, no dynamic columns); ``PRAGMA user_version`` is the schema version and 
 atomically; ``PRAGMA application_id`` marks the file as robocal's, so a foreign SQLite file is refused instead of
 being "migrated".  A file newer than this code is refused (its meaning is unknown to us).
 
-Durability: ``synchronous=FULL`` + WAL.  The runner writes a whole step (its row, every raw reading of every attempt,
+Durability: ``synchronous=FULL`` + WAL (NORMAL for an emulated session on a simulated clock, which can be recorded
+again: see :func:`connect`).  The runner writes a whole step (its row, every raw reading of every attempt,
 the encoder stream chunks, operator inputs and check results) in **one transaction** when the operator decides
 (accept or skip), so a crash loses at most the step in progress and never leaves half a step.  Raw rows are
 insert-only: calibration results go to ``result`` with provenance and never update raw tables.
@@ -245,8 +246,13 @@ def migrate(conn: sqlite3.Connection, target: int = SCHEMA_VERSION) -> int:
     return ver
 
 
-def connect(path: str | Path, *, create: bool = False, target_version: int = SCHEMA_VERSION) -> sqlite3.Connection:
-    """A read-write connection (WAL, foreign keys, synchronous FULL), migrated to ``target_version``."""
+def connect(path: str | Path, *, create: bool = False, target_version: int = SCHEMA_VERSION,
+            durable: bool = True) -> sqlite3.Connection:
+    """A read-write connection (WAL, foreign keys, synchronous FULL), migrated to ``target_version``.
+
+    ``durable=False`` (synchronous NORMAL) is for sessions that can be recorded again -- an emulated session on a
+    simulated clock: with WAL a crash of the program still loses no committed step, only a power cut may lose the
+    last ones, and a commit needs no disk flush."""
     p = str(path)
     if not create and not os.path.exists(p):
         raise StoreError(f"{p}: no such session database")
@@ -257,7 +263,7 @@ def connect(path: str | Path, *, create: bool = False, target_version: int = SCH
             # never write robocal's schema into a file that is not a robocal database (an empty or foreign file)
             raise StoreError(f"{p}: not a robocal session database (an empty file or an empty SQLite database)")
         conn.execute("PRAGMA journal_mode=WAL")
-        conn.execute("PRAGMA synchronous=FULL")
+        conn.execute(f"PRAGMA synchronous={'FULL' if durable else 'NORMAL'}")
         conn.execute("PRAGMA foreign_keys=ON")
         conn.execute("PRAGMA busy_timeout=10000")
         migrate(conn, target_version)
@@ -350,9 +356,10 @@ class SessionStore:
 
     @classmethod
     def create(cls, path: str | Path, title: str, plan: dict, setup: dict, operator: str = "",
-               metadata: dict | None = None) -> "SessionStore":
+               metadata: dict | None = None, durable: bool = True) -> "SessionStore":
+        """A new session in ``path``; ``durable``: see :func:`connect`."""
         p = str(path)
-        conn = connect(p, create=True)
+        conn = connect(p, create=True, durable=durable)
         st = cls(conn, p)
         if st.session_id is not None:           # (a file left by a crash during creation holds no session: reuse)
             conn.close()
@@ -370,9 +377,9 @@ class SessionStore:
         return st
 
     @classmethod
-    def open(cls, path: str | Path) -> "SessionStore":
+    def open(cls, path: str | Path, durable: bool = True) -> "SessionStore":
         p = str(path)
-        conn = connect(p)
+        conn = connect(p, durable=durable)
         st = cls(conn, p)
         if st.session_id is None:
             conn.close()

@@ -15,8 +15,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy import stats
 
+from calib.distributions import kruskal_p
 from calib.units import DEG
 
 from .data import DiagnosisData
@@ -65,10 +65,7 @@ def _factor(name: str, keys: np.ndarray, labels: list[str], before: np.ndarray, 
         return None
     best, which = 1.0, "residual length"
     for sname, vals in tests:
-        try:
-            p = float(stats.kruskal(*[vals[s] for s in sels]).pvalue)
-        except ValueError:              # all values identical
-            p = 1.0
+        p = kruskal_p(*[vals[s] for s in sels])     # NaN when all values are identical: no evidence
         if p == p and p < best:
             best, which = p, sname
     return Factor(name, groups, min(1.0, best * len(tests)), which)

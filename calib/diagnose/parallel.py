@@ -8,9 +8,10 @@ import os
 from concurrent.futures import ProcessPoolExecutor
 from typing import Callable, Sequence, TypeVar
 
+from calib.threads import BLAS_ENV_VARS as _BLAS
+
 C = TypeVar("C")
 R = TypeVar("R")
-_BLAS = ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS")
 
 
 def map_cases(fn: Callable[[C], R], cases: Sequence[C], workers: int | None = None, progress=None) -> list[R]:

@@ -29,8 +29,8 @@ from dataclasses import dataclass, field
 from typing import Callable
 
 import numpy as np
-from scipy import stats
 
+from calib.distributions import f_sf
 from calib.identifiability import analyse
 from calib.model import MeasurementModel
 
@@ -246,7 +246,7 @@ def _nested_tests(data: DiagnosisData, cur: CVResult, lin: _Linear, ok) -> _Test
         q = len(cols)
         dof = m - len(lin.base_idx) - q
         F[k] = ((rss0 - rss1) / q) / (rss1 / dof) if rss1 > 0 else np.inf
-        p[k] = min(1.0, float(stats.f.sf(F[k], q, dof)) * M)
+        p[k] = min(1.0, float(f_sf(F[k], q, dof)) * M)
         dbic[k] = rss1 - rss0 + q * np.log(m)       # whitened -2 log L difference + penalty (sigma known)
         sig.append(fitted)
     return _Tests(p, F, dbic, sig, r0, m - len(lin.base_idx))
@@ -265,7 +265,7 @@ def _adds_to(lin: _Linear, tests: _Tests, k: int, i: int, cols_k: list[int], col
     dof = tests.dof - len(cols_i) - q
     if rss_b <= 0 or dof <= 0:
         return 1.0
-    return float(stats.f.sf(max(0.0, (rss_i - rss_b) / q) / (rss_b / dof), q, dof))
+    return float(f_sf(max(0.0, (rss_i - rss_b) / q) / (rss_b / dof), q, dof))
 
 
 def _aliases(k: int, ok, tests: _Tests, lin: _Linear, alpha: float) -> list[str]:
@@ -594,7 +594,7 @@ def _group_dependence(res_w: np.ndarray, res_mm: np.ndarray, groups: list[np.nda
         between = sum(np.count_nonzero(m) * (v[m].mean() - mu) ** 2 for m in groups) / (g - 1)
         within = sum(float(np.sum((v[m] - v[m].mean()) ** 2)) for m in groups) / (n - g)
         F = between / max(within, 1.0)
-        p = min(p, float(stats.f.sf(F, g - 1, n - g)))
+        p = min(p, float(f_sf(F, g - 1, n - g)))
     mu_mm = res_mm.mean(0)
     size = np.sqrt(sum(np.count_nonzero(m) * np.sum((res_mm[m].mean(0) - mu_mm) ** 2) for m in groups) / n)
     return p, float(size)

@@ -78,6 +78,7 @@ class Loads:
     point_force_n: np.ndarray | None = None   # (N, K, 3) N, measurement frame
     point_at_mm: np.ndarray | None = None     # (N, K, 3) where each acts, measurement frame
     point_link: np.ndarray | None = None      # (K,) frame each point is fixed in
+    joint_moment_nm: np.ndarray | None = None  # (N, n, 3) moment about joint j's origin of all it carries
 
 
 class JointNumber(int):

@@ -1,0 +1,85 @@
+"""Benchmark: ``robocal demo`` as a whole process -- wall time, CPU time, and the instrument time the emulated bench
+simulated instead of sleeping it (issue 18 item 4).
+
+Target (issue 18, the 2-core development machine): ``robocal demo`` <= 5 s wall, whole process.  Baseline before the
+simulated clock (2026-11-23, same machine, load average about 0.2): 17-20 s wall, of which about 9 s were sleeps for
+encoder windows (``time.sleep`` polls in the rig's capture) and ~9.7 s CPU (user + system) including reprocessing.
+
+Each run records a fresh demo database in a temporary folder with the default seed (``robocal demo --seed 0``) and
+reprocesses it, exactly as a user runs it; the figures are per run and the median.  CPU time is the child's user +
+system time (all its threads); "waiting" is wall minus CPU on the main thread's path (a loaded machine shows up
+there, so the load average is printed before and after).  One BLAS thread, as the ``robocal`` command sets itself.
+Bytecode is cached as a user's Python does (``PYTHONDONTWRITEBYTECODE`` is dropped for the child; an untimed
+warm-up run writes the caches): without it every robocal module is compiled again on each start (~0.3 s).
+
+    python benchmarks/bench_demo.py [--runs 3] [--seed 0] [--warmup 1]
+"""
+from __future__ import annotations
+
+import argparse
+import os
+import re
+import resource
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+TARGET_S = 5.0
+BASELINE = "17-20 s wall, ~9.7 s CPU, ~9 s asleep (2026-11-23, before the simulated clock)"
+_SIM = re.compile(r"([0-9.]+) s of instrument time simulated")
+_REC = re.compile(r"steps saved in ([0-9.]+) s")
+
+
+def _load() -> str:
+    return "load average %.2f %.2f %.2f" % os.getloadavg()
+
+
+def run_demo(seed: int) -> dict:
+    """One whole ``robocal demo`` process: wall, CPU, recording time and simulated instrument time (s)."""
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join(filter(None, [str(ROOT), os.environ.get("PYTHONPATH")])))
+    env.pop("PYTHONDONTWRITEBYTECODE", None)
+    with tempfile.TemporaryDirectory() as tmp:
+        before = resource.getrusage(resource.RUSAGE_CHILDREN)
+        t0 = time.perf_counter()
+        r = subprocess.run([sys.executable, "-m", "acq.cli", "demo", "--db", str(Path(tmp) / "demo.db"),
+                            "--seed", str(seed)], capture_output=True, text=True, env=env, cwd=tmp)
+        wall = time.perf_counter() - t0
+        after = resource.getrusage(resource.RUSAGE_CHILDREN)
+    if r.returncode != 0:
+        raise SystemExit(f"bench_demo: robocal demo failed ({r.returncode}):\n{r.stderr[-2000:]}")
+    cpu = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
+    sim, rec = _SIM.search(r.stderr), _REC.search(r.stderr)
+    return {"wall": wall, "cpu": cpu, "record": float(rec.group(1)) if rec else float("nan"),
+            "simulated": float(sim.group(1)) if sim else 0.0}
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--runs", type=int, default=3, help="whole demo processes (default 3)")
+    ap.add_argument("--seed", type=int, default=0, help="the demo's seed (default 0)")
+    ap.add_argument("--warmup", type=int, default=1, help="untimed runs first, to cache bytecode (default 1)")
+    a = ap.parse_args(argv)
+    print(f"robocal demo, whole process, {a.runs} runs; {_load()}; cpu count {os.cpu_count()}")
+    for _ in range(a.warmup):
+        run_demo(a.seed)
+    rows = []
+    for i in range(a.runs):
+        m = run_demo(a.seed)
+        rows.append(m)
+        print(f"  run {i + 1}: wall {m['wall']:5.2f} s  cpu {m['cpu']:5.2f} s  recording {m['record']:4.1f} s  "
+              f"simulated instrument time {m['simulated']:4.1f} s (slept before: that much and more)")
+    med = {k: statistics.median(r[k] for r in rows) for k in rows[0]}
+    verdict = "meets" if med["wall"] <= TARGET_S else "misses"
+    print(f"median: wall {med['wall']:.2f} s, cpu {med['cpu']:.2f} s, waiting {max(med['wall'] - med['cpu'], 0):.2f} s"
+          f", simulated (not slept) {med['simulated']:.1f} s -- {verdict} the target {TARGET_S:g} s wall")
+    print(f"baseline: {BASELINE}")
+    print(_load())
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,76 @@
+"""How many threads the linear algebra (BLAS/LAPACK, OpenMP) may use: one, unless the user says otherwise.
+
+Why one: robocal's matrices are a few thousand rows by tens of columns, where a threaded BLAS spends more time
+waking and synchronising threads than computing (on the 2-core development machine a 900x33 SVD took 0.75 ms on one
+thread and 5-10 ms threaded; a 400-pose ``robocal diagnose`` 1.7 s against 3.3 s).  BLAS libraries read their
+thread count once, when they are loaded, so the ``robocal`` command sets these variables before anything imports
+numpy (:func:`configure`); when numpy is already loaded (robocal called from Python), :func:`limit` caps the loaded
+libraries for the duration of the call instead.
+
+This module imports nothing heavy: it runs before numpy.
+"""
+from __future__ import annotations
+
+import os
+import sys
+from collections.abc import MutableMapping
+from contextlib import AbstractContextManager, nullcontext
+
+#: the variables BLAS and OpenMP runtimes read for their thread count (OpenBLAS also reads OMP_NUM_THREADS)
+BLAS_ENV_VARS = ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS", "VECLIB_MAXIMUM_THREADS",
+                 "BLIS_NUM_THREADS")
+#: robocal's own variable: the thread count for every BLAS (overrides the variables above), like ``--threads N``
+THREADS_ENV = "ROBOCAL_THREADS"
+DEFAULT_THREADS = 1
+
+
+def parse_threads(raw: str, where: str) -> int:
+    """A thread count >= 1 from ``raw``; a ValueError whose message reads after ``where`` otherwise."""
+    try:
+        value = int(str(raw).strip())
+    except ValueError:
+        value = 0
+    if value < 1:
+        raise ValueError(f"{where} must be a whole number of threads, at least 1, got {raw!r}")
+    return value
+
+
+def user_has_set(environ: MutableMapping[str, str] | None = None) -> bool:
+    """Whether the user chose a thread count through any BLAS/OpenMP variable (then robocal leaves them all alone:
+    setting OPENBLAS_NUM_THREADS would override a user's OMP_NUM_THREADS, which OpenBLAS reads after it)."""
+    env = os.environ if environ is None else environ
+    return any(env.get(k, "").strip() for k in BLAS_ENV_VARS)
+
+
+def wanted(requested: int | None, environ: MutableMapping[str, str] | None = None) -> int | None:
+    """The thread count to impose: ``requested`` (``--threads``), else ``ROBOCAL_THREADS``, else one thread unless
+    the user set a BLAS variable (None: leave threading as the user set it)."""
+    env = os.environ if environ is None else environ
+    if requested is not None:
+        return requested
+    if env.get(THREADS_ENV, "").strip():
+        return parse_threads(env[THREADS_ENV], THREADS_ENV)
+    return None if user_has_set(env) else DEFAULT_THREADS
+
+
+def configure(requested: int | None = None, environ: MutableMapping[str, str] | None = None) -> int | None:
+    """Set the BLAS variables in ``environ`` (default: this process's, inherited by its children) to
+    :func:`wanted`'s count; returns that count (None: the user's own setting stands).  Effective for this process
+    only when numpy is not loaded yet."""
+    env = os.environ if environ is None else environ
+    n = wanted(requested, env)
+    if n is not None:
+        env.update({k: str(n) for k in BLAS_ENV_VARS})
+    return n
+
+
+def limit(n: int | None) -> AbstractContextManager:
+    """A context capping the BLAS libraries already loaded in this process at ``n`` threads (nothing for None or
+    when numpy is not loaded: then :func:`configure`'s variables act when it loads)."""
+    if n is None or "numpy" not in sys.modules:
+        return nullcontext()
+    try:
+        from threadpoolctl import threadpool_limits
+    except ImportError:                         # a speed-up only
+        return nullcontext()
+    return threadpool_limits(n, user_api="blas")
