@@ -153,42 +153,46 @@ class MeasurementModel:
         """d(torque)/d(geometric element) (N, n, E); see :meth:`loads`.  ``joints`` (0-based): only those rows
         (the rest zero) -- the Jacobian needs the joints whose deflection follows the torque, not all.
 
-        Element e (a rotation about axis a through o_e, or a translation along a) moves every body beyond it, and
-        joint j carries the bodies of link j or beyond: the bodies of link m = max(j, link of e) or beyond.  Their
-        moment changes by sum_b (a x (p_b - o_e)) x F_b = P_m a - o_e (a . S_m) - a (tr P_m - o_e . S_m) with the
-        tail sums S_m = sum F_b and P_m = sum p_b F_b^T over those bodies (a translation: 1e-3 a x S_m), so the
-        cost does not grow with the bodies times the elements (this runs in every Jacobian of a torque-driven
-        model)."""
+        Joint j carries the bodies b of link j or beyond, tau_j = z_j . sum (p_b - o_j) x F_b.  With the tail sums
+        S_m = sum F_b and P_m = sum p_b F_b^T over the bodies of link m or beyond, an element e (axis a, through o_e;
+        it moves the bodies of its own link L_e and beyond) changes tau_j by
+
+        * L_e < j (e moves joint j's axis, origin and bodies together): a rotation is, with the forces fixed in
+          direction, the forces turned the other way: ``a . (Q_j z_j - tr(Q_j) z_j)`` with
+          ``Q_j = P_j - o_j S_j^T``; a translation changes nothing;
+        * L_e >= j (the axis stays, the bodies beyond e move): ``z_j . v_e`` with, for a rotation,
+          ``v_e = Q'_e a - tr(Q'_e) a``, ``Q'_e = P_{L_e} - o_e S_{L_e}^T`` (from sum (a x (p_b - o_e)) x F_b), and
+          for a translation ``v_e = 1e-3 a x S_{L_e}``.
+
+        Both are a vector per joint or per element dotted with another, so the cost is that of the Jacobian's own
+        columns, not elements x joints x bodies (this runs in every Jacobian of a torque-driven model that keeps
+        the term)."""
         kin = self.kin
         n = self.robot.n
         N = len(pos)
         js = np.arange(n) if joints is None else np.asarray(joints, int)
-        link_of = kin.link_of                                                         # base 0, link k, tool n + 1
-        rot = (kin.kinds >= 3)[None, :, None, None]
+        level = np.minimum(kin.link_of, n + 1)                                        # base 0, link k, tool n + 1
+        rot = kin.kinds >= 3
         a, oe = fp.elem_axis, fp.elem_origin * 1e-3                                   # (N, E, 3)
-        levels = np.arange(n + 2)                                                     # m = 0 .. n + 1
-        beyond = (link[None, :] >= levels[:, None]).astype(float)                     # (M, B)
+        beyond = (link[None, :] >= np.arange(n + 2)[:, None]).astype(float)           # (M, B) body b in tail m
         S = np.matmul(beyond, F)                                                      # (N, M, 3)
-        P = np.einsum("mb,nbc,nbd->nmcd", beyond, pos, F)                             # (N, M, 3, 3)
-        trP = np.einsum("nmcc->nm", P)
-        m_idx = np.maximum((js + 1)[None, :], np.minimum(link_of, n + 1)[:, None])    # (E, k)
-        e_idx = np.arange(len(link_of))[:, None]
-        Pa = np.matmul(a, P.transpose(0, 3, 1, 2).reshape(N, 3, -1)).reshape(N, -1, n + 2, 3)  # (N, E, M, 3)
-        aS = np.matmul(a, S.transpose(0, 2, 1))                                       # (N, E, M)
-        oS = np.matmul(oe, S.transpose(0, 2, 1))
-        g = (slice(None), e_idx, m_idx)
-        d_rot = Pa[g] - oe[:, :, None, :] * aS[g][..., None] - a[:, :, None, :] * (trP[:, m_idx] - oS[g])[..., None]
-        d_tr = 1e-3 * _cross(a[:, :, None, :], S[:, m_idx])
-        tail_dmom = np.where(rot, d_rot, d_tr)                                        # (N, E, k, 3)
-        distal_f = (link_of[:, None] <= js[None, :]).astype(float)[None, :, :, None]  # frame j-1 beyond e
-        ax = a[:, :, None, :]
-        zj, oj = z[:, None, js, :], o[:, None, js, :]
-        do = np.where(rot, _cross(ax, oj - oe[:, :, None, :]), ax * 1e-3) * distal_f
-        dz = np.where(rot, _cross(ax, zj), 0.0) * distal_f
-        dM = tail_dmom - _cross(do, tail_F[:, None, js, :])
-        dtau = np.zeros((N, n, len(link_of)))
-        dtau[:, js] = np.sum(dz * M[:, None, js] + dM * zj, axis=-1).transpose(0, 2, 1)   # (N, k, E)
-        dtau[:, :, link_of == 0] = 0.0      # gravity is given in frame 0: the base carries it along
+        P = np.einsum("mb,nbc,nbd->nmcd", beyond, pos, F, optimize=True)              # (N, M, 3, 3)
+        # joints: w_j = Q_j z_j - tr(Q_j) z_j, Q_j = P_j - o_j S_j^T (tail of joint j = level j + 1, 0-based j)
+        zj, oj, Sj, Pj = z[:, js], o[:, js], S[:, js + 1], P[:, js + 1]
+        Qz = np.einsum("nkcd,nkd->nkc", Pj, zj) - oj * np.einsum("nkd,nkd->nk", Sj, zj)[..., None]
+        trQ = np.einsum("nkcc->nk", Pj) - np.einsum("nkc,nkc->nk", oj, Sj)
+        w = Qz - trQ[..., None] * zj                                                  # (N, k, 3)
+        # elements: v_e from the tail of the element's own link
+        Se, Pe = S[:, level], P[:, level]                                             # (N, E, 3), (N, E, 3, 3)
+        Qa = np.einsum("necd,ned->nec", Pe, a) - oe * np.einsum("ned,ned->ne", Se, a)[..., None]
+        trQe = np.einsum("necc->ne", Pe) - np.einsum("nec,nec->ne", oe, Se)
+        v = np.where(rot[None, :, None], Qa - trQe[..., None] * a, 1e-3 * _cross(a, Se))   # (N, E, 3)
+        proximal = level[None, :] <= js[:, None]                                      # (k, E): L_e < j (1-based)
+        d_prox = np.matmul(w, a.transpose(0, 2, 1)) * rot[None, None, :]              # (N, k, E)
+        d_dist = np.matmul(zj, v.transpose(0, 2, 1))
+        dtau = np.zeros((N, n, len(level)))
+        dtau[:, js] = np.where(proximal[None], d_prox, d_dist)
+        dtau[:, :, level == 0] = 0.0        # gravity is given in frame 0: the base carries it along
         return dtau
 
     # -- evaluation ----------------------------------------------------------------------------------------------
