@@ -19,7 +19,8 @@ from calib.estimators.link_compliance import link_rigidity
 from calib.estimators.points import StationFit, locate_targets, points_covariance
 from calib.estimators.ruler import RulerSightings, ruler_lsq
 from calib.estimators.resolution import encoder_resolution_fitted_axis
-from calib.estimators.transmission import commanded_angle_errors, fit_transmission_error, joint_angles
+from calib.estimators.transmission import (commanded_angle_errors, fit_transmission_error, joint_angles,
+                                           joint_angles_fitted_axis)
 from calib.theodolite import thesis_stations
 from tests.fakes import thesis_procedures as tp
 
@@ -106,6 +107,43 @@ def run_transmission(rng, amplitude=0.047 * DEG, omega=1.8, lo_deg=-266.0, hi_de
     true = enc + tp.transmission_truth(enc, amplitude, omega, phase)
     ang, cov = _two_targets(fit, rng, true - true[0], repeats=2)
     err = np.angle(np.exp(1j * (ang - (enc - enc[0]))))          # the angle wraps past 180 deg, as in reprocess
+    res = fit_transmission_error(enc, err, cov, n_mc=0)
+    truth = {"omega": omega, "amplitude1_rad": amplitude}
+    return [(n, res[n].value, res[n].error, truth[n]) for n in truth if n in res.names]
+
+
+def _demo_tool():
+    """The demo's extended tool about the test axis: A1 on the axis 100 mm out, A2 at 500 mm radius 600 mm out (its
+    A1->A2 line runs as much along the axis as across it)."""
+    e1 = np.cross(AXIS_N, [1.0, 0.0, 0.0])
+    e1 /= np.linalg.norm(e1)
+    return AXIS_C + 100.0 * AXIS_N, AXIS_C + 600.0 * AXIS_N + 500.0 * e1
+
+
+def run_transmission_own_axis(rng, amplitude=0.050 * DEG, omega=0.9, lo_deg=-105.0, hi_deg=165.0, steps=25,
+                              fixed_axis=False):
+    """Section 5.4.2's joint 4 (0.050 deg sin(0.9 theta4)) as a session measures it: 25 steps over its -105..165 deg,
+    the demo's extended tool, and the angles taken about the axis fitted from A2 over the run itself.  Order 0.9 is
+    close to once per turn, the pattern a tilt of the fitted axis puts on every angle: the axis's error must be in the
+    angles' covariance.  ``fixed_axis``: the fitted axis treated as exact (what reprocessing did before; the test
+    shows it fails)."""
+    fit, _ = _stations(rng)
+    enc = np.radians(np.linspace(lo_deg, hi_deg, steps))
+    phase = rng.uniform(-np.pi, np.pi)
+    true = enc + tp.transmission_truth(enc, amplitude, omega, phase)
+    A10, A20 = _demo_tool()
+    th = true - true[0]
+    names = [f"A1_{i}" for i in range(steps)] + [f"A2_{i}" for i in range(steps)]
+    loc = _locate(fit, np.concatenate([tp.rotate(A10, AXIS_C, AXIS_N, th), tp.rotate(A20, AXIS_C, AXIS_N, th)]),
+                  rng, names, repeats=2)
+    A1, A2 = np.array([t.point_mm for t in loc[:steps]]), np.array([t.point_mm for t in loc[steps:]])
+    U = points_covariance([t for i in range(steps) for t in (loc[i], loc[steps + i])], fit)
+    ang, cov, n = joint_angles_fitted_axis(A1, A2, U)
+    if fixed_axis:
+        pair = [points_covariance([loc[i], loc[steps + i]], StationFit.exact({})) for i in range(steps)]
+        D = np.array([np.concatenate([loc[i].d_station, loc[steps + i].d_station]) for i in range(steps)])
+        ang, cov = joint_angles(A1, A2, np.array(pair), n, D, fit.cov)
+    err = np.angle(np.exp(1j * (ang - (enc - enc[0]))))
     res = fit_transmission_error(enc, err, cov, n_mc=0)
     truth = {"omega": omega, "amplitude1_rad": amplitude}
     return [(n, res[n].value, res[n].error, truth[n]) for n in truth if n in res.names]
@@ -206,6 +244,7 @@ def run_commanded(rng, scale_error=1.5e-3):
 
 
 PROCEDURES = {"ruler": run_ruler, "points": run_points, "axes": run_axes, "transmission": run_transmission,
+              "transmission, axis fitted from the run": run_transmission_own_axis,
               "compliance": run_compliance,
               "compliance (one slope)": run_compliance_one_slope, "coupling": run_coupling, "link compliance": run_link,
               "encoder resolution": run_resolution,

@@ -753,14 +753,24 @@ def _joint_angles(steps, points, axis_n, full: bool = False):
     return (out, sig, cov) if full else (out, sig)
 
 
-def _own_axis(sts, points, j, n_mc):
-    """The joint's axis from A2 over the run itself: a wide span at a large radius beats the short sweep."""
+def _own_axis_angles(sts, points, j: int):
+    """Angles of a run about the joint's own axis, fitted from A2 over the run itself (a wide span at a large radius
+    beats the short sweep), with the axis's error in their covariance
+    (:func:`calib.estimators.transmission.joint_angles_fitted_axis`): ``(angles, sigmas, cov)`` as
+    :func:`_joint_angles`, NaN where a step lacks A1 or A2; None when fewer than 4 steps have both."""
     from calib.estimators.axes import fit_axis
-    pts = [points(s).get("A2") for s in sts]
-    pts = [p for p in pts if p is not None]
-    P = np.array([p[0] for p in pts])
-    # points more than 180 deg apart are fine for a circle fit, but keep the sweep order for the normal's sign
-    return fit_axis(P, _block(pts, points), n_mc=0, joint=f"j{j}").value[3:6]
+    from calib.estimators.transmission import joint_angles_fitted_axis
+    ok = [i for i, st in enumerate(sts) if {"A1", "A2"} <= set(points(st))]
+    if len(ok) < 4:
+        return None
+    pairs = [(points(sts[i])["A1"], points(sts[i])["A2"]) for i in ok]
+    U = _block([t for p in pairs for t in p], points)
+    A1, A2 = (np.array([p[k].point_mm for p in pairs]) for k in (0, 1))
+    iA2 = (np.arange(len(ok))[:, None] * 6 + np.arange(3, 6)).ravel()
+    fit_axis(A2, U[np.ix_(iA2, iA2)], n_mc=0, joint=f"j{j}")       # its checks: the points lie on a circle
+    out, cov = np.full(len(sts), np.nan), np.full((len(sts), len(sts)), np.nan)
+    out[ok], cov[np.ix_(ok, ok)], _ = joint_angles_fitted_axis(A1, A2, U)
+    return out, np.sqrt(np.diag(cov)), cov
 
 
 def _transmission(steps, points, robot, axes, est, twin, figs, n_mc):
@@ -779,8 +789,8 @@ def _transmission(steps, points, robot, axes, est, twin, figs, n_mc):
             failed.append(f"joint {j}: no swept axis to measure the angle about")
             continue
         sts.sort(key=lambda s: s["spec"]["meta"]["index"])
-        n = _own_axis(sts, points, j, n_mc) if len(sts) >= 4 else axes[j].value[3:6]
-        meas, sig, cov = _joint_angles(sts, points, n, full=True)
+        own = _own_axis_angles(sts, points, j)
+        meas, sig, cov = own if own is not None else _joint_angles(sts, points, axes[j].value[3:6], full=True)
         enc = np.array([(_encoder_q(s, robot) if _encoder_q(s, robot) is not None
                          else np.asarray(s["spec"]["pose_deg"]) * DEG)[j - 1] for s in sts])
         err = np.angle(np.exp(1j * (meas - (enc - enc[0]))))      # both sides wrap differently past 180 deg

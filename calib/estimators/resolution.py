@@ -19,8 +19,8 @@ import numpy as np
 
 from ..uncertainty import EstimateSet, propagate
 from ._common import EstimationError, at_least, finite
-from .axes import fit_axis, fit_circle
-from .transmission import joint_angle, joint_angle_first_order
+from .axes import fit_axis
+from .transmission import angles_about_fitted_axis, joint_angle_first_order
 
 PROC = "encoder resolution"
 STEP = "slope of angle on counts"
@@ -85,16 +85,6 @@ def encoder_resolution(counts, measured_rad, cov_rad2, design_rad_per_count: flo
     return _finish(res, y, X, Ci, P)
 
 
-def _angles_about_fitted_axis(z, N: int):
-    """Targets ``z (..., 6N) = [A1_0, A2_0, A1_1, A2_1, ...]`` -> angles ``(..., N)`` turned from the first pose
-    about the axis of the circle through the A2 positions (the run's own axis)."""
-    pts = z.reshape(z.shape[:-1] + (N, 2, 3))
-    n = fit_circle(pts[..., 1, :])[..., 3:6]
-    ref = np.broadcast_to(pts[..., :1, :, :].reshape(z.shape[:-1] + (1, 6)), z.shape[:-1] + (N, 6))
-    x = np.concatenate([ref, pts.reshape(z.shape[:-1] + (N, 6))], -1)
-    return joint_angle(x, n[..., None, :])[..., 0]
-
-
 def encoder_resolution_fitted_axis(counts, A1_mm, A2_mm, points_cov_mm2, design_rad_per_count: float | None = None,
                                    n_mc: int = 0, rng=0, joint: str = "") -> EstimateSet:
     """:func:`encoder_resolution` of a run whose axis is fitted from its own A2 positions (what a session does).
@@ -117,14 +107,14 @@ def encoder_resolution_fitted_axis(counts, A1_mm, A2_mm, points_cov_mm2, design_
     iA2 = (np.arange(N)[:, None] * 6 + np.arange(3, 6)).ravel()
     n = fit_axis(A2, U[np.ix_(iA2, iA2)], n_mc=0, joint=joint).value[3:6]      # its checks: points on a circle
     z = np.concatenate([A1, A2], -1).ravel()
-    y = _angles_about_fitted_axis(z, N)
+    y = angles_about_fitted_axis(z, N)
     G = np.zeros((N, 6 * N))
     for i in range(N):
         xi = np.r_[A1[0], A2[0], A1[i], A2[i]]
         G[i, 6 * i:6 * i + 6] = joint_angle_first_order(xi, n)[0, 6:]
     X, Ci, P = _line(counts, N, G @ U @ G.T)
     names, units = _names(design_rad_per_count)
-    res = propagate(lambda v: _outputs(_angles_about_fitted_axis(v, N) @ P.T, design_rad_per_count), z, U, names,
+    res = propagate(lambda v: _outputs(angles_about_fitted_axis(v, N) @ P.T, design_rad_per_count), z, U, names,
                     units, n_mc=n_mc, rng=rng)
     res.extras.update(angle_rad=y, angle_cov_rad2=np.linalg.inv(Ci), axis_n=n)
     return _finish(res, y, X, Ci, P)
