@@ -292,13 +292,13 @@ class MeasurementModel:
             if torque_derivative:
                 joints = np.flatnonzero(np.any(gain != 0, axis=0))
                 dtau = self._torque_derivative(st.load_pass, *self._torque_parts(st.load_pass, ctx), joints=joints)
-                J[:, :, :ng] += np.einsum("nij,nje->nie", Jq[:, :, joints], gain[:, joints, None] * dtau[:, joints])
+                J[:, :, :ng] += np.matmul(Jq[:, :, joints], gain[:, joints, None] * dtau[:, joints])
         through = {"joint": Jq, "geometry": Je}
         for i, (e, s, v) in enumerate(zip(self.effects, self.effect_slices, vals)):
             if e.stage == "geometry":
                 # the effect's change of the geometry depends on the geometry: its own chain rule
                 J[:, :, :ng] = e.geometry_chain(J[:, :, :ng], self.length_idx, ctx, v)
-            J[:, :, s] = grads[i] if e.stage == "point" else np.einsum("nij,njk->nik", through[e.stage], grads[i])
+            J[:, :, s] = grads[i] if e.stage == "point" else np.matmul(through[e.stage], grads[i])
         return J, Jq
 
     def points(self, q_rad, ctx: PoseContext | None = None, theta=None, tool_mm=None, link=None) -> np.ndarray:
@@ -318,7 +318,7 @@ class MeasurementModel:
         for s, f in zip(stations, faces):
             if jacobian:
                 hz, v, Js_ = s.observe(ev.point_mm, f, with_jacobian=True)
-                Js.append(np.einsum("nac,ncp->nap", Js_, ev.jacobian))
+                Js.append(np.matmul(Js_, ev.jacobian))
             else:
                 hz, v = s.observe(ev.point_mm, f)
             cols += [hz, v]
