@@ -176,17 +176,24 @@ class MeasurementModel:
         a, oe = fp.elem_axis, fp.elem_origin * 1e-3                                   # (N, E, 3)
         beyond = (link[None, :] >= np.arange(n + 2)[:, None]).astype(float)           # (M, B) body b in tail m
         S = np.matmul(beyond, F)                                                      # (N, M, 3)
-        P = np.einsum("mb,nbc,nbd->nmcd", beyond, pos, F, optimize=True)              # (N, M, 3, 3)
+        P = np.matmul(beyond, (pos[:, :, :, None] * F[:, :, None, :]).reshape(N, -1, 9)).reshape(N, -1, 3, 3)
         # joints: w_j = Q_j z_j - tr(Q_j) z_j, Q_j = P_j - o_j S_j^T (tail of joint j = level j + 1, 0-based j)
         zj, oj, Sj, Pj = z[:, js], o[:, js], S[:, js + 1], P[:, js + 1]
         Qz = np.einsum("nkcd,nkd->nkc", Pj, zj) - oj * np.einsum("nkd,nkd->nk", Sj, zj)[..., None]
         trQ = np.einsum("nkcc->nk", Pj) - np.einsum("nkc,nkc->nk", oj, Sj)
         w = Qz - trQ[..., None] * zj                                                  # (N, k, 3)
         # elements: v_e from the tail of the element's own link
-        Se, Pe = S[:, level], P[:, level]                                             # (N, E, 3), (N, E, 3, 3)
-        Qa = np.einsum("necd,ned->nec", Pe, a) - oe * np.einsum("ned,ned->ne", Se, a)[..., None]
-        trQe = np.einsum("necc->ne", Pe) - np.einsum("nec,nec->ne", oe, Se)
-        v = np.where(rot[None, :, None], Qa - trQe[..., None] * a, 1e-3 * _cross(a, Se))   # (N, E, 3)
+        v = np.empty_like(a)                                                          # (N, E, 3)
+        trP = np.einsum("nmcc->nm", P)
+        for m in np.unique(level):                                                    # the elements of each tail
+            e = np.flatnonzero(level == m)
+            r, t = e[rot[e]], e[~rot[e]]
+            Sm = S[:, m, :, None]                                                     # (N, 3, 1)
+            ar, orr = a[:, r], oe[:, r]
+            Qa = np.matmul(ar, P[:, m].transpose(0, 2, 1)) - orr * np.matmul(ar, Sm)  # (P_m - o_e S_m^T) a
+            trQ = trP[:, m, None] - np.matmul(orr, Sm)[..., 0]
+            v[:, r] = Qa - trQ[..., None] * ar
+            v[:, t] = 1e-3 * _cross(a[:, t], S[:, m, None, :])
         proximal = level[None, :] <= js[:, None]                                      # (k, E): L_e < j (1-based)
         d_prox = np.matmul(w, a.transpose(0, 2, 1)) * rot[None, None, :]              # (N, k, E)
         d_dist = np.matmul(zj, v.transpose(0, 2, 1))
