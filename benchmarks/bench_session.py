@@ -10,7 +10,7 @@ store's ingest rate for encoder streams compared with what the CAN tap can deliv
   can bring.
 
     python benchmarks/bench_session.py                 # both, on the shipped example
-    python benchmarks/bench_session.py --record        # record a fresh demo session first (~15 s)
+    python benchmarks/bench_session.py --record        # record a fresh demo session first (a few seconds)
 """
 from __future__ import annotations
 

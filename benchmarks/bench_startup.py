@@ -11,6 +11,11 @@ wall time minus that (interpreter, imports, first-call set-up).  Cases: ``roboca
 session, ``robocal identify`` and ``robocal diagnose`` of 400 poses of the twin (``robocal twin --poses 400
 --export``, written before the clock starts).
 
+Bytecode: the children run with Python's bytecode cache on (in a folder under the temporary directory, so nothing
+is written into the tree), as an installed package has it, also where the environment sets
+PYTHONDONTWRITEBYTECODE (the development machine does: every robocal module would be compiled from source on every
+start, 0.1-0.3 s); a first, untimed round fills the cache.
+
     python benchmarks/bench_startup.py [--runs 10] [--share-runs 3] [--only start|share]
 """
 from __future__ import annotations
@@ -48,7 +53,10 @@ print(time.perf_counter() - t)
 
 
 def _env() -> dict[str, str]:
-    return dict(os.environ, PYTHONPATH=os.pathsep.join(filter(None, [str(ROOT), os.environ.get("PYTHONPATH")])))
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join(filter(None, [str(ROOT), os.environ.get("PYTHONPATH")])),
+               PYTHONPYCACHEPREFIX=str(Path(tempfile.gettempdir()) / "robocal-bench-pycache"))
+    env.pop("PYTHONDONTWRITEBYTECODE", None)
+    return env
 
 
 def _load() -> str:
@@ -98,7 +106,7 @@ def share_rows(runs: int) -> None:
         cases = _share_cases(Path(tmp))
         walls: dict[str, list[float]] = {n: [] for n, _ in cases}
         computes: dict[str, list[float]] = {n: [] for n, _ in cases}
-        for _ in range(runs):
+        for round_ in range(runs + 1):           # round 0 fills the bytecode cache, untimed
             for name, argv in cases:
                 # the child calls main() twice: the process's wall time would count the work twice, so the first
                 # call's share is wall minus one compute
@@ -109,6 +117,8 @@ def share_rows(runs: int) -> None:
                 if r.returncode:
                     sys.exit(f"bench_startup: {name} failed: {r.stderr.strip()[-500:]}")
                 compute = float(r.stdout.strip().splitlines()[-1])
+                if not round_:
+                    continue
                 walls[name].append(wall - compute)
                 computes[name].append(compute)
     print(f"\n{'command (one run, whole process)':<44}{'wall s':>8}{'compute s':>11}{'start-up s':>12}{'share':>7}")

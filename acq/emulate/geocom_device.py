@@ -118,7 +118,7 @@ class GeoComDevice(DeviceBase):
             self.emit(b"?\r\n")
             return
         m = _REQ.match(line)
-        if not m or any(not 0x20 <= b <= 0x7E for b in line):
+        if not m or not (line.isascii() and line.decode("ascii").isprintable()):      # bytes 0x20..0x7E only
             self.emit(b"%R1P,3080,0:0\r\n")
             return
         rpc, trid, crc, params = int(m.group(1)), int(m.group(2) or 0), m.group(3), m.group(4)

@@ -97,19 +97,36 @@ class Preflight:
         lim = {**PREFLIGHT_LIMITS, **({"min_focus_mm": setup["min_focus_mm"]} if "min_focus_mm" in setup else {})}
         self.limits = {**lim, **setup.get("preflight", {}), **(limits or {})}
         self.g_n_per_kg = self.model.gravity_n_per_kg(self.theta)
+        self._chains: dict[tuple, object] = {}     # pose -> one-pose chain pass (nominal model: stations do not matter)
 
     # -- geometry ------------------------------------------------------------------------------------------------
-    def geometry(self, step: Step, fp=None) -> StepGeometry:
-        """``fp``: the chain at the step's pose when the caller ran it already (:meth:`check` runs all poses at once)."""
-        if fp is None and self._posed(step):
-            q = np.asarray(step.pose_deg, float)[None] * DEG
-            fp = self.model.kin.forward(q, self.theta[: self.model.n_geometric])
+    def geometry(self, step: Step) -> StepGeometry:
+        fp = self.chain(step)
+        return StepGeometry(step, fp, self._points(step, fp))
+
+    def chain(self, step: Step):
+        """The nominal chain at the step's pose (one pose), or None; kept per pose: the runner checks every step
+        once before the session and again, with the refitted stations, before it runs (the chain does not depend on
+        the stations)."""
+        if not self._posed(step):
+            return None
+        key = tuple(step.pose_deg)
+        fp = self._chains.get(key)
+        if fp is None:
+            fp = self.model.kin.forward(np.asarray(key, float)[None] * DEG, self.theta[: self.model.n_geometric])
+            self._keep(key, fp)
+        return fp
+
+    def _posed(self, step: Step) -> bool:
+        return step.pose_deg is not None and len(step.pose_deg) == self.robot.n
+
+    def _points(self, step: Step, fp) -> dict[str, np.ndarray]:
         pts = {}
         for t in step.targets:
             p = self.target_point(fp, t)
             if p is not None:
                 pts[t.name] = p
-        return StepGeometry(step, fp, pts)
+        return pts
 
     def target_point(self, fp, t: TargetSpec) -> np.ndarray | None:
         """A target's point in the measurement frame: fixed (``point_mm``) or carried by link ``t.link``."""
@@ -121,33 +138,29 @@ class Preflight:
         return self.model.kin.point_on(fp, [j], np.asarray(t.tool_mm, float)[None])[0, 0]
 
     # -- running -------------------------------------------------------------------------------------------------
-    def _posed(self, step: Step) -> bool:
-        return step.pose_deg is not None and len(step.pose_deg) == self.robot.n
-
-    def check_step(self, step: Step, fp=None) -> list[Finding]:
-        geo = self.geometry(step, fp)
+    def check_step(self, step: Step) -> list[Finding]:
+        geo = self.geometry(step)
         out: list[Finding] = []
         for fn in CHECKS.values():
             out += fn(self, geo)
         return out
 
     def check(self, steps: list[Step]) -> list[Finding]:
-        """Every step's findings, in step order; the chain runs once for all the steps' poses."""
-        posed = [i for i, s in enumerate(steps) if self._posed(s)]
-        fps = {}
-        if posed:
-            q = np.array([steps[i].pose_deg for i in posed], float) * DEG
-            fp = self.model.kin.forward(q, self.theta[: self.model.n_geometric])
-            fps = {i: _one_pose(fp, k) for k, i in enumerate(posed)}
+        """Every step's findings, in step order; the chain runs once for all the steps' poses not seen yet."""
+        new = {tuple(s.pose_deg) for s in steps if self._posed(s)} - self._chains.keys()
+        if new:
+            poses = sorted(new)
+            fp = self.model.kin.forward(np.array(poses, float) * DEG, self.theta[: self.model.n_geometric])
+            for k, pose in enumerate(poses):
+                self._keep(pose, fp.pose(k))
         out: list[Finding] = []
-        for i, s in enumerate(steps):
-            out += self.check_step(s, fps.get(i))
+        for s in steps:
+            out += self.check_step(s)
         return out
 
-
-def _one_pose(fp, k: int):
-    """Pose ``k`` of a batched chain pass as a one-pose pass (views, no copies)."""
-    return fp.pose(k)
+    def _keep(self, pose: tuple, fp) -> None:
+        if len(self._chains) < 10_000:
+            self._chains[pose] = fp
 
 
 def failing_lines(findings: list[Finding]) -> list[str]:
