@@ -372,7 +372,12 @@ def torque_term_size(gain: np.ndarray, loads: Loads) -> float:
 
 
 def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """``a x b`` over the last axis (broadcast), component by component (np.cross copies and transposes)."""
+    """``a x b`` over the last axis (broadcast), component by component into one array (np.cross and np.stack copy
+    and transpose: several times slower on the small arrays of one-pose evaluations)."""
     a0, a1, a2 = a[..., 0], a[..., 1], a[..., 2]
     b0, b1, b2 = b[..., 0], b[..., 1], b[..., 2]
-    return np.stack([a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0], axis=-1)
+    out = np.empty(np.broadcast_shapes(a.shape, b.shape))
+    np.subtract(a1 * b2, a2 * b1, out=out[..., 0])
+    np.subtract(a2 * b0, a0 * b2, out=out[..., 1])
+    np.subtract(a0 * b1, a1 * b0, out=out[..., 2])
+    return out
