@@ -99,21 +99,19 @@ class SimClock:
             return now
 
     def drive(self, tick: Tick) -> Driven:
-        with self._lock:
-            self._ticks.append(tick)
-
-        def end() -> None:
-            with self._lock:
-                if tick in self._ticks:
-                    self._ticks.remove(tick)
-        return Driven(end)
+        """Run ``tick(now)`` after every advance (until the handle is stopped)."""
+        return self._register(self._ticks, tick)
 
     def add_drain(self, drain: Callable[[], None]) -> Driven:
+        """Run ``drain()`` after the ticks of every advance (until the handle is stopped)."""
+        return self._register(self._drains, drain)
+
+    def _register(self, where: list, fn) -> Driven:
         with self._lock:
-            self._drains.append(drain)
+            where.append(fn)
 
         def end() -> None:
             with self._lock:
-                if drain in self._drains:
-                    self._drains.remove(drain)
+                if fn in where:
+                    where.remove(fn)
         return Driven(end)

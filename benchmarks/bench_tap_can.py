@@ -105,6 +105,7 @@ def main(argv=None) -> int:
     ap.add_argument("--rates", default="8000,limit",
                     help="comma-separated paced sender rates in CAN frames/s; 'limit' = the 1 Mbit/s bus limit of "
                          "the tap's frames (default 8000,limit)")
+    ap.add_argument("--fps", type=float, default=None, help="one paced run at this many frames/s (as --rates FPS)")
     ap.add_argument("--interface", default="virtual", help="python-can interface (default virtual)")
     ap.add_argument("--channel", default=None, help="channel (default: a fresh virtual channel per run)")
     a = ap.parse_args(argv)
@@ -123,7 +124,7 @@ def main(argv=None) -> int:
             f"{'samples':>9}{'decoded':>9}{'gaps':>6}{'incompl':>8}{'reader CPU %':>13}{'us/frame':>9}  result")
     print(head)
     all_ok = True
-    for fps in parse_rates(a.rates, limit_fps):
+    for fps in parse_rates(a.rates if a.fps is None else str(a.fps), limit_fps):
         r = run_once(world, fps, a.seconds, a.interface, a.channel)
         all_ok &= r.ok
         print(f"  {r.fps_asked:>10,.0f}{r.fps_sent:>10,.0f}{r.fps_sent * mean_bits / BIT_RATE * 100:>8.1f}"

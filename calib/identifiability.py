@@ -74,7 +74,9 @@ class Combination:
     because: str = ""
 
     def words(self, joint_names: tuple[str, ...] | None = None) -> str:
-        items = sorted(self.coefficients.items(), key=lambda kv: -abs(kv[1]))
+        # largest first; coefficients equal to 1e-6 keep the dict's order (the held parameter first), so that rounding
+        # does not swap the two names of a pair
+        items = sorted(self.coefficients.items(), key=lambda kv: -round(abs(kv[1]), 6))
         big = [describe(n, joint_names) for n, c in items if abs(c) >= 0.25 * abs(items[0][1])][:5]
         if len(big) == 1:
             text = (f"{big[0]} has no effect on the measurements" if self.ratio <= RANK_RTOL
@@ -122,13 +124,16 @@ def analyse(J: np.ndarray, names: list[str],
 
     ``rejacobian(k)``, when given, recomputes J with joint k's readings spread over its range; a combination that it
     makes determinable is explained as "joint k barely moves".  ``prefer_fix(name)`` ranks which parameter of a
-    combination to hold (lower first); ties go to the one with the largest coefficient.
+    combination to hold (lower first); ties go to the one with the largest coefficient (:func:`_to_hold`).
+
+    One QR of J, then every decomposition on its small R factor (:func:`_small_factor`): the cost of about one SVD
+    of J however many parameters are held.
     """
     m, p = J.shape
     norms = np.linalg.norm(J, axis=0)
     safe = np.where(norms > 0, norms, 1.0)
-    Js = J / safe
-    _, s, Vt = np.linalg.svd(Js, full_matrices=m < p)          # Vt must be p x p; U never needed in full
+    R = _small_factor(J / safe)                 # the column-scaled Jacobian's singular values and right vectors
+    s, Vt = _svd(R)
     smax = s[0] if s.size and s[0] > 0 else 1.0
     ratio = np.concatenate([s / smax, np.zeros(max(0, p - s.size))])
     rank = int(np.sum(ratio > RANK_RTOL))
@@ -138,17 +143,16 @@ def analyse(J: np.ndarray, names: list[str],
     # automatic treatment: hold one parameter per undeterminable direction until the rest is full rank
     keep = list(range(p))
     fixed: list[int] = []
+    s_k, Vt_k = s, Vt
     while keep:
-        _, s_k, Vt_k = np.linalg.svd(Js[:, keep], full_matrices=m < len(keep))
         r_k = s_k / (s_k[0] if s_k.size and s_k[0] > 0 else 1.0)
         if len(s_k) == len(keep) and r_k[-1] > HOLD_RTOL:
             out.kept_condition = float(1.0 / r_k[-1])
             break
-        v = Vt_k[-1]
-        cand = [((prefer_fix(names[keep[k]]) if prefer_fix else 0), -abs(v[k]), k) for k in range(len(keep))
-                if abs(v[k]) > 0.2 * np.max(np.abs(v))]
-        _, _, k = min(cand)
+        k = _to_hold(r_k, Vt_k, [names[i] for i in keep], prefer_fix)
         fixed.append(keep.pop(k))
+        if keep:
+            s_k, Vt_k = _svd(R[:, keep])
     out.fixed = [names[i] for i in fixed]
     out.kept = [names[i] for i in keep]
 
@@ -158,15 +162,15 @@ def analyse(J: np.ndarray, names: list[str],
         null = Vt[small].T                                              # (p, number held)
         basis = null @ np.linalg.pinv(null[fixed, :])                   # unit on each held parameter
         for col, f in zip(basis.T, fixed):
-            coef = {names[k]: float(col[k]) for k in np.flatnonzero(np.abs(col) > 0.05)}
+            coef = {names[k]: float(col[k]) for k in [f, *np.flatnonzero(np.abs(col) > 0.05)]}
             v = col / np.linalg.norm(col)
-            combo = Combination(coef, float(np.linalg.norm(Js @ v) / smax))
+            combo = Combination(coef, float(np.linalg.norm(R @ v) / smax))
             if rejacobian is not None and joint_ranges_rad is not None:
                 combo.because = _explain(v, combo.ratio, rejacobian, joint_ranges_rad, norms)
             out.unidentifiable.append(combo)
-    # the weakest directions among the kept parameters (reported as weak below WEAK_RTOL)
+    # the weakest directions among the kept parameters (reported as weak below WEAK_RTOL): the hold loop's last
+    # decomposition is that of the kept columns
     if keep:
-        _, s_k, Vt_k = np.linalg.svd(Js[:, keep], full_matrices=False)
         r_k = s_k / smax
         for i in np.argsort(r_k)[:3]:
             v = np.zeros(p)
@@ -181,6 +185,55 @@ def analyse(J: np.ndarray, names: list[str],
     return out
 
 
+def _to_hold(ratio: np.ndarray, Vt: np.ndarray, names: list[str], prefer_fix: Callable[[str], int] | None) -> int:
+    """Which column to hold for the smallest direction(s) (``ratio``, ``Vt``: the kept columns' decomposition).
+
+    A practically undeterminable direction is the last right vector; its parameters with a coefficient above 0.2 of
+    the largest are candidates.  Exactly undeterminable directions (ratio <= RANK_RTOL) usually come several at once
+    (base yaw with joint 1's offset, tool z with the flange d, ...), and any orthonormal basis of that null space is
+    what LAPACK happens to return: the null space is taken as a whole, a parameter's weight being the length of its
+    projection on it.  Then the lowest ``prefer_fix`` rank, the largest weight (equal within 1e-6 counts as equal),
+    and the first in the order of ``names`` -- so the choice does not depend on rounding or on the decomposition's
+    implementation.
+    """
+    rank = int(np.sum(ratio > RANK_RTOL))
+    null = Vt[rank:] if rank < len(names) else Vt[-1:]
+    weight = np.linalg.norm(null, axis=0)
+    cand = [k for k in range(len(names)) if weight[k] > 0.2 * weight.max()]
+    pref = {k: prefer_fix(names[k]) if prefer_fix else 0 for k in cand}
+    cand = [k for k in cand if pref[k] == min(pref.values())]
+    top = max(weight[k] for k in cand)
+    return min(k for k in cand if weight[k] >= top * (1.0 - 1e-6))
+
+
+def _small_factor(A: np.ndarray) -> np.ndarray:
+    """A matrix with the singular values and right singular vectors of ``A`` (and of any subset of its columns),
+    at most as many rows as columns: the R of ``A = QR`` for a tall ``A``.
+
+    Why: the analysis decomposes the whitened Jacobian once per held parameter; one QR of the (m, p) Jacobian and
+    then SVDs of the (p, p) factor cost what one SVD of the Jacobian did (``A[:, keep] = Q R[:, keep]``, Q
+    orthonormal, so ``|A v| = |R v|`` for every v).
+    """
+    m, p = A.shape
+    return np.linalg.qr(A, mode="r") if m > p else A
+
+
+def _svd(A: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Singular values and the right singular vectors (all of them, rows of Vt, also when ``A`` is wide), each
+    vector's sign fixed so that its largest-magnitude coefficient is positive: the printed combinations do not
+    depend on the LAPACK routine's arbitrary signs."""
+    _, s, Vt = np.linalg.svd(A, full_matrices=A.shape[0] < A.shape[1])
+    big = np.argmax(np.abs(Vt), axis=1)
+    return s, Vt * np.where(Vt[np.arange(len(Vt)), big] < 0, -1.0, 1.0)[:, None]
+
+
+def _largest_singular(A: np.ndarray) -> float:
+    """The spectral norm of a tall ``A`` from its small Gram matrix (the largest singular value is accurate there;
+    only the small ones lose precision by squaring)."""
+    G = A.T @ A if A.shape[0] >= A.shape[1] else A @ A.T
+    return float(np.sqrt(max(np.linalg.eigvalsh(G)[-1], 0.0))) if G.size else 0.0
+
+
 def _explain(v: np.ndarray, before: float, rejacobian, ranges: np.ndarray, norms: np.ndarray) -> str:
     """Which joint, if spread over its range, would make the direction ``v`` (scaled parameters) far better determined.
 
@@ -192,7 +245,7 @@ def _explain(v: np.ndarray, before: float, rejacobian, ranges: np.ndarray, norms
         if ranges[k] > np.radians(30):
             break
         J2 = rejacobian(int(k)) / safe
-        s2 = np.linalg.norm(J2, 2)
+        s2 = _largest_singular(J2)
         if s2 > 0 and np.linalg.norm(J2 @ v) / s2 > 10 * before + 1e-6:
             return f"joint {k + 1} barely moves (range {np.degrees(ranges[k]):.1f} deg over the poses)"
     return ""

@@ -240,7 +240,7 @@ class _Problem:
         P = self.model.P
         self.model.complete_jacobian(ev)
         if not self.angles:
-            J = -np.einsum("nij,njp->nip", self.obs._white, ev.jacobian).reshape(-1, P)
+            J = -np.matmul(self.obs._white, ev.jacobian).reshape(-1, P)
         else:
             st = self.stations(theta)
             sig = self._sigmas(st)

@@ -13,8 +13,13 @@ Prediction, identification, the twin, the emulators, design of experiments and d
 them has its own copy of the math.
 
 Approximation stated once: loads (gravity and external torques) are evaluated in the configuration given by the joint
-readings, and their dependence on the parameters is left out of the Jacobian (a second-order term: compliance x the
-change of torque with a geometric parameter).
+readings.  Their dependence on the geometric parameters (compliance x the change of torque with a parameter) enters
+the Jacobian only where it changes the result, by the rule of :func:`torque_term_matters` (bound on its relative
+size above 1 %); the predicted points are exact either way.
+
+Cost: :meth:`MeasurementModel.evaluate` without a Jacobian computes points only; the Jacobian is completed from the
+same pass on demand (:meth:`MeasurementModel.complete_jacobian`), so a least-squares loop that asks for the residuals
+and then for the Jacobian at the same parameters runs the chain once.
 """
 from __future__ import annotations
 
@@ -153,42 +158,53 @@ class MeasurementModel:
         """d(torque)/d(geometric element) (N, n, E); see :meth:`loads`.  ``joints`` (0-based): only those rows
         (the rest zero) -- the Jacobian needs the joints whose deflection follows the torque, not all.
 
-        Element e (a rotation about axis a through o_e, or a translation along a) moves every body beyond it, and
-        joint j carries the bodies of link j or beyond: the bodies of link m = max(j, link of e) or beyond.  Their
-        moment changes by sum_b (a x (p_b - o_e)) x F_b = P_m a - o_e (a . S_m) - a (tr P_m - o_e . S_m) with the
-        tail sums S_m = sum F_b and P_m = sum p_b F_b^T over those bodies (a translation: 1e-3 a x S_m), so the
-        cost does not grow with the bodies times the elements (this runs in every Jacobian of a torque-driven
-        model)."""
+        Joint j carries the bodies b of link j or beyond, tau_j = z_j . sum (p_b - o_j) x F_b.  With the tail sums
+        S_m = sum F_b and P_m = sum p_b F_b^T over the bodies of link m or beyond, an element e (axis a, through o_e;
+        it moves the bodies of its own link L_e and beyond) changes tau_j by
+
+        * L_e < j (e moves joint j's axis, origin and bodies together): a rotation is, with the forces fixed in
+          direction, the forces turned the other way: ``a . (Q_j z_j - tr(Q_j) z_j)`` with
+          ``Q_j = P_j - o_j S_j^T``; a translation changes nothing;
+        * L_e >= j (the axis stays, the bodies beyond e move): ``z_j . v_e`` with, for a rotation,
+          ``v_e = Q'_e a - tr(Q'_e) a``, ``Q'_e = P_{L_e} - o_e S_{L_e}^T`` (from sum (a x (p_b - o_e)) x F_b), and
+          for a translation ``v_e = 1e-3 a x S_{L_e}``.
+
+        Both are a vector per joint or per element dotted with another, so the cost is that of the Jacobian's own
+        columns, not elements x joints x bodies (this runs in every Jacobian of a torque-driven model that keeps
+        the term)."""
         kin = self.kin
         n = self.robot.n
         N = len(pos)
         js = np.arange(n) if joints is None else np.asarray(joints, int)
-        link_of = kin.link_of                                                         # base 0, link k, tool n + 1
-        rot = (kin.kinds >= 3)[None, :, None, None]
+        level = np.minimum(kin.link_of, n + 1)                                        # base 0, link k, tool n + 1
+        rot = kin.kinds >= 3
         a, oe = fp.elem_axis, fp.elem_origin * 1e-3                                   # (N, E, 3)
-        levels = np.arange(n + 2)                                                     # m = 0 .. n + 1
-        beyond = (link[None, :] >= levels[:, None]).astype(float)                     # (M, B)
+        beyond = (link[None, :] >= np.arange(n + 2)[:, None]).astype(float)           # (M, B) body b in tail m
         S = np.matmul(beyond, F)                                                      # (N, M, 3)
-        P = np.einsum("mb,nbc,nbd->nmcd", beyond, pos, F)                             # (N, M, 3, 3)
+        P = np.matmul(beyond, (pos[:, :, :, None] * F[:, :, None, :]).reshape(N, -1, 9)).reshape(N, -1, 3, 3)
+        # joints: w_j = Q_j z_j - tr(Q_j) z_j, Q_j = P_j - o_j S_j^T (tail of joint j = level j + 1, 0-based j)
+        zj, oj, Sj, Pj = z[:, js], o[:, js], S[:, js + 1], P[:, js + 1]
+        Qz = np.einsum("nkcd,nkd->nkc", Pj, zj) - oj * np.einsum("nkd,nkd->nk", Sj, zj)[..., None]
+        trQ = np.einsum("nkcc->nk", Pj) - np.einsum("nkc,nkc->nk", oj, Sj)
+        w = Qz - trQ[..., None] * zj                                                  # (N, k, 3)
+        # elements: v_e from the tail of the element's own link
+        v = np.empty_like(a)                                                          # (N, E, 3)
         trP = np.einsum("nmcc->nm", P)
-        m_idx = np.maximum((js + 1)[None, :], np.minimum(link_of, n + 1)[:, None])    # (E, k)
-        e_idx = np.arange(len(link_of))[:, None]
-        Pa = np.matmul(a, P.transpose(0, 3, 1, 2).reshape(N, 3, -1)).reshape(N, -1, n + 2, 3)  # (N, E, M, 3)
-        aS = np.matmul(a, S.transpose(0, 2, 1))                                       # (N, E, M)
-        oS = np.matmul(oe, S.transpose(0, 2, 1))
-        g = (slice(None), e_idx, m_idx)
-        d_rot = Pa[g] - oe[:, :, None, :] * aS[g][..., None] - a[:, :, None, :] * (trP[:, m_idx] - oS[g])[..., None]
-        d_tr = 1e-3 * _cross(a[:, :, None, :], S[:, m_idx])
-        tail_dmom = np.where(rot, d_rot, d_tr)                                        # (N, E, k, 3)
-        distal_f = (link_of[:, None] <= js[None, :]).astype(float)[None, :, :, None]  # frame j-1 beyond e
-        ax = a[:, :, None, :]
-        zj, oj = z[:, None, js, :], o[:, None, js, :]
-        do = np.where(rot, _cross(ax, oj - oe[:, :, None, :]), ax * 1e-3) * distal_f
-        dz = np.where(rot, _cross(ax, zj), 0.0) * distal_f
-        dM = tail_dmom - _cross(do, tail_F[:, None, js, :])
-        dtau = np.zeros((N, n, len(link_of)))
-        dtau[:, js] = np.sum(dz * M[:, None, js] + dM * zj, axis=-1).transpose(0, 2, 1)   # (N, k, E)
-        dtau[:, :, link_of == 0] = 0.0      # gravity is given in frame 0: the base carries it along
+        for m in np.unique(level):                                                    # the elements of each tail
+            e = np.flatnonzero(level == m)
+            r, t = e[rot[e]], e[~rot[e]]
+            Sm = S[:, m, :, None]                                                     # (N, 3, 1)
+            ar, orr = a[:, r], oe[:, r]
+            Qa = np.matmul(ar, P[:, m].transpose(0, 2, 1)) - orr * np.matmul(ar, Sm)  # (P_m - o_e S_m^T) a
+            trQ = trP[:, m, None] - np.matmul(orr, Sm)[..., 0]
+            v[:, r] = Qa - trQ[..., None] * ar
+            v[:, t] = 1e-3 * _cross(a[:, t], S[:, m, None, :])
+        proximal = level[None, :] <= js[:, None]                                      # (k, E): L_e < j (1-based)
+        d_prox = np.matmul(w, a.transpose(0, 2, 1)) * rot[None, None, :]              # (N, k, E)
+        d_dist = np.matmul(zj, v.transpose(0, 2, 1))
+        dtau = np.zeros((N, n, len(level)))
+        dtau[:, js] = np.where(proximal[None], d_prox, d_dist)
+        dtau[:, :, level == 0] = 0.0        # gravity is given in frame 0: the base carries it along
         return dtau
 
     # -- evaluation ----------------------------------------------------------------------------------------------
@@ -288,13 +304,13 @@ class MeasurementModel:
             if torque_derivative:
                 joints = np.flatnonzero(np.any(gain != 0, axis=0))
                 dtau = self._torque_derivative(st.load_pass, *self._torque_parts(st.load_pass, ctx), joints=joints)
-                J[:, :, :ng] += np.einsum("nij,nje->nie", Jq[:, :, joints], gain[:, joints, None] * dtau[:, joints])
+                J[:, :, :ng] += np.matmul(Jq[:, :, joints], gain[:, joints, None] * dtau[:, joints])
         through = {"joint": Jq, "geometry": Je}
         for i, (e, s, v) in enumerate(zip(self.effects, self.effect_slices, vals)):
             if e.stage == "geometry":
                 # the effect's change of the geometry depends on the geometry: its own chain rule
                 J[:, :, :ng] = e.geometry_chain(J[:, :, :ng], self.length_idx, ctx, v)
-            J[:, :, s] = grads[i] if e.stage == "point" else np.einsum("nij,njk->nik", through[e.stage], grads[i])
+            J[:, :, s] = grads[i] if e.stage == "point" else np.matmul(through[e.stage], grads[i])
         return J, Jq
 
     def points(self, q_rad, ctx: PoseContext | None = None, theta=None, tool_mm=None, link=None) -> np.ndarray:
@@ -314,7 +330,7 @@ class MeasurementModel:
         for s, f in zip(stations, faces):
             if jacobian:
                 hz, v, Js_ = s.observe(ev.point_mm, f, with_jacobian=True)
-                Js.append(np.einsum("nac,ncp->nap", Js_, ev.jacobian))
+                Js.append(np.matmul(Js_, ev.jacobian))
             else:
                 hz, v = s.observe(ev.point_mm, f)
             cols += [hz, v]
@@ -334,11 +350,14 @@ def torque_term_matters(gain: np.ndarray, loads: Loads, threshold: float | None 
     The term adds to the column of a geometric parameter e ``J_q,j * c_j * d tau_j / d e`` for every joint j whose
     deflection follows its torque with compliance c_j (``gain``).  Moving the chain by a rotation changes tau_j by at
     most the moment M_j of everything joint j carries (``loads.joint_moment_nm``), so relative to the column the term
-    is at most ``eps = max c_j |M_j|``: the joint deflection that moment would cause, in radians (a translation gives
-    the same bound through the lever arm).  The residuals stay exact either way, so leaving the term out changes only
-    the solver's steps and the covariance, by a relative eps: below 1 % (a stiff robot; the thesis's Puma with its
-    measured compliances is at about 0.3 %) the converged parameters, sigmas and held-out RMS are unchanged
-    (benchmarks/bench_scaling.py --torque-term measures it) while the term is most of a torque-aware Jacobian's cost.
+    is about ``eps = max c_j |M_j|``: the joint deflection that moment would cause, in radians (a translation gives
+    the same bound through the lever arm; measured per column: 0.1-1.5 eps).  The residuals stay exact either way, so
+    leaving the term out changes only the solver's steps and the covariance.  Measured (``python
+    benchmarks/bench_scaling.py --torque-term``, 1000 twin poses, thesis effects, term off against on): the thesis's
+    Puma, eps 0.003: parameters within 0.003 sigma, sigmas within 0.04 %, the same held-out RMS; joints 10x more
+    compliant, eps 0.03: 0.04 sigma, 0.3 %; 30x, eps 0.08: 0.09 sigma, 1.2 %.  Hence the rule: the term is computed
+    when eps exceeds ``threshold`` (default :data:`TORQUE_TERM_THRESHOLD`, 1 %) -- a stiff arm skips what was most of
+    a torque-aware Jacobian's cost; a soft one keeps the exact Jacobian.
     """
     threshold = TORQUE_TERM_THRESHOLD if threshold is None else threshold
     return bool(torque_term_size(gain, loads) > threshold)
@@ -353,7 +372,12 @@ def torque_term_size(gain: np.ndarray, loads: Loads) -> float:
 
 
 def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """``a x b`` over the last axis (broadcast), component by component (np.cross copies and transposes)."""
+    """``a x b`` over the last axis (broadcast), component by component into one array (np.cross and np.stack copy
+    and transpose: several times slower on the small arrays of one-pose evaluations)."""
     a0, a1, a2 = a[..., 0], a[..., 1], a[..., 2]
     b0, b1, b2 = b[..., 0], b[..., 1], b[..., 2]
-    return np.stack([a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0], axis=-1)
+    out = np.empty(np.broadcast_shapes(a.shape, b.shape))
+    np.subtract(a1 * b2, a2 * b1, out=out[..., 0])
+    np.subtract(a2 * b0, a0 * b2, out=out[..., 1])
+    np.subtract(a0 * b1, a1 * b0, out=out[..., 2])
+    return out

@@ -171,3 +171,16 @@ def test_one_pose_of_a_batch_is_that_pose_alone(puma, rng):
             np.testing.assert_allclose(getattr(one, attr), getattr(alone, attr), atol=1e-12, err_msg=attr)
         np.testing.assert_allclose(one.gravity(), alone.gravity(), atol=1e-12)
         np.testing.assert_allclose(kin.element_jacobian(one), kin.element_jacobian(alone), atol=1e-12)
+
+
+def test_small_and_large_batches_chain_the_same(puma, rng):
+    """Below SMALL_BATCH poses a link step is one matmul, above it rows of multiply-adds: the same frames."""
+    from calib.kinematics import SMALL_BATCH
+    kin = Kinematics(puma.with_tool({"P": [30.0, -20.0, 120.0]}))
+    q = rng.uniform(-3, 3, (2 * SMALL_BATCH, 6))
+    params = kin.nominal + rng.normal(0, 1e-2, kin.P)
+    big = kin.forward(q, params)
+    for lo in range(0, len(q), 8):
+        small = kin.forward(q[lo:lo + 8], params)
+        np.testing.assert_allclose(small.frame_R, big.frame_R[lo:lo + 8], atol=1e-14)
+        np.testing.assert_allclose(small.point, big.point[lo:lo + 8], atol=1e-11)

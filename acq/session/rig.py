@@ -56,6 +56,7 @@ class Rig:
     _lock: threading.Lock = field(default_factory=threading.Lock)
     _arrived: threading.Condition = field(init=False)
     received: int = field(default=0, init=False)        # samples delivered by the tap since start
+    _awaited: int = field(default=0, init=False)        # the count a wait_received is waiting for
 
     def __post_init__(self) -> None:
         self._arrived = threading.Condition(self._lock)
@@ -68,11 +69,13 @@ class Rig:
         with self._lock:
             self._buf.append(sample)
             self.received += 1
-            self._arrived.notify_all()
+            if self.received >= self._awaited:          # wake the waiter once, not at every sample
+                self._arrived.notify_all()
 
     def wait_received(self, n: int, timeout_s: float) -> bool:
         """Block (real time) until ``n`` samples have arrived since start; False on timeout."""
         with self._lock:
+            self._awaited = n
             return self._arrived.wait_for(lambda: self.received >= n, timeout_s)
 
     def identities(self) -> list[tuple[str, str, str, dict]]:
