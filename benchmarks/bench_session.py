@@ -5,8 +5,9 @@ store's ingest rate for encoder streams compared with what the CAN tap can deliv
   (the shipped examples/demo-session.db by default; ``--record`` makes a fresh one first);
 * ingest: steps written exactly as the runner writes them (:meth:`SessionStore.write_step`, one transaction and one
   commit per step, each with one encoder chunk of ``n`` 6-joint samples), for a few chunk sizes.  The tap sends 4 CAN
-  frames per 6-joint sample; a saturated 1 Mbit/s bus carries ~7,000-8,000 frames/s (111-135 bits per 8-byte frame),
-  i.e. ~1,750-2,000 samples/s.  The figure that matters is the margin: frames/s the store takes over frames/s the bus
+  frames per 6-joint sample; a 1 Mbit/s bus at its limit carries 7,407-9,009 frames/s (135-111 bits per 8-byte frame,
+  stuff bits and intermission included: :mod:`acq.encoders.can_bits`; the tap's own frames average about 122 bits, so
+  about 8,200 frames/s), i.e. ~1,850-2,250 samples/s.  The figure that matters is the margin: frames/s the store takes over frames/s the bus
   can bring.
 
     python benchmarks/bench_session.py                 # both, on the shipped example
@@ -25,10 +26,13 @@ sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 
 import numpy as np  # noqa: E402
 
+from acq.encoders.can_bits import unstuffed_frame_bits, worst_case_frame_bits  # noqa: E402
 from acq.session.store import SessionStore, StepRecord  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
-BUS_FRAMES_S = (7000.0, 8000.0)       # saturated 1 Mbit/s CAN, 8-byte frames
+BUS_BIT_RATE = 1_000_000
+#: a 1 Mbit/s bus at its limit, 8-byte frames: the longest (all stuff bits) and the shortest (none) frame
+BUS_FRAMES_S = (BUS_BIT_RATE / worst_case_frame_bits(8), BUS_BIT_RATE / unstuffed_frame_bits(8))
 FRAMES_PER_SAMPLE = 4                 # the tap: 4 frames per 6-joint sample
 
 

@@ -218,7 +218,7 @@ def test_real_terminal_under_tmux(tmp_path):
 
 
 def test_interface_stays_responsive_under_a_flood_and_keeps_every_record():
-    """A saturated bus (8 kHz live updates) and 200 readings per step: prompts and records all arrive, keys work."""
+    """A bus at its limit (8 kHz live updates) and 200 readings per step: prompts and records all arrive, keys work."""
     from acq.tui.app import SessionHandle
     from tests.fakes.fake_runner import FakeRunner
 

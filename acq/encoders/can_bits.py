@@ -58,7 +58,17 @@ def frame_bits(can_id: int, data: bytes) -> int:
     return len(bits) + stuff_bit_count(bits) + TRAILER_BITS
 
 
+def _stuffable_len(n_data: int) -> int:
+    """Bits from SOF to the end of the CRC of a standard data frame of ``n_data`` bytes, before stuffing."""
+    return 1 + 11 + 3 + 4 + 8 * n_data + 15
+
+
+def unstuffed_frame_bits(n_data: int) -> int:
+    """The shortest a standard data frame of ``n_data`` bytes can be: no stuff bit (111 bits for 8 bytes)."""
+    return _stuffable_len(n_data) + TRAILER_BITS
+
+
 def worst_case_frame_bits(n_data: int) -> int:
     """The longest a standard data frame of ``n_data`` bytes can be: a stuff bit after every 4 bits past the first."""
-    n = 1 + 11 + 3 + 4 + 8 * n_data + 15
+    n = _stuffable_len(n_data)
     return n + (n - 1) // 4 + TRAILER_BITS

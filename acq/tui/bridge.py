@@ -5,7 +5,7 @@ Device I/O and the runner live in the runner's thread; widgets only in the app's
 * **records** (every runner event: steps, readings, checks, saves, logs) are posted as :class:`RunnerEvent` messages,
   in order, never dropped — Textual's ``post_message`` is thread-safe and queues;
 * **live values** (the latest theodolite angles and encoder counts) go through :class:`LiveValues`, a coalescing
-  store the app samples on a timer, so a saturated CAN bus cannot flood the interface;
+  store the app samples on a timer, so a CAN bus at its limit cannot flood the interface;
 * **prompts**: the runner calls :meth:`TuiOperator.ask` and blocks on a future that the app completes when the operator
   answers; closing the app answers ``abort`` so the runner never hangs.
 """

@@ -1,5 +1,5 @@
 """A stand-in for the session runner, for TUI tests that need conditions a real rig cannot make on demand:
-a flood of live values (a saturated CAN bus) while records and prompts keep coming."""
+a flood of live values (a CAN bus at its limit) while records and prompts keep coming."""
 from __future__ import annotations
 
 import threading
@@ -19,7 +19,7 @@ class FakeSample:
 
 
 class FloodTap:
-    """``latest()`` changes at ``rate_hz`` from its own thread, like a tap reader on a saturated bus."""
+    """``latest()`` changes at ``rate_hz`` from its own thread, like a tap reader on a bus at its limit."""
 
     def __init__(self, rate_hz: float = 8000.0):
         self.rate_hz = rate_hz
