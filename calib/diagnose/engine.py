@@ -169,10 +169,14 @@ def diagnose(data: DiagnosisData, level: str = "auto", n_folds: int | None = Non
     (``flag_outliers=False`` is ``outliers="off"``).
 
     BLAS runs on one thread meanwhile: the matrices are a few thousand rows by tens of columns, where threads cost
-    more than they give (on a loaded 2-core machine, 3 s of CPU instead of 28 for 400 poses).
+    more than they give (on a loaded 2-core machine, 3 s of CPU instead of 28 for 400 poses).  The limit covers only
+    the BLAS libraries loaded when it starts, and scipy brings its own OpenBLAS, which the diagnosis would load
+    lazily (its fits use scipy.linalg on every path): it is loaded first (else a 400-pose diagnosis called from
+    Python took 10 s of CPU instead of 1.7 on the 2-core machine).
     """
     try:
         from threadpoolctl import threadpool_limits
+        import scipy.linalg  # noqa: F401  (scipy's own BLAS, loaded now so that the limit covers it)
         one_thread = threadpool_limits(1, "blas")
     except ImportError:                     # a speed-up only
         from contextlib import nullcontext
