@@ -162,18 +162,28 @@ def _linearise(data: DiagnosisData, cur: CVResult, remaining: list[Candidate]) -
 
 
 def _guard(lin: _Linear, remaining: list[Candidate], note: Callable[[str], None]) -> list[tuple[Candidate, list[int]]]:
-    """Step 2: candidates the data can drive and the current model does not absorb."""
+    """Step 2: candidates the data can drive and the current model does not absorb.
+
+    A candidate's independent share is the smallest singular value of its column-normalised columns with the
+    current model's projected out: the square root of the smallest eigenvalue of their projected Gram block
+    (:func:`_diagonal_blocks`, all candidates at once).
+    """
+    C = lin.Jw[:, [k for cols in lin.cols for k in cols]]
+    starts = np.cumsum([0] + [len(cols) for cols in lin.cols])[:-1]
+    norm = np.linalg.norm(C, axis=0)
+    indep = np.zeros(len(remaining))
+    for first, Gk in _diagonal_blocks(C, lin.Qa.T @ C, starts):
+        d = np.where(norm > 0, norm, 1.0)[first[:, None] + np.arange(Gk.shape[1])]
+        low = np.linalg.eigvalsh(Gk / (d[:, :, None] * d[:, None, :]))[:, 0]
+        indep[np.searchsorted(starts, first)] = np.sqrt(np.maximum(low, 0.0))
     ok = []
-    for c, cols in zip(remaining, lin.cols):
-        C = lin.Jw[:, cols]
-        norm = np.linalg.norm(C, axis=0)
-        if np.any(norm < 1e-6):
+    for k, (c, cols) in enumerate(zip(remaining, lin.cols)):
+        if np.any(norm[starts[k]: starts[k] + len(cols)] < 1e-6):
             note(f"{c.label}: no signal in these data (its driver does not vary over the poses)")
             continue
-        indep = float(np.linalg.svd(_project(lin.Qa, C) / norm, compute_uv=False)[-1])
-        if indep < MIN_INDEPENDENT:
+        if indep[k] < MIN_INDEPENDENT:
             if c.kind != "transmission_error":
-                note(f"{c.label}: absorbed by the current model (only {100 * indep:.1f} % of its signature is "
+                note(f"{c.label}: absorbed by the current model (only {100 * indep[k]:.1f} % of its signature is "
                      f"independent of it)")
             continue
         ok.append((c, cols))
@@ -216,27 +226,42 @@ def _heldout_scores(data: DiagnosisData, cur: CVResult, lin: _Linear, ok) -> tup
     return chi2, sse
 
 
-def _block_normal_equations(C: np.ndarray, QtC: np.ndarray, rhs: np.ndarray, starts: np.ndarray) -> np.ndarray:
-    """Each candidate's least-squares coefficients, candidates side by side (columns ``starts[k]:starts[k+1]``).
+def _diagonal_blocks(C: np.ndarray, QtC: np.ndarray, starts: np.ndarray) -> list[tuple[np.ndarray, np.ndarray]]:
+    """The candidates' projected Gram blocks ``C_k^T C_k - (Q^T C_k)^T (Q^T C_k)`` (candidate k: columns
+    ``starts[k]:starts[k+1]``), grouped by block size: [(first columns (n,), blocks (n, size, size)), ...].
 
-    Candidate k solves ``(C_k^T C_k - (Q^T C_k)^T (Q^T C_k)) dc_k = rhs_k``: the normal equations of its columns with
-    the current model's projected out.  Only the blocks on the diagonal are needed, i.e. the first few diagonals of
-    C^T C (one pass over C each); the blocks are Jacobi-scaled and solved together per block size.  The guard keeps
-    only candidates with >= MIN_INDEPENDENT of their signature outside the current model, so the projected blocks
-    are well conditioned (equal to a per-candidate ``lstsq`` to ~1e-14 relative on the diagnosis's data).
+    Only the blocks on the diagonal of C^T C are needed, i.e. its first few diagonals: one pass over C each instead
+    of the whole product (or a decomposition per candidate).
     """
     A = C.shape[1]
     sizes = np.diff(np.append(starts, A))
+    if not len(sizes):
+        return []
     diag = [np.einsum("ma,ma->a", C[:, : A - o], C[:, o:]) - np.einsum("ma,ma->a", QtC[:, : A - o], QtC[:, o:])
             for o in range(int(sizes.max()))]
-    dc = np.zeros(A)
+    out = []
     for size in np.unique(sizes):
-        first = starts[sizes == size]                                      # the candidates with `size` columns
+        first = starts[sizes == size]
         Gk = np.empty((len(first), size, size))
         for i in range(size):
             for j in range(size):
                 Gk[:, i, j] = diag[abs(i - j)][first + min(i, j)]
-        cols = first[:, None] + np.arange(size)
+        out.append((first, Gk))
+    return out
+
+
+def _block_normal_equations(C: np.ndarray, QtC: np.ndarray, rhs: np.ndarray, starts: np.ndarray) -> np.ndarray:
+    """Each candidate's least-squares coefficients, candidates side by side (columns ``starts[k]:starts[k+1]``).
+
+    Candidate k solves ``(C_k^T C_k - (Q^T C_k)^T (Q^T C_k)) dc_k = rhs_k``: the normal equations of its columns with
+    the current model's projected out (:func:`_diagonal_blocks`), Jacobi-scaled and solved together per block size.
+    The guard keeps only candidates with >= MIN_INDEPENDENT of their signature outside the current model, so the
+    projected blocks are well conditioned (equal to a per-candidate ``lstsq`` to ~1e-14 relative on the diagnosis's
+    data).
+    """
+    dc = np.zeros(C.shape[1])
+    for first, Gk in _diagonal_blocks(C, QtC, starts):
+        cols = first[:, None] + np.arange(Gk.shape[1])
         d = np.sqrt(np.einsum("kii->ki", Gk))
         x = np.linalg.solve(Gk / (d[:, :, None] * d[:, None, :]), (rhs[cols] / d)[..., None])[..., 0]
         dc[cols] = x / d
@@ -257,25 +282,28 @@ class _Tests:
 
 
 def _nested_tests(data: DiagnosisData, cur: CVResult, lin: _Linear, ok) -> _Tests:
+    """Step 4: each candidate fitted to the whole residual with the current model's columns projected out (all at
+    once, :func:`_block_normal_equations`), its nested F-test (Bonferroni over the candidates) and delta BIC."""
     m = 3 * data.n
     r_all = _white_rows(data.whitening, (data.points_mm - cur.model.points(
         data.q_rad, data.ctx, cur.all_fit.theta[: cur.model.P]))[:, :, None])[:, 0]
     r0 = _project(lin.Qa, r_all[:, None])[:, 0]
     rss0 = float(r0 @ r0)
     M = len(ok)
-    p, F, dbic, sig = np.ones(M), np.zeros(M), np.zeros(M), []
-    for k, (_, cols) in enumerate(ok):
-        Cp = _project(lin.Qa, lin.Jw[:, cols])
-        dc, *_ = np.linalg.lstsq(Cp, r0, rcond=None)
-        fitted = Cp @ dc
-        rss1 = float((r0 - fitted) @ (r0 - fitted))
-        q = len(cols)
-        dof = m - len(lin.base_idx) - q
-        F[k] = ((rss0 - rss1) / q) / (rss1 / dof) if rss1 > 0 else np.inf
-        p[k] = min(1.0, float(f_sf(F[k], q, dof)) * M)
-        dbic[k] = rss1 - rss0 + q * np.log(m)       # whitened -2 log L difference + penalty (sigma known)
-        sig.append(fitted)
-    return _Tests(p, F, dbic, sig, r0, m - len(lin.base_idx))
+    C = lin.Jw[:, [k for _, cols in ok for k in cols]]
+    starts = np.cumsum([0] + [len(cols) for _, cols in ok])[:-1]
+    QtC = lin.Qa.T @ C
+    dc = _block_normal_equations(C, QtC, C.T @ r0, starts)
+    fitted = np.add.reduceat((C - lin.Qa @ QtC) * dc, starts, axis=1) if M else np.zeros((m, 0))
+    e = r0[:, None] - fitted
+    rss1 = np.einsum("ij,ij->j", e, e)
+    q = np.diff(np.append(starts, C.shape[1]))
+    dof = m - len(lin.base_idx) - q
+    with np.errstate(divide="ignore", invalid="ignore"):
+        F = np.where(rss1 > 0, ((rss0 - rss1) / q) / (rss1 / dof), np.inf)
+    p = np.minimum(1.0, f_sf(F, q, dof) * M)
+    dbic = rss1 - rss0 + q * np.log(m)             # whitened -2 log L difference + penalty (sigma known)
+    return _Tests(p, F, dbic, list(fitted.T), r0, m - len(lin.base_idx))
 
 
 def _adds_to(lin: _Linear, tests: _Tests, k: int, i: int, cols_k: list[int], cols_i: list[int]) -> float:
