@@ -155,6 +155,7 @@ class PyboticsFit:
     pred: np.ndarray
     n_params: int
     status: str
+    converged: bool          # scipy's gradient test passed (status 1); otherwise a time ratio compares unlike fits
 
 
 def pybotics_fit(pr, q_train, p_train, q_test, x_scale: str | float = 1.0) -> PyboticsFit:
@@ -172,7 +173,7 @@ def pybotics_fit(pr, q_train, p_train, q_test, x_scale: str | float = 1.0) -> Py
     status = (f"{STOP.get(res.status, 'failed')} (scipy status {res.status}: {res.message}); {res.nfev} evaluations, "
               f"{res.njev} Jacobians (finite differences), first-order optimality {res.optimality:.2g} at the end")
     pred = np.array([handler.robot.fk(qi)[:3, 3] for qi in q_test])
-    return PyboticsFit(seconds, pred, x0.size, status)
+    return PyboticsFit(seconds, pred, x0.size, status, res.status == 1)
 
 
 # -- one data set --------------------------------------------------------------------------------------------------
@@ -246,8 +247,10 @@ def run_set(ds: DataSet, robot, repeats: int, have_pybotics: bool, x_scale: str 
         print(f"  {label:<44}{fit.n_params:>7d}{spread(t_pb):>26}"
               f"{rms_p:>9.4f}{mx_p:>9.4f}")
         print(f"    pybotics stop: {fit.status}")
-        print(f"    common start (base fit + linear translations): held-out RMS {start_rms:.3f} mm; "
-              f"robocal is {statistics.median(t_pb) / statistics.median(t_geo):.1f}x faster (medians)")
+        ratio = statistics.median(t_pb) / statistics.median(t_geo)
+        verdict = (f"robocal is {ratio:.1f}x faster (medians, both converged)" if fit.converged else
+                   f"time ratio {ratio:.1f}x (medians) is not a speed-up: pybotics stopped before converging")
+        print(f"    common start (base fit + linear translations): held-out RMS {start_rms:.3f} mm; {verdict}")
     else:
         print(f"  pybotics: not installed ({INSTALL}): comparison skipped")
     rms, mx = errors(pred_f, ds.p_hold)

@@ -78,7 +78,7 @@ def scaling(args) -> None:
 
     tw = Twin(seed=args.seed)
     print(f"robocal benchmark: scaling with the pose count, Puma 560 twin (default scenario), one BLAS thread, "
-          f"best of {args.repeat}; {time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}")
+          f"best of {args.repeat} (of at least 3 below 1000 poses); {time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}")
     print(f"  machine: {machine()}")
     warm, _ = measure(tw, 60)                   # first calls import and build what later calls reuse: untimed
     identify(thesis_model(tw.robot), warm)
@@ -131,6 +131,7 @@ def torque_term(args) -> None:
         obs, _ = measure(tw, n)
         obs_h, truth_h = measure(tw, args.holdout)
         res = {}
+        threshold = model_mod.TORQUE_TERM_THRESHOLD
         for term in (True, False):
             model_mod.TORQUE_TERM_THRESHOLD = 0.0 if term else np.inf
             model = thesis_model(tw.robot)
@@ -138,7 +139,7 @@ def torque_term(args) -> None:
             pred = model.points(obs_h.q_rad, obs_h.ctx, r.theta[: model.P])
             rms = float(np.sqrt(np.mean(np.sum((pred - truth_h) ** 2, axis=1))))
             res[term] = (t, r, rms, model)
-        model_mod.TORQUE_TERM_THRESHOLD = 0.01
+        model_mod.TORQUE_TERM_THRESHOLD = threshold
         on, off = res[True][1], res[False][1]
         model = res[True][3]
         ev = model.evaluate(obs.q_rad, obs.ctx, on.theta[: model.P])

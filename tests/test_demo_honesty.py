@@ -14,10 +14,11 @@ show only in the median, which a group's own halved ratios test poorly (a group 
 below its lower limit with a probability of at least 80 % (``bench_demo_honesty.power_too_large``: 58 values or
 more).
 
-Runs: the ``chain`` steps (everything but link compliance, which the default twin does not have) for 15 seeds give
-the sweeps, the transmission error, joint compliance and the pose set (4-5 values a run for the smallest groups: 60
-or more); 65 ``small`` runs (ruler, coupling, encoder resolution: a few seconds each) bring the encoder resolution,
-one value a run, to 80.  An estimate under two names (a resolution and its scale) counts once.
+Runs: the ``chain`` steps (everything but link compliance, which the default twin does not have) for 16 seeds give
+the sweeps, the transmission error, joint compliance and the pose set (4-5 values a run for the smallest groups: 64
+or more, a few to spare for a run that cannot determine one); 65 ``small`` runs (ruler, coupling, encoder
+resolution: a few seconds each) bring the encoder resolution, one value a run, to 81.  An estimate under two names
+(a resolution and its scale) counts once.
 ``python benchmarks/bench_demo_honesty.py --test-cases --workers 3`` prints the figures (``TEST_CASES``).
 """
 from __future__ import annotations
