@@ -9,10 +9,13 @@ Each run records a fresh demo database in a temporary folder with the default se
 reprocesses it, exactly as a user runs it; the figures are per run and the median.  CPU time is the child's user +
 system time (all its threads); "waiting" is wall minus CPU on the main thread's path (a loaded machine shows up
 there, so the load average is printed before and after).  One BLAS thread, as the ``robocal`` command sets itself.
-Bytecode is cached as a user's Python does (``PYTHONDONTWRITEBYTECODE`` is dropped for the child; an untimed
-warm-up run writes the caches): without it every robocal module is compiled again on each start (~0.3 s).
+Bytecode: by default the child runs with Python's bytecode cache on, in a folder under the temporary directory (so
+nothing is written into the tree), as an installed robocal has it -- also where the environment sets
+``PYTHONDONTWRITEBYTECODE`` (the development machine does); the untimed warm-up run fills the cache.  ``--no-bytecode``
+measures what a shell with ``PYTHONDONTWRITEBYTECODE=1`` and a source checkout pays: every robocal module compiled
+again on each start (0.1-0.3 s more).  The first line says which one is measured.
 
-    python benchmarks/bench_demo.py [--runs 3] [--seed 0] [--warmup 1]
+    python benchmarks/bench_demo.py [--runs 3] [--seed 0] [--warmup 1] [--no-bytecode]
 """
 from __future__ import annotations
 
@@ -38,10 +41,24 @@ def _load() -> str:
     return "load average %.2f %.2f %.2f" % os.getloadavg()
 
 
-def run_demo(seed: int) -> dict:
-    """One whole ``robocal demo`` process: wall, CPU, recording time and simulated instrument time (s)."""
+PYCACHE = Path(tempfile.gettempdir()) / "robocal-bench-pycache"       # the same cache as bench_startup.py
+
+
+def child_env(bytecode: bool = True) -> dict[str, str]:
+    """The child's environment: this tree first on the path; bytecode cached under :data:`PYCACHE` (``bytecode``)
+    or never written (every start compiles robocal from source)."""
     env = dict(os.environ, PYTHONPATH=os.pathsep.join(filter(None, [str(ROOT), os.environ.get("PYTHONPATH")])))
-    env.pop("PYTHONDONTWRITEBYTECODE", None)
+    if bytecode:
+        env.pop("PYTHONDONTWRITEBYTECODE", None)
+        env["PYTHONPYCACHEPREFIX"] = str(PYCACHE)
+    else:
+        env["PYTHONDONTWRITEBYTECODE"] = "1"
+    return env
+
+
+def run_demo(seed: int, bytecode: bool = True) -> dict:
+    """One whole ``robocal demo`` process: wall, CPU, recording time and simulated instrument time (s)."""
+    env = child_env(bytecode)
     with tempfile.TemporaryDirectory() as tmp:
         before = resource.getrusage(resource.RUSAGE_CHILDREN)
         t0 = time.perf_counter()
@@ -62,13 +79,17 @@ def main(argv=None) -> int:
     ap.add_argument("--runs", type=int, default=3, help="whole demo processes (default 3)")
     ap.add_argument("--seed", type=int, default=0, help="the demo's seed (default 0)")
     ap.add_argument("--warmup", type=int, default=1, help="untimed runs first, to cache bytecode (default 1)")
+    ap.add_argument("--no-bytecode", action="store_true",
+                    help="measure without a bytecode cache (PYTHONDONTWRITEBYTECODE=1: robocal compiled on each start)")
     a = ap.parse_args(argv)
-    print(f"robocal demo, whole process, {a.runs} runs; {_load()}; cpu count {os.cpu_count()}")
+    code = ("no bytecode cache: robocal's modules compiled on every start" if a.no_bytecode else
+            f"bytecode cached in {PYCACHE}, as an installed robocal")
+    print(f"robocal demo, whole process, {a.runs} runs; {code}; {_load()}; cpu count {os.cpu_count()}")
     for _ in range(a.warmup):
-        run_demo(a.seed)
+        run_demo(a.seed, not a.no_bytecode)
     rows = []
     for i in range(a.runs):
-        m = run_demo(a.seed)
+        m = run_demo(a.seed, not a.no_bytecode)
         rows.append(m)
         print(f"  run {i + 1}: wall {m['wall']:5.2f} s  cpu {m['cpu']:5.2f} s  recording {m['record']:4.1f} s  "
               f"simulated instrument time {m['simulated']:4.1f} s (slept before: that much and more)")

@@ -210,7 +210,8 @@ def select_poses(model: MeasurementModel, count: int, names: list[str] | None = 
         rank-3 terms: T small determinants instead of T SVDs.  The others need the singular values: one batched
         SVD."""
         if index == "O1":
-            G = np.einsum("kap,kaq->pq", Bs[chosen], Bs[chosen]) - Bs[chosen[i]].T @ Bs[chosen[i]]
+            Bc = Bs[chosen].reshape(-1, p)                     # one BLAS product (einsum's loop was 10x slower)
+            G = Bc.T @ Bc - Bs[chosen[i]].T @ Bs[chosen[i]]
             Bt = Bs[sels[:, i]]
             sign, logdet = np.linalg.slogdet(G + Bt.transpose(0, 2, 1) @ Bt)
             return [0.5 * float(ld) if sg > 0 else -np.inf for sg, ld in zip(sign, logdet)]

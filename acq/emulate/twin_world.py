@@ -98,7 +98,8 @@ class TwinWorld:
             rep = self.twin.scenario.repeatability_rad
             scatter = rep * self._rng.standard_normal(q.size) * moved if rep > 0 else 0.0
             self._q = np.where(moved, q + scatter, self._q)
-            self._cache = None
+            if moved.any():                 # a command to where the joints are changes nothing the target depends on
+                self._cache = None
 
     def set_load(self, joint_torque_nm=None, load_direction=None, payload_kg: float = 0.0) -> None:
         """Torques applied directly to the joints (N m; kept for old callers -- the bench hangs masses instead),
@@ -119,16 +120,20 @@ class TwinWorld:
                     or m.mass_kg < 0:
                 raise RobocalError(f"twin world: a load needs a link 0..{n}, a finite point and a mass >= 0 kg, "
                                    f"got {m!r}")
+        load_dir = np.zeros(n) if load_direction is None else np.asarray(load_direction, float).copy()
         with self._lock:
+            if masses == self._masses and np.array_equal(load_dir, self._load_dir):
+                return                      # the same loads again: the target stays where it is
             self._masses = masses
-            self._load_dir = np.zeros(n) if load_direction is None else np.asarray(load_direction, float).copy()
+            self._load_dir = load_dir
             self._cache = None
 
     def aim(self, target: Target) -> None:
         """Make ``target`` the one the theodolites read."""
         with self._lock:
-            self._target = target
-            self._cache = None
+            if target != self._target:
+                self._target = target
+                self._cache = None
 
     @property
     def default_tool_mm(self) -> tuple[float, float, float]:
