@@ -234,6 +234,7 @@ def intersect(stations: list[Station], readings: list[tuple], faces: list | None
     p, miss, angle = closest_point(stations[0].position, dirs[0], stations[1].position, dirs[1],
                                    (stations[0].name, stations[1].name))
     w = np.concatenate([[1 / s.sigma_hz_rad ** 2, 1 / s.sigma_v_rad ** 2] for s in stations])
+    converged = False
     for _ in range(iterations):
         res, J = _residuals(stations, faces, hz, vv, p)
         JW = J * w[None, :, None]
@@ -242,9 +243,15 @@ def intersect(stations: list[Station], readings: list[tuple], faces: list | None
         step = np.linalg.solve(A, g[..., None])[..., 0]
         p = p + step
         if np.max(np.abs(step)) < 1e-10:
+            converged = True
             break
-    res, J = _residuals(stations, faces, hz, vv, p)
-    A = np.einsum("nki,nkj->nij", J * w[None, :, None], J)
+    if converged:
+        # a step below 1e-10 mm moves neither the residuals (< 1e-13 rad) nor J: the last evaluation serves, less the
+        # step's first-order change of the residuals
+        res = res - np.einsum("nki,ni->nk", J, step)
+    else:
+        res, J = _residuals(stations, faces, hz, vv, p)
+        A = np.einsum("nki,nkj->nij", J * w[None, :, None], J)
     cov = np.linalg.inv(A)
     return Intersection(point_mm=p, cov_mm2=cov, miss_mm=miss, angle_rad=angle, residual_rad=-res)
 

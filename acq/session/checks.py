@@ -97,9 +97,9 @@ def repeat_spread(readings: list[dict], limit_arcsec: float) -> list[Check]:
 
 def intersect_targets(readings: list[dict], stations: dict[str, Station]) -> dict[str, tuple]:
     """Target name -> (point_mm, cov_mm2, miss_mm) from face-averaged readings of the two stations (named as in
-    ``stations``: the set-up names them)."""
-    out = {}
+    ``stations``: the set-up names them).  All targets in one intersection (it is vectorised over points)."""
     names = list(stations)[:2]
+    seen: dict[str, list] = {}
     for tg in sorted({r["target"] for r in readings}):
         pair = []
         for st in names:
@@ -108,12 +108,13 @@ def intersect_targets(readings: list[dict], stations: dict[str, Station]) -> dic
                 break
             pair.append(face_mean(np.array([r["hz_rad"] for r in rs]), np.array([r["v_rad"] for r in rs]),
                                   np.array([r["face"] for r in rs])))
-        if len(pair) < 2:
-            continue
-        sts = [stations[n] for n in names]
-        x = intersect(sts, [(np.array([h]), np.array([v])) for h, v in pair])
-        out[tg] = (x.point_mm[0], x.cov_mm2[0], float(x.miss_mm[0]))
-    return out
+        if len(pair) == 2:
+            seen[tg] = pair
+    if not seen:
+        return {}
+    hv = np.array(list(seen.values()))                              # (targets, station, (hz, v))
+    x = intersect([stations[n] for n in names], [(hv[:, k, 0], hv[:, k, 1]) for k in range(2)])
+    return {tg: (x.point_mm[i], x.cov_mm2[i], float(x.miss_mm[i])) for i, tg in enumerate(seen)}
 
 
 def miss_sigma_mm(readings: list[dict], stations: dict[str, Station], point_mm: np.ndarray, target: str) -> float:

@@ -165,11 +165,10 @@ def build_demo(db: str | Path, seed: int = 0, resume: bool = False, script: dict
     (``--te-joints``; default :data:`DEFAULT_TE_JOINTS`).  ``clock``: the emulated devices' and the rig's time; by
     default a :class:`~acq.clock.SimClock` (the encoder windows take no wall time), a
     :class:`~acq.clock.RealClock` where a human watches the session (the TUI's ``--emulate``)."""
-    import can
 
     from acq.drivers import open_theodolite
     from acq.emulate import registry
-    from acq.emulate.can_node import CanTapNode
+    from acq.emulate.can_node import CanTapNode, SenderVirtualBus
     from acq.emulate.geocom_device import GeoComDevice
     from acq.emulate.tap_device import TapModel
     from acq.emulate.twin_world import TwinWorld
@@ -211,7 +210,7 @@ def build_demo(db: str | Path, seed: int = 0, resume: bool = False, script: dict
         names.append(name)
         drivers[st] = open_theodolite("geocom", url, name=f"theodolite {st}")
     channel = f"robocal-demo-{tag}"
-    node = CanTapNode(can.Bus(interface="virtual", channel=channel),
+    node = CanTapNode(SenderVirtualBus(channel=channel),
                       TapModel(world, twin.robot, rate_hz=500.0, clock=clock), own_bus=True)
     tap = open_tap("can", interface="virtual", channel=channel, robot=twin.robot)
     rig = Rig(drivers, tap, clock=clock)

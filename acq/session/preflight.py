@@ -26,6 +26,7 @@ Limits: :data:`PREFLIGHT_LIMITS`, overridden by the set-up's ``preflight`` table
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import Callable
 
@@ -98,6 +99,7 @@ class Preflight:
         self.limits = {**lim, **setup.get("preflight", {}), **(limits or {})}
         self.g_n_per_kg = self.model.gravity_n_per_kg(self.theta)
         self._chains: dict[tuple, object] = {}     # pose -> one-pose chain pass (nominal model: stations do not matter)
+        self._links: dict[int, tuple] = {}         # id(chain pass) -> (links, sample points) for the line of sight
 
     # -- geometry ------------------------------------------------------------------------------------------------
     def geometry(self, step: Step) -> StepGeometry:
@@ -226,15 +228,28 @@ def _reach(pf: Preflight, geo: StepGeometry) -> list[Finding]:
     return out
 
 
+#: samples along each link for the line-of-sight test (fractions 0..1 of the link)
+_LINK_SAMPLES = np.linspace(0.0, 1.0, 40)[None, :, None]
+
+
+def _link_points(b0, b1, n: int = 40) -> np.ndarray:
+    """``n`` points along each segment b0[k]-b1[k] (K, n, 3), ends included."""
+    s = _LINK_SAMPLES if n == _LINK_SAMPLES.shape[1] else np.linspace(0.0, 1.0, n)[None, :, None]
+    return b0[:, None] + s * (b1 - b0)[:, None]
+
+
+def _distances_to(a0, a1, pts) -> np.ndarray:
+    """Shortest distances (K,) between the segment a0-a1 and the point sets ``pts`` (K, n, 3): exact along a."""
+    u = a1 - a0
+    uu = float(u @ u)
+    t = np.clip((pts - a0) @ (u / uu), 0.0, 1.0) if uu > 0 else np.zeros(pts.shape[:2])
+    return np.sqrt(np.min(np.sum((pts - (a0 + t[..., None] * u)) ** 2, axis=-1), axis=1))
+
+
 def _segment_distances(a0, a1, b0, b1, n: int = 40) -> np.ndarray:
     """Shortest distances (K,) between the segment a0-a1 and each segment b0[k]-b1[k] (sampled along b, exact along
     a); all K at once."""
-    u = a1 - a0
-    uu = float(u @ u)
-    s = np.linspace(0.0, 1.0, n)[None, :, None]
-    pts = b0[:, None] + s * (b1 - b0)[:, None]                            # (K, n, 3)
-    t = np.clip((pts - a0) @ u / uu, 0.0, 1.0) if uu > 0 else np.zeros(pts.shape[:2])
-    return np.min(np.linalg.norm(pts - (a0 + t[..., None] * u), axis=-1), axis=1)
+    return _distances_to(a0, a1, _link_points(b0, b1, n))
 
 
 @preflight_check("sight")
@@ -244,8 +259,9 @@ def _sight(pf: Preflight, geo: StepGeometry) -> list[Finding]:
     for name, p in geo.points.items():
         for sname, st in pf.stations.items():
             d = p - st.position
-            rng = float(np.linalg.norm(d))
-            el = float(np.degrees(np.arctan2(d[2], np.hypot(d[0], d[1]))))
+            dx, dy, dz = (float(v) for v in d)       # scalars in plain floats: numpy per scalar costs 10x more
+            rng = math.sqrt(dx * dx + dy * dy + dz * dz)
+            el = math.degrees(math.atan2(dz, math.hypot(dx, dy)))
             if abs(el) > lim["max_elevation_deg"]:
                 out.append(Finding("sight", geo.step.key, el, lim["max_elevation_deg"], "deg",
                                    f"station {sname} sees {name} at {el:+.1f} deg elevation, limit "
@@ -257,7 +273,7 @@ def _sight(pf: Preflight, geo: StepGeometry) -> list[Finding]:
             elif rng > lim["max_range_mm"]:
                 out.append(Finding("sight", geo.step.key, rng, lim["max_range_mm"], "mm",
                                    f"{name} is {rng:.0f} mm from station {sname}, beyond {lim['max_range_mm']:.0f} mm"))
-            blocked = _blocking_link(pf, geo, st.position, p)
+            blocked = _blocking_link(pf, geo, st.position, p, rng)
             if blocked is not None:
                 j, dist = blocked
                 out.append(Finding("sight", geo.step.key, dist, float(pf.limits["link_radius_mm"]), "mm",
@@ -266,20 +282,36 @@ def _sight(pf: Preflight, geo: StepGeometry) -> list[Finding]:
     return out
 
 
-def _blocking_link(pf: Preflight, geo: StepGeometry, station_mm: np.ndarray, p: np.ndarray):
+def _blocking_link(pf: Preflight, geo: StepGeometry, station_mm: np.ndarray, p: np.ndarray,
+                   length_mm: float | None = None):
     """(link, distance) of the first link crossing the sight line (frame origin to frame origin, thickened by the
-    set-up's ``link_radius_mm``), or None; the last ``2 r`` before the target are left out (the target's own mount)."""
+    set-up's ``link_radius_mm``), or None; the last ``2 r`` before the target are left out (the target's own mount).
+    ``length_mm``: the sight line's length when the caller has it."""
     r = pf.limits.get("link_radius_mm")
     if not r or geo.fp is None:
         return None
     d = p - station_mm
-    L = float(np.linalg.norm(d))
+    L = float(np.linalg.norm(d)) if length_mm is None else length_mm
     end = station_mm + d * max(0.0, 1.0 - 2.0 * float(r) / L)
-    org = geo.fp.frame_t[0]
-    links = np.flatnonzero(np.linalg.norm(org[1:] - org[:-1], axis=1) >= 1e-6) + 1
-    dist = _segment_distances(station_mm, end, org[links - 1], org[links])
+    links, pts = _link_samples(pf, geo.fp)
+    dist = _distances_to(station_mm, end, pts)
     hit = np.flatnonzero(dist < r)
     return (int(links[hit[0]]), float(dist[hit[0]])) if hit.size else None
+
+
+def _link_samples(pf: Preflight, fp) -> tuple[np.ndarray, np.ndarray]:
+    """The links of a one-pose chain pass (frame origin to frame origin, zero-length ones left out) and the points
+    sampled along them (K, n, 3); kept per pass: every station and target of a step, and the step's second check
+    with refitted stations, test the same links."""
+    got = pf._links.get(id(fp))
+    if got is not None and got[0] is fp:
+        return got[1], got[2]
+    org = fp.frame_t[0]
+    links = np.flatnonzero(np.linalg.norm(org[1:] - org[:-1], axis=1) >= 1e-6) + 1
+    pts = _link_points(org[links - 1], org[links])
+    if len(pf._links) < 10_000:
+        pf._links[id(fp)] = (fp, links, pts)
+    return links, pts
 
 
 @preflight_check("intersection")

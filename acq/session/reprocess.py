@@ -724,8 +724,9 @@ def _te_run_variance(robot, running: dict, specs: list[str], obs, ident, priors)
             sp = list(specs)
             sp[at[0]] = f"transmission_error:{j}:{order + sgn * h:.8g}"
             model, _, _ = _pose_model(robot, running, [], sp)
-            try:
-                moved.append(identify(model, obs, free=list(ident.free), theta0=ident.theta, priors=priors).theta)
+            try:        # a small step from the converged fit, as in _station_variance: no linear start or outlier search
+                moved.append(identify(model, obs, free=list(ident.free), theta0=ident.theta, priors=priors,
+                                      robust=False, start=False).theta)
             except RobocalError:
                 break
         if len(moved) < 2:
