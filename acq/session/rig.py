@@ -57,6 +57,7 @@ class Rig:
     _arrived: threading.Condition = field(init=False)
     received: int = field(default=0, init=False)        # samples delivered by the tap since start
     _awaited: int = field(default=0, init=False)        # the count a wait_received is waiting for
+    _faces: dict = field(default_factory=dict, init=False)  # station -> face its telescope was last seen in
 
     def __post_init__(self) -> None:
         self._arrived = threading.Condition(self._lock)
@@ -89,14 +90,33 @@ class Rig:
         return out
 
     def face(self, station: str, face: int) -> None:
-        """Bring the telescope to ``face`` (motorised instruments; a manual one is turned by the operator)."""
+        """Bring the telescope to ``face`` (motorised instruments; a manual one is turned by the operator).
+
+        The face the rig last saw is kept, so a sighting in the face the telescope is already in costs no question
+        to the instrument (half the round trips of a session); :meth:`sight` checks every reading's face against
+        it, so a telescope turned by hand in between is noticed and brought back before the reading is used."""
         drv = self.theodolites[station]
-        if hasattr(drv, "face") and hasattr(drv, "change_face"):
-            if drv.face() != face:
-                drv.change_face()
+        if not (hasattr(drv, "face") and hasattr(drv, "change_face")) or self._faces.get(station) == face:
+            return
+        self._faces.pop(station, None)
+        if drv.face() != face:
+            drv.change_face()
+        self._faces[station] = face
 
     def sight(self, station: str) -> AngleReading:
-        return self.theodolites[station].angles()
+        """One reading of ``station``; a motorised telescope found in another face than the rig left it in is
+        turned back (:meth:`face`) and read again."""
+        want = self._faces.get(station)
+        try:
+            r = self.theodolites[station].angles()
+            if want is not None and r.face is not None and r.face != want:
+                self._faces.pop(station, None)
+                self.face(station, want)
+                r = self.theodolites[station].angles()
+        except Exception:
+            self._faces.pop(station, None)           # a device fault may leave the telescope anywhere
+            raise
+        return r
 
     def capture(self, seconds: float, settle_s: float = 0.0, min_samples: int = 5,
                 timeout_s: float = 2.0) -> EncoderCapture | None:
