@@ -214,6 +214,9 @@ class Runner:
             lines = failing_lines(self.preflight.check([s for s in self.steps if s.key not in done]))
             if lines:
                 return self._refuse(lines)
+        prime = getattr(self.predict, "prime", None)
+        if prime is not None:                   # the predictions of every step to run, in one evaluation per target
+            prime([s for s in self.steps if s.key not in done])
         row = self.store.session_row()
         resumed = bool(done) or row["exit_status"] is not None
         if row["exit_status"] is not None or done:

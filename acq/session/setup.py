@@ -154,18 +154,45 @@ def predictor(robot, setup: dict, tolerances: dict | None = None):
     m = MeasurementModel(robot)
     th = nominal_theta(m, setup)
     sd = _prior_sigmas(list(m.kin.names), {**DESCRIPTION_TOLERANCES, **(tolerances or {})})
+    known: dict[tuple, tuple] = {}          # (pose, tool, link) -> (point, sigma), from prime()
+
+    def _evaluate(poses: list[tuple], tool, link) -> list[tuple]:
+        ev = m.evaluate(np.asarray(poses, float) * DEG, theta=th, jacobian=True, tool_mm=np.asarray(tool, float),
+                        link=link)
+        J = ev.jacobian[:, :, : m.n_geometric] * sd[None, None, :]
+        return list(zip(ev.point_mm, np.sqrt(np.sum(J * J, axis=(1, 2)))))
+
+    def _wanted(step: Step):
+        if step.pose_deg is not None:
+            for t in step.targets:
+                if t.tool_mm is not None:
+                    yield t.name, (tuple(step.pose_deg), tuple(t.tool_mm), t.link)
+
+    def prime(steps: list[Step]) -> None:
+        """Predict every step's targets now, one vectorised evaluation per target (a session's plan is known
+        before it runs; one pose at a time costs the runner a model evaluation per step)."""
+        groups: dict[tuple, list[tuple]] = {}
+        for s in steps:
+            for _, key in _wanted(s):
+                if key not in known:
+                    groups.setdefault(key[1:], []).append(key[0])
+        for (tool, link), poses in groups.items():
+            poses = list(dict.fromkeys(poses))
+            for pose, (p, sig) in zip(poses, _evaluate(poses, tool, link)):
+                if len(known) < 100_000:
+                    known[(pose, tool, link)] = (p, float(sig))
 
     def predict(step: Step) -> dict:
-        if step.pose_deg is None:
-            return {}
         out = {}
-        for t in step.targets:
-            if t.tool_mm is not None:
-                ev = m.evaluate(np.asarray(step.pose_deg)[None] * DEG, theta=th, jacobian=True,
-                                tool_mm=np.asarray(t.tool_mm), link=t.link)
-                J = ev.jacobian[0][:, : m.n_geometric] * sd[None, :]
-                out[t.name] = (ev.point_mm[0], float(np.sqrt(np.sum(J * J))))
+        for name, key in _wanted(step):
+            got = known.get(key)
+            if got is None:
+                p, sig = _evaluate([key[0]], key[1], key[2])[0]
+                got = (p, float(sig))
+            out[name] = (got[0].copy(), got[1])
         return out
+
+    predict.prime = prime
     return predict
 
 
