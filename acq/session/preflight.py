@@ -239,11 +239,16 @@ def _link_points(b0, b1, n: int = 40) -> np.ndarray:
 
 
 def _distances_to(a0, a1, pts) -> np.ndarray:
-    """Shortest distances (K,) between the segment a0-a1 and the point sets ``pts`` (K, n, 3): exact along a."""
-    u = a1 - a0
-    uu = float(u @ u)
-    t = np.clip((pts - a0) @ (u / uu), 0.0, 1.0) if uu > 0 else np.zeros(pts.shape[:2])
-    return np.sqrt(np.min(np.sum((pts - (a0 + t[..., None] * u)) ** 2, axis=-1), axis=1))
+    """Shortest distances between the segments a0-a1 ((3,) or (S, 3): one per station) and the point sets ``pts``
+    (K, n, 3): (K,) or (S, K), exact along a."""
+    a0, a1 = np.asarray(a0, float), np.asarray(a1, float)
+    one = a0.ndim == 1
+    a0, u = np.atleast_2d(a0), np.atleast_2d(a1 - a0)                        # (S, 3)
+    uu = np.einsum("sc,sc->s", u, u)
+    diff = pts[None] - a0[:, None, None, :]                                   # (S, K, n, 3)
+    t = np.clip(np.matmul(diff, (u / np.where(uu > 0, uu, 1.0)[:, None])[:, None, :, None])[..., 0], 0.0, 1.0)
+    d = np.sqrt(np.min(np.sum((diff - t[..., None] * u[:, None, None, :]) ** 2, axis=-1), axis=-1))   # (S, K)
+    return d[0] if one else d
 
 
 def _segment_distances(a0, a1, b0, b1, n: int = 40) -> np.ndarray:
@@ -256,11 +261,14 @@ def _segment_distances(a0, a1, b0, b1, n: int = 40) -> np.ndarray:
 def _sight(pf: Preflight, geo: StepGeometry) -> list[Finding]:
     lim = pf.limits
     out = []
+    names = list(pf.stations)
+    centres = np.array([st.position for st in pf.stations.values()], float).reshape(-1, 3)
     for name, p in geo.points.items():
-        for sname, st in pf.stations.items():
-            d = p - st.position
-            dx, dy, dz = (float(v) for v in d)       # scalars in plain floats: numpy per scalar costs 10x more
+        rngs = []
+        for sname, c in zip(names, centres):
+            dx, dy, dz = (float(v) for v in p - c)   # scalars in plain floats: numpy per scalar costs 10x more
             rng = math.sqrt(dx * dx + dy * dy + dz * dz)
+            rngs.append(rng)
             el = math.degrees(math.atan2(dz, math.hypot(dx, dy)))
             if abs(el) > lim["max_elevation_deg"]:
                 out.append(Finding("sight", geo.step.key, el, lim["max_elevation_deg"], "deg",
@@ -273,7 +281,7 @@ def _sight(pf: Preflight, geo: StepGeometry) -> list[Finding]:
             elif rng > lim["max_range_mm"]:
                 out.append(Finding("sight", geo.step.key, rng, lim["max_range_mm"], "mm",
                                    f"{name} is {rng:.0f} mm from station {sname}, beyond {lim['max_range_mm']:.0f} mm"))
-            blocked = _blocking_link(pf, geo, st.position, p, rng)
+        for sname, blocked in zip(names, _blocking_links(pf, geo, centres, p, rngs)):
             if blocked is not None:
                 j, dist = blocked
                 out.append(Finding("sight", geo.step.key, dist, float(pf.limits["link_radius_mm"]), "mm",
@@ -282,21 +290,28 @@ def _sight(pf: Preflight, geo: StepGeometry) -> list[Finding]:
     return out
 
 
-def _blocking_link(pf: Preflight, geo: StepGeometry, station_mm: np.ndarray, p: np.ndarray,
-                   length_mm: float | None = None):
+def _blocking_link(pf: Preflight, geo: StepGeometry, station_mm: np.ndarray, p: np.ndarray):
     """(link, distance) of the first link crossing the sight line (frame origin to frame origin, thickened by the
-    set-up's ``link_radius_mm``), or None; the last ``2 r`` before the target are left out (the target's own mount).
-    ``length_mm``: the sight line's length when the caller has it."""
+    set-up's ``link_radius_mm``), or None; the last ``2 r`` before the target are left out (the target's own mount)."""
+    return _blocking_links(pf, geo, np.asarray(station_mm, float)[None], p)[0]
+
+
+def _blocking_links(pf: Preflight, geo: StepGeometry, stations_mm: np.ndarray, p: np.ndarray,
+                    lengths_mm=None) -> list:
+    """:func:`_blocking_link` for the sight lines from every station (S, 3) to ``p`` at once (``lengths_mm``: their
+    lengths when the caller has them)."""
     r = pf.limits.get("link_radius_mm")
     if not r or geo.fp is None:
-        return None
-    d = p - station_mm
-    L = float(np.linalg.norm(d)) if length_mm is None else length_mm
-    end = station_mm + d * max(0.0, 1.0 - 2.0 * float(r) / L)
+        return [None] * len(stations_mm)
+    d = p - stations_mm                                                        # (S, 3)
+    L = np.linalg.norm(d, axis=1) if lengths_mm is None else np.asarray(lengths_mm, float)
+    end = stations_mm + d * np.maximum(0.0, 1.0 - 2.0 * float(r) / L)[:, None]
     links, pts = _link_samples(pf, geo.fp)
-    dist = _distances_to(station_mm, end, pts)
-    hit = np.flatnonzero(dist < r)
-    return (int(links[hit[0]]), float(dist[hit[0]])) if hit.size else None
+    out = []
+    for dist in _distances_to(stations_mm, end, pts):
+        hit = np.flatnonzero(dist < r)
+        out.append((int(links[hit[0]]), float(dist[hit[0]])) if hit.size else None)
+    return out
 
 
 def _link_samples(pf: Preflight, fp) -> tuple[np.ndarray, np.ndarray]:

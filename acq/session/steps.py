@@ -55,9 +55,9 @@ class Step:
 
     def spec(self) -> dict:
         """JSON-able record of the step as generated (stored with it)."""
-        d = asdict(self)
-        d["targets"] = [asdict(t) for t in self.targets]
-        d["inputs"] = [asdict(i) for i in self.inputs]
+        d = asdict(self)                        # converts the targets and inputs too (tuples of dicts: lists here)
+        d["targets"] = list(d["targets"])
+        d["inputs"] = list(d["inputs"])
         return d
 
 
