@@ -123,11 +123,19 @@ class _Est:
                             "confidence": float(confidence), "truth": t, **extra})
 
     def add_set(self, prefix: str, es, truth_map: dict | None = None, only=None):
+        """Every estimate of ``es`` (or those named in ``only``) as ``prefix + name``.  One that is another estimate
+        of the set under a second name (:meth:`calib.uncertainty.EstimateSet.same_as`) says so in ``same_as`` (and
+        ``same_as_sign``: -1 when the two parametrisations have opposite signs), so a count of estimates takes it
+        once."""
+        same = es.same_as()
         for e in es.estimates():
             if only is not None and e.name not in only:
                 continue
             tv = (truth_map or {}).get(e.name)
-            self.add(f"{prefix}{e.name}", e.value, e.error, e.unit, truth_value=tv)
+            extra = {}
+            if e.name in same and (only is None or same[e.name][0] in only):
+                extra = {"same_as": f"{prefix}{same[e.name][0]}", "same_as_sign": same[e.name][1]}
+            self.add(f"{prefix}{e.name}", e.value, e.error, e.unit, truth_value=tv, **extra)
 
 
 def _by_joint(steps) -> dict[int, list]:
