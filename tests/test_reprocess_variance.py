@@ -42,12 +42,36 @@ def _case(monkeypatch, omega_sd=1.234567891e-6, fail=None, red=4.0):
     return ident, res, priors, add, prior, problems
 
 
+def test_order_sensitivity_divides_by_the_orders_as_written(monkeypatch):
+    """A step of 1.2e-7 written with 8 significant digits is 0.90000012, not 0.9 + 1.234567891e-7: dividing the
+    refits' difference by 2h made the sensitivity 3 % wrong here."""
+    ident, res, priors, add, prior, problems = _case(monkeypatch)
+    assert not problems
+    U_omega = res.cov[0, 0]
+    gain = [ident.cov[:, NAMES.index(n)] / (priors[n][1] ** 2 * ident.reduced_chi2) for n in priors]
+    A, phi = 0.02, 0.3
+    G = np.array([[1, 0, 0], [0, np.cos(phi), -A * np.sin(phi)], [0, np.sin(phi), A * np.cos(phi)]])
+    U = G @ res.cov @ G.T
+    J = np.stack([np.where(np.isin(NAMES, FREE), SENS, 0.0), *gain], -1)
+    expect_prior = ident.reduced_chi2 * sum(g * g * priors[n][1] ** 2 for g, n in zip(gain, priors))
+    np.testing.assert_allclose(prior, expect_prior, rtol=1e-12)
+    np.testing.assert_allclose(add, np.einsum("pk,kl,pl->p", J, U, J) - expect_prior, rtol=1e-9, atol=1e-18)
+    assert U_omega > 0
+
+
 def test_prior_term_is_taken_out_at_the_fits_scale(monkeypatch):
     """``ident.cov`` is inflated by the reduced chi-square: the prior term it holds, and the one taken out, is
     ``scale g^2 sd^2`` -- the unscaled term left a quarter of it in at a reduced chi-square of 4."""
     *_, prior1, _ = _case(monkeypatch, red=1.0)
     *_, prior4, _ = _case(monkeypatch, red=4.0)
     np.testing.assert_allclose(prior4, 4.0 * prior1, rtol=1e-12)
+
+
+@pytest.mark.parametrize("fail", ["nan", "raise"])
+def test_a_failed_refit_keeps_the_prior_term_and_says_so(monkeypatch, fail):
+    *_, add, prior, problems = _case(monkeypatch, fail=fail)
+    assert np.all(add == 0) and np.all(prior == 0)
+    assert len(problems) == 1 and "joint 4" in problems[0] and "independent-prior" in problems[0]
 
 
 def test_floor_at_the_fits_own_variance_never_zero():

@@ -737,9 +737,12 @@ def _te_run_variance(robot, running: dict, specs: list[str], obs, ident, priors,
 
     Returns what to add to each variance (``J U J^T`` less the prior term it replaces) and that prior term alone,
     both in the identification's scale (its covariance is inflated by the reduced chi-square, so the prior term it
-    holds is ``scale g^2 sd^2``)."""
+    holds is ``scale g^2 sd^2``).  A refit that fails, or gives a non-finite sensitivity of a free parameter, leaves
+    that joint at the independent-prior term, with a line in ``problems`` -- never a sensitivity of 0."""
     from calib.identify import identify
     out, removed = np.zeros(len(ident.theta)), np.zeros(len(ident.theta))
+    problems = [] if problems is None else problems
+    free = np.isin(ident.names, list(ident.free))
     scale = max(1.0, float(ident.reduced_chi2))
     for j, res in sorted((running.get("transmission") or {}).items()):
         at = [i for i, t in enumerate(specs) if t.startswith(f"transmission_error:{j}:")]
@@ -752,21 +755,27 @@ def _te_run_variance(robot, running: dict, specs: list[str], obs, ident, priors,
         U = G @ res.cov[np.ix_(idx, idx)] @ G.T
         order = float(specs[at[0]].rsplit(":", 1)[1])
         h = 0.1 * float(np.sqrt(U[0, 0]))
-        moved = []
+        moved, written = [], []
         for sgn in (1.0, -1.0):
             sp = list(specs)
             sp[at[0]] = f"transmission_error:{j}:{order + sgn * h:.8g}"
+            written.append(float(sp[at[0]].rsplit(":", 1)[1]))     # the order the refit used, as written
             model, _, _ = _pose_model(robot, running, [], sp)
             try:        # a small step from the converged fit, as in _station_variance: no linear start or outlier search
                 moved.append(identify(model, obs, free=list(ident.free), theta0=ident.theta, priors=priors,
                                       robust=False, start=False).theta)
             except RobocalError:
                 break
-        if len(moved) < 2:
+        step = written[0] - written[-1]
+        with np.errstate(invalid="ignore", divide="ignore"):
+            dw = (moved[0] - moved[-1]) / step if len(moved) == 2 and step > 0 else np.full(len(ident.theta), np.nan)
+        if not np.all(np.isfinite(dw[free])):
+            problems.append(f"poses: the refit with joint {j}'s transmission-error order moved failed: its "
+                            f"coefficients' errors keep the independent-prior term (the order's error is not "
+                            f"propagated)")
             continue
+        dw = np.where(free, dw, 0.0)                  # held parameters are not estimated: no sensitivity to carry
         gain = [ident.cov[:, ident.names.index(n)] / (priors[n][1] ** 2 * scale) for n in pri]
-        with np.errstate(invalid="ignore"):
-            dw = np.nan_to_num((moved[0] - moved[1]) / (2 * h))      # parameters held at +-inf move by nothing
         J = np.stack([dw, *gain], -1)
         prior_term = scale * sum(g * g * priors[n][1] ** 2 for g, n in zip(gain, pri))
         out += np.einsum("pk,kl,pl->p", J, U, J) - prior_term
