@@ -65,12 +65,17 @@ def configure(requested: int | None = None, environ: MutableMapping[str, str] | 
 
 
 def limit(n: int | None) -> AbstractContextManager:
-    """A context capping the BLAS libraries already loaded in this process at ``n`` threads (nothing for None or
-    when numpy is not loaded: then :func:`configure`'s variables act when it loads)."""
+    """A context capping the BLAS libraries loaded in this process at ``n`` threads (nothing for None or when numpy
+    is not loaded: then :func:`configure`'s variables act when it loads).
+
+    threadpoolctl caps only the libraries loaded when it starts, and scipy brings its own OpenBLAS, which a command
+    would load lazily and then run threaded: scipy.linalg is loaded first so that the cap covers it too (a command
+    that reaches this path has numpy loaded already, and every fit uses scipy.linalg)."""
     if n is None or "numpy" not in sys.modules:
         return nullcontext()
     try:
         from threadpoolctl import threadpool_limits
+        import scipy.linalg  # noqa: F401  (scipy's own BLAS, loaded now so that the limit covers it)
     except ImportError:                         # a speed-up only
         return nullcontext()
     return threadpool_limits(n, user_api="blas")
