@@ -174,14 +174,10 @@ def diagnose(data: DiagnosisData, level: str = "auto", n_folds: int | None = Non
     lazily (its fits use scipy.linalg on every path): it is loaded first (else a 400-pose diagnosis called from
     Python took 10 s of CPU instead of 1.7 on the 2-core machine).
     """
-    try:
-        from threadpoolctl import threadpool_limits
-        import scipy.linalg  # noqa: F401  (scipy's own BLAS, loaded now so that the limit covers it)
-        one_thread = threadpool_limits(1, "blas")
-    except ImportError:                     # a speed-up only
-        from contextlib import nullcontext
-        one_thread = nullcontext()
-    with one_thread:
+    import numpy  # noqa: F401  (loaded, so that the cap applies now)
+
+    from calib.threads import limit
+    with limit(1):
         return _diagnose(data, level, n_folds, alpha, max_effects, kinds, te_orders, flag_outliers, progress,
                          outliers, loss)
 
