@@ -220,10 +220,12 @@ class MeasurementModel:
         evaluation later without a second forward pass (identification asks for residuals, then for the Jacobian
         at the same parameters).  ``torque_derivative``: see :meth:`complete_jacobian`.
         """
-        q = np.atleast_2d(np.asarray(q_rad, float))
+        # copies, not views: the evaluation keeps them for complete_jacobian, which may run after the caller has
+        # reused its arrays (an optimiser stepping theta in place)
+        q = np.atleast_2d(np.array(q_rad, dtype=float))
         N, n = q.shape
         ctx = ctx or self.context(N)
-        theta = self.nominal if theta is None else np.asarray(theta, float)
+        theta = self.nominal if theta is None else np.array(theta, dtype=float)
         geo = theta[: self.n_geometric]
         if link is not None:
             link = self.kin.check_link(link)

@@ -214,6 +214,22 @@ def test_jacobian_completed_later_equals_the_one_asked_at_once(puma, rng):
     np.testing.assert_array_equal(later.point_mm, once.point_mm)
 
 
+def test_completing_the_jacobian_later_reads_no_caller_array(puma, rng):
+    """identify() evaluates, then asks for the Jacobian; a caller that reuses its theta or q array in between (an
+    optimiser's step in place) must not change the Jacobian of the evaluation already made."""
+    m = MeasurementModel(puma.with_tool({"P": [30.0, 0.0, 80.0]}), thesis_effects())
+    q = poses(rng, 15)
+    ctx = m.context(15, payload_kg=2.0)
+    theta = m.nominal.copy() + rng.normal(0, 1e-3, m.P)
+    once = m.evaluate(q, ctx, theta=theta, jacobian=True, torque_derivative=True)
+    later = m.evaluate(q, ctx, theta=theta)
+    theta += 0.05
+    q += 0.1
+    m.complete_jacobian(later, torque_derivative=True)
+    np.testing.assert_array_equal(later.jacobian, once.jacobian)
+    np.testing.assert_array_equal(later.joint_jacobian, once.joint_jacobian)
+
+
 def test_two_effects_of_one_kind_on_one_joint_get_distinct_names(puma):
     m = MeasurementModel(puma, [TransmissionError(4, 0.9, [0.01], [0.0]), TransmissionError(4, 1.8, [0.02], [0.0])])
     assert len(set(m.names)) == len(m.names)
