@@ -63,18 +63,15 @@ def procedure_of(name: str) -> str:
 def ratios(estimates: list[dict]) -> list[tuple[str, str, float]]:
     """(procedure, name, (value - truth) / error) of every estimate with a truth and a finite, non-zero error.  One
     estimate under two names (a resolution and its ratio to the design value, a misalignment in both of its
-    parametrisations) gives the same ratio twice: it counts once, so a group's size is the number of estimates."""
-    out, seen = [], set()
+    parametrisations, which can differ in sign) is marked ``same_as`` by reprocessing where the set is made (its
+    correlation with the first name is +-1): it counts once, under its first name, so a group's size is the number
+    of estimates."""
+    out = []
     for e in estimates:
         t, err = e.get("truth"), e.get("error")
-        if t is None or e.get("held") or not err or not np.isfinite(err):
+        if t is None or e.get("held") or e.get("same_as") or not err or not np.isfinite(err):
             continue
-        proc, z = procedure_of(e["name"]), (e["value"] - t) / err
-        key = (proc, float(f"{z:.9g}"))
-        if key in seen:
-            continue
-        seen.add(key)
-        out.append((proc, e["name"], z))
+        out.append((procedure_of(e["name"]), e["name"], (e["value"] - t) / err))
     return out
 
 

@@ -125,6 +125,21 @@ class EstimateSet:
         with np.errstate(invalid="ignore", divide="ignore"):
             return c / np.outer(s, s)
 
+    def same_as(self, tol: float = 1e-9) -> dict[str, tuple[str, float]]:
+        """Estimates that are another of the set under a second name: ``{name: (first name, sign)}`` for each whose
+        correlation with an earlier one is +-1 (a misalignment in both of its parametrisations, a resolution and its
+        ratio to the design value).  Why: ``(value - truth) / error`` of such a pair is the same number (opposite
+        signs when the parametrisations are), so a count of estimates must take it once; found here from the
+        covariance where the set is made, not by matching values downstream."""
+        c = self.correlation()
+        out: dict[str, tuple[str, float]] = {}
+        for i in range(len(self.names)):
+            for k in range(i):
+                if self.names[k] not in out and np.isfinite(c[i, k]) and abs(c[i, k]) >= 1.0 - tol:
+                    out[self.names[i]] = (self.names[k], float(np.sign(c[i, k])))
+                    break
+        return out
+
     def subset(self, names: Sequence[str]) -> "EstimateSet":
         idx = [self.index(n) for n in names]
         pick = (lambda c: None if c is None else c[np.ix_(idx, idx)])

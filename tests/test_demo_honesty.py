@@ -18,7 +18,8 @@ Runs: the ``chain`` steps (everything but link compliance, which the default twi
 the sweeps, the transmission error, joint compliance and the pose set (4-5 values a run for the smallest groups: 64
 or more, a few to spare for a run that cannot determine one); 65 ``small`` runs (ruler, coupling, encoder
 resolution: a few seconds each) bring the encoder resolution, one value a run, to 81.  An estimate under two names
-(a resolution and its scale) counts once.
+(a resolution and its scale, a misalignment in both of its parametrisations, whose signs can differ) is marked
+``same_as`` by reprocessing and counts once.
 ``python benchmarks/bench_demo_honesty.py --test-cases --workers 3`` prints the figures (``TEST_CASES``).
 """
 from __future__ import annotations

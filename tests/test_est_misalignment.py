@@ -76,3 +76,31 @@ def test_compensation_scheme_errors_are_honest():
                   for _ in range(60)]).ravel()
     assert 0.5 < np.median(np.abs(z)) < 0.9
     assert 0.88 < np.mean(np.abs(z) < 2) <= 1.0
+
+
+def test_one_misalignment_under_two_names_is_marked_with_its_sign():
+    """Joint 2's design axis along R_f's y: its delta theta is minus joint 1's dtheta_y (delta_2 is normal to z_2,
+    so D_2 . z_2 = -delta_1 . z_2), the same estimate with the opposite sign -- counted once by the honesty
+    benchmark, which used to match equal signed ratios and so counted it twice."""
+    zd = np.array([[0, 0, 1.0], [0, 1.0, 0], [0, 1.0, 0]])
+    x = np.array([[1.0, 0, 0], [1.0, 0, 0], [0, 0, 1.0]])
+    rng = np.random.default_rng(3)
+    zm = zd + rng.normal(0, 3e-3, zd.shape)
+    zm /= np.linalg.norm(zm, axis=1, keepdims=True)
+    res = misalignment_table(zm, np.eye(9) * 1e-4 ** 2, zd, x)
+    same = res.same_as()
+    assert same["j2.delta_theta_rad"] == ("j1.dtheta_y_rad", -1.0)
+    assert res["j2.delta_theta_rad"].value == pytest.approx(-res["j1.dtheta_y_rad"].value, rel=1e-9)
+    assert "j1.dtheta_y_rad" not in same and "j2.dtheta_x_rad" not in same
+
+
+def test_honesty_benchmark_counts_a_marked_duplicate_once():
+    import sys
+    from pathlib import Path
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
+    import bench_demo_honesty as bench
+    rows = [{"name": "misalign.j1.dtheta_y_rad", "value": -0.2, "error": 0.1, "truth": 0.0},
+            {"name": "misalign.j2.delta_theta_rad", "value": 0.2, "error": 0.1, "truth": 0.0,
+             "same_as": "misalign.j1.dtheta_y_rad", "same_as_sign": -1.0},
+            {"name": "misalign.j3.delta_theta_rad", "value": 0.2, "error": 0.1, "truth": 0.0}]
+    assert [n for _, n, _ in bench.ratios(rows)] == ["misalign.j1.dtheta_y_rad", "misalign.j3.delta_theta_rad"]

@@ -63,6 +63,36 @@ def test_simulated_capture_holds_its_window_through_the_real_reader():
         node.stop()
 
 
+class _SlowRig:
+    """A rig whose tap reader has delivered ``received`` samples and gets no further while the drain waits."""
+
+    def __init__(self, received: int):
+        self.received = received
+
+    def wait_received(self, n: int, timeout_s: float) -> bool:
+        return self.received >= n
+
+
+class _Node:
+    samples_sent = 5
+
+
+def test_a_late_reader_fails_the_attempt_and_is_waited_for_again_never_written_off():
+    """A virtual bus loses nothing, it is only late: samples written off would land in the next window, stamped
+    before its move, and bias that reading silently.  The drain fails the attempt as a device timeout instead, and
+    the next wait (the repeated capture's start) waits for every sample sent again."""
+    from acq.errors import DeviceTimeout
+
+    rig = _SlowRig(received=3)
+    drain = _tap_drain(rig, _Node(), timeout_s=0.01)
+    with pytest.raises(DeviceTimeout, match="3 of the 5 samples"):
+        drain()
+    with pytest.raises(DeviceTimeout):             # still behind: still waited for, never written off
+        drain()
+    rig.received = 5                                # the stragglers arrive: the next window opens after them
+    drain()
+
+
 def test_demo_is_simulated_and_the_tui_emulation_real(tmp_path, monkeypatch):
     plan = {"procedures": ["ruler"], "ruler": {"repeats": 1}, "seed": 1}
     d = build_demo(tmp_path / "s.db", seed=1, plan=plan)

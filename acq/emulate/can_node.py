@@ -76,18 +76,18 @@ class CanTapNode:
             self._stop.wait(step)
             time.sleep(0)
 
-    def pump(self, now: float | None = None) -> int:
-        """Send the samples the schedule owes at ``now`` (default the model's clock), the last one stamped ``now`` and
-        the others a period apart before it; returns how many."""
-        n = self.model.due(now)
-        if n and now is not None:
+    def pump(self, now_s: float | None = None) -> int:
+        """Send the samples the schedule owes at ``now_s`` seconds (default the model's clock), the last one stamped
+        ``now_s`` and the others a period apart before it; returns how many."""
+        n = self.model.due(now_s)
+        if n and now_s is not None:
             period = 1.0 / self.model.rate_hz
-            times = [now - (n - 1 - k) * period for k in range(n)]
+            times = [now_s - (n - 1 - k) * period for k in range(n)]
         else:
             times = [None] * n
-        for t in times:
+        for t_s in times:
             ok = True
-            for fid, data in can_frames(self.model.latch(t)):
+            for fid, data in can_frames(self.model.latch(t_s)):
                 try:
                     self.bus.send(can.Message(arbitration_id=fid, data=data, is_extended_id=False))
                     self.frames_sent += 1

@@ -69,23 +69,23 @@ class TapModel:
         self.max_backlog = max(1, int(self.rate_hz * max_backlog_s))
         self.skipped = 0
 
-    def latch(self, t: float | None = None) -> RawSample:
-        """The sample the tap latches now, stamped ``t`` (default the clock's now: a simulated clock's harness latches
-        a window's samples at once and passes each one's scheduled time)."""
+    def latch(self, t_s: float | None = None) -> RawSample:
+        """The sample the tap latches now, stamped ``t_s`` seconds (default the clock's now: a simulated clock's harness
+        latches a window's samples at once and passes each one's scheduled time)."""
         counts = np.rint(self.robot.counts_from_joint(self.world.joint_angles_rad())).astype(np.int64)
         counts += self.count_offset
-        t = self.clock() if t is None else t
-        s = RawSample(self.seq & 0xFFFF, int(t * 1e6) & 0xFFFFFFFF,
+        t_s = self.clock() if t_s is None else t_s
+        s = RawSample(self.seq & 0xFFFF, int(t_s * 1e6) & 0xFFFFFFFF,
                       tuple(wrap_i32(c) for c in counts), self.flags)
         self.seq += 1
         return s
 
-    def due(self, now: float | None = None) -> int:
+    def due(self, now_s: float | None = None) -> int:
         """How many samples the schedule owes now (a stalled harness skips, like a tap overrunning its buffer)."""
-        now = self.clock() if now is None else now
+        now_s = self.clock() if now_s is None else now_s
         if self._t0 is None:
-            self._t0 = now
-        owed = int((now - self._t0) * self.rate_hz) + 1 - self._made
+            self._t0 = now_s
+        owed = int((now_s - self._t0) * self.rate_hz) + 1 - self._made
         if owed > self.max_backlog:
             self.skipped += owed - self.max_backlog
             self._made += owed - self.max_backlog

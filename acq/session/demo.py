@@ -24,6 +24,7 @@ from pathlib import Path
 import numpy as np
 
 from acq.clock import Clock, SimClock
+from acq.errors import DeviceTimeout
 from calib.model import MeasurementModel
 from calib.twin import Twin, load_scenario
 from calib.units import ARCSEC, DEG
@@ -255,16 +256,20 @@ def build_demo(db: str | Path, seed: int = 0, resume: bool = False, script: dict
     return d
 
 
-def _tap_drain(rig: Rig, node, timeout_s: float = 1.0):
+def _tap_drain(rig: Rig, node, timeout_s: float = 10.0):
     """A :class:`~acq.clock.SimClock` drain: wait until the tap reader has delivered every sample the node sent, so a
-    simulated wait returns with its window's samples in the rig (a lost sample is waited for once, then written
-    off)."""
-    lost = 0
+    simulated wait returns with its window's samples in the rig.
+
+    The virtual bus loses nothing, it can only be late (a busy machine): a sample is never written off, since a late
+    one would then land in the next window, stamped before its move, and bias that reading silently.  A reader
+    still behind after ``timeout_s`` of real time fails the attempt as a device timeout (the runner repeats it);
+    the next wait, at the start of the repeated capture, waits for the stragglers again before its window opens."""
 
     def drain() -> None:
-        nonlocal lost
-        if not rig.wait_received(node.samples_sent - lost, timeout_s):
-            lost = node.samples_sent - rig.received
+        sent = node.samples_sent
+        if not rig.wait_received(sent, timeout_s):
+            raise DeviceTimeout("encoder tap", "read", f"the reader has {rig.received} of the {sent} samples the "
+                                f"emulated tap sent after {timeout_s:g} s")
     return drain
 
 

@@ -251,12 +251,6 @@ def _distances_to(a0, a1, pts) -> np.ndarray:
     return d[0] if one else d
 
 
-def _segment_distances(a0, a1, b0, b1, n: int = 40) -> np.ndarray:
-    """Shortest distances (K,) between the segment a0-a1 and each segment b0[k]-b1[k] (sampled along b, exact along
-    a); all K at once."""
-    return _distances_to(a0, a1, _link_points(b0, b1, n))
-
-
 @preflight_check("sight")
 def _sight(pf: Preflight, geo: StepGeometry) -> list[Finding]:
     lim = pf.limits
@@ -290,16 +284,11 @@ def _sight(pf: Preflight, geo: StepGeometry) -> list[Finding]:
     return out
 
 
-def _blocking_link(pf: Preflight, geo: StepGeometry, station_mm: np.ndarray, p: np.ndarray):
-    """(link, distance) of the first link crossing the sight line (frame origin to frame origin, thickened by the
-    set-up's ``link_radius_mm``), or None; the last ``2 r`` before the target are left out (the target's own mount)."""
-    return _blocking_links(pf, geo, np.asarray(station_mm, float)[None], p)[0]
-
-
 def _blocking_links(pf: Preflight, geo: StepGeometry, stations_mm: np.ndarray, p: np.ndarray,
                     lengths_mm=None) -> list:
-    """:func:`_blocking_link` for the sight lines from every station (S, 3) to ``p`` at once (``lengths_mm``: their
-    lengths when the caller has them)."""
+    """Per station (S, 3): (link, distance) of the first link crossing its sight line to ``p`` (frame origin to frame
+    origin, thickened by the set-up's ``link_radius_mm``), or None; the last ``2 r`` before the target are left out
+    (the target's own mount).  All stations at once; ``lengths_mm``: the lines' lengths when the caller has them."""
     r = pf.limits.get("link_radius_mm")
     if not r or geo.fp is None:
         return [None] * len(stations_mm)

@@ -123,11 +123,19 @@ class _Est:
                             "confidence": float(confidence), "truth": t, **extra})
 
     def add_set(self, prefix: str, es, truth_map: dict | None = None, only=None):
+        """Every estimate of ``es`` (or those named in ``only``) as ``prefix + name``.  One that is another estimate
+        of the set under a second name (:meth:`calib.uncertainty.EstimateSet.same_as`) says so in ``same_as`` (and
+        ``same_as_sign``: -1 when the two parametrisations have opposite signs), so a count of estimates takes it
+        once."""
+        same = es.same_as()
         for e in es.estimates():
             if only is not None and e.name not in only:
                 continue
             tv = (truth_map or {}).get(e.name)
-            self.add(f"{prefix}{e.name}", e.value, e.error, e.unit, truth_value=tv)
+            extra = {}
+            if e.name in same and (only is None or same[e.name][0] in only):
+                extra = {"same_as": f"{prefix}{same[e.name][0]}", "same_as_sign": same[e.name][1]}
+            self.add(f"{prefix}{e.name}", e.value, e.error, e.unit, truth_value=tv, **extra)
 
 
 def _by_joint(steps) -> dict[int, list]:
@@ -590,8 +598,9 @@ def _poses(steps, points, robot, setup, est, twin, figs, running=None, problems=
     # the dead zone needs loading and unloading, which a pose set has not: it stays out
     wanted = [n for n in default_free(model, effects=True) if not n.endswith("deadzone_rad")]
     ident = identify(model, obs, free=wanted, theta0=theta0, priors=priors)
-    var = ident.sigma ** 2 + _station_variance(model, obs, D, ident, priors, points.station_fit)
-    sigma = np.sqrt(np.clip(var + _te_run_variance(robot, running or {}, specs, obs, ident, priors), 0.0, None))
+    te_add, te_prior = _te_run_variance(robot, running or {}, specs, obs, ident, priors, problems)
+    var = ident.sigma ** 2 + _station_variance(model, obs, D, ident, priors, points.station_fit) + te_add
+    sigma, floored = _floored_sigma(var, ident.sigma ** 2, te_prior)
     truth = twin.true_parameters() if twin is not None else None
     gauge = _gauge_truth(twin, model, ident, q) if twin is not None else {}
     compared = {}                  # the truth each estimate is compared with: the twin's, in the fit's gauge
@@ -608,6 +617,8 @@ def _poses(steps, points, robot, setup, est, twin, figs, running=None, problems=
         if raw is not None and tv is not None and abs(tv - raw) > 0.1 * sigma[i]:
             extra = {"truth_raw": float(raw), "note": "truth in the gauge of the held parameters (what perfect data "
                                                       "would give with them at their design values)"}
+        if floored[i]:
+            extra["note"] = "; ".join(filter(None, [extra.get("note"), FLOOR_NOTE]))
         est.add(f"ident.{n}", ident.theta[i], sigma[i], _unit(n), truth_value=tv, **extra)
     for n in wanted:
         if n in ident.free:
@@ -693,7 +704,25 @@ def _station_variance(model, obs, D, ident, priors, fit) -> np.ndarray:
     return np.einsum("pk,kl,pl->p", G, fit.cov, G)
 
 
-def _te_run_variance(robot, running: dict, specs: list[str], obs, ident, priors) -> np.ndarray:
+FLOOR_NOTE = ("error floored at the fit's own variance: the stations' and the transmission-error run's terms came "
+              "out below it (numerical), never an error of 0")
+
+
+def _floored_sigma(var: np.ndarray, fit_var: np.ndarray, prior_var: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Errors from the total variances ``var``, each floored at the fit's own variance -- ``fit_var`` (the
+    identification's, reduced chi-square included) less the independent-prior terms ``prior_var`` that the
+    transmission-error run's covariance replaces (the whole ``fit_var`` where that is not positive).  Why: the
+    station and run terms added to it are positive semi-definite, so a total below the floor is rounding or a
+    sensitivity gone wrong; a clip to 0 turned it into an error of 0, which the honesty check then skipped silently.
+    Returns the errors and where the floor was hit (to be noted on the estimate)."""
+    own = fit_var - prior_var
+    floor = np.where(own > 0, own, fit_var)
+    hit = ~(var >= floor)                       # NaN counts as hit
+    return np.sqrt(np.where(hit, floor, var)), hit
+
+
+def _te_run_variance(robot, running: dict, specs: list[str], obs, ident, priors,
+                     problems: list | None = None) -> tuple[np.ndarray, np.ndarray]:
     """What the transmission-error run's order, and the correlation of its coefficients, add to each identified
     parameter's variance.
 
@@ -704,9 +733,16 @@ def _te_run_variance(robot, running: dict, specs: list[str], obs, ident, priors)
     ``J U J^T`` with the sensitivity to the order from refits with the order moved by a tenth of its error either
     way, and to the prior values from the priors' gain ``C P`` -- in place of the independent-prior term
     ``C P C`` the identification's covariance holds.  Left out, the pose set's joint-4 coefficients scattered
-    1.15 times their errors over 40 seeded demo runs."""
+    1.15 times their errors over 40 seeded demo runs.
+
+    Returns what to add to each variance (``J U J^T`` less the prior term it replaces) and that prior term alone,
+    both in the identification's scale (its covariance is inflated by the reduced chi-square, so the prior term it
+    holds is ``scale g^2 sd^2``).  A refit that fails, or gives a non-finite sensitivity of a free parameter, leaves
+    that joint at the independent-prior term, with a line in ``problems`` -- never a sensitivity of 0."""
     from calib.identify import identify
-    out = np.zeros(len(ident.theta))
+    out, removed = np.zeros(len(ident.theta)), np.zeros(len(ident.theta))
+    problems = [] if problems is None else problems
+    free = np.isin(ident.names, list(ident.free))
     scale = max(1.0, float(ident.reduced_chi2))
     for j, res in sorted((running.get("transmission") or {}).items()):
         at = [i for i, t in enumerate(specs) if t.startswith(f"transmission_error:{j}:")]
@@ -719,24 +755,32 @@ def _te_run_variance(robot, running: dict, specs: list[str], obs, ident, priors)
         U = G @ res.cov[np.ix_(idx, idx)] @ G.T
         order = float(specs[at[0]].rsplit(":", 1)[1])
         h = 0.1 * float(np.sqrt(U[0, 0]))
-        moved = []
+        moved, written = [], []
         for sgn in (1.0, -1.0):
             sp = list(specs)
             sp[at[0]] = f"transmission_error:{j}:{order + sgn * h:.8g}"
+            written.append(float(sp[at[0]].rsplit(":", 1)[1]))     # the order the refit used, as written
             model, _, _ = _pose_model(robot, running, [], sp)
             try:        # a small step from the converged fit, as in _station_variance: no linear start or outlier search
                 moved.append(identify(model, obs, free=list(ident.free), theta0=ident.theta, priors=priors,
                                       robust=False, start=False).theta)
             except RobocalError:
                 break
-        if len(moved) < 2:
+        step = written[0] - written[-1]
+        with np.errstate(invalid="ignore", divide="ignore"):
+            dw = (moved[0] - moved[-1]) / step if len(moved) == 2 and step > 0 else np.full(len(ident.theta), np.nan)
+        if not np.all(np.isfinite(dw[free])):
+            problems.append(f"poses: the refit with joint {j}'s transmission-error order moved failed: its "
+                            f"coefficients' errors keep the independent-prior term (the order's error is not "
+                            f"propagated)")
             continue
+        dw = np.where(free, dw, 0.0)                  # held parameters are not estimated: no sensitivity to carry
         gain = [ident.cov[:, ident.names.index(n)] / (priors[n][1] ** 2 * scale) for n in pri]
-        with np.errstate(invalid="ignore"):
-            dw = np.nan_to_num((moved[0] - moved[1]) / (2 * h))      # parameters held at +-inf move by nothing
         J = np.stack([dw, *gain], -1)
-        out += np.einsum("pk,kl,pl->p", J, U, J) - sum(g * g * priors[n][1] ** 2 for g, n in zip(gain, pri))
-    return out
+        prior_term = scale * sum(g * g * priors[n][1] ** 2 for g, n in zip(gain, pri))
+        out += np.einsum("pk,kl,pl->p", J, U, J) - prior_term
+        removed += prior_term
+    return out, removed
 
 
 def _unit(name: str) -> str:

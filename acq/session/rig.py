@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import collections
 import itertools
+import sys
 import threading
 from dataclasses import dataclass, field
 
@@ -23,6 +24,10 @@ from acq.clock import Clock, RealClock
 from acq.drivers.base import AngleReading
 
 from .steps import Step, TargetSpec
+
+
+#: no wait_received is pending (the sink notifies only when a waiter's count is reached)
+_NOBODY = sys.maxsize
 
 
 @dataclass
@@ -56,7 +61,7 @@ class Rig:
     _lock: threading.Lock = field(default_factory=threading.Lock)
     _arrived: threading.Condition = field(init=False)
     received: int = field(default=0, init=False)        # samples delivered by the tap since start
-    _awaited: int = field(default=0, init=False)        # the count a wait_received is waiting for
+    _awaited: int = field(default=_NOBODY, init=False)  # the count a wait_received is waiting for
     _faces: dict = field(default_factory=dict, init=False)  # station -> face its telescope was last seen in
 
     def __post_init__(self) -> None:
@@ -77,7 +82,10 @@ class Rig:
         """Block (real time) until ``n`` samples have arrived since start; False on timeout."""
         with self._lock:
             self._awaited = n
-            return self._arrived.wait_for(lambda: self.received >= n, timeout_s)
+            try:
+                return self._arrived.wait_for(lambda: self.received >= n, timeout_s)
+            finally:
+                self._awaited = _NOBODY                 # nobody waits: the sink stops notifying
 
     def identities(self) -> list[tuple[str, str, str, dict]]:
         """(role, driver, url, identity) per device, for the session record."""
