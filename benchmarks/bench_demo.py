@@ -32,7 +32,8 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 TARGET_S = 5.0
-BASELINE = "17-20 s wall, ~9.7 s CPU, ~9 s asleep (2026-11-23, before the simulated clock)"
+BASELINE = ("17-20 s wall, ~9.7 s CPU, ~9 s asleep (2026-11-23, before the simulated clock); "
+            "wall median 4.7 s, CPU median 4.0 s at load 4 (2026-11-23, commit 0907691, before the CPU round)")
 _SIM = re.compile(r"([0-9.]+) s of instrument time simulated")
 _REC = re.compile(r"steps saved in ([0-9.]+) s")
 
