@@ -15,7 +15,7 @@ nothing is written into the tree), as an installed robocal has it -- also where 
 measures what a shell with ``PYTHONDONTWRITEBYTECODE=1`` and a source checkout pays: every robocal module compiled
 again on each start (0.1-0.3 s more).  The first line says which one is measured.
 
-    python benchmarks/bench_demo.py [--runs 3] [--seed 0] [--warmup 1] [--no-bytecode]
+    python benchmarks/bench_demo.py [--runs 3] [--seed 0] [--warmup 1] [--no-bytecode] [--compare OLD_TREE]
 """
 from __future__ import annotations
 
@@ -45,10 +45,10 @@ def _load() -> str:
 PYCACHE = Path(tempfile.gettempdir()) / "robocal-bench-pycache"       # the same cache as bench_startup.py
 
 
-def child_env(bytecode: bool = True) -> dict[str, str]:
-    """The child's environment: this tree first on the path; bytecode cached under :data:`PYCACHE` (``bytecode``)
-    or never written (every start compiles robocal from source)."""
-    env = dict(os.environ, PYTHONPATH=os.pathsep.join(filter(None, [str(ROOT), os.environ.get("PYTHONPATH")])))
+def child_env(bytecode: bool = True, root: Path = ROOT) -> dict[str, str]:
+    """The child's environment: ``root`` (default this tree) first on the path; bytecode cached under
+    :data:`PYCACHE` (``bytecode``) or never written (every start compiles robocal from source)."""
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join(filter(None, [str(root), os.environ.get("PYTHONPATH")])))
     if bytecode:
         env.pop("PYTHONDONTWRITEBYTECODE", None)
         env["PYTHONPYCACHEPREFIX"] = str(PYCACHE)
@@ -57,9 +57,10 @@ def child_env(bytecode: bool = True) -> dict[str, str]:
     return env
 
 
-def run_demo(seed: int, bytecode: bool = True) -> dict:
-    """One whole ``robocal demo`` process: wall, CPU, recording time and simulated instrument time (s)."""
-    env = child_env(bytecode)
+def run_demo(seed: int, bytecode: bool = True, root: Path = ROOT) -> dict:
+    """One whole ``robocal demo`` process of the tree ``root``: wall, CPU, recording time and simulated instrument
+    time (s)."""
+    env = child_env(bytecode, root)
     with tempfile.TemporaryDirectory() as tmp:
         before = resource.getrusage(resource.RUSAGE_CHILDREN)
         t0 = time.perf_counter()
@@ -82,22 +83,32 @@ def main(argv=None) -> int:
     ap.add_argument("--warmup", type=int, default=1, help="untimed runs first, to cache bytecode (default 1)")
     ap.add_argument("--no-bytecode", action="store_true",
                     help="measure without a bytecode cache (PYTHONDONTWRITEBYTECODE=1: robocal compiled on each start)")
+    ap.add_argument("--compare", type=Path, metavar="TREE",
+                    help="another robocal checkout (e.g. `git worktree add /tmp/old REV`): its demo and this tree's "
+                         "run interleaved, one of each per round, and both medians are printed")
     a = ap.parse_args(argv)
     code = ("no bytecode cache: robocal's modules compiled on every start" if a.no_bytecode else
             f"bytecode cached in {PYCACHE}, as an installed robocal")
+    trees = [ROOT] + ([a.compare.resolve()] if a.compare else [])
     print(f"robocal demo, whole process, {a.runs} runs; {code}; {_load()}; cpu count {os.cpu_count()}")
     for _ in range(a.warmup):
-        run_demo(a.seed, not a.no_bytecode)
-    rows = []
+        for t in trees:
+            run_demo(a.seed, not a.no_bytecode, t)
+    rows: dict[Path, list[dict]] = {t: [] for t in trees}
     for i in range(a.runs):
-        m = run_demo(a.seed, not a.no_bytecode)
-        rows.append(m)
-        print(f"  run {i + 1}: wall {m['wall']:5.2f} s  cpu {m['cpu']:5.2f} s  recording {m['record']:4.1f} s  "
-              f"simulated instrument time {m['simulated']:4.1f} s (slept before: that much and more)")
-    med = {k: statistics.median(r[k] for r in rows) for k in rows[0]}
-    verdict = "meets" if med["wall"] <= TARGET_S else "misses"
-    print(f"median: wall {med['wall']:.2f} s, cpu {med['cpu']:.2f} s, waiting {max(med['wall'] - med['cpu'], 0):.2f} s"
-          f", simulated (not slept) {med['simulated']:.1f} s -- {verdict} the target {TARGET_S:g} s wall")
+        for t in trees:             # interleaved: a change of the machine's load hits both trees alike
+            m = run_demo(a.seed, not a.no_bytecode, t)
+            rows[t].append(m)
+            name = "" if len(trees) == 1 else f" {t.name}"
+            print(f"  run {i + 1}{name}: wall {m['wall']:5.2f} s  cpu {m['cpu']:5.2f} s  recording {m['record']:4.1f} s"
+                  f"  simulated instrument time {m['simulated']:4.1f} s (slept before: that much and more)")
+    for t in trees:
+        med = {k: statistics.median(r[k] for r in rows[t]) for k in rows[t][0]}
+        verdict = "meets" if med["wall"] <= TARGET_S else "misses"
+        name = "" if len(trees) == 1 else f" ({t})"
+        print(f"median{name}: wall {med['wall']:.2f} s, cpu {med['cpu']:.2f} s, waiting "
+              f"{max(med['wall'] - med['cpu'], 0):.2f} s, simulated (not slept) {med['simulated']:.1f} s -- {verdict} "
+              f"the target {TARGET_S:g} s wall")
     print(f"baseline: {BASELINE}")
     print(_load())
     return 0
