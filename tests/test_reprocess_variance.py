@@ -82,3 +82,38 @@ def test_floor_at_the_fits_own_variance_never_zero():
     np.testing.assert_allclose(sigma, np.sqrt([4.0, 1.0, 0.8, 1.0, 1.0]))
     assert hit.tolist() == [False, True, True, True, False]
     assert np.all(sigma > 0)
+
+
+def _station_case(monkeypatch, resolve):
+    """Two station parameters (sd 0.1 and 0.2) moving every point along x; the re-solve stood in for by ``resolve``."""
+    ident = SimpleNamespace(theta=np.array([1.0, 0.01, 0.02, np.inf]), names=NAMES, free=FREE)
+    fit = SimpleNamespace(cov=np.diag([0.1, 0.2]) ** 2)
+    D = [np.array([[1.0, 1.0], [0.0, 0.0], [0.0, 0.0]])] * 4
+    obs = SimpleNamespace(q_rad=np.zeros((4, 6)), points_mm=np.zeros((4, 3)), cov_mm2=None)
+    monkeypatch.setattr(calib.identify, "identify", resolve)
+    problems: list[str] = []
+    return rp._station_variance(None, obs, D, ident, {}, fit, problems), problems
+
+
+def test_station_term_follows_the_resolves_and_a_failure_is_said_not_a_silent_zero(monkeypatch):
+    """The term is sum_k (G_k sd_k)^2 with G_k a parameter's shift per unit of station parameter k: the stand-in
+    re-solve moves ``a_mm`` by 3x the points' shift.  A failed re-solve or an undefined free parameter is a line in
+    problems, never a silent zero."""
+    def linear(model, obs, theta0, **kw):
+        t = np.array(theta0, float)
+        t[0] += 3.0 * obs.points_mm[0, 0]
+        return SimpleNamespace(theta=t)
+    var, problems = _station_case(monkeypatch, linear)
+    assert var[0] == pytest.approx(9.0 * (0.1 ** 2 + 0.2 ** 2)) and np.all(var[1:] == 0) and not problems
+
+    def failing(model, obs, **kw):
+        raise rp.RobocalError("singular")
+    var, problems = _station_case(monkeypatch, failing)
+    assert np.all(var == 0) and len(problems) == 1 and "left out" in problems[0] and "singular" in problems[0]
+
+    def undefined(model, obs, theta0, **kw):
+        t = np.array(theta0, float)
+        t[1] = np.nan
+        return SimpleNamespace(theta=t)
+    var, problems = _station_case(monkeypatch, undefined)
+    assert len(problems) == 2 and "transmission_error.j4.s1_rad" in problems[0]

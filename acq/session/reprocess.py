@@ -599,7 +599,7 @@ def _poses(steps, points, robot, setup, est, twin, figs, running=None, problems=
     wanted = [n for n in default_free(model, effects=True) if not n.endswith("deadzone_rad")]
     ident = identify(model, obs, free=wanted, theta0=theta0, priors=priors)
     te_add, te_prior = _te_run_variance(robot, running or {}, specs, obs, ident, priors, problems)
-    var = ident.sigma ** 2 + _station_variance(model, obs, D, ident, priors, points.station_fit) + te_add
+    var = ident.sigma ** 2 + _station_variance(model, obs, D, ident, priors, points.station_fit, problems) + te_add
     sigma, floored = _floored_sigma(var, ident.sigma ** 2, te_prior)
     truth = twin.true_parameters() if twin is not None else None
     gauge = _gauge_truth(twin, model, ident, q) if twin is not None else {}
@@ -676,7 +676,7 @@ def _accuracy(model, obs, free, theta0, priors, figs, problems) -> None:
                         "before_err_mm": acc.before_err_mm.tolist(), "after_err_mm": acc.after_err_mm.tolist()}
 
 
-def _station_variance(model, obs, D, ident, priors, fit) -> np.ndarray:
+def _station_variance(model, obs, D, ident, priors, fit, problems: list[str] | None = None) -> np.ndarray:
     """What the stations' own uncertainty adds to each identified parameter's variance.
 
     Why: every pose point was intersected with the same ruler-fitted stations, so an error in L (a scale) or B's
@@ -684,11 +684,15 @@ def _station_variance(model, obs, D, ident, priors, fit) -> np.ndarray:
     treats the points as independent.  Each station parameter is moved by its 1-sigma, the points follow through
     their sensitivities, and the identification is re-solved from its own estimate: ``G U_station G^T``.  A re-solve
     is a small step from a converged fit: no linear start and no second outlier search (the main fit flagged them and
-    kept every pose), only the final least squares."""
+    kept every pose), only the final least squares.  A re-solve that fails, or a free parameter it leaves undefined,
+    is said in ``problems`` (the errors then leave that part of the stations' term out): never a silent zero."""
     from calib.identify import PointObservations, identify
     out = np.zeros(len(ident.theta))
     if not fit.cov.size or any(d is None for d in D):
         return out
+    free = np.zeros(len(ident.theta), bool)
+    free[[ident.names.index(n) for n in ident.free]] = True
+    said = problems if problems is not None else []
     Dk = np.array(D)                                          # (N, 3, K)
     G = []
     for k, sd in enumerate(np.sqrt(np.diag(fit.cov))):
@@ -696,10 +700,19 @@ def _station_variance(model, obs, D, ident, priors, fit) -> np.ndarray:
         try:
             g = identify(model, moved, free=list(ident.free), theta0=ident.theta, priors=priors, robust=False,
                          start=False)
-        except RobocalError:
+        except RobocalError as exc:
+            said.append(f"poses: the stations' uncertainty is left out of the errors (re-solve with station "
+                        f"parameter {k} moved by 1 sigma failed: {exc})")
             return out
         with np.errstate(invalid="ignore"):
-            G.append(np.nan_to_num((g.theta - ident.theta) / sd))  # parameters at +-inf (none free) give 0
+            gk = np.where(free, (g.theta - ident.theta) / sd, 0.0)    # held parameters (possibly at +-inf): 0
+        bad = free & ~np.isfinite(gk)
+        if bad.any():
+            said.append(f"poses: the stations' uncertainty is left out of the errors of "
+                        f"{', '.join(np.asarray(ident.names)[bad])} (station parameter {k}'s re-solve left them "
+                        f"undefined)")
+            gk[bad] = 0.0
+        G.append(gk)
     G = np.stack(G, -1)
     return np.einsum("pk,kl,pl->p", G, fit.cov, G)
 
