@@ -102,3 +102,11 @@ def test_compliant_link_gives_EI_with_an_honest_error():
         assert not isinstance(res, RigidityBound), seed
         z.append(abs(res["EI_Nmm2"].value - EI) / res["EI_Nmm2"].error)
     assert 0.55 <= np.median(z) <= 0.85 and 0.90 <= np.mean(np.array(z) < 2) <= 0.99, (np.median(z), np.mean(z))
+
+
+@pytest.mark.parametrize("sigma_mm", [0.0, -0.001, float("nan")])
+def test_a_gauge_noise_that_is_not_positive_is_refused(sigma_mm):
+    """0 would state EI with no error, a negative noise a nonsense interval, NaN a linear-algebra traceback."""
+    x, a, P = np.array([300.0, 500.0, 700.0]), np.full(3, 800.0), np.full(3, 50.0)
+    with pytest.raises(EstimationError, match="gauge.noise"):
+        link_rigidity(x, a, P, np.array([0.01, 0.02, 0.03]), sigma_mm=sigma_mm)

@@ -104,3 +104,13 @@ def test_honesty_benchmark_counts_a_marked_duplicate_once():
              "same_as": "misalign.j1.dtheta_y_rad", "same_as_sign": -1.0},
             {"name": "misalign.j3.delta_theta_rad", "value": 0.2, "error": 0.1, "truth": 0.0}]
     assert [n for _, n, _ in bench.ratios(rows)] == ["misalign.j1.dtheta_y_rad", "misalign.j3.delta_theta_rad"]
+
+
+def test_parallel_wrist_axes_have_no_wrist_centre():
+    """Eq 4.3.15's wrist centre is the nearest point of axes 5 and 6: parallel axes are refused, not NaN."""
+    from calib.estimators.misalignment import wrist_point
+    n = np.array([0.0, 0.0, 1.0])
+    with pytest.raises(EstimationError, match="parallel"):
+        wrist_point(np.zeros(3), n, np.array([10.0, 0.0, 0.0]), n)
+    p = wrist_point(np.zeros(3), np.array([1.0, 0.0, 0.0]), np.array([0.0, 5.0, 7.0]), n)
+    assert np.allclose(p, [0.0, 5.0, 0.0])          # the nearest point on axis 6 to axis 5 (the x axis)

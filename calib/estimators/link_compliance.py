@@ -68,10 +68,13 @@ class RigidityBound:
     sigma_mm: float
 
 
-def _readings(gauge_x_mm, load_x_mm, load_N, deflection_mm, step):
-    """The four reading columns as checked float vectors (one value per reading, positions beyond the clamp)."""
+def _readings(gauge_x_mm, load_x_mm, load_N, deflection_mm, sigma_mm, step):
+    """The four reading columns as checked float vectors (one value per reading, positions beyond the clamp), and
+    a gauge noise that is a positive number (0 would state EI with no error, a negative one a nonsense interval)."""
     x, a, P, y = (np.asarray(v, float).ravel() for v in (gauge_x_mm, load_x_mm, load_N, deflection_mm))
-    finite(PROC, step, gauge_x=x, load_x=a, load=P, deflection=y)
+    finite(PROC, step, gauge_x=x, load_x=a, load=P, deflection=y, gauge_noise=np.asarray(sigma_mm, float))
+    if not sigma_mm > 0:
+        raise EstimationError(PROC, step, f"the gauge noise must be positive (got {sigma_mm:g} mm)")
     if not (x.size == a.size == P.size == y.size):
         raise EstimationError(PROC, step, "gauge position, load position, load and deflection need one value per "
                               "reading")
@@ -98,7 +101,7 @@ def rigidity_lower_bound(gauge_x_mm, load_x_mm, load_N, deflection_mm, sigma_mm:
     quantile: 1.645 at 95 %); a compliance cannot be negative, so clipping a negative fit to zero only makes the bound
     conservative; ``EI >= 1 / c_U``.  With ``c <= 0`` the bound is the detection limit ``1 / (z sigma_c)``."""
     step = "lower bound on EI"
-    x, a, P, y = _readings(gauge_x_mm, load_x_mm, load_N, deflection_mm, step)
+    x, a, P, y = _readings(gauge_x_mm, load_x_mm, load_N, deflection_mm, sigma_mm, step)
     if not 0.5 < confidence < 1.0:
         raise EstimationError(PROC, step, f"confidence {confidence:g} must lie between 0.5 and 1")
     c, sc = _compliance_fit(x, a, P, y, sigma_mm)
@@ -113,7 +116,7 @@ def link_rigidity(gauge_x_mm, load_x_mm, load_N, deflection_mm, sigma_mm: float,
     """What the gauges say about the link: EI with its error (:func:`flexural_rigidity`) when the fitted compliance
     is significant (:data:`SIGNIFICANT` of its errors) and the deflections rise above the gauge noise, else the
     one-sided lower bound (:func:`rigidity_lower_bound`): a stiff link is a result, not a failure."""
-    x, a, P, y = _readings(gauge_x_mm, load_x_mm, load_N, deflection_mm, "cantilever fit")
+    x, a, P, y = _readings(gauge_x_mm, load_x_mm, load_N, deflection_mm, sigma_mm, "cantilever fit")
     c, sc = _compliance_fit(x, a, P, y, sigma_mm)
     if c < SIGNIFICANT * sc or np.max(np.abs(y)) <= 3 * sigma_mm:
         return rigidity_lower_bound(x, a, P, y, sigma_mm, confidence)
@@ -129,7 +132,7 @@ def flexural_rigidity(gauge_x_mm, load_x_mm, load_N, deflection_mm, sigma_mm: fl
     ``E = EI / I`` (N/mm^2 = MPa) is reported too.
     """
     step = "cantilever fit"
-    x, a, P, y = _readings(gauge_x_mm, load_x_mm, load_N, deflection_mm, step)
+    x, a, P, y = _readings(gauge_x_mm, load_x_mm, load_N, deflection_mm, sigma_mm, step)
     at_least(PROC, step, "readings", y.size, 3 if include_joint else 2)
     if np.max(np.abs(y)) <= 3 * sigma_mm:
         raise EstimationError(PROC, step, f"the loads produced no measurable deflection (largest {np.max(np.abs(y)):.3g}"

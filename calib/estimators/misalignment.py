@@ -77,6 +77,9 @@ def wrist_point(c5, n5, c6, n6) -> np.ndarray:
     centre of joint 6's own circle lies at its target's height, where eq 4.3.15's d3 would be 0).  ``(..., 3)``."""
     w = np.asarray(c5, float) - np.asarray(c6, float)
     b = np.sum(n5 * n6, -1)
+    if np.any(1.0 - b * b < 1e-6):          # within 0.06 deg: the nearest point is undefined (was NaN)
+        raise EstimationError(PROC, "wrist centre", "axes 5 and 6 are parallel: their nearest point, the wrist "
+                              "centre of eq 4.3.15, is undefined")
     t = (np.sum(n6 * w, -1) - b * np.sum(n5 * w, -1)) / (1.0 - b * b)
     return c6 + t[..., None] * n6
 
