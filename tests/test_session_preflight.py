@@ -235,6 +235,16 @@ def test_a_ruler_mark_the_ruler_lacks_is_one_line(tmp_path, twin):
     assert "ruler.placements[0].marks: unknown mark 'Q'" in r.stderr, r.stderr
 
 
+def test_a_point_p_on_a_link_the_robot_lacks_is_one_line(tmp_path, twin):
+    bad = demo_setup(twin)
+    bad["point_p"] = {"link": 9, "L_p_mm": 100.0}
+    path = tmp_path / "bad.json"
+    path.write_text(json.dumps(bad))
+    r = _cli("plan", "check", str(path))
+    assert r.returncode == 2 and "Traceback" not in r.stderr and "internal error" not in r.stderr, r.stderr
+    assert "point_p: link must be one of the robot's links 1..6, got 9" in r.stderr, r.stderr
+
+
 def test_plan_setup_writes_the_session_setup(tmp_path):
     """``plan setup te --out`` writes the designed extended tool into the set-up; the file passes the pre-flight and
     keeps the rest of the set-up it started from."""

@@ -94,9 +94,10 @@ def station_names(setup: dict) -> tuple[str, str]:
     return str(names[0]), str(names[1])
 
 
-def point_p(setup: dict):
+def point_p(setup: dict, n_links: int | None = None):
     """The set-up's point P (eq 4.3.15's d3): ``(link, point in that frame (mm), L_p_mm)`` -- a mark on the tool's
-    axis ``L_p_mm`` beyond the flange -- or None when the set-up has none (older set-ups: no P step)."""
+    axis ``L_p_mm`` beyond the flange -- or None when the set-up has none (older set-ups: no P step).  ``n_links``:
+    the robot's joint count, to check the link (default link 6, the Puma's flange)."""
     cfg = setup.get("point_p")
     if not cfg:
         return None
@@ -104,7 +105,10 @@ def point_p(setup: dict):
         lp = float(cfg["L_p_mm"])
         if not np.isfinite(lp) or lp <= 0:
             raise ValueError(f"L_p_mm must be a positive length, got {cfg['L_p_mm']}")
-        return int(cfg.get("link", 6)), (0.0, 0.0, lp), lp
+        link = int(cfg.get("link", 6))
+        if n_links is not None and not 1 <= link <= n_links:
+            raise ValueError(f"link must be one of the robot's links 1..{n_links}, got {link}")
+        return link, (0.0, 0.0, lp), lp
 
 
 def setup_stations(setup: dict) -> dict:
@@ -342,6 +346,7 @@ def session_setup(setup: dict, robot) -> dict:
     if out.get("link"):
         with _section("link"):
             _link_entry(out["link"], robot, chain, g)
+    point_p(out, robot.n)                                    # a bad point P is one line here, not a crash later
     for k, pl in enumerate(out.get("ruler", {}).get("placements", [])):
         with _section(f"ruler.placements[{k}].marks"):
             _ruler_marks(pl, out["ruler"].get("marks_mm", []))
