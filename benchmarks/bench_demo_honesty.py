@@ -168,14 +168,19 @@ def main(argv=None) -> int:
     ap.add_argument("--test-cases", action="store_true",
                     help="the runs tests/test_demo_honesty.py asserts (16 chain and 65 small seeds; --seeds, "
                          "--first-seed and --steps are then ignored)")
+    ap.add_argument("--session-json", metavar="FILE",
+                    help="score a reprocessing JSON instead of recording runs (e.g. examples/demo-session.json)")
     ap.add_argument("--json", help="write every ratio here")
     ap.add_argument("--worst", type=int, default=8, help="list the worst ratios (default 8)")
     args = ap.parse_args(argv)
     t0 = time.perf_counter()
     cases = TEST_CASES if args.test_cases else [(seed, args.steps)
                                                  for seed in range(args.first_seed, args.first_seed + args.seeds)]
-    rows = run_cases(cases, args.workers, progress=lambda _, f: print(
-        f"{f * len(cases):.0f}/{len(cases)} runs, {time.perf_counter() - t0:.0f} s", file=sys.stderr))
+    if args.session_json:
+        rows = ratios(json.loads(Path(args.session_json).read_text())["estimates"])
+    else:
+        rows = run_cases(cases, args.workers, progress=lambda _, f: print(
+            f"{f * len(cases):.0f}/{len(cases)} runs, {time.perf_counter() - t0:.0f} s", file=sys.stderr))
     print(f"{'procedure':32s} {'values':>7s} {'median |v-t|/err':>17s} {'within 2 sigma':>15s}")
     for row in table(rows):
         flag = "" if 0.55 <= row["median"] <= 0.85 and 0.90 <= row["within_2sigma"] <= 0.99 else "  (outside the band)"

@@ -40,7 +40,7 @@ def test_example_reprocesses_without_problems(result):
 
 
 def test_example_recovers_the_stiffnesses(result):
-    """Issue 12: the demo (``robocal demo --seed 0``, this file) recovers K3 and K4 of the twin within 3 of their
+    """Issue 12: the demo (``robocal demo --seed 0`` at commit bf3b37d, this file) recovers K3 and K4 of the twin within 3 of their
     stated errors, each error under 30 % of its value -- joint 4 loaded where its axis is horizontal."""
     est = {e["name"]: e for e in result["estimates"]}
     for n in ("compliance.j3.K1_Nm_per_rad", "compliance.j4.K1_Nm_per_rad"):
