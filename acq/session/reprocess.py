@@ -560,11 +560,17 @@ def _harmonic_prior(res) -> list[tuple[str, float, float]]:
     (and their correlation) both propagated -- a phase known to 0.1 rad moves the coefficients by a tenth of A."""
     names = list(res.names)
     i, k = names.index("amplitude1_rad"), names.index("phase1_rad")
-    A, phi = float(res.value[i]), float(res.value[k])
+    (s1, c1), G = _sine_cosine(float(res.value[i]), float(res.value[k]))
     C = res.cov[np.ix_([i, k], [i, k])]
-    G = np.array([[np.cos(phi), -A * np.sin(phi)], [np.sin(phi), A * np.cos(phi)]])
     sd = np.sqrt(np.maximum(np.diag(G @ C @ G.T), 1e-12))
-    return [("s1_rad", A * np.cos(phi), float(sd[0])), ("c1_rad", A * np.sin(phi), float(sd[1]))]
+    return [("s1_rad", s1, float(sd[0])), ("c1_rad", c1, float(sd[1]))]
+
+
+def _sine_cosine(A: float, phi: float) -> tuple[tuple[float, float], np.ndarray]:
+    """``A sin(w q + phi)`` as the model's sine and cosine coefficients ``(A cos phi, A sin phi)`` and their
+    Jacobian with respect to ``(A, phi)`` (2x2): the one place the run's harmonic meets the model's."""
+    c, s = np.cos(phi), np.sin(phi)
+    return (A * c, A * s), np.array([[c, -A * s], [s, A * c]])
 
 
 def _poses(steps, points, robot, setup, est, twin, figs, running=None, problems=None, coupling_steps=()):
@@ -763,8 +769,8 @@ def _te_run_variance(robot, running: dict, specs: list[str], obs, ident, priors,
         if len(at) != 1 or not all(n in priors and n in ident.free for n in pri) or "omega" not in res.names:
             continue
         idx = [list(res.names).index(n) for n in ("omega", "amplitude1_rad", "phase1_rad")]
-        A, phi = (float(res.value[i]) for i in idx[1:])
-        G = np.array([[1.0, 0.0, 0.0], [0.0, np.cos(phi), -A * np.sin(phi)], [0.0, np.sin(phi), A * np.cos(phi)]])
+        G = np.eye(3)                                             # (order, s1, c1) from (order, A, phi)
+        G[1:, 1:] = _sine_cosine(*(float(res.value[i]) for i in idx[1:]))[1]
         U = G @ res.cov[np.ix_(idx, idx)] @ G.T
         order = float(specs[at[0]].rsplit(":", 1)[1])
         h = 0.1 * float(np.sqrt(U[0, 0]))
