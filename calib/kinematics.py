@@ -25,7 +25,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .robot import Robot
+from .robot import Robot, rot_zyx
 
 TX, TY, TZ, RX, RY, RZ = range(6)
 _AXIS = {TX: 0, TY: 1, TZ: 2, RX: 0, RY: 1, RZ: 2}
@@ -243,7 +243,7 @@ class Kinematics:
         R = np.empty((n + 1, 3, 3, N))
         t = np.empty((n + 1, 3, N))
         base = p[..., :len(BASE_PARAMS)].T                                             # (6,) or (6, N)
-        R0 = _rot_zyx(base[3], base[4], base[5])
+        R0 = rot_zyx(base[3], base[4], base[5])
         R[0] = R0.transpose(1, 2, 0) if R0.ndim == 3 else R0[..., None]
         t[0] = base[:3] if base.ndim == 2 else base[:3, None]
         for j in range(n):
@@ -321,16 +321,6 @@ class Kinematics:
         fp = self.forward(q_rad, params)
         J = self.element_jacobian(fp)
         return fp.point, J, J[:, :, self.joint_elements]
-
-
-def _rot_zyx(yaw, pitch, roll) -> np.ndarray:
-    """Rz(yaw) Ry(pitch) Rx(roll) (..., 3, 3) for scalar or per-pose angles."""
-    cy, sy, cp, sp, cr, sr = np.cos(yaw), np.sin(yaw), np.cos(pitch), np.sin(pitch), np.cos(roll), np.sin(roll)
-    R = np.empty(np.shape(yaw) + (3, 3))
-    R[..., 0, 0], R[..., 0, 1], R[..., 0, 2] = cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr
-    R[..., 1, 0], R[..., 1, 1], R[..., 1, 2] = sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr
-    R[..., 2, 0], R[..., 2, 1], R[..., 2, 2] = -sp, cp * sr, cp * cr
-    return R
 
 
 #: below this many poses a link step is one batched ``matmul`` (fewer numpy calls); above, rows of multiply-adds

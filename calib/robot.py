@@ -378,10 +378,18 @@ def _rpy_matrix(rpy) -> np.ndarray:
     """Rz(yaw) Ry(pitch) Rx(roll) from (roll, pitch, yaw): the inverse of :func:`rpy_from_matrix` (plain numpy: a
     description loads without importing scipy, which costs a command half a second of start-up)."""
     roll, pitch, yaw = (float(v) for v in rpy)
-    cr, sr, cp, sp, cy, sy = np.cos(roll), np.sin(roll), np.cos(pitch), np.sin(pitch), np.cos(yaw), np.sin(yaw)
-    return np.array([[cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr],
-                     [sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr],
-                     [-sp, cp * sr, cp * cr]])
+    return rot_zyx(yaw, pitch, roll)
+
+
+def rot_zyx(yaw, pitch, roll) -> np.ndarray:
+    """Rz(yaw) Ry(pitch) Rx(roll) (..., 3, 3) for scalar or per-pose angles (the base's and the description's
+    roll-pitch-yaw; the kinematics' base transform uses it too)."""
+    cy, sy, cp, sp, cr, sr = np.cos(yaw), np.sin(yaw), np.cos(pitch), np.sin(pitch), np.cos(roll), np.sin(roll)
+    R = np.empty(np.shape(yaw) + (3, 3))
+    R[..., 0, 0], R[..., 0, 1], R[..., 0, 2] = cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr
+    R[..., 1, 0], R[..., 1, 1], R[..., 1, 2] = sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr
+    R[..., 2, 0], R[..., 2, 1], R[..., 2, 2] = -sp, cp * sr, cp * cr
+    return R
 
 
 def _readings_table(chk: Checker, t: dict, n: int, pris: np.ndarray) -> dict:
