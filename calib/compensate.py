@@ -25,6 +25,7 @@ from .effects.station_offset import StationOffset
 from .errors import RobocalError
 from .fileio import atomic_write_text
 from .identify import Identification
+from .targets import identified_tool_points
 from .jsonfile import FINITE, check_schema, read_json
 from .model import MeasurementModel
 from .robot import Robot, parse_robot, robot_to_toml
@@ -43,7 +44,6 @@ def unit_of(name: str) -> str:
 
 def robot_from_theta(model: MeasurementModel, theta: np.ndarray) -> Robot:
     """The robot description with the geometric part of ``theta`` written into it (every target's tool point)."""
-    from .targets import identified_tool_points
     kin = model.kin
     r = model.robot
     g = theta[: kin.P]
@@ -236,26 +236,55 @@ def compensate_command(im: IdentifiedModel, nominal: MeasurementModel, q_desired
     """Joint commands that make the identified robot reach the points the nominal model gives for ``q_desired``.
 
     The nominal model must share the identified model's measurement frame (base) and tool, so that only the robot's
-    own errors are compensated.  Returns the commands (N, n) and the remaining position error (N,) in mm.
-    """
-    q_des = np.atleast_2d(np.asarray(q_desired_rad, float))
-    target = nominal.points(q_des)
-    q = q_des.copy()
-    err = np.full(len(q), np.inf)
+    own errors are compensated.  ``q_desired`` and the commands are joint variables (N, n); see
+    :func:`compensate_readings` for a robot whose readings are not its joints.  Returns the commands and the
+    remaining position error (N,) in mm (the largest over the robot's points)."""
+    n = im.model.robot.n
+    return compensate_readings(im, nominal, q_desired_rad, ctx, iterations, tol_mm, np.eye(n), np.zeros(n))
+
+
+def compensate_readings(im: IdentifiedModel, nominal: MeasurementModel, r_desired: np.ndarray,
+                        ctx: PoseContext | None = None, iterations: int = 10, tol_mm: float = 1e-6,
+                        reading_matrix: np.ndarray | None = None, reading_offset: np.ndarray | None = None):
+    """Controller readings (commands, N x m) that bring every tool point of the identified robot to where the
+    nominal model puts it for ``r_desired``: one Gauss-Newton solve over all points together (a branched robot's
+    hands share the torso's commands; a coupled or mimic joint follows its readings).  Returns the commands (N, m)
+    and the remaining error (N,) in mm, the largest over the points."""
+    robot = im.model.robot
+    M = robot.reading_matrix if reading_matrix is None else reading_matrix
+    off = robot.reading_offset if reading_offset is None else reading_offset
+    r_des = np.atleast_2d(np.asarray(r_desired, float))
+    points = _points_to_compensate(im)
+    q_des = r_des @ M.T + off
+    target = [nominal.evaluate(q_des, None, None, tool_mm=xyz, link=f).point_mm for f, xyz in points]
+    r = r_des.copy()
+    err = np.full(len(r), np.inf)
     for _ in range(iterations):
-        ev = im.model.evaluate(q, ctx, im.theta, jacobian=True)
-        d = target - ev.point_mm
-        err = np.linalg.norm(d, axis=1)
+        q = r @ M.T + off
+        evs = [im.model.evaluate(q, ctx, im.theta, jacobian=True, tool_mm=xyz, link=f) for f, xyz in points]
+        d = np.concatenate([t - ev.point_mm for t, ev in zip(target, evs)], axis=1)       # (N, 3K)
+        err = np.max(np.linalg.norm(d.reshape(len(r), -1, 3), axis=-1), axis=1)
         if np.all(err < tol_mm):
             break
-        Jq = ev.joint_jacobian
-        step = np.einsum("nij,nj->ni", np.linalg.pinv(Jq), d)
-        q = q + step
-    lim = im.model.robot.limits_rad
-    if np.any((q < lim[:, 0]) | (q > lim[:, 1])):
-        i = int(np.flatnonzero(np.any((q < lim[:, 0]) | (q > lim[:, 1]), axis=1))[0])
+        Jr = np.concatenate([np.matmul(ev.joint_jacobian, M) for ev in evs], axis=1)    # (N, 3K, m)
+        r = r + np.einsum("nij,nj->ni", np.linalg.pinv(Jr), d)
+    q = r @ M.T + off
+    lim = robot.limits_rad
+    outside = np.any((q < lim[:, 0] - 1e-9) | (q > lim[:, 1] + 1e-9), axis=1)
+    if np.any(outside):
+        i = int(np.flatnonzero(outside)[0])
         raise RobocalError(f"compensate: the corrected command of pose {i + 1} leaves the joint limits")
-    return q, err
+    return r, err
+
+
+def _points_to_compensate(im: IdentifiedModel) -> list[tuple[int, np.ndarray]]:
+    """(frame, identified position in that frame) of every tool point: the reference alone for a robot with one."""
+    robot = im.model.robot
+    pts = identified_tool_points(im.model, im.theta)
+    if len(pts) <= 1:
+        i = im.model.kin.index["tool.x_mm"]
+        return [(robot.point_frame(), np.asarray(im.theta[i:i + 3], float))]
+    return [(robot.point_frame(k), v) for k, v in pts.items()]
 
 
 def nominal_in_same_frame(im: IdentifiedModel) -> MeasurementModel:
@@ -269,4 +298,4 @@ def nominal_in_same_frame(im: IdentifiedModel) -> MeasurementModel:
 
 
 __all__ = ["save_model", "load_model", "model_document", "robot_from_theta", "corrected_readings", "predict",
-           "compensate_command", "nominal_in_same_frame", "IdentifiedModel", "unit_of", "DEG"]
+           "compensate_command", "compensate_readings", "nominal_in_same_frame", "IdentifiedModel", "unit_of", "DEG"]

@@ -8,6 +8,10 @@ Example (``examples/tiago_mocap.toml``)::
 
     [tool.points]                        # named points on the tip link, mm (the CSV's ``target`` names one)
     marker1 = [0.0, 0.0, 0.0]
+    left_hand = { link = "arm_left_7_link", xyz_mm = [0, 0, 50] }     # a point on a link of its own
+
+    [joints.coupled]                     # joints held at a linear combination of others (no data column)
+    torso_3_joint = { torso_1_joint = -1.0, torso_2_joint = -1.0, offset_deg = 0.0 }
 
     [base]                               # optional: the base link in the measurement frame (default: identity)
     xyz_mm = [0, 0, 0]
@@ -32,7 +36,12 @@ Example (``examples/tiago_mocap.toml``)::
     passive = { J1 = -1.0, J2 = -1.0, offset_deg = 0.0 }
 
 A joint with no entry in ``[readings.joints]`` is the reading of the same name.  Without ``[readings]`` the readings
-are the URDF's moving, non-mimic joints.  A purely kinematic calibration needs none of the optional tables.
+are the URDF's moving, non-mimic joints (and any joint a mimic joint follows from off the robot's tree).  A purely
+kinematic calibration needs none of the optional tables.
+
+Branched robots: with points on several links (``{ link = ..., xyz_mm = ... }``) ``tip_link`` may be omitted; the
+robot is then the tree from ``base_link`` to every link that carries a point, and the joints several paths share
+(a torso under two arms) are one set of parameters.  A point given as a bare ``[x, y, z]`` is on ``tip_link``.
 """
 from __future__ import annotations
 
@@ -55,6 +64,7 @@ TOP_SPEC = {
     "drives": Field("table", default={}),
     "tolerances": Field("table", default={}),
     "readings": Field("table", default={}),
+    "joints": Field("table", default={}),
 }
 BASE_SPEC = {
     "xyz_mm": Field("vector", default=[0.0, 0.0, 0.0], length=3),
@@ -69,8 +79,8 @@ DRIVE_SPEC = {"gear_ratio": Field("number", required=True),
 def build_description(chk: Checker, data: dict, path: Path, base_link: str | None = None,
                       tip_link: str | None = None):
     """The :class:`calib.robot.Robot` a calibration description defines (command-line cut wins over the file's)."""
-    from .robot import Robot, _rpy_matrix, rpy_from_matrix
-    from .urdf import analyse_chain, parameter_meaning, read_urdf
+    from .robot import _rpy_matrix, robot_from_analysis
+    from .urdf import check_link, analyse_tree, cut_chain, read_urdf
 
     top = chk.table(data, TOP_SPEC, "")
     urdf_path = (path.parent / top["urdf"]) if not Path(top["urdf"]).is_absolute() else Path(top["urdf"])
@@ -83,50 +93,132 @@ def build_description(chk: Checker, data: dict, path: Path, base_link: str | Non
         m = chk.table(table, MASS_SPEC, f"masses.{link}")
         tree.links[link].mass_kg = float(m["mass_kg"])
         tree.links[link].com_m = np.asarray(m["com_mm"], float) / 1000.0
-    ch = analyse_chain(tree, base_link or top["base_link"] or None, tip_link or top["tip_link"] or None)
-    names = [j.name for j in ch.axes]
-    n = len(names)
+    base = base_link or top["base_link"] or None
+    tip = tip_link or top["tip_link"] or None
+    if tip is not None:
+        check_link(tree, tip, "tip")
+    raw = _tool_points(chk, top["tool"], tree, urdf_path.name)
+    if tip is None and (not raw or any(link is None for link, _ in raw.values())):
+        base, tip, _ = cut_chain(tree, base, None)          # the only moving leaf, or an error naming them
+    points = {k: (link or tip, xyz) for k, (link, xyz) in raw.items()} or {tip: (tip, np.zeros(3))}
+    point_links = list(dict.fromkeys(link for link, _ in points.values()))
+    ch = analyse_tree(tree, base, point_links)
+    axes = [j.name for j in ch.axes]
+    n = len(axes)
 
-    tool = top["tool"]
-    if not isinstance(tool, dict) or set(tool) - {"points"}:
-        chk.fail("tool", "only [tool.points] is known")
-    points = {k: np.asarray(chk.value(v, Field("vector", length=3), f"tool.points.{k}"), float)
-              for k, v in (tool.get("points") or {}).items()}
-    T = ch.tip_in_frame_n
-    tool_n = {k: T[:3, :3] @ v + T[:3, 3] for k, v in (points or {ch.tip_link: np.zeros(3)}).items()}
-
-    base = chk.table(top["base"], BASE_SPEC, "base")
+    place = chk.table(top["base"], BASE_SPEC, "base")
     B = np.eye(4)
-    B[:3, :3] = _rpy_matrix(np.asarray(base["rpy_deg"], float) * DEG)
-    B[:3, 3] = base["xyz_mm"]
-    F0 = ch.frame0_in_base
-    W0 = B @ F0                                                       # frame 0 in the measurement frame
+    B[:3, :3] = _rpy_matrix(np.asarray(place["rpy_deg"], float) * DEG)
+    B[:3, 3] = place["xyz_mm"]
 
     gear, counts = np.ones(n), np.full(n, 2.0 ** 20)
     for joint, table in _tables(chk, top["drives"], "drives").items():
-        if joint not in names:
-            chk.fail(f"drives.{joint}", f"is not a moving joint of the chain ({', '.join(names)})")
+        if joint not in axes:
+            chk.fail(f"drives.{joint}", f"is not a moving joint of the robot ({', '.join(dict.fromkeys(axes))})")
         d = chk.table(table, DRIVE_SPEC, f"drives.{joint}")
         if d["gear_ratio"] == 0:
             chk.fail(f"drives.{joint}.gear_ratio", "must not be zero")
-        gear[names.index(joint)] = d["gear_ratio"]
-        counts[names.index(joint)] = d["encoder_counts_per_rev"]
+        for k in (k for k, a in enumerate(axes) if a == joint):
+            gear[k], counts[k] = d["gear_ratio"], d["encoder_counts_per_rev"]
 
     rnames, M, off = _readings(chk, top["readings"], ch)
-    pris = np.array([j.type == "prismatic" for j in ch.axes])
-    L = ch.links
-    robot = Robot(
-        name=top["name"] or f"{tree.name} ({ch.base_link} -> {ch.tip_link})",
-        a_mm=np.array([x.a for x in L]), d_mm=np.array([x.d for x in L]), alpha_rad=np.array([x.alpha for x in L]),
-        theta_offset_rad=np.array([x.theta for x in L]), beta_rad=np.array([x.beta for x in L]),
-        hayati=np.array([x.hayati for x in L], bool), limits_rad=ch.limits, gear_ratio=gear, counts_per_rev=counts,
-        mass_kg=ch.mass_kg, com_mm=ch.com_mm, coupling=np.eye(n),
-        gravity_m_s2=W0[:3, :3].T @ (B[:3, :3] @ np.array([0.0, 0.0, -9.80665])),
-        base_xyz_mm=W0[:3, 3].copy(), base_rpy_rad=rpy_from_matrix(W0[:3, :3]), tool_points_mm=tool_n,
-        joint_names=tuple(names), source=chk.source, prismatic=pris, frame0_in_base=F0,
-        reading_names=tuple(rnames), reading_matrix=M, reading_offset=off, param_meaning=parameter_meaning(ch),
-    )
+    rnames, M, off = _coupled(chk, top["joints"], ch, rnames, M, off)
+    robot = robot_from_analysis(ch, points, source=chk.source, name=top["name"], base_in_world=B, gear_ratio=gear,
+                                counts_per_rev=counts, reading_names=tuple(rnames), reading_matrix=M,
+                                reading_offset=off)
     return replace(robot, tolerances=_tolerances(chk, top["tolerances"], robot))
+
+
+def _tool_points(chk: Checker, tool, tree, urdf_name: str) -> dict[str, tuple[str | None, np.ndarray]]:
+    """``[tool.points]``: name -> (link or None for the tip link, xyz in that link's frame, mm)."""
+    if not isinstance(tool, dict) or set(tool) - {"points"}:
+        chk.fail("tool", "only [tool.points] is known")
+    out = {}
+    for k, v in (tool.get("points") or {}).items():
+        key = f"tool.points.{k}"
+        if isinstance(v, dict):
+            if set(v) - {"link", "xyz_mm"} or "link" not in v:
+                chk.fail(key, 'must be [x, y, z] (mm, on tip_link) or { link = "LINK", xyz_mm = [x, y, z] }')
+            link = v["link"]
+            if not isinstance(link, str) or link not in tree.links:
+                chk.fail(f"{key}.link", f"{link!r} is not a link of {urdf_name}")
+            xyz = chk.value(v.get("xyz_mm", [0.0, 0.0, 0.0]), Field("vector", length=3), f"{key}.xyz_mm")
+            out[k] = (link, np.asarray(xyz, float))
+        else:
+            out[k] = (None, np.asarray(chk.value(v, Field("vector", length=3), key), float))
+    return out
+
+
+def _coupled(chk: Checker, t: dict, ch, names: list[str], M: np.ndarray, off: np.ndarray):
+    """``[joints.coupled]``: ``JOINT = { OTHER = factor, ..., offset_deg | offset_mm = c }`` -- a passive or coupled
+    joint held at a linear combination of other joints (edge units: degrees, mm).  Its reading column is replaced by
+    that combination everywhere (its own links, the mimic joints following it), so the data need not carry it."""
+    if not t:
+        return names, M, off
+    if not isinstance(t, dict) or set(t) - {"coupled"}:
+        chk.fail("joints", "only [joints.coupled] is known")
+    coupled = _tables(chk, t.get("coupled", {}), "joints.coupled")
+    by_name = {j.name: j for j in ch.axes if j.type != "fixed"}
+    own = {}
+    for k, j in enumerate(ch.axes):
+        own.setdefault(j.name, k)
+
+    def scale(j):                                        # internal units per edge unit
+        return 1.0 if j.type == "prismatic" else DEG
+
+    deps = {}
+    for joint, combo in coupled.items():
+        where = f"joints.coupled.{joint}"
+        if joint not in by_name:
+            chk.fail(where, f"is not a moving joint of the robot ({', '.join(by_name)})")
+        if joint not in names:
+            chk.fail(where, "is not a reading: it is already given by a mimic tag or [readings.joints]")
+        deps[joint] = []
+        for other in combo:
+            if other in ("offset_deg", "offset_mm"):
+                continue
+            if other == joint:
+                chk.fail(f"{where}.{other}", "a joint cannot be coupled to itself")
+            if other not in by_name:
+                chk.fail(f"{where}.{other}", f"is not a moving joint of the robot ({', '.join(by_name)})")
+            deps[joint].append(other)
+    order, state = [], {}
+
+    def visit(j, trail):
+        if state.get(j) == 1:
+            chk.fail(f"joints.coupled.{j}", "the couplings form a cycle (" + " -> ".join(trail + [j]) + ")")
+        if state.get(j) == 2 or j not in deps:
+            return
+        state[j] = 1
+        for d in deps[j]:
+            visit(d, trail + [j])
+        state[j] = 2
+        order.append(j)
+    for j in deps:
+        visit(j, [])
+    M, off = M.copy(), off.copy()
+    for joint in order:
+        c = names.index(joint)
+        jt = by_name[joint]
+        g, h = np.zeros(len(names)), 0.0
+        for other, f in coupled[joint].items():
+            key = f"joints.coupled.{joint}.{other}"
+            if other in ("offset_deg", "offset_mm"):
+                pris = jt.type == "prismatic"
+                if (other == "offset_mm") != pris:
+                    chk.fail(key, f"{joint} is {'prismatic: use offset_mm' if pris else 'revolute: use offset_deg'}")
+                h += chk.value(f, Field("number"), key) * scale(jt)
+                continue
+            factor = chk.value(f, Field("number"), key) * scale(jt) / scale(by_name[other])
+            g += factor * M[own[other]]
+            h += factor * off[own[other]]
+        # the joint's reading, everywhere it appears, becomes the combination
+        coef = M[:, c].copy()
+        M += np.outer(coef, g)
+        off += coef * h
+        M[:, c] = 0.0
+    keep = [k for k, nm in enumerate(names) if nm not in coupled]
+    return [names[k] for k in keep], M[:, keep], off
 
 
 def _tables(chk: Checker, t: dict, where: str) -> dict:
@@ -152,15 +244,18 @@ def _readings(chk: Checker, t: dict, ch) -> tuple[list[str], np.ndarray, np.ndar
     joints = _tables(chk, t.get("joints", {}), "readings.joints")
     axes = [j.name for j in ch.axes]
     n = len(axes)
+    moving = [a for a, j in zip(axes, ch.axes) if j.type != "fixed"]
     for joint, combo in joints.items():
-        if joint not in axes:
-            chk.fail(f"readings.joints.{joint}", f"is not a moving joint of the chain ({', '.join(axes)})")
+        if joint not in moving:
+            chk.fail(f"readings.joints.{joint}", f"is not a moving joint of the robot ({', '.join(dict.fromkeys(moving))})")
         for rd in combo:
             if rd not in names and rd not in ("offset_deg", "offset_mm"):
                 chk.fail(f"readings.joints.{joint}.{rd}", f"reading {rd!r} is not one of the readings ({', '.join(names)})")
     M, off = np.zeros((n, len(names))), np.zeros(n)
     for k, name in enumerate(axes):
         pris = ch.axes[k].type == "prismatic"
+        if ch.axes[k].type == "fixed":
+            continue
         if name in joints:
             for rd, c in joints[name].items():
                 key = f"readings.joints.{name}.{rd}"

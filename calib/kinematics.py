@@ -47,13 +47,18 @@ class ChainPass:
     """
 
     def __init__(self, point: np.ndarray, R: np.ndarray, t: np.ndarray, local: dict | None = None,
-                 gravity_m_s2: np.ndarray | None = None, point_link: int | None = None):
+                 gravity_m_s2: np.ndarray | None = None, point_link: int | None = None,
+                 parent_frame: np.ndarray | None = None, point_frame=None):
         self.point = point                          # (N, 3) tool point
         self._R, self._t = R, t                     # (n+1, 3, 3, N), (n+1, 3, N): frames 0..n, pose-last
         self._local = local                         # what the element screws need (Kinematics.forward)
         self._cache: dict[str, np.ndarray] = {}
         self.point_link = point_link                # frame the evaluated point is fixed in (None: the tool point)
         self.gravity_m_s2 = gravity_m_s2            # (3,) the description's gravity, in frame 0
+        n = R.shape[0] - 1
+        # the frame each link starts from (a chain: the previous link's end) and the tool point's frame per pose
+        self.parent_frame = np.arange(n) if parent_frame is None else parent_frame
+        self.point_frame = n if point_frame is None else point_frame
 
     def pose(self, k: int) -> "ChainPass":
         """Pose ``k`` as a one-pose pass (views, no copies): for code that looks at a batch one pose at a time."""
@@ -63,8 +68,9 @@ class ChainPass:
             return v[..., k:k + 1] if isinstance(v, np.ndarray) and v.ndim >= 2 and v.shape[-1] == N else v
 
         local = None if self._local is None else {key: cut(v) for key, v in self._local.items()}
+        pf = self.point_frame if np.isscalar(self.point_frame) else self.point_frame[k:k + 1]
         return ChainPass(self.point[k:k + 1], self._R[..., k:k + 1], self._t[..., k:k + 1], local,
-                         self.gravity_m_s2, self.point_link)
+                         self.gravity_m_s2, self.point_link, self.parent_frame, pf)
 
     def _pose_first(self, key: str, make) -> np.ndarray:
         if key not in self._cache:
@@ -109,13 +115,17 @@ class ChainPass:
 
     @property
     def joint_axis(self) -> np.ndarray:
-        """(N, n, 3) unit axis of each joint (z of frame j-1)."""
-        return self.frame_R[:, :-1, :, 2]
+        """(N, n, 3) unit axis of each joint (z of the frame its link starts from: frame j-1 of a chain)."""
+        return self.frame_R[:, self.parent_frame][..., 2]
 
     @property
     def joint_origin(self) -> np.ndarray:
-        """(N, n, 3) origin of frame j-1, a point on joint j's axis."""
-        return self.frame_t[:, :-1, :]
+        """(N, n, 3) origin of the frame link j starts from (frame j-1 of a chain), a point on joint j's axis."""
+        return self.frame_t[:, self.parent_frame, :]
+
+    def tool_frame(self) -> tuple[np.ndarray, np.ndarray]:
+        """The frame the tool point is fixed in, pose-last: R (3, 3, N), t (3, N) (a row's own frame on a tree)."""
+        return _frame_at(self._R, self._t, self.point_frame)
 
     def link_beam(self, j: int) -> tuple[np.ndarray, np.ndarray]:
         """(start, end) (N, 3) each: the body of link j as a beam for bending, clamped at joint j's axis.
@@ -123,8 +133,9 @@ class ChainPass:
         Frame j-1 to frame j is an offset d_j along joint j's axis then the link's length a_j across it; the beam is
         the part across the axis (from the foot of frame j's origin on the axis) -- the part along the axis is the
         joint's own offset -- unless the link has no length across (a_j ~ 0: then the whole offset is the body)."""
-        start, end = self.frame_t[:, j - 1], self.frame_t[:, j]
-        z = self.frame_R[:, j - 1, :, 2]
+        f = self.parent_frame[j - 1]
+        start, end = self.frame_t[:, f], self.frame_t[:, j]
+        z = self.frame_R[:, f, :, 2]
         seg = end - start
         perp = seg - np.einsum("nc,nc->n", seg, z)[:, None] * z
         across = np.linalg.norm(perp, axis=-1) > 1.0
@@ -188,6 +199,13 @@ class Kinematics:
         self._gravity = np.asarray(robot.gravity_m_s2, float)
         self._rot = self.kinds >= RX
         self._trans = ~self._rot
+        # a branched robot: the frame each link starts from, which frames lie between a frame and the base, and
+        # the frame the (reference) tool point is fixed in
+        self.parent_frame = np.asarray(robot.parent_frame, int)
+        self.is_chain = not robot.is_tree
+        self.ancestors = robot.frame_ancestors()                                   # (n+1, n+1)
+        self.tool_frame = robot.point_frame()
+        self._nontool = np.flatnonzero(self.link_of <= n)
 
     @property
     def P(self) -> int:
@@ -203,8 +221,11 @@ class Kinematics:
         return p
 
     # -- forward pass ---------------------------------------------------------------------------------------------
-    def forward(self, q_rad: np.ndarray, params: np.ndarray | None = None) -> ChainPass:
+    def forward(self, q_rad: np.ndarray, params: np.ndarray | None = None, point_frame=None) -> ChainPass:
         """Run the chain for joint angles ``q_rad`` (N, n).
+
+        ``point_frame``: the frame the tool point is fixed in, one for all poses or (N,) one per pose (rows that
+        measure targets on different branches of a tree); default the reference tool point's frame.
 
         Each link's motions ``Rz(theta) Tz(d) Tx(a) Rx(alpha) Ry(beta)`` are multiplied out in closed form (one
         rotation and one offset per link, for all links and poses at once), then the links are chained by one batched
@@ -246,14 +267,16 @@ class Kinematics:
         R0 = rot_zyx(base[3], base[4], base[5])
         R[0] = R0.transpose(1, 2, 0) if R0.ndim == 3 else R0[..., None]
         t[0] = base[:3] if base.ndim == 2 else base[:3, None]
+        pf = self.parent_frame
         for j in range(n):
-            _chain_step(R[j], t[j], A[j], off[j], R[j + 1], t[j + 1])
+            _chain_step(R[pf[j]], t[pf[j]], A[j], off[j], R[j + 1], t[j + 1])
         tool = p[..., self._tool_cols].T
         tool = tool if tool.ndim == 2 else tool[:, None]                               # (3, N) or (3, 1)
-        Rn = R[n]
-        point = (t[n] + Rn[:, 0] * tool[0] + Rn[:, 1] * tool[1] + Rn[:, 2] * tool[2]).T.copy()
+        frame = self.tool_frame if point_frame is None else _point_frames(point_frame, N, n)
+        Rn, tn = _frame_at(R, t, frame)
+        point = (tn + Rn[:, 0] * tool[0] + Rn[:, 1] * tool[1] + Rn[:, 2] * tool[2]).T.copy()
         local = {"ct": ct, "st": st, "d": d, "base": base, "tool": tool}
-        return ChainPass(point, R, t, local, gravity_m_s2=self._gravity)
+        return ChainPass(point, R, t, local, gravity_m_s2=self._gravity, parent_frame=pf, point_frame=frame)
 
     def points(self, q_rad: np.ndarray, params: np.ndarray | None = None) -> np.ndarray:
         """Tool points (N, 3) in the measurement frame."""
@@ -295,21 +318,27 @@ class Kinematics:
         _cross_into(Jv[4], ax4.reshape(3, -1), arm)
         _cross_into(Jv[5], R[0, :, 0], arm)
         # links: theta about z_{j-1} through o_{j-1}; d along it; a along the x after theta; alpha about that x and
-        # beta about y_j, both through o_j
+        # beta about y_j, both through o_j (j-1: the frame the link starts from, the previous one on a chain)
         lJ = Jv[nb:nb + nl * n].reshape(n, nl, 3, N)
-        z = R[:-1, :, 2]
-        u = R[:-1, :, 0] * loc["ct"][:, None] + R[:-1, :, 1] * loc["st"][:, None]
-        arm_in, arm_out = p - t[:-1], p - t[1:]
+        Rp, tp = (R[:-1], t[:-1]) if self.is_chain else (R[self.parent_frame], t[self.parent_frame])
+        z = Rp[:, :, 2]
+        u = Rp[:, :, 0] * loc["ct"][:, None] + Rp[:, :, 1] * loc["st"][:, None]
+        arm_in, arm_out = p - tp, p - t[1:]
         _cross_into(lJ[:, 0], z, arm_in)
         lJ[:, 1] = z
         lJ[:, 2] = u
         _cross_into(lJ[:, 3], u, arm_out)
         _cross_into(lJ[:, 4], R[1:, :, 1], arm_out)
-        if link is not None:
-            Jv[self.link_of > link] = 0.0
-            Jv[self._tool_cols] = R[link].transpose(1, 0, 2)                            # d p_c / d p_k = R_j[c, k]
-        else:
-            Jv[self._tool_cols] = R[n].transpose(1, 0, 2)
+        frame = fp.point_frame if link is None else link
+        if not (np.isscalar(frame) and frame == n and self.is_chain):
+            # only the motions between the point's frame and the base move it
+            nt = self._nontool
+            if np.isscalar(frame):
+                Jv[nt[~self.ancestors[frame][self.link_of[nt]]]] = 0.0
+            else:
+                Jv[nt] *= self.ancestors[frame][:, self.link_of[nt]].T[:, None, :]
+        Rf, _ = _frame_at(R, t, frame)
+        Jv[self._tool_cols] = Rf.transpose(1, 0, 2)                                   # d p_c / d p_k = R_f[c, k]
         return J
 
     def jacobians(self, q_rad: np.ndarray, params: np.ndarray | None = None):
@@ -344,6 +373,29 @@ def _chain_step(R, t, A, off, R_out, t_out) -> None:
     t_out[:] = t + R[:, 0] * off[0] + R[:, 1] * off[1] + R[:, 2] * off[2]
 
 
+def _point_frames(frame, N: int, n: int):
+    """A point's frame as given to :meth:`Kinematics.forward`: one int for every pose, or (N,) ints."""
+    if np.isscalar(frame) or np.ndim(frame) == 0:
+        f = int(frame)
+        if not 0 <= f <= n:
+            raise ValueError(f"frame index must be 0..{n}, got {frame!r}")
+        return f
+    f = np.asarray(frame, int)
+    if f.shape != (N,) or f.min(initial=0) < 0 or f.max(initial=0) > n:
+        raise ValueError(f"expected one frame index 0..{n} per pose ({N}), got shape {f.shape}")
+    if N and np.all(f == f[0]):
+        return int(f[0])
+    return f
+
+
+def _frame_at(R: np.ndarray, t: np.ndarray, frame) -> tuple[np.ndarray, np.ndarray]:
+    """The frame ``frame`` (an int, or one per pose) of pose-last frames (F, 3, 3, N), (F, 3, N): (3, 3, N), (3, N)."""
+    if np.isscalar(frame) or np.ndim(frame) == 0:
+        return R[int(frame)], t[int(frame)]
+    cols = np.arange(R.shape[-1])
+    return R[frame, :, :, cols].transpose(1, 2, 0), t[frame, :, cols].T
+
+
 def _cross_into(out: np.ndarray, a: np.ndarray, b: np.ndarray) -> None:
     """``out = a x b`` over axis -2 (pose-last vectors (..., 3, N), broadcast), written in place."""
     out[..., 0, :] = a[..., 1, :] * b[..., 2, :] - a[..., 2, :] * b[..., 1, :]
@@ -376,22 +428,25 @@ def _element_screws(fp: ChainPass) -> tuple[np.ndarray, np.ndarray]:
     org[3:6] = t[0]
     lax = ax[nb:nb + nl * n].reshape(n, nl, 3, N)
     lorg = org[nb:nb + nl * n].reshape(n, nl, 3, N)
-    z = R[:-1, :, 2]                                                               # (n, 3, N)
+    pf = fp.parent_frame
+    Rp, tp = R[pf], t[pf]                                                          # the frames the links start from
+    z = Rp[:, :, 2]                                                                # (n, 3, N)
     lax[:, 0] = z
     lax[:, 1] = z
-    lax[:, 2] = R[:-1, :, 0] * loc["ct"][:, None] + R[:-1, :, 1] * loc["st"][:, None]
+    lax[:, 2] = Rp[:, :, 0] * loc["ct"][:, None] + Rp[:, :, 1] * loc["st"][:, None]
     lax[:, 3] = lax[:, 2]
     lax[:, 4] = R[1:, :, 1]
-    lorg[:, 0] = t[:-1]
-    lorg[:, 1] = t[:-1]
-    lorg[:, 2] = t[:-1] + z * loc["d"][:, None]
+    lorg[:, 0] = tp
+    lorg[:, 1] = tp
+    lorg[:, 2] = tp + z * loc["d"][:, None]
     lorg[:, 3] = t[1:]
     lorg[:, 4] = t[1:]
     f = nb + nl * n
     tool = loc["tool"]
-    ax[f:] = R[n].transpose(1, 0, 2)
-    org[f] = t[n]
-    org[f + 1] = t[n] + R[n, :, 0] * tool[0]
-    org[f + 2] = org[f + 1] + R[n, :, 1] * tool[1]
+    Rf, tf = _frame_at(R, t, fp.point_frame)
+    ax[f:] = Rf.transpose(1, 0, 2)
+    org[f] = tf
+    org[f + 1] = tf + Rf[:, 0] * tool[0]
+    org[f + 2] = org[f + 1] + Rf[:, 1] * tool[1]
     return ax, org
 

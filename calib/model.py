@@ -83,6 +83,15 @@ class MeasurementModel:
                                     if n.startswith("j") and (n.endswith(".a_mm") or n.endswith(".d_mm"))])
         m = robot.mass_kg
         self._has_mass = bool(np.any(m > 0))
+        # which frames each joint's variable moves (a joint carries every force fixed in them) and which frames lie
+        # between a frame and the base: the "beyond" of a chain, as a tree has it
+        self._moved = robot.frames_moved()                                           # (n, n+1)
+        self._ancestors = robot.frame_ancestors()                                    # (n+1, n+1)
+        self._spread = None if np.array_equal(robot.variable_of, np.arange(robot.n)) else robot.variable_spread()
+        # the frame of each tool point (rows of a target context measure the point they name; on a tree the
+        # points may sit on different branches)
+        frames = [robot.point_frame(k) for k in robot.tool_points_mm]
+        self._target_frames = np.array(frames, int) if len(set(frames)) > 1 else None
 
     @property
     def P(self) -> int:
@@ -122,20 +131,44 @@ class MeasurementModel:
             link.append(ctx.point_force_link)
         return np.concatenate(pos, axis=1) * 1e-3, np.concatenate(F, axis=1), np.concatenate(link).astype(int)
 
+    def _body_frames(self, fp: ChainPass, link: np.ndarray) -> np.ndarray:
+        """(Nc, B) the frame (0..n) each body is fixed in: ``link`` with the tool body (code n + 1) on the tool
+        point's frame, which on a tree may differ per pose (Nc = N) -- else Nc = 1."""
+        n = self.robot.n
+        frames = np.where(link > n, 0, link)[None, :]
+        tool = np.asarray(fp.point_frame if fp.point_link is None else fp.point_link)
+        if tool.ndim:
+            frames = np.broadcast_to(frames, (len(tool), len(link))).copy()
+            frames[:, link > n] = tool[:, None]
+        else:
+            frames[:, link > n] = int(tool)
+        return frames
+
+    def _carried(self, fp: ChainPass, link: np.ndarray) -> np.ndarray:
+        """(Nc, n, B) 1.0 where joint j carries body b: the body is fixed in a frame the joint's variable moves."""
+        frames = self._body_frames(fp, link)
+        return self._moved[:, frames].transpose(1, 0, 2).astype(float)
+
     def loads(self, fp: ChainPass, ctx: PoseContext, derivative: bool = False) -> Loads:
         """Torque about every joint axis (N m) and the force carried at the end of every link (N), per pose.
 
-        Joint j carries every force fixed in frame j or beyond (``sum (p_i - o_j) x F_i . z_j``); the end of link j
-        carries those fixed beyond frame j.  With ``derivative``, also d(torque)/d(geometric parameter)
-        (N, n, P_geometric): each elementary motion of the chain moves rigidly what lies beyond it (the points where
-        the forces act and the joint axes), while gravity and the external forces keep their direction.
+        Joint j carries every force fixed in a frame its variable moves (frame j or beyond on a chain; on a tree,
+        every branch below it: ``sum (p_i - o_j) x F_i . z_j``); the end of link j carries those fixed beyond its
+        end frame.  With ``derivative``, also d(torque)/d(geometric parameter) (N, n, P_geometric): each elementary
+        motion of the chain moves rigidly what lies beyond it (the points where the forces act and the joint axes),
+        while gravity and the external forces keep their direction.
         """
         n = self.robot.n
         parts = self._torque_parts(fp, ctx)
         pos, F, link, _, z, _, M, _ = parts
         tau = np.einsum("njc,njc->nj", M, z) + ctx.joint_torque_nm
-        beyond = (link[None, :] > np.arange(1, n + 1)[:, None]).astype(float)
-        tip = np.einsum("jb,nbc->njc", beyond, F)                                     # force beyond link j's end
+        frames = self._body_frames(fp, link)                                          # (Nc, B)
+        # body b lies beyond link j's end: in the subtree of frame j+1, and not on that frame itself unless it is
+        # the tool body (a chain: frame > j + 1, the tool always)
+        below = self._ancestors[frames][:, :, 1:]                                     # (Nc, B, n)
+        own = frames[:, :, None] == np.arange(1, n + 1)[None, None, :]
+        beyond = (below & (~own | (link > n)[None, :, None])).transpose(0, 2, 1).astype(float)
+        tip = np.matmul(beyond, F)                                                    # force beyond link j's end
         loads = Loads(joint_torque_nm=tau, tip_force_n=tip, point_force_n=F[:, n + 1:],
                       point_at_mm=pos[:, n + 1:] * 1e3, point_link=link[n + 1:], joint_moment_nm=M)
         if derivative:
@@ -144,13 +177,12 @@ class MeasurementModel:
 
     def _torque_parts(self, fp: ChainPass, ctx: PoseContext):
         """The bodies and the moment about every joint of what it carries (see :meth:`loads`)."""
-        n = self.robot.n
         pos, F, link = self._bodies(fp, ctx)
-        carried = (link[None, :] >= np.arange(1, n + 1)[:, None]).astype(float)     # (n, B) joint j carries body b
+        carried = self._carried(fp, link)                                             # (Nc, n, B)
         z, o = fp.joint_axis, fp.joint_origin * 1e-3                                  # (N, n, 3)
         mom = _cross(pos, F)                                                          # (N, B, 3)
-        tail_mom = np.einsum("jb,nbc->njc", carried, mom)
-        tail_F = np.einsum("jb,nbc->njc", carried, F)
+        tail_mom = np.matmul(carried, mom)
+        tail_F = np.matmul(carried, F)
         M = tail_mom - _cross(o, tail_F)                                              # (N, n, 3)
         return pos, F, link, carried, z, o, M, tail_F
 
@@ -179,11 +211,18 @@ class MeasurementModel:
         level = np.minimum(kin.link_of, n + 1)                                        # base 0, link k, tool n + 1
         rot = kin.kinds >= 3
         a, oe = fp.elem_axis, fp.elem_origin * 1e-3                                   # (N, E, 3)
-        beyond = (link[None, :] >= np.arange(n + 2)[:, None]).astype(float)           # (M, B) body b in tail m
-        S = np.matmul(beyond, F)                                                      # (N, M, 3)
-        P = np.matmul(beyond, (pos[:, :, :, None] * F[:, :, None, :]).reshape(N, -1, 9)).reshape(N, -1, 3, 3)
-        # joints: w_j = Q_j z_j - tr(Q_j) z_j, Q_j = P_j - o_j S_j^T (tail of joint j = level j + 1, 0-based j)
-        zj, oj, Sj, Pj = z[:, js], o[:, js], S[:, js + 1], P[:, js + 1]
+        # tail m: the bodies an element of frame m moves (the subtree of frame m; m = n + 1: the tool body alone)
+        frames = self._body_frames(fp, link)                                          # (Nc, B)
+        tail = np.concatenate([self._ancestors[frames].transpose(0, 2, 1),           # (Nc, n+1, B)
+                               np.broadcast_to((link > n)[None, None, :], (len(frames), 1, len(link)))],
+                              axis=1).astype(float)
+        pF = (pos[:, :, :, None] * F[:, :, None, :]).reshape(N, -1, 9)
+        S = np.matmul(tail, F)                                                        # (N, M, 3)
+        P = np.matmul(tail, pF).reshape(N, -1, 3, 3)
+        # joints: w_j = Q_j z_j - tr(Q_j) z_j, Q_j = P_j - o_j S_j^T over the bodies joint j carries
+        cj = carried[..., js, :] if carried.ndim == 3 else carried[None, js]
+        zj, oj = z[:, js], o[:, js]
+        Sj, Pj = np.matmul(cj, F), np.matmul(cj, pF).reshape(N, len(js), 3, 3)
         Qz = np.einsum("nkcd,nkd->nkc", Pj, zj) - oj * np.einsum("nkd,nkd->nk", Sj, zj)[..., None]
         trQ = np.einsum("nkcc->nk", Pj) - np.einsum("nkc,nkc->nk", oj, Sj)
         w = Qz - trQ[..., None] * zj                                                  # (N, k, 3)
@@ -199,11 +238,19 @@ class MeasurementModel:
             trQ = trP[:, m, None] - np.matmul(orr, Sm)[..., 0]
             v[:, r] = Qa - trQ[..., None] * ar
             v[:, t] = 1e-3 * _cross(a[:, t], S[:, m, None, :])
-        proximal = level[None, :] <= js[:, None]                                      # (k, E): L_e < j (1-based)
+        # an element between the base and joint j's axis moves the axis with what it carries (proximal); one in
+        # a frame j's variable moves moves part of what j carries (distal); on a tree, one on another branch
+        # moves nothing j carries.  A chain: every element is one or the other (L_e <= j or beyond).
+        pf = kin.parent_frame[js]
+        lev = np.minimum(level, n)
+        proximal = self._ancestors[pf][:, lev] & (level <= n)[None, :]              # (k, E)
+        distal = self._moved[js][:, lev] & (level <= n)[None, :]
         d_prox = np.matmul(w, a.transpose(0, 2, 1)) * rot[None, None, :]              # (N, k, E)
         d_dist = np.matmul(zj, v.transpose(0, 2, 1))
+        tool_carried = cj[..., link > n].sum(axis=-1)                                 # (Nc, k): j carries the tool
+        dist_w = np.where(level <= n, distal[None].astype(float), tool_carried[..., None])
         dtau = np.zeros((N, n, len(level)))
-        dtau[:, js] = np.where(proximal[None], d_prox, d_dist)
+        dtau[:, js] = np.where(proximal[None], d_prox, d_dist * dist_w)
         dtau[:, :, level == 0] = 0.0        # gravity is given in frame 0: the base carries it along
         return dtau
 
@@ -236,17 +283,20 @@ class MeasurementModel:
         vals = [theta[s] for s in self.effect_slices]
         dgeo, grads = self._stage("geometry", vals, lambda e, v: e.geometry_delta(geo, self.length_idx, ctx, v))
         geo_pose = geo if np.isscalar(dgeo) else np.broadcast_to(geo, (N, self.n_geometric)) + dgeo
+        frame = self.row_frames(ctx) if link is None else None
         load_pass, loads = None, None
         if any(e.needs_loads for e in self.effects):
-            load_pass = self.kin.forward(q, geo_pose)
+            load_pass = self.kin.forward(q, geo_pose, frame)
             loads = self.loads(load_pass, ctx)
         dq, g = self._stage("joint", vals, lambda e, v: e.joint_delta(q, ctx, loads, v))
+        if self._spread is not None and not np.isscalar(dq):
+            dq = dq @ self._spread.T              # a joint's change turns every link that shares its variable
         th = q + dq
         grads.update(g)
         if load_pass is not None and np.isscalar(dq) and link is None:
             fp = load_pass              # no joint-stage effect: the loads' pass is the chain at the true angles
         else:
-            fp = self.kin.forward(th, geo_pose)
+            fp = self.kin.forward(th, geo_pose, frame)
         if link is not None:
             fp.point_link = link
             fp.point = self.kin.point_on(fp, [link], np.reshape(tool_mm, (-1, 1, 3)))[:, 0]
@@ -257,6 +307,13 @@ class MeasurementModel:
         if jacobian:
             self.complete_jacobian(ev, torque_derivative)
         return ev
+
+    def row_frames(self, ctx: PoseContext) -> np.ndarray | None:
+        """(N,) the frame of the point each row measures (its target's), or None when every point shares one."""
+        target = getattr(ctx, "target", None)
+        if self._target_frames is None or target is None:
+            return None
+        return self._target_frames[np.asarray(target, int)]
 
     def complete_jacobian(self, ev: Evaluation, torque_derivative: bool | None = None) -> Evaluation:
         """Fill ``ev.jacobian`` (N, 3, P) and ``ev.joint_jacobian`` (N, 3, n) from the evaluation's own pass.
@@ -298,6 +355,8 @@ class MeasurementModel:
         J = np.zeros((len(q), 3, self.P))
         J[:, :, :ng] = Je
         Jq = Je[:, :, self.kin.joint_elements]
+        # a joint-stage change of joint k turns every link sharing k's variable (the branches of a tree)
+        Jvar = Jq if self._spread is None else np.matmul(Jq, self._spread)
         gain = self.torque_gain(ev)
         if gain is not None:
             # joint deflections follow the torques, and the torques move with the geometry
@@ -306,8 +365,8 @@ class MeasurementModel:
             if torque_derivative:
                 joints = np.flatnonzero(np.any(gain != 0, axis=0))
                 dtau = self._torque_derivative(st.load_pass, *self._torque_parts(st.load_pass, ctx), joints=joints)
-                J[:, :, :ng] += np.matmul(Jq[:, :, joints], gain[:, joints, None] * dtau[:, joints])
-        through = {"joint": Jq, "geometry": Je}
+                J[:, :, :ng] += np.matmul(Jvar[:, :, joints], gain[:, joints, None] * dtau[:, joints])
+        through = {"joint": Jvar, "geometry": Je}
         for i, (e, s, v) in enumerate(zip(self.effects, self.effect_slices, vals)):
             if e.stage == "geometry":
                 # the effect's change of the geometry depends on the geometry: its own chain rule

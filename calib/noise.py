@@ -154,12 +154,13 @@ def from_repeats(q_rad: np.ndarray, points_mm: np.ndarray, target=None) -> Sampl
     return Sample(f"repeats ({len(groups)} poses, {rows} rows)", ss / dof, dof)
 
 
-def target_sets(keys: list, target: list[str]) -> dict[tuple, list[np.ndarray]]:
-    """Poses with two or more distinct targets, grouped by their (sorted) set of targets: set -> per pose the row
-    indices in that order.  A pose naming a target twice is left out (it is a repeat, not a shape)."""
+def target_sets(keys: list, target: list[str], body: dict[str, int] | None = None) -> dict[tuple, list[np.ndarray]]:
+    """Poses with two or more distinct targets on one rigid body, grouped by their (sorted) set of targets: set ->
+    per pose the row indices in that order.  A pose naming a target twice is left out (it is a repeat, not a shape).
+    ``body``: the body (frame) each target is fixed on -- targets on two arms of a tree keep no distance."""
     rows: dict = {}
     for i, (k, t) in enumerate(zip(keys, target)):
-        rows.setdefault(k, {}).setdefault(t, []).append(i)
+        rows.setdefault((k, None if body is None else body.get(t)), {}).setdefault(t, []).append(i)
     out: dict[tuple, list[np.ndarray]] = {}
     for by_target in rows.values():
         if len(by_target) < 2 or any(len(v) != 1 for v in by_target.values()):
@@ -206,12 +207,13 @@ def _clipped_chi2(P: np.ndarray, C: np.ndarray, p_blunder: float = 1e-3) -> tupl
     return float(c.sum()), f, int((~keep).sum())
 
 
-def from_target_distances(keys: list, target, points_mm: np.ndarray, cov_mm2: np.ndarray) -> Sample | None:
-    """Several targets per pose: the scatter of their distances (see the module docstring)."""
+def from_target_distances(keys: list, target, points_mm: np.ndarray, cov_mm2: np.ndarray,
+                          body: dict[str, int] | None = None) -> Sample | None:
+    """Several targets per pose on one body: the scatter of their distances (see the module docstring)."""
     if target is None:
         return None
     var, dof, poses, dropped, used = 0.0, 0, 0, 0, set()
-    for names, idx in target_sets(keys, list(target)).items():
+    for names, idx in target_sets(keys, list(target), body).items():
         if len(idx) < 3:
             continue
         I = np.array(idx)                                       # (n, t) row indices
@@ -319,15 +321,16 @@ def _reading_cov(s: Sightings, stations: dict) -> dict[int, np.ndarray]:
 
 # -- together -------------------------------------------------------------------------------------------------------
 def model_free(q_rad: np.ndarray, points_mm: np.ndarray, cov_mm2: np.ndarray, *, pose_id=None, target=None,
-               sightings: Sightings | None = None) -> list[Sample]:
+               sightings: Sightings | None = None, body: dict[str, int] | None = None) -> list[Sample]:
     """Every source the data allow; a source the data cannot feed (inconsistent targets, a degenerate geometry) is
-    left out rather than stopping the caller."""
+    left out rather than stopping the caller.  ``body``: the frame each target is fixed on (a branched robot's
+    points on different arms keep no distance; :attr:`calib.robot.Robot.tool_point_frames`)."""
     out = []
     if target is not None and len(target) != len(q_rad):        # labels that do not match the rows: not used
         target = None
     keys = pose_keys(q_rad, pose_id)
     for make in (lambda: from_repeats(q_rad, points_mm, target),
-                 lambda: from_target_distances(keys, target, points_mm, cov_mm2),
+                 lambda: from_target_distances(keys, target, points_mm, cov_mm2, body),
                  lambda: from_faces(sightings, cov_mm2)):
         try:
             s = make()
@@ -352,7 +355,7 @@ def combine(given_mm: float, sources: list[Sample], bound_mm: float | None = Non
 
 
 def for_rows(table, noise_mm: float, bound_mm: float | None = None,
-             bound_how: str = "fit residual (upper bound)") -> NoiseEstimate:
+             bound_how: str = "fit residual (upper bound)", body: dict[str, int] | None = None) -> NoiseEstimate:
     """The estimate for the rows of a pose table (:class:`calib.posecsv.PoseTable`, as identify reads it): the points'
     covariances (sigma columns, polar noise) or ``noise_mm`` are the given noise; pose ids and targets group the
     rows."""
@@ -361,5 +364,6 @@ def for_rows(table, noise_mm: float, bound_mm: float | None = None,
     cov = point_covariance(table)
     if cov is None:
         cov = np.broadcast_to(np.eye(3) * noise_mm ** 2, (table.n, 3, 3))
-    found = model_free(table.q_rad, table.points_mm, cov, pose_id=table.pose_id or None, target=table.target)
+    found = model_free(table.q_rad, table.points_mm, cov, pose_id=table.pose_id or None, target=table.target,
+                       body=body)
     return combine(given_sigma_mm(cov), found, bound_mm, bound_how)

@@ -25,6 +25,7 @@ from .errors import RobocalError
 from .identifiability import Identifiability, analyse
 from .identify import default_free, fix_preference
 from .model import MeasurementModel
+from .targets import TargetContext
 
 INDICES = ("O1", "O2", "O3", "O4")
 #: Chapter 6's unknowns (eq 6.6): link lengths and offsets, tool point and base position (rotations known)
@@ -67,7 +68,13 @@ class Design:
         self.noise_mm = noise_mm
 
     def rows(self, q_rad: np.ndarray) -> np.ndarray:
-        """(N, 3, p) whitened Jacobian blocks per pose."""
+        """(N, 3K, p) whitened Jacobian blocks per pose: K = 1, or every tool point of a robot whose points sit on
+        different links (a branched robot: each pose measures both hands)."""
+        if self.model.robot.is_tree and len(self.model.robot.tool_points_mm) > 1:
+            N, n = len(q_rad), self.model.robot.n
+            blocks = [self.model.evaluate(q_rad, TargetContext(N, n, target=np.full(N, k)), jacobian=True).jacobian
+                      for k in range(len(self.model.robot.tool_points_mm))]
+            return np.concatenate(blocks, axis=1)[:, :, self.idx] / self.noise_mm
         ev = self.model.evaluate(q_rad, jacobian=True)
         return ev.jacobian[:, :, self.idx] / self.noise_mm
 
@@ -104,14 +111,20 @@ def singular_margin(model: MeasurementModel, q_rad: np.ndarray) -> np.ndarray:
 
 def candidate_poses(model: MeasurementModel, count: int, rng: np.random.Generator, margin_deg: float = 5.0,
                     min_singular: float = 0.05, accept: Callable[[np.ndarray], np.ndarray] | None = None) -> np.ndarray:
-    """Random reachable poses: inside the joint limits less a margin and away from singularities."""
-    lim = model.robot.limits_rad
+    """Random reachable poses (joint variables): readings drawn inside their limits less a margin, the joints they
+    give inside theirs (a coupled or mimic joint follows its readings), away from singularities."""
+    robot = model.robot
+    lim = robot.limits_rad if robot.readings_are_joints else robot.reading_limits()
     lo, hi = lim[:, 0] + np.radians(margin_deg), lim[:, 1] - np.radians(margin_deg)
     out = []
     tries = 0
     while sum(len(o) for o in out) < count and tries < 50:
-        q = lo + (hi - lo) * rng.random((count * 2, model.robot.n))
+        q = lo + (hi - lo) * rng.random((count * 2, len(lo)))
+        if not robot.readings_are_joints:
+            q = robot.joints_from_readings(q)
         ok = singular_margin(model, q) > min_singular
+        if not robot.readings_are_joints:
+            ok &= robot.within_limits(q)
         if accept is not None:
             ok &= accept(q)
         out.append(q[ok])
@@ -174,10 +187,11 @@ def select_poses(model: MeasurementModel, count: int, names: list[str] | None = 
     ident = design.analyse(cand)
     design = design.restrict(ident.kept)
     p = len(design.names)
-    if 3 * count < p:
-        raise RobocalError(f"plan: {count} poses give {3 * count} observations for {p} identifiable parameters; "
-                           f"ask for at least {int(np.ceil(p / 3))} poses")
-    B = design.rows(cand)                                        # (M, 3, p)
+    B = design.rows(cand)                                        # (M, 3K, p)
+    per = B.shape[1]
+    if per * count < p:
+        raise RobocalError(f"plan: {count} poses give {per * count} observations for {p} identifiable parameters; "
+                           f"ask for at least {int(np.ceil(p / per))} poses")
     col = np.linalg.norm(B.reshape(-1, p), axis=0) / np.sqrt(len(cand))
     Bs = B / col                                                 # scaled parameters: comparable columns
     chosen: list[int] = []
@@ -190,14 +204,14 @@ def select_poses(model: MeasurementModel, count: int, names: list[str] | None = 
         if index == "O1" or k < p // 3 + 1:
             Ba = Bs[avail]
             S = (Ba @ Ainv) @ Ba.transpose(0, 2, 1)             # B_c A^-1 B_c^T, as two products
-            gain = np.linalg.slogdet(np.eye(3) + S)[1]
+            gain = np.linalg.slogdet(np.eye(per) + S)[1]
         else:
             sub = rng.choice(avail, size=min(200, len(avail)), replace=False)
             gain = np.full(len(avail), -np.inf)
             pos = {c: i for i, c in enumerate(avail)}
             for c in sub:
                 s = np.sqrt(np.clip(np.linalg.eigvalsh(A + Bs[c].T @ Bs[c])[::-1], 0, None))
-                gain[pos[c]] = _score(index, s, 3 * (k + 1))
+                gain[pos[c]] = _score(index, s, per * (k + 1))
         best = int(avail[int(np.argmax(gain))])
         chosen.append(best)
         A = A + Bs[best].T @ Bs[best]
@@ -216,7 +230,7 @@ def select_poses(model: MeasurementModel, count: int, names: list[str] | None = 
             sign, logdet = np.linalg.slogdet(G + Bt.transpose(0, 2, 1) @ Bt)
             return [0.5 * float(ld) if sg > 0 else -np.inf for sg, ld in zip(sign, logdet)]
         s = np.linalg.svd(Bs[sels].reshape(len(sels), -1, p), compute_uv=False)
-        return [_score(index, si, 3 * sels.shape[1]) for si in s]
+        return [_score(index, si, per * sels.shape[1]) for si in s]
 
     current = indices_of(np.array([chosen]), 0)[0]
     for sweep in range(2):

@@ -399,14 +399,15 @@ def csv_fields(line: str, src: str, lineno: int) -> list[str]:
 
 def write_pose_csv(path: str | Path, q_rad: np.ndarray, points_mm: np.ndarray | None = None,
                    extra: dict[str, np.ndarray] | None = None, prismatic=None,
-                   labels: dict[str, list[str]] | None = None) -> None:
+                   labels: dict[str, list[str]] | None = None, names=None) -> None:
     """Write poses (and optionally points, extra number columns and ``labels``: text columns such as pose, station,
-    split, target) in the pose CSV format, angles in degrees (prismatic joints in mm)."""
+    split, target) in the pose CSV format, angles in degrees (prismatic joints in mm); ``names``: the joint
+    columns' names (a description's readings; default q1..qn)."""
     q = np.atleast_2d(q_rad)
     if prismatic is not None:
         q = q / np.where(np.asarray(prismatic, bool), 1.0, DEG) * DEG
     n = q.shape[1]
-    cols = [f"q{j}" for j in range(1, n + 1)]
+    cols = list(names) if names is not None else [f"q{j}" for j in range(1, n + 1)]
     data = [q / DEG]
     if points_mm is not None:
         cols += ["x", "y", "z"]

@@ -20,7 +20,13 @@ The format (``calib/data/puma560.toml`` is the annotated example and the default
     Rz(yaw) Ry(pitch) Rx(roll)).  Default: identity.
 ``[tool.points]``
     Named tool points in frame 6, mm (``P = [0, 0, 150]``).  None means the origin of frame 6.  The thesis's ^6E
-    (rotation diag(-1,-1,-1), translation -(Xt, Yt, Zt)) puts its tool point at ``[-Xt, -Yt, -Zt]``.
+    (rotation diag(-1,-1,-1), translation -(Xt, Yt, Zt)) puts its tool point at ``[-Xt, -Yt, -Zt]``.  On a branched
+    robot a point names the joint whose link carries it: ``L = { link = "arm_left_7_joint", xyz_mm = [0, 0, 50] }``.
+
+Branched robots (trees; written by robocal for an identified tree): a joint's ``parent`` names the joint whose link
+end its axis sits on (``"base"``: frame 0; default the previous joint); ``shares = "J"`` makes the link a branch of
+joint J (it turns with J's variable: the common normal from J's axis to a second child's axis); ``fixed = true`` a
+fixed link (a branch leaving the base before any joint).
 """
 from __future__ import annotations
 
@@ -48,6 +54,11 @@ JOINT_SPEC = {
     "encoder_counts_per_rev": Field("int", required=True, positive=True),
     "mass_kg": Field("number", default=0.0, min=0.0),
     "com_mm": Field("vector", default=[0.0, 0.0, 0.0], length=3),
+    # a branched robot: the joint whose link end this joint's axis sits on ("base": frame 0; default the previous
+    # joint), and for a branch link the joint whose variable it turns with, or fixed = true for a fixed link
+    "parent": Field("str", default=""),
+    "shares": Field("str", default=""),
+    "fixed": Field("bool", default=False),
 }
 ROBOT_SPEC = {
     "name": Field("str", default="robot"),
@@ -112,12 +123,29 @@ class Robot:
     # which description quantity each kinematic parameter corrects (URDF imports), and priors (1-sigma) by name
     param_meaning: dict[str, str] = field(default_factory=dict)
     tolerances: dict[str, float] = field(default_factory=dict)
+    # a branched robot (a tree): link j starts at frame parent_frame[j] (0 the base frame, k + 1 the end of link k;
+    # a chain has parent_frame[j] = j).  A link that shares another's joint variable (the second branch leaving a
+    # joint: its common normal to the other child's axis) has that link's index in variable_of; a fixed link
+    # (a branch leaving a body before any joint) has -1; every other link has its own index.
+    parent_frame: np.ndarray | None = None
+    variable_of: np.ndarray | None = None
+    # the frame each tool point is fixed in (0..n); a point not named here is on frame n (the chain's tip)
+    tool_point_frames: dict[str, int] = field(default_factory=dict)
 
     def __post_init__(self):
         if self.prismatic.size != len(self.a_mm):
             object.__setattr__(self, "prismatic", np.zeros(len(self.a_mm), bool))
         if not self.joint_names:
             object.__setattr__(self, "joint_names", tuple(f"j{i}" for i in range(1, self.n + 1)))
+        if self.parent_frame is None:
+            object.__setattr__(self, "parent_frame", np.arange(self.n))
+        if self.variable_of is None:
+            object.__setattr__(self, "variable_of", np.arange(self.n))
+        pf = np.asarray(self.parent_frame, int)
+        if pf.shape != (self.n,) or np.any(pf < 0) or np.any(pf > np.arange(self.n)):
+            raise ValueError(f"parent_frame must give each link j a frame 0..j, got {self.parent_frame!r}")
+        object.__setattr__(self, "parent_frame", pf)
+        object.__setattr__(self, "variable_of", np.asarray(self.variable_of, int))
         if self.reading_matrix is None:
             object.__setattr__(self, "reading_matrix", np.eye(self.n))
             object.__setattr__(self, "reading_names", tuple(self.joint_names))
@@ -150,6 +178,29 @@ class Robot:
         """Joint variables (..., n) in rad / mm from controller readings (..., m) in rad / mm."""
         return np.asarray(r, float) @ self.reading_matrix.T + self.reading_offset
 
+    def readings_from_joints(self, q) -> np.ndarray:
+        """Controller readings (..., m) that give joint variables (..., n): the inverse of
+        :meth:`joints_from_readings` (least squares; exact for joint variables that readings can give)."""
+        q = np.asarray(q, float)
+        sol = np.linalg.lstsq(self.reading_matrix, (q - self.reading_offset).reshape(-1, self.n).T, rcond=None)[0]
+        return sol.T.reshape(q.shape[:-1] + (self.n_readings,))
+
+    def reading_limits(self) -> np.ndarray:
+        """(m, 2) the range of each reading: the limits of every joint that follows it alone (a mimic joint's range
+        divided by its multiplier), intersected; a reading that only enters combinations keeps +-180 deg (+-1 m)."""
+        M, off = self.reading_matrix, self.reading_offset
+        out = np.where(self.reading_prismatic[:, None], [[-1000.0, 1000.0]], [[-np.pi, np.pi]])
+        seen = np.zeros(self.n_readings, bool)
+        for k in range(self.n):
+            cols = np.flatnonzero(M[k])
+            if len(cols) != 1 or self.variable_of[k] < 0:
+                continue
+            c = cols[0]
+            lo, hi = sorted((self.limits_rad[k] - off[k]) / M[k, c])
+            out[c] = (max(out[c, 0], lo), min(out[c, 1], hi)) if seen[c] else (lo, hi)
+            seen[c] = True
+        return out
+
     @property
     def reading_edge_scale(self) -> np.ndarray:
         """Internal units per edge unit of each reading: rad per degree, or 1 (mm) for a prismatic one."""
@@ -164,15 +215,64 @@ class Robot:
     def n(self) -> int:
         return len(self.a_mm)
 
+    @property
+    def is_tree(self) -> bool:
+        """True for a branched robot (some link does not start where the previous one ends)."""
+        return bool(np.any(self.parent_frame != np.arange(self.n)))
+
+    def point_frame(self, name: str | None = None) -> int:
+        """The frame (0..n) a tool point is fixed in: its own link's for a branched robot, else frame n."""
+        if name is None:
+            name = self.reference_point_name()
+        return int(self.tool_point_frames.get(name, self.n)) if name is not None else self.n
+
+    def reference_point_name(self) -> str | None:
+        """The tool point :meth:`tool_point` returns without a name (None: no point is described)."""
+        if not self.tool_points_mm:
+            return None
+        if len(self.tool_points_mm) == 1:
+            return next(iter(self.tool_points_mm))
+        return "P" if "P" in self.tool_points_mm else next(iter(self.tool_points_mm))
+
+    def frame_ancestors(self) -> np.ndarray:
+        """(n+1, n+1) bool: ``A[b, f]`` when frame f is frame b or lies between it and the base (a point fixed in
+        frame b moves with every link whose end frame f is such an ancestor)."""
+        n = self.n
+        A = np.eye(n + 1, dtype=bool)
+        for j in range(n):                      # links are in topological order: a parent frame comes first
+            A[j + 1] |= A[self.parent_frame[j]]
+        return A
+
+    def frames_moved(self) -> np.ndarray:
+        """(n, n+1) bool: ``M[j, f]`` when frame f moves with link j's joint variable -- below link j's end, or
+        below the end of a link sharing its variable (the other branches leaving the same joint)."""
+        A = self.frame_ancestors()
+        own = A[:, 1:].T                                                       # (n, n+1): f below link j's end
+        var = self.variable_of
+        M = own.copy()
+        for j in range(self.n):
+            if var[j] >= 0:
+                M[j] = np.any(own[var == var[j]], axis=0)
+        return M
+
+    def variable_spread(self) -> np.ndarray:
+        """(n, n): a change of each link's joint variable carried to every link that shares it
+        (``dq_links = dq @ S.T``); identity for a chain, zero rows for fixed links."""
+        n = self.n
+        S = np.zeros((n, n))
+        for j, v in enumerate(self.variable_of):
+            if v >= 0:
+                S[j, v] = 1.0
+        return S
+
     # -- tool -------------------------------------------------------------------------------------------------
     def tool_point(self, name: str | None = None) -> np.ndarray:
-        """A named tool point in frame 6 (mm); with no name the only point, or the origin of frame 6 if none."""
+        """A named tool point in its frame (mm; frame n of a chain); with no name the reference point
+        (:meth:`reference_point_name`), or the origin of frame n if none is described."""
         if name is None:
-            if not self.tool_points_mm:
+            name = self.reference_point_name()
+            if name is None:
                 return np.zeros(3)
-            if len(self.tool_points_mm) == 1:
-                return next(iter(self.tool_points_mm.values())).copy()
-            name = "P" if "P" in self.tool_points_mm else next(iter(self.tool_points_mm))
         try:
             return self.tool_points_mm[name].copy()
         except KeyError:
@@ -181,7 +281,9 @@ class Robot:
             raise RobocalError(f"{self.source}: tool point {name!r} is not defined (defined: {known})") from None
 
     def with_tool(self, points_mm: dict[str, np.ndarray]) -> "Robot":
-        return replace(self, tool_points_mm={k: np.asarray(v, float) for k, v in points_mm.items()})
+        """The robot with these tool points (names keep the frames they are described on; new names: frame n)."""
+        return replace(self, tool_points_mm={k: np.asarray(v, float) for k, v in points_mm.items()},
+                       tool_point_frames={k: f for k, f in self.tool_point_frames.items() if k in points_mm})
 
     # -- encoders ---------------------------------------------------------------------------------------------
     def motor_angles_rad(self, theta_rad: np.ndarray) -> np.ndarray:
@@ -293,30 +395,49 @@ def rpy_from_matrix(R: np.ndarray) -> np.ndarray:
 def robot_from_urdf(path: str | Path, base_link: str | None = None, tip_link: str | None = None,
                     tool_points_mm: dict[str, np.ndarray] | None = None) -> Robot:
     """Import one chain of a URDF (see :mod:`calib.urdf`); tool points are given in the tip link's frame (mm)."""
-    from .urdf import analyse_chain, parameter_meaning, read_urdf
+    from .urdf import analyse_chain, read_urdf
 
     ch = analyse_chain(read_urdf(path), base_link, tip_link)
-    n = len(ch.axes)
-    T = ch.tip_in_frame_n
     pts = tool_points_mm if tool_points_mm else {ch.tip_link: np.zeros(3)}
-    tool = {k: T[:3, :3] @ np.asarray(v, float) + T[:3, 3] for k, v in pts.items()}
+    return robot_from_analysis(ch, {k: (ch.tip_link, v) for k, v in pts.items()}, source=str(path))
+
+
+def robot_from_analysis(ch, points: dict[str, tuple[str, np.ndarray]], source: str, name: str = "",
+                        base_in_world: np.ndarray | None = None, **fields) -> Robot:
+    """The Robot of an analysed URDF chain or tree (:class:`calib.urdf.UrdfChain`): ``points`` name -> (link, xyz
+    in that link's frame, mm); ``base_in_world`` the base link in the measurement frame (default identity);
+    ``fields`` any other Robot field (drives, readings)."""
+    from .urdf import parameter_meaning
+
+    n = len(ch.links)
+    tool, frames = {}, {}
+    for key, (link, xyz) in points.items():
+        f, T = ch.point_frames[link]
+        tool[key] = T[:3, :3] @ np.asarray(xyz, float) + T[:3, 3]
+        frames[key] = int(f)
     F0 = ch.frame0_in_base
+    B = np.eye(4) if base_in_world is None else base_in_world
+    W0 = B @ F0                                                       # frame 0 in the measurement frame
 
     def col(attr):
         return np.array([getattr(L, attr) for L in ch.links], float)
 
-    return Robot(
-        name=f"{ch.tree.name} ({ch.base_link} -> {ch.tip_link})",
+    ends = sorted({link for link, _ in points.values()})
+    cut = ch.tip_link if len(ends) == 1 else "{" + ", ".join(ends) + "}"
+    kw = dict(
+        name=name or f"{ch.tree.name} ({ch.base_link} -> {cut})",
         a_mm=col("a"), d_mm=col("d"), alpha_rad=col("alpha"), theta_offset_rad=col("theta"), beta_rad=col("beta"),
         hayati=np.array([L.hayati for L in ch.links], bool), limits_rad=ch.limits,
         gear_ratio=np.ones(n), counts_per_rev=np.full(n, 2.0 ** 20), mass_kg=ch.mass_kg, com_mm=ch.com_mm,
-        coupling=np.eye(n), gravity_m_s2=F0[:3, :3].T @ np.array([0.0, 0.0, -G0_M_S2]),
-        base_xyz_mm=F0[:3, 3].copy(), base_rpy_rad=rpy_from_matrix(F0[:3, :3]),
-        tool_points_mm=tool, joint_names=tuple(j.name for j in ch.axes), source=str(path),
+        coupling=np.eye(n), gravity_m_s2=W0[:3, :3].T @ (B[:3, :3] @ np.array([0.0, 0.0, -G0_M_S2])),
+        base_xyz_mm=W0[:3, 3].copy(), base_rpy_rad=rpy_from_matrix(W0[:3, :3]),
+        tool_points_mm=tool, tool_point_frames=frames, joint_names=tuple(ch.link_names), source=source,
         prismatic=ch.prismatic, frame0_in_base=F0, reading_names=tuple(ch.readings),
-        reading_matrix=ch.reading_matrix, reading_offset=ch.reading_offset,
-        param_meaning=parameter_meaning(ch),
+        reading_matrix=ch.reading_matrix, reading_offset=ch.reading_offset, param_meaning=parameter_meaning(ch),
+        parent_frame=ch.parent_frame, variable_of=ch.variable_of,
     )
+    kw.update(fields)
+    return Robot(**kw)
 
 
 def _build(chk: Checker, data: dict) -> Robot:
@@ -344,11 +465,22 @@ def _build(chk: Checker, data: dict) -> Robot:
     coupling = _coupling_matrix(chk, chk.table(top["coupling"], COUPLING_SPEC, "coupling"), n)
     base = chk.table(top["base"], BASE_SPEC, "base")
     tool = chk.table(top["tool"], TOOL_SPEC, "tool")
-    points = {}
+    names = [j["name"] or f"j{i}" for i, j in enumerate(js, 1)]
+    if len(set(names)) != len(names):
+        chk.fail("joint", "two joints have the same name")
+    parent, variable = _tree_fields(chk, joints, names)
+    points, frames = {}, {}
     if not isinstance(tool["points"], dict):
         chk.fail("tool.points", "must be a table of name = [x, y, z]")
     for name, vec in tool["points"].items():
-        points[name] = np.asarray(chk.value(vec, Field("vector", length=3), f"tool.points.{name}"), float)
+        key = f"tool.points.{name}"
+        if isinstance(vec, dict):
+            if set(vec) - {"link", "xyz_mm"} or vec.get("link") not in ["base"] + names:
+                chk.fail(key, f'must be {{ link = "JOINT", xyz_mm = [x, y, z] }} with a joint of {", ".join(names)}')
+            frames[name] = 0 if vec["link"] == "base" else names.index(vec["link"]) + 1
+            vec = vec.get("xyz_mm", [0.0, 0.0, 0.0])
+            key += ".xyz_mm"
+        points[name] = np.asarray(chk.value(vec, Field("vector", length=3), key), float)
 
     def arr(key, scale=1.0):
         return np.array([j[key] for j in js], float) * scale
@@ -369,9 +501,30 @@ def _build(chk: Checker, data: dict) -> Robot:
         mass_kg=arr("mass_kg"), com_mm=np.array([j["com_mm"] for j in js], float),
         coupling=coupling, gravity_m_s2=np.asarray(rob["gravity_m_s2"], float),
         base_xyz_mm=np.asarray(base["xyz_mm"], float), base_rpy_rad=np.asarray(base["rpy_deg"], float) * DEG,
-        tool_points_mm=points, joint_names=tuple(j["name"] or f"j{i}" for i, j in enumerate(js, 1)),
-        source=chk.source, prismatic=pris, frame0_in_base=F0, **readings,
+        tool_points_mm=points, joint_names=tuple(names), tool_point_frames=frames, parent_frame=parent,
+        variable_of=variable, source=chk.source, prismatic=pris, frame0_in_base=F0, **readings,
     )
+
+
+def _tree_fields(chk: Checker, joints: list, names: list[str]) -> tuple[np.ndarray, np.ndarray]:
+    """``parent`` / ``shares`` / ``fixed`` of every joint table: the frame each link starts from and the link whose
+    variable it turns with (see the module docstring)."""
+    n = len(names)
+    parent, variable = np.arange(n), np.arange(n)
+    for k, (j, key) in enumerate(joints):
+        if j["parent"]:
+            if j["parent"] != "base" and j["parent"] not in names[:k]:
+                chk.fail(f"{key}.parent", f"{j['parent']!r} is not an earlier joint (or base)")
+            parent[k] = 0 if j["parent"] == "base" else names.index(j["parent"]) + 1
+        if j["shares"] and j["fixed"]:
+            chk.fail(key, "a link either shares a joint's variable or is fixed, not both")
+        if j["shares"]:
+            if j["shares"] not in names[:k]:
+                chk.fail(f"{key}.shares", f"{j['shares']!r} is not an earlier joint")
+            variable[k] = names.index(j["shares"])
+        if j["fixed"]:
+            variable[k] = -1
+    return parent, variable
 
 
 def _rpy_matrix(rpy) -> np.ndarray:
@@ -438,8 +591,15 @@ def robot_to_toml(robot: Robot) -> str:
             f"encoder_counts_per_rev = {int(robot.counts_per_rev[i])}",
             f"mass_kg = {num(robot.mass_kg[i])}",
             f"com_mm = {vec(robot.com_mm[i])}",
-            "",
         ]
+        pf, var = robot.parent_frame[i], robot.variable_of[i]
+        if pf != i:
+            lines.append(f'parent = "{"base" if pf == 0 else robot.joint_names[pf - 1]}"')
+        if var < 0:
+            lines.append("fixed = true")
+        elif var != i:
+            lines.append(f'shares = "{robot.joint_names[var]}"')
+        lines.append("")
     lines += ["[coupling]", "matrix = [" + ", ".join(vec(r) for r in robot.coupling) + "]", ""]
     lines += ["[base]", f"xyz_mm = {vec(robot.base_xyz_mm)}", f"rpy_deg = {vec(robot.base_rpy_rad / DEG)}"]
     F0 = robot.frame0_in_base
@@ -450,5 +610,17 @@ def robot_to_toml(robot: Robot) -> str:
         lines += ["[readings]", "names = [" + ", ".join(f'"{x}"' for x in robot.reading_names) + "]",
                   "matrix = [" + ", ".join(vec(r) for r in robot.reading_matrix) + "]",
                   f"offset = {vec(robot.reading_offset / robot.edge_scale)}", ""]
-    lines += ["[tool.points]"] + [f"{k} = {vec(v)}" for k, v in robot.tool_points_mm.items()]
+    def point(k, v):
+        f = robot.tool_point_frames.get(k, robot.n)
+        if f == robot.n:
+            return f"{_toml_key(k)} = {vec(v)}"
+        link = "base" if f == 0 else robot.joint_names[f - 1]
+        return f'{_toml_key(k)} = {{ link = "{link}", xyz_mm = {vec(v)} }}'
+    lines += ["[tool.points]"] + [point(k, v) for k, v in robot.tool_points_mm.items()]
     return "\n".join(lines) + "\n"
+
+
+def _toml_key(key: str) -> str:
+    """A TOML key: bare when it can be (letters, digits, ``_``, ``-``), else quoted (a target named ``marker@x``)."""
+    import re
+    return key if re.fullmatch(r"[A-Za-z0-9_-]+", key) else '"' + key.replace("\\", "\\\\").replace('"', '\\"') + '"'

@@ -182,7 +182,7 @@ def moving_leaves(tree: UrdfTree, base: str) -> list[str]:
     return out
 
 
-def _check_link(tree: UrdfTree, name: str, what: str) -> None:
+def check_link(tree: UrdfTree, name: str, what: str) -> None:
     if name not in tree.links:
         known = ", ".join(tree.links)
         raise RobocalError(f"{tree.source}: {what} link {name!r} is not in the URDF (links: {known})")
@@ -190,14 +190,14 @@ def _check_link(tree: UrdfTree, name: str, what: str) -> None:
 
 def cut_chain(tree: UrdfTree, base_link: str | None = None, tip_link: str | None = None) -> tuple[str, str, list[UJoint]]:
     base = base_link or tree.root
-    _check_link(tree, base, "base")
+    check_link(tree, base, "base")
     if tip_link is None:
         leaves = moving_leaves(tree, base)
         if len(leaves) != 1:
             what = "no moving link" if not leaves else f"{len(leaves)} moving leaves ({', '.join(leaves)})"
             raise RobocalError(f"{tree.source}: {what} below {base!r}: choose the chain's end with --tip-link")
         tip_link = leaves[0]
-    _check_link(tree, tip_link, "tip")
+    check_link(tree, tip_link, "tip")
     joints = _path(tree, base, tip_link)
     if not any(j.type in MOVING for j in joints):
         raise RobocalError(f"{tree.source}: no moving joint between {base!r} and {tip_link!r}")
@@ -294,22 +294,33 @@ def _next_frame(F: np.ndarray, u: np.ndarray, p: np.ndarray) -> DHLink:
 # -- the robot ------------------------------------------------------------------------------------------------------
 @dataclass
 class UrdfChain:
-    """The cut chain in numbers: what :func:`calib.robot.robot_from_urdf` turns into a Robot."""
+    """The cut robot in numbers -- one chain, or the tree from the base to every link that carries a point: what
+    :func:`calib.robot.robot_from_urdf` turns into a Robot.
+
+    One entry per *internal link* of the Robot: a moving joint's own link (its DH/Hayati parameters to its first
+    moving child's axis), a *branch* link for each further child (the same joint variable, its own common normal to
+    that child's axis: ``variable_of``), and a *fixed* link for each further root of the tree (a branch leaving the
+    base link before any joint moves)."""
 
     tree: UrdfTree
     base_link: str
-    tip_link: str
-    axes: list[UJoint]                  # moving joints, base to tip (mimic ones included)
+    tip_link: str                       # the last point link (a chain: the tip)
+    axes: list[UJoint]                  # per internal link: its joint (a branch link: the joint it shares)
     links: list[DHLink]
     frame0_in_base: np.ndarray          # (4, 4), mm
-    tip_in_frame_n: np.ndarray          # (4, 4), mm: the tip link's frame in frame n
+    tip_in_frame_n: np.ndarray          # (4, 4), mm: the tip link's frame in its DH frame
     mass_kg: np.ndarray
     com_mm: np.ndarray                  # (n, 3) in DH frame j
     limits: np.ndarray                  # (n, 2) rad or mm
     prismatic: np.ndarray
-    readings: list[str]                 # non-mimic axes' names
+    readings: list[str]                 # the joints whose values the data give (mimic leaders off the tree too)
     reading_matrix: np.ndarray          # (n, m): axis value = M @ reading + offset
     reading_offset: np.ndarray          # (n,) rad or mm
+    parent_frame: np.ndarray | None = None      # (n,) the frame each internal link starts from
+    variable_of: np.ndarray | None = None       # (n,) the link whose variable it shares (-1: fixed)
+    link_names: list[str] | None = None         # (n,) the joint's name; "J->C" for a branch link
+    point_frames: dict[str, tuple[int, np.ndarray]] | None = None  # point link -> (frame, its pose in that frame)
+    children: list[str | None] | None = None    # (n,) the joint whose axis each link's end frame is on (None: a leaf)
 
 
 def _to_mm(T: np.ndarray) -> np.ndarray:
@@ -332,47 +343,122 @@ def _frame0(base_T_axis: np.ndarray, u: np.ndarray) -> np.ndarray:
 
 
 def analyse_chain(tree: UrdfTree, base_link: str | None = None, tip_link: str | None = None) -> UrdfChain:
-    base, tip, path = cut_chain(tree, base_link, tip_link)
-    # frames (base link, mm) of every joint at q = 0
-    T = np.eye(4)
+    """One chain of the tree, from ``base_link`` to ``tip_link`` (see :func:`cut_chain` for the defaults)."""
+    base, tip, _ = cut_chain(tree, base_link, tip_link)
+    return analyse_tree(tree, base, [tip])
+
+
+def analyse_tree(tree: UrdfTree, base_link: str | None, point_links: list[str]) -> UrdfChain:
+    """The robot from ``base_link`` to every link of ``point_links``: one chain for one link, else the tree of
+    their paths, the joints several paths share taken once (a torso under two arms is one set of parameters)."""
+    base = base_link or tree.root
+    check_link(tree, base, "base")
+    for link in point_links:
+        check_link(tree, link, "point")
+    paths = [_path(tree, base, link) for link in point_links]
+    in_tree = {j.name for path in paths for j in path}
+    if not any(j.type in MOVING for path in paths for j in path):
+        raise RobocalError(f"{tree.source}: no moving joint between {base!r} and {', '.join(map(repr, point_links))}")
+    T_link = {base: np.eye(4)}                         # every link's frame at q = 0 in the base link, mm
+
+    def place(link):
+        for c in tree.children(link):
+            T_link[c.child] = T_link[link] @ _to_mm(c.origin)
+            place(c.child)
+    place(base)
+    # the moving joints of the tree, parents first (depth first, in the URDF's order), with their moving parent
+    moving: list[UJoint] = []
+    moving_parent: dict[str, str | None] = {}
+
+    def walk(link, above):
+        for c in tree.children(link):
+            if c.name not in in_tree:
+                continue
+            if c.type in MOVING:
+                moving.append(c)
+                moving_parent[c.name] = above
+                walk(c.child, c.name)
+            else:
+                walk(c.child, above)
+    walk(base, None)
+    kids = {None: [j for j in moving if moving_parent[j.name] is None]}
+    for j in moving:
+        kids[j.name] = [c for c in moving if moving_parent[c.name] == j.name]
+    axis_T = {j.name: T_link[j.parent] @ _to_mm(j.origin) for j in moving}
+    u = {k: _unit(T[:3, :3] @ tree.joints[k].axis) for k, T in axis_T.items()}
+    p = {k: T[:3, 3] for k, T in axis_T.items()}
+    roots = kids[None]
+    F0 = _frame0(axis_T[roots[0].name], u[roots[0].name])
+    # internal links: (joint, shared-variable link or None, fixed?, parent frame, the child axis its end frame is on)
+    links: list[DHLink] = []
     axes: list[UJoint] = []
-    axis_T: list[np.ndarray] = []
-    for j in path:
-        T = T @ _to_mm(j.origin)
-        if j.type in MOVING:
-            axes.append(j)
-            axis_T.append(T.copy())
-    tip_T = T
-    names = [j.name for j in axes]
-    for j in axes:
-        if j.mimic is not None and j.mimic[0] not in names:
-            raise RobocalError(f"{tree.where('joint', j.name)}: mimics joint {j.mimic[0]!r}, which is not in the "
-                               f"chain {base!r} -> {tip!r}")
-    u = [_unit(Tj[:3, :3] @ j.axis) for j, Tj in zip(axes, axis_T)]
-    p = [Tj[:3, 3] for Tj in axis_T]
-    F = _frame0(axis_T[0], u[0])
-    frames = [F]
-    links = []
-    for k in range(len(axes)):
-        if k + 1 < len(axes):
-            L = _next_frame(F, u[k + 1], p[k + 1])
-        else:
-            L = DHLink(0.0, 0.0, 0.0, 0.0, 0.0, False)
-        links.append(L)
-        F = F @ dh_matrix(L.theta, L.d, L.a, L.alpha, L.beta)
-        frames.append(F)
-    n = len(axes)
-    mass, com = _masses(tree, path, axes, axis_T, frames)
+    parent_frame: list[int] = []
+    variable_of: list[int] = []
+    link_names: list[str] = []
+    children: list[str | None] = []
+    frames = [F0]
+    start_frame: dict[str, int] = {roots[0].name: 0}
+    own_link: dict[str, int] = {}
+
+    def add(joint: UJoint, pf: int, var: int, name: str, child: str | None, fixed: bool = False) -> int:
+        F = frames[pf]
+        L = _next_frame(F, u[child], p[child]) if child is not None else DHLink(0.0, 0.0, 0.0, 0.0, 0.0, False)
+        i = len(links)
+        links.append(L), axes.append(joint), parent_frame.append(pf), link_names.append(name)
+        variable_of.append(i if var == -2 else var), children.append(child)
+        frames.append(F @ dh_matrix(L.theta, L.d, L.a, L.alpha, L.beta))
+        if child is not None:
+            start_frame[child] = i + 1
+        return i
+
+    for r in roots[1:]:                                 # further roots: a fixed link from frame 0 to each axis
+        fixed = UJoint(f"{base}->{r.name}", "fixed", base, r.parent, np.eye(4), np.array([0.0, 0, 1]), None, None)
+        add(fixed, 0, -1, fixed.name, r.name, fixed=True)
+    for j in moving:                                    # parents first: each joint's axis frame exists already
+        pf = start_frame[j.name]
+        ch = kids[j.name]
+        own_link[j.name] = add(j, pf, -2, j.name, ch[0].name if ch else None)
+        for c in ch[1:]:
+            add(j, pf, own_link[j.name], f"{j.name}->{c.name}", c.name)
+    n = len(links)
+    # mass and centre of mass of what each joint's own link carries rigidly (side branches held at zero included)
+    mass, com = np.zeros(n), np.zeros((n, 3))
+    for j in moving:
+        k = own_link[j.name]
+        total, moment = 0.0, np.zeros(3)
+        stack = [j.child]
+        while stack:
+            link = stack.pop()
+            ln = tree.links[link]
+            T = T_link[link]
+            total += ln.mass_kg
+            moment += ln.mass_kg * (T[:3, :3] @ (ln.com_m * 1000.0) + T[:3, 3])
+            stack += [c.child for c in tree.children(link) if not (c.type in MOVING and c.name in in_tree)]
+        mass[k] = total
+        if total > 0:
+            Fi = np.linalg.inv(frames[k + 1])
+            com[k] = Fi[:3, :3] @ (moment / total) + Fi[:3, 3]
     limits = np.zeros((n, 2))
     for k, j in enumerate(axes):
-        if j.type == "continuous" or j.limits is None:
+        if j.type == "fixed":
+            limits[k] = (0.0, 0.0)
+        elif j.type == "continuous" or j.limits is None:
             limits[k] = (-CONTINUOUS_LIMIT_RAD, CONTINUOUS_LIMIT_RAD) if j.type != "prismatic" else (-1e6, 1e6)
         else:
             limits[k] = np.array(j.limits) * (1000.0 if j.type == "prismatic" else 1.0)
-    readings = [j.name for j in axes if j.mimic is None]
+    # readings: the tree's non-mimic joints, then any joint a mimic joint follows from off the tree (a lifting
+    # column's telescoping stages following a leader on a side branch): its value comes from its data column
+    readings = [j.name for j in moving if j.mimic is None]
+    for j in moving:
+        if j.mimic is not None:
+            leader = _resolve_mimic(tree, j)[0]
+            if leader not in readings:
+                readings.append(leader)
     M = np.zeros((n, len(readings)))
     off = np.zeros(n)
     for k, j in enumerate(axes):
+        if j.type == "fixed":
+            continue
         if j.mimic is None:
             M[k, readings.index(j.name)] = 1.0
         else:
@@ -381,8 +467,16 @@ def analyse_chain(tree: UrdfTree, base_link: str | None = None, tip_link: str | 
             fscale = 1000.0 if tree.joints[name].type == "prismatic" else 1.0
             M[k, readings.index(name)] = mult * scale / fscale
             off[k] = offset * scale
-    return UrdfChain(tree, base, tip, axes, links, frames[0], np.linalg.inv(frames[-1]) @ tip_T, mass, com,
-                     limits, np.array([j.type == "prismatic" for j in axes]), readings, M, off)
+    # every point link on the frame of the nearest moving joint above it (frame 0 when none moves above it)
+    point_frames = {}
+    for link, path in zip(point_links, paths):
+        above = [j for j in path if j.type in MOVING]
+        f = own_link[above[-1].name] + 1 if above else 0
+        point_frames[link] = (f, np.linalg.inv(frames[f]) @ T_link[link])
+    tip = point_links[-1]
+    return UrdfChain(tree, base, tip, axes, links, frames[0], point_frames[tip][1], mass, com, limits,
+                     np.array([j.type == "prismatic" for j in axes]), readings, M, off,
+                     np.array(parent_frame, int), np.array(variable_of, int), link_names, point_frames, children)
 
 
 def _resolve_mimic(tree: UrdfTree, j: UJoint) -> tuple[str, float, float]:
@@ -398,54 +492,35 @@ def _resolve_mimic(tree: UrdfTree, j: UJoint) -> tuple[str, float, float]:
     return name, mult, off
 
 
-def _masses(tree, path, axes, axis_T, frames) -> tuple[np.ndarray, np.ndarray]:
-    """Mass and centre of mass (frame j, mm) of everything moving with axis j and not with axis j+1, at q = 0."""
-    n = len(axes)
-    mass, com = np.zeros(n), np.zeros((n, 3))
-    chain_links = {j.child for j in path}
-    for k, j in enumerate(axes):
-        nxt = axes[k + 1] if k + 1 < n else None
-        total, moment = 0.0, np.zeros(3)
-        stack = [(j.child, axis_T[k])]
-        while stack:
-            link, T = stack.pop()
-            ln = tree.links[link]
-            total += ln.mass_kg
-            moment += ln.mass_kg * (T[:3, :3] @ (ln.com_m * 1000.0) + T[:3, 3])
-            for c in tree.children(link):
-                if nxt is not None and c is nxt:
-                    continue
-                if c.child in chain_links and c.type in MOVING:
-                    continue
-                stack.append((c.child, T @ _to_mm(c.origin)))
-        mass[k] = total
-        if total > 0:
-            Fi = np.linalg.inv(frames[k + 1])
-            com[k] = Fi[:3, :3] @ (moment / total) + Fi[:3, 3]
-    return mass, com
-
-
-def urdf_forward_mm(chain: UrdfChain, readings: np.ndarray) -> np.ndarray:
-    """The tip link origin (mm, base link) straight from the URDF joints (reference for tests and fk)."""
+def urdf_link_pose_mm(chain: UrdfChain, readings: np.ndarray, link: str | None = None) -> np.ndarray:
+    """A link's frame (4x4, mm, base link) straight from the URDF joints for the chain's readings (default the tip
+    link): the reference robocal's kinematics are tested against."""
     tree = chain.tree
-    path = _path(tree, chain.base_link, chain.tip_link)
     vals = chain.reading_matrix @ np.asarray(readings, float) + chain.reading_offset
-    by_name = {j.name: v for j, v in zip(chain.axes, vals)}
+    by_name = {j.name: v for j, v in zip(chain.axes, vals) if j.type != "fixed"}
     T = np.eye(4)
-    for j in path:
+    for j in _path(tree, chain.base_link, link or chain.tip_link):
         v = by_name.get(j.name, 0.0)
         T = T @ _to_mm(j.origin) @ _to_mm(joint_motion(j, v / 1000.0 if j.type == "prismatic" else v))
-    return T[:3, 3]
+    return T
+
+
+def urdf_forward_mm(chain: UrdfChain, readings: np.ndarray, link: str | None = None) -> np.ndarray:
+    """The tip link origin (mm, base link) straight from the URDF joints (reference for tests and fk)."""
+    return urdf_link_pose_mm(chain, readings, link)[:3, 3]
 
 
 def parameter_meaning(chain: UrdfChain) -> dict[str, str]:
-    """Which URDF quantity each kinematic parameter of the chain corrects (for reports and ``--free``)."""
+    """Which URDF quantity each kinematic parameter of the robot corrects (for reports and ``--free``)."""
     out = {}
     ax = chain.axes
-    for k, (j, L) in enumerate(zip(ax, chain.links)):
+    children = chain.children or [ax[k + 1].name if k + 1 < len(ax) else None for k in range(len(ax))]
+    for k, (j, nx) in enumerate(zip(ax, children)):
         p = f"j{k + 1}"
-        if k + 1 < len(ax):
-            nx = ax[k + 1].name
+        if j.type == "fixed":
+            for q in ("theta_offset_rad", "d_mm", "a_mm", "alpha_rad", "beta_rad"):
+                out[f"{p}.{q}"] = f"pose of {nx}'s axis on {chain.base_link} (origins of the joints above {nx})"
+        elif nx is not None:
             out[f"{p}.theta_offset_rad"] = (f"zero of {j.name} (a rotation of {nx}'s origin about {j.name}'s axis)"
                                             if j.type != "prismatic" else f"direction of {j.name}'s common normal")
             out[f"{p}.d_mm"] = (f"{'travel of ' + j.name + ' / ' if j.type == 'prismatic' else ''}"
@@ -455,8 +530,9 @@ def parameter_meaning(chain: UrdfChain) -> dict[str, str]:
             out[f"{p}.beta_rad"] = (f"tilt of {nx}'s axis towards the common normal (origin rpy / axis of {nx}; "
                                     "Hayati, the axes are nearly parallel)")
         else:
+            on = [lk for lk, (f, _) in (chain.point_frames or {}).items() if f == k + 1] or [chain.tip_link]
             for q in ("theta_offset_rad", "d_mm", "a_mm", "alpha_rad", "beta_rad"):
-                out[f"{p}.{q}"] = f"zero of {j.name} / pose of the tip link {chain.tip_link} on it"
+                out[f"{p}.{q}"] = f"zero of {j.name} / pose of {', '.join(on)} on it"
     for q in ("x_mm", "y_mm", "z_mm", "yaw_rad", "pitch_rad", "roll_rad"):
         out[f"base.{q}"] = f"pose of {ax[0].name}'s axis in the measurement frame (origin of {ax[0].name} and above)"
     for q in ("x_mm", "y_mm", "z_mm"):

@@ -13,40 +13,48 @@ HELP = "correct joint commands or readings with an identified model and predict 
 
 def add_arguments(p):
     p.add_argument("model", metavar="MODEL.json", help="model file written by robocal identify --out")
-    p.add_argument("q", nargs="+", metavar="Q", help="joint angles in degrees")
+    p.add_argument("q", nargs="+", metavar="Q", help="joint readings in degrees (mm for a prismatic joint), one per reading of the description")
     p.add_argument("--reading", action="store_true",
                    help="the angles are encoder readings: print the true joint angles (eq 6.1 generalised)")
     p.add_argument("--json", action="store_true")
 
 
 def run(args) -> int:
-    from calib.compensate import compensate_command, corrected_readings, load_model, nominal_in_same_frame, predict
+    from calib.compensate import compensate_readings, corrected_readings, load_model, nominal_in_same_frame, predict
 
     im = load_model(args.model)
-    n = im.model.robot.n
-    if len(args.q) != n:
-        raise RobocalError(f"compensate: expected {n} joint angles, got {len(args.q)}")
+    robot = im.model.robot
+    m = robot.n_readings
+    if len(args.q) != m:
+        raise RobocalError(f"compensate: expected {m} joint readings ({', '.join(robot.reading_names)}), "
+                           f"got {len(args.q)}")
     try:
-        q = np.array([[float(v) for v in args.q]])
+        r = np.array([[float(v) for v in args.q]])
     except ValueError:
         raise RobocalError("compensate: joint angles must be numbers (degrees)") from None
-    if not np.isfinite(q).all():
+    if not np.isfinite(r).all():
         raise RobocalError("compensate: joint angles must be finite")
-    im.model.robot.check_readings(q, "compensate")
-    scale = im.model.robot.edge_scale             # rad per degree; 1 for a prismatic joint (mm)
-    q = q * scale
+    rscale = robot.reading_edge_scale             # rad per degree; 1 for a prismatic reading (mm)
+    r = r * rscale
+    q = robot.joints_from_readings(r)
+    robot.check_readings(q / robot.edge_scale, "compensate")
+    # the joints a person commands and reads: every link with its own variable (not a tree's branch link)
+    own = [k for k, v in enumerate(robot.variable_of) if v == k]
+    units = ["mm" if robot.prismatic[k] else "deg" for k in own]
     if args.reading:
         true = corrected_readings(im, q)[0]
         p, s = predict(im, q)
-        out = {"joint_deg": (true / scale).tolist(), "x_mm": p[0, 0], "y_mm": p[0, 1], "z_mm": p[0, 2],
-               "sigma_mm": s[0].tolist()}
+        out = {"joint_deg": (true[own] / robot.edge_scale[own]).tolist(), "x_mm": p[0, 0], "y_mm": p[0, 1],
+               "z_mm": p[0, 2], "sigma_mm": s[0].tolist()}
     else:
-        cmd, err = compensate_command(im, nominal_in_same_frame(im), q)
-        p, s = predict(im, cmd)
-        out = {"command_deg": (cmd[0] / scale).tolist(), "residual_mm": float(err[0]), "x_mm": p[0, 0],
+        cmd, err = compensate_readings(im, nominal_in_same_frame(im), r)
+        p, s = predict(im, robot.joints_from_readings(cmd))
+        out = {"command_deg": (cmd[0] / rscale).tolist(), "residual_mm": float(err[0]), "x_mm": p[0, 0],
                "y_mm": p[0, 1], "z_mm": p[0, 2], "sigma_mm": s[0].tolist()}
+        units = ["mm" if pr else "deg" for pr in robot.reading_prismatic]
     out = {k: (float(v) if isinstance(v, (float, np.floating)) else v) for k, v in out.items()}
-    out["joint_units"] = ["mm" if p_ else "deg" for p_ in im.model.robot.prismatic]
+    out["joint_units"] = units
+    out["joint_names"] = list(robot.reading_names) if not args.reading else [robot.joint_names[k] for k in own]
     if args.json:
         print(json.dumps(out))
         return 0

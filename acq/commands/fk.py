@@ -11,7 +11,8 @@ from calib.kinematics import Kinematics
 from calib.robot import load_robot, rpy_from_matrix
 
 NAME = "fk"
-HELP = "tool point (mm, robot base frame) for joint readings in degrees (mm for prismatic joints)"
+HELP = ("tool point (mm, robot base frame) for joint readings in degrees (mm for prismatic joints); every point of a "
+        "robot with several (a branched robot's hands)")
 
 
 def add_arguments(p):
@@ -45,9 +46,19 @@ def run(args) -> int:
     F0 = robot.frame0_in_base
     base = [*F0[:3, 3], *rpy_from_matrix(F0[:3, :3])[::-1]]
     params[[kin.index[f"base.{k}"] for k in ("x_mm", "y_mm", "z_mm", "yaw_rad", "pitch_rad", "roll_rad")]] = base
-    x, y, z = kin.points(theta, params)[0]
+    points = {name: kin.forward(theta, kin.params_with_tool(xyz, params), robot.point_frame(name)).point[0]
+              for name, xyz in robot.tool_points_mm.items()} or {"tool": kin.points(theta, params)[0]}
+    ref = robot.reference_point_name() or "tool"
+    x, y, z = points[ref]
     if args.json:
-        print(json.dumps({"x_mm": round(float(x), 6), "y_mm": round(float(y), 6), "z_mm": round(float(z), 6)}))
+        out = {"x_mm": round(float(x), 6), "y_mm": round(float(y), 6), "z_mm": round(float(z), 6)}
+        if len(points) > 1:         # several points (a branched robot's hands): every one, the reference above
+            out["points"] = {k: {c: round(float(v), 6) for c, v in zip(("x_mm", "y_mm", "z_mm"), p)}
+                             for k, p in points.items()}
+        print(json.dumps(out))
+    elif len(points) > 1:
+        for k, (px, py, pz) in points.items():
+            print(f"{k}: x_mm = {px:.3f}  y_mm = {py:.3f}  z_mm = {pz:.3f}")
     else:
         print(f"x_mm = {x:.3f}\ny_mm = {y:.3f}\nz_mm = {z:.3f}")
     return 0

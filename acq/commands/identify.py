@@ -92,7 +92,7 @@ def run(args) -> int:
         ident.outlier_report.numbered(*data_rows(measured, table))
     held_out = split_metrics(model, ident.theta[:model.P], measured) if full.split is not None else {}
     implausible += enforce(check_fit(ident.reduced_chi2, args.data), args.force_implausible, "identify")
-    noise = _noise(args, measured, obs, ident, held_out)
+    noise = _noise(args, measured, obs, ident, held_out, model.robot.tool_point_frames or None)
     prov = provenance(args.robot)
     if args.out:
         save_model(args.out, model, ident, args.out_robot, provenance=prov)
@@ -134,7 +134,7 @@ def run(args) -> int:
     return 0
 
 
-def _noise(args, measured, obs, ident, held_out: dict):
+def _noise(args, measured, obs, ident, held_out: dict, body: dict | None = None):
     """The noise the data show (calib.noise, shared with diagnose) against the given one; the one-line warning on
     stderr when they disagree by more than 1.5x.  Without a model-free source the bound is the held-out residual
     (the data's own split) or the fit's residual with its degrees of freedom (the given sigma times the square
@@ -146,7 +146,7 @@ def _noise(args, measured, obs, ident, held_out: dict):
         bound, how = held_out["test_rms_mm"] / np.sqrt(3.0), "held-out residual (upper bound)"
     else:
         bound, how = est.given_sigma_mm(obs.cov_mm2) * np.sqrt(ident.reduced_chi2), "fit residual (upper bound)"
-    n = est.for_rows(measured, args.noise_mm, bound, how)
+    n = est.for_rows(measured, args.noise_mm, bound, how, body=body)
     line = n.warning(f"robocal identify {args.data}", "the parameters' error bars assume the given noise: give "
                                                        "--noise-mm (or the sigma columns) as the data show it")
     if line:

@@ -61,9 +61,14 @@ def add_arguments(p):
 
 
 def _model(args) -> MeasurementModel:
+    from calib.targets import with_targets
+
     robot = load_robot(args.robot)
     if args.tool is not None:
         robot = robot.with_tool({"P": np.array(args.tool, float)})
+    if robot.is_tree and len(robot.tool_points_mm) > 1:
+        # a branched robot: every pose measures every point, each identified with the tree
+        return MeasurementModel(*with_targets(robot, list(robot.tool_points_mm)))
     return MeasurementModel(robot)
 
 
@@ -88,15 +93,19 @@ def _poses(args) -> int:
         raise RobocalError(f"plan poses: --count must be positive, got {args.count}")
     with progress_display("plan poses") as update:
         plan = select_poses(model, args.count, names, args.index, args.noise_mm, args.seed, progress=update)
+    robot = model.robot
+    readings = plan.q_rad if robot.readings_are_joints else robot.readings_from_joints(plan.q_rad)
     if args.out:
-        write_pose_csv(args.out, plan.q_rad, prismatic=model.robot.prismatic)
+        write_pose_csv(args.out, readings, prismatic=robot.reading_prismatic,
+                       names=None if robot.readings_are_joints else robot.reading_names)
     if args.json:
         print(json.dumps({"count": len(plan.q_rad), "index": plan.index, "parameters": plan.names,
                           "held": plan.identifiability.fixed, "indices": plan.indices,
                           "random_indices": plan.random_indices,
                           "predicted_position_sigma_mm": plan.predicted_sigma_mm,
                           "random_position_sigma_mm": plan.random_sigma_mm,
-                          "poses_deg": (plan.q_rad / model.robot.edge_scale).round(4).tolist(), "out": args.out}, indent=2))
+                          "poses_deg": (readings / robot.reading_edge_scale).round(4).tolist(),
+                          "joint_names": list(robot.reading_names), "out": args.out}, indent=2))
         return 0
     print(f"robocal plan poses: {len(plan.q_rad)} poses chosen for {len(plan.names)} identifiable parameters "
           f"({args.pset} set), index {plan.index}, point noise {args.noise_mm} mm")
@@ -112,8 +121,8 @@ def _poses(args) -> int:
     if args.out:
         print(f"  written: {args.out}")
     else:
-        print("  " + "q1..q6 (deg)")
-        for row in plan.q_rad / model.robot.edge_scale:
+        print("  " + ", ".join(robot.reading_names) + " (deg; mm for a prismatic joint)")
+        for row in readings / robot.reading_edge_scale:
             print("  " + "  ".join(f"{v:8.2f}" for v in row))
     return 0
 

@@ -29,7 +29,8 @@ def repeat_groups(data: DiagnosisData) -> list[np.ndarray]:
 def sources(data: DiagnosisData) -> list[Sample]:
     """The model-free estimates the data allow (computed once per diagnosis: the both-faces one intersects)."""
     return model_free(data.q_rad, data.points_mm, data.cov_mm2, pose_id=data.pose_id or None,
-                      target=data.labels.get("target"), sightings=data.sightings)
+                      target=data.labels.get("target"), sightings=data.sightings,
+                      body=data.robot.tool_point_frames or None)
 
 
 def estimate(data: DiagnosisData, heldout_rms_mm: float | None = None,
