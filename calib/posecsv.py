@@ -264,6 +264,8 @@ def read_pose_csv(path: str | Path, n_joints: int = 6, prismatic=None, *, robot=
     if wide:
         table = _expand_targets(table, R, wide, robot, lscale, header_line)
     _check_poses(table)
+    if robot is not None and robot.is_tree:
+        _check_shared_joints(table, robot, qcols, pris, ascale, lscale)
     if table.ignored_columns:
         warnings.warn(f"{src}: ignoring unknown column(s) {', '.join(table.ignored_columns)}", stacklevel=2)
     return table
@@ -376,6 +378,38 @@ def _check_poses(table: PoseTable) -> None:
             if first.setdefault(pid, lab) != lab:
                 raise RobocalError(f"{table.source}: line {ln}: pose {pid!r} is {first[pid]!r} on an earlier row "
                                    f"and {lab!r} here (column {attr})")
+
+
+#: readings of one pose that two targets' rows may differ by (deg, mm): an encoder's noise, not another pose
+SHARED_READING_TOLERANCE = 0.01
+
+
+def _check_shared_joints(table: PoseTable, robot, qcols: list[str], pris, ascale: float, lscale: float) -> None:
+    """On a branched robot, rows of one pose measuring targets on different branches must agree on every joint both
+    targets hang from (a torso under two arms): a contradiction is one error naming both lines."""
+    if not table.pose_id or table.target is None:
+        return
+    A = robot.frame_ancestors()
+    moves = np.zeros((robot.n_readings, robot.n + 1), bool)         # reading c moves frame f
+    for k in range(robot.n):
+        for c in np.flatnonzero(robot.reading_matrix[k]):
+            moves[c] |= A[:, k + 1]
+    tol = SHARED_READING_TOLERANCE * np.where(pris, lscale, DEG)
+    first: dict[str, int] = {}
+    for i, pid in enumerate(table.pose_id):
+        j = first.setdefault(pid, i)
+        if j == i:
+            continue
+        fi, fj = robot.point_frame(table.target[i]), robot.point_frame(table.target[j])
+        shared = moves[:, fi] & moves[:, fj]
+        bad = np.flatnonzero(shared & (np.abs(table.readings[i] - table.readings[j]) > tol))
+        if bad.size:
+            c = int(bad[0])
+            unit, scale = ("mm", lscale) if pris[c] else ("deg", DEG)
+            raise RobocalError(f"{table.source}: line {table.line[i]}: pose {pid!r}: column {qcols[c]} reads "
+                               f"{table.readings[i, c] / scale:g} {unit} here but {table.readings[j, c] / scale:g} "
+                               f"{unit} on line {table.line[j]}: both targets hang from that joint, so one pose "
+                               "reads it once")
 
 
 def raw_rows(path: str | Path) -> dict[int, dict[str, str]]:

@@ -1,7 +1,9 @@
-"""URDF robot descriptions: one serial chain of a URDF tree as a robocal :class:`calib.robot.Robot`.
+"""URDF robot descriptions: a chain of a URDF tree, or the tree from its base to several links, as a robocal
+:class:`calib.robot.Robot`.
 
-Parsing is yourdfpy's (a maintained URDF reader); this module only cuts the tree into a chain and maps it onto the
-chain robocal identifies (:mod:`calib.kinematics`: ``Rz(theta) Tz(d) Tx(a) Rx(alpha) Ry(beta)`` per moving joint).
+The URDF's kinematic and mass elements are read with lxml (:func:`read_urdf` says why); this module cuts the tree and
+maps it onto the links robocal identifies (:mod:`calib.kinematics`: ``Rz(theta) Tz(d) Tx(a) Rx(alpha) Ry(beta)`` per
+moving joint; on a tree, a branch link per further child of a joint, :func:`analyse_tree`).
 
 * The chain runs from ``base_link`` (default: the root) to ``tip_link`` (default: the only *moving leaf*, the child of
   a moving joint below which nothing moves; several candidates are an error that lists them).
@@ -79,68 +81,100 @@ class UrdfTree:
 
 
 # -- reading --------------------------------------------------------------------------------------------------------
-def _source_lines(path: Path) -> dict[str, int]:
-    """Line number of every <link> and <joint> element at the top level (for error messages)."""
+def _numbers(el, attr: str, count: int, default, where: str) -> np.ndarray:
+    """``count`` numbers from an attribute (``xyz="0 0 0.1"``), the default when it is absent."""
+    text = None if el is None else el.get(attr)
+    if text is None:
+        return np.asarray(default, float)
     try:
-        from lxml import etree
-        root = etree.parse(str(path)).getroot()
-    except Exception:                                    # yourdfpy reports the parse error itself
-        return {}
-    return {f"{el.tag}:{el.get('name')}": el.sourceline for el in root if el.tag in ("link", "joint")}
+        v = np.array([float(x) for x in text.split()], float)
+    except ValueError:
+        v = np.zeros(0)
+    if v.size != count or not np.all(np.isfinite(v)):
+        raise RobocalError(f"{where}: {el.tag} {attr}={text!r} is not {count} finite number{'s' * (count > 1)}")
+    return v
+
+
+def _origin(el, where: str) -> np.ndarray:
+    """A URDF ``<origin xyz rpy>`` as a 4x4 (metres): fixed-axis roll, pitch, yaw, i.e. Rz(yaw) Ry(pitch) Rx(roll)."""
+    from .robot import rot_zyx
+
+    o = None if el is None else el.find("origin")
+    xyz = _numbers(o, "xyz", 3, [0.0, 0.0, 0.0], where)
+    r, p, y = _numbers(o, "rpy", 3, [0.0, 0.0, 0.0], where)
+    return _hom(rot_zyx(y, p, r), xyz)
 
 
 def read_urdf(path: str | Path) -> UrdfTree:
-    """Read a URDF file and check it is a tree (one root, each link the child of at most one joint)."""
-    import yourdfpy
+    """Read a URDF file's kinematic and mass elements and check it is a tree (one root, each link the child of at
+    most one joint).
+
+    Why not a URDF library: the maintained readers (yourdfpy, urdf_parser_py) load a mesh and scene stack (trimesh,
+    scipy) or warn on every vendor tag, and cost a command over a second of start-up; the elements calibration reads
+    -- links, inertial mass and centre, joints with origin, axis, limits, mimic -- are few and fixed by the URDF
+    specification, and lxml gives each its source line for the error messages."""
+    from lxml import etree
 
     path = Path(path)
     src = str(path)
     if not path.exists():
         raise RobocalError(f"{src}: file not found")
-    lines = _source_lines(path)
     try:
-        u = yourdfpy.URDF.load(str(path), build_scene_graph=False, load_meshes=False,
-                               load_collision_meshes=False)
-    except Exception as exc:
+        root = etree.parse(str(path), etree.XMLParser(remove_comments=True, resolve_entities=False)).getroot()
+    except (etree.XMLSyntaxError, OSError) as exc:
         raise RobocalError(f"{src}: not a readable URDF: {exc}") from None
-    links = {}
-    for ln in u.robot.links:
-        iner = ln.inertial
-        mass = float(iner.mass) if iner is not None and iner.mass is not None else 0.0
-        com = (np.asarray(iner.origin, float)[:3, 3] if iner is not None and iner.origin is not None
-               else np.zeros(3))
-        links[ln.name] = ULink(ln.name, mass, com)
-    tree = UrdfTree(src, u.robot.name or path.stem, links, {}, {}, lines)
-    for j in u.robot.joints:
-        origin = np.eye(4) if j.origin is None else np.asarray(j.origin, float)
-        axis = np.array([1.0, 0, 0]) if j.axis is None else np.asarray(j.axis, float)
-        where = tree.where("joint", j.name)
-        if j.type not in MOVING + ("fixed",):
-            raise RobocalError(f"{where}: joint type {j.type!r} is not supported (revolute, continuous, "
+    if root.tag != "robot":
+        raise RobocalError(f"{src}: line {root.sourceline}: not a URDF (the root element is <{root.tag}>, not <robot>)")
+    lines = {f"{el.tag}:{el.get('name')}": el.sourceline for el in root if el.tag in ("link", "joint")}
+    tree = UrdfTree(src, root.get("name") or path.stem, {}, {}, {}, lines)
+    for el in root.iterchildren("link"):
+        name = el.get("name")
+        where = tree.where("link", name)
+        if not name:
+            raise RobocalError(f"{src}: line {el.sourceline}: a link without a name")
+        iner = el.find("inertial")
+        mass_el = None if iner is None else iner.find("mass")
+        mass = float(_numbers(mass_el, "value", 1, [0.0], where)[0])
+        if mass < 0:
+            raise RobocalError(f"{where}: inertial mass {mass:g} is negative")
+        tree.links[name] = ULink(name, mass, _origin(iner, where)[:3, 3] if iner is not None else np.zeros(3))
+    for el in root.iterchildren("joint"):
+        name, jtype = el.get("name"), el.get("type")
+        where = tree.where("joint", name)
+        if not name:
+            raise RobocalError(f"{src}: line {el.sourceline}: a joint without a name")
+        if jtype not in MOVING + ("fixed",):
+            raise RobocalError(f"{where}: joint type {jtype!r} is not supported (revolute, continuous, "
                                "prismatic, fixed)")
-        norm = np.linalg.norm(axis)
-        if j.type in MOVING and not norm > 0:
-            raise RobocalError(f"{where}: the axis is zero")
-        for link in (j.parent, j.child):
-            if link not in links:
+        parent, child = (None if el.find(k) is None else el.find(k).get("link") for k in ("parent", "child"))
+        for link in (parent, child):
+            if link not in tree.links:
                 raise RobocalError(f"{where}: link {link!r} is not defined")
-        if j.child in tree.child_joint:
-            other = tree.child_joint[j.child].name
-            raise RobocalError(f"{where}: link {j.child!r} is already the child of joint {other!r}: a closed loop "
-                               "(URDF describes trees)")
+        axis = _numbers(el.find("axis"), "xyz", 3, [1.0, 0.0, 0.0], where)
+        norm = float(np.linalg.norm(axis))
+        if jtype in MOVING and not norm > 0:
+            raise RobocalError(f"{where}: the axis is zero")
         limits = None
-        if j.type in ("revolute", "prismatic") and j.limit is not None and j.limit.lower is not None \
-                and j.limit.upper is not None:
-            limits = (float(j.limit.lower), float(j.limit.upper))
+        lim = el.find("limit")
+        if jtype in ("revolute", "prismatic") and lim is not None and lim.get("lower") is not None \
+                and lim.get("upper") is not None:
+            limits = (float(_numbers(lim, "lower", 1, [0.0], where)[0]), float(_numbers(lim, "upper", 1, [0.0], where)[0]))
         mimic = None
-        if j.mimic is not None:
-            mimic = (j.mimic.joint, float(j.mimic.multiplier if j.mimic.multiplier is not None else 1.0),
-                     float(j.mimic.offset if j.mimic.offset is not None else 0.0))
-        uj = UJoint(j.name, j.type, j.parent, j.child, origin, axis / (norm or 1.0), limits, mimic,
-                    lines.get(f"joint:{j.name}"))
-        tree.joints[j.name] = uj
-        tree.child_joint[j.child] = uj
-    roots = [n for n in links if n not in tree.child_joint]
+        mel = el.find("mimic")
+        if mel is not None:
+            mimic = (mel.get("joint"), float(_numbers(mel, "multiplier", 1, [1.0], where)[0]),
+                     float(_numbers(mel, "offset", 1, [0.0], where)[0]))
+        if child in tree.child_joint:
+            other = tree.child_joint[child].name
+            raise RobocalError(f"{where}: link {child!r} is already the child of joint {other!r}: a closed loop "
+                               "(URDF describes trees)")
+        uj = UJoint(name, jtype, parent, child, _origin(el, where), axis / (norm or 1.0), limits, mimic,
+                    el.sourceline)
+        tree.joints[name] = uj
+        tree.child_joint[child] = uj
+    if not tree.links:
+        raise RobocalError(f"{src}: no <link> elements")
+    roots = [n for n in tree.links if n not in tree.child_joint]
     if len(roots) != 1:
         if not roots:
             raise RobocalError(f"{src}: every link is the child of a joint: a closed loop (URDF describes trees)")
