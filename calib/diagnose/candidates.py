@@ -83,7 +83,10 @@ def build_library(data: DiagnosisData, kinds: tuple[str, ...] = EFFECT_NAMES,
     the one ``robocal identify`` refuses an ``--effect`` with): a candidate it rejects is listed under "not tested"."""
     robot = data.robot
     n = robot.n
-    rev = [j for j in range(1, n + 1) if not robot.prismatic[j - 1]]
+    # a joint's own link: a branch link of a tree turns with its joint and a fixed link has no joint of its own, so
+    # a joint's running errors are tested once, on the joint (the model carries them to every branch)
+    own = [j for j in range(1, n + 1) if robot.variable_of[j - 1] == j - 1]
+    rev = [j for j in own if not robot.prismatic[j - 1]]
     rng = np.ptp(data.q_rad, axis=0)
     moving = [j for j in rev if rng[j - 1] >= MIN_RANGE_RAD]
     still = [j for j in rev if rng[j - 1] < MIN_RANGE_RAD]
@@ -100,7 +103,7 @@ def build_library(data: DiagnosisData, kinds: tuple[str, ...] = EFFECT_NAMES,
         for o in te_orders:
             offer(Candidate("transmission_error", j, order=float(o), free=("s1_rad", "c1_rad")))
     offer.all([Candidate("joint_compliance", j, free=("compliance1_rad_per_nm",)) for j in rev])
-    offer.all([Candidate("backlash", j, free=("width_rad",)) for j in range(1, n + 1)])
+    offer.all([Candidate("backlash", j, free=("width_rad",)) for j in own])
     for j in rev:
         for k in moving:
             if k != j:
