@@ -152,8 +152,12 @@ def load_model(path: str | Path) -> IdentifiedModel:
     """Rebuild the identified model from its JSON.  The whole document is checked first (structure by
     :data:`MODEL_SCHEMA`, then the descriptions, the effects, the covariance and a trial prediction), so a damaged
     file is one line naming the key, never a crash deep in the arithmetic."""
-    src = str(path)
-    doc = read_json(path, allow_nonfinite=True)
+    return model_from_document(read_json(path, allow_nonfinite=True), str(path))
+
+
+def model_from_document(doc, src: str) -> IdentifiedModel:
+    """The identified model from a model document already read (a model JSON, or the ``robot`` a reprocess
+    returns), checked as :func:`load_model` checks a file; ``src`` names it in messages."""
     if not isinstance(doc, dict) or doc.get("format") != FORMAT:
         raise RobocalError(f"{src}: not a robocal model file (format {FORMAT!r} expected)")
     check_schema(doc, MODEL_SCHEMA, src)
@@ -268,5 +272,5 @@ def nominal_in_same_frame(im: IdentifiedModel) -> MeasurementModel:
     return m
 
 
-__all__ = ["save_model", "load_model", "model_document", "robot_from_theta", "corrected_readings", "predict",
+__all__ = ["save_model", "load_model", "model_from_document", "model_document", "robot_from_theta", "corrected_readings", "predict",
            "compensate_command", "nominal_in_same_frame", "IdentifiedModel", "unit_of", "DEG"]

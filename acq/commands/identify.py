@@ -27,6 +27,13 @@ def add_arguments(p):
                         "coupling 5->6)")
     p.add_argument("--out", type=output_file, metavar="MODEL.json", help="write every parameter with its uncertainty")
     p.add_argument("--out-robot", type=output_file, metavar="ROBOT.toml", help="write the identified robot description")
+    p.add_argument("--out-urdf", type=output_file, metavar="FILE.urdf",
+                   help="write the description as a calibrated URDF (corrected joint origins, every other element "
+                        "kept; a DH description gets a URDF made from its frames) and FILE.side.json with what a "
+                        "URDF cannot hold; the file is read back and checked against the model")
+    p.add_argument("--out-dh-deltas", type=output_file, metavar="FILE.csv",
+                   help="write per joint the identified change of theta, d, a, alpha (and beta) with 1 sigma: the "
+                        "form a controller takes (DH descriptions)")
     p.add_argument("--json", action="store_true", help="print the model document as JSON")
     add_outlier_arguments(p)
     add_unit_arguments(p)
@@ -101,8 +108,11 @@ def run(args) -> int:
         from calib.robot import robot_to_toml
         from calib.fileio import atomic_write_text
         atomic_write_text(args.out_robot, robot_to_toml(robot_from_theta(model, ident.theta)))
+    exported = _exports(args, model, ident, table)
     if args.json:
         extra = {"plausibility_warnings": implausible} if implausible else {}
+        if exported:
+            extra["exported"] = {k: v for k, v in exported.items() if k != "lines"}
         print(json.dumps({**model_document(model, ident, provenance=prov), **held_out, **extra,
                           "noise_estimated_mm": noise.estimated_mm, "noise_estimate": noise.as_dict()}, indent=1))
         return 0
@@ -131,7 +141,30 @@ def run(args) -> int:
         print("  correlations above 0.9: " + "; ".join(f"{a} ~ {b} ({r:+.3f})" for a, b, r in corr))
     if args.out:
         print(f"  written: {args.out}" + (f", {args.out_robot}" if args.out_robot else ""))
+    for line in exported.get("lines", []):
+        print("  " + line)
     return 0
+
+
+def _exports(args, model, ident, table) -> dict:
+    """``--out-urdf`` and ``--out-dh-deltas``: the files, and what the terminal and the JSON say about them."""
+    out: dict = {}
+    sigma = ident.sigma[: model.P]
+    theta = ident.theta[: model.P]
+    if args.out_urdf:
+        from calib.export.urdf_out import urdf_source
+        from calib.export.write import write_calibrated_urdf
+        exp = write_calibrated_urdf(args.out_urdf, urdf_source(args.robot), model, theta, sigma, table.q_rad,
+                                    f"robocal identify {args.data}")
+        out.update(urdf=exp.urdf, side_file=exp.side, urdf_check_max_mm=exp.check_mm, urdf_check_poses=exp.n_poses)
+        out.setdefault("lines", []).extend(exp.lines())
+    if args.out_dh_deltas:
+        from calib.export.dh_deltas import write_dh_deltas
+        from calib.export.urdf_out import urdf_source
+        write_dh_deltas(args.out_dh_deltas, model, theta, sigma, set(ident.free), urdf_source(args.robot))
+        out["dh_deltas"] = str(args.out_dh_deltas)
+        out.setdefault("lines", []).append(f"DH deltas written: {args.out_dh_deltas}")
+    return out
 
 
 def _noise(args, measured, obs, ident, held_out: dict):

@@ -5,6 +5,8 @@ the session's ``result`` table: raw data is never rewritten).
 """
 from __future__ import annotations
 
+import sys
+
 from acq.argtypes import int_range, output_dir, output_file
 from acq.commands.demo import add_report_options
 
@@ -19,6 +21,9 @@ def add_arguments(p):
     p.add_argument("--mc", type=int_range(0, 100000), default=0, help="Monte Carlo draws for the estimation errors (0: GUM only)")
     p.add_argument("--store", action="store_true", help="also record the result (with provenance) in the session")
     add_report_options(p)
+    p.add_argument("--out-urdf", type=output_file, metavar="FILE.urdf",
+                   help="write the calibrated description as a URDF (see robocal identify --out-urdf) and "
+                        "FILE.side.json with what a URDF cannot hold")
     p.add_argument("--diagnose", action="store_true",
                    help="also diagnose the sim-to-real gap of the pose set (robocal diagnose on this session) and "
                         "put it in the summary, the JSON (key diagnosis) and the report")
@@ -33,6 +38,27 @@ def session_diagnosis(db: str) -> dict:
     return diagnose(from_session_arrays(session_robot(str(db)), arrays, str(db))).to_json()
 
 
+def session_urdf(db: str, res: dict, out: str):
+    """The calibrated URDF of a reprocessed session: its pose set's identified robot, checked on the set's poses."""
+    import numpy as np
+    from acq.session.exchange import pose_arrays
+    from acq.session.reprocess import load_session
+    from calib.compensate import model_from_document
+    from calib.errors import RobocalError
+    from calib.export.urdf_out import urdf_source
+    from calib.export.write import write_calibrated_urdf
+    if not res.get("robot"):
+        raise RobocalError(f"{db}: --out-urdf: the pose set gave no identified robot "
+                           f"({'; '.join(res.get('problems') or ['no pose set'])})")
+    im = model_from_document(res["robot"], f"{db}: robot")
+    errors = {p["name"]: p.get("error") or 0.0 for p in res["robot"]["parameters"]}
+    sigma = np.array([errors.get(n, 0.0) for n in im.model.names], float)
+    setup = load_session(db).setup
+    source = urdf_source(setup.get("robot") or None, setup.get("base_link") or None, setup.get("tip_link") or None)
+    return write_calibrated_urdf(out, source, im.model, im.theta, sigma, pose_arrays(db)["q_rad"],
+                                 f"robocal reprocess {db}")
+
+
 def run(args) -> int:
     from acq.commands.demo import _summary, _write_json
     from acq.session.reprocess import reprocess
@@ -45,6 +71,9 @@ def run(args) -> int:
         _write_json(res, args.json)
     if args.json != "-":
         _summary(res, args.verbose, args.tolerance_mm)
+    if args.out_urdf:
+        for line in session_urdf(args.session, res, args.out_urdf).lines():
+            print(line, file=sys.stderr if args.json == "-" else sys.stdout)
     if args.report:
         from acq.session.report import write_report
         write_report(res, args.report, tolerance_mm=args.tolerance_mm, pdf=args.pdf)
