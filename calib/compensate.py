@@ -41,6 +41,15 @@ def unit_of(name: str) -> str:
     return "1"
 
 
+def description_toml(robot: Robot) -> str:
+    """The robot description as TOML (:func:`calib.robot.robot_to_toml`) with every tool point's name quoted: a
+    target such as ``marker@x`` (a 6-D row's axis point, :mod:`calib.orientation`) or ``marker 1`` is no bare TOML
+    key.  (Hook for robot.py: robot_to_toml could quote its keys itself; this wrapper then goes.)"""
+    text = robot_to_toml(robot.with_tool({}))
+    return text + "".join(f"{json.dumps(name)} = [{', '.join(repr(float(v)) for v in p)}]\n"
+                          for name, p in robot.tool_points_mm.items())
+
+
 def robot_from_theta(model: MeasurementModel, theta: np.ndarray) -> Robot:
     """The robot description with the geometric part of ``theta`` written into it (every target's tool point)."""
     from .targets import identified_tool_points
@@ -75,8 +84,8 @@ def model_document(model: MeasurementModel, ident: Identification, truth: dict[s
     rep = ident.outlier_report
     return {
         "format": FORMAT,
-        "robot_toml": robot_to_toml(robot_from_theta(model, ident.theta[:P])),
-        "nominal_robot_toml": robot_to_toml(model.robot),
+        "robot_toml": description_toml(robot_from_theta(model, ident.theta[:P])),
+        "nominal_robot_toml": description_toml(model.robot),
         "parameters": params,
         "effects": [effect_spec(e) for e in model.effects],
         **({"stations": model.stations} if model.stations is not None else {}),
@@ -272,5 +281,5 @@ def nominal_in_same_frame(im: IdentifiedModel) -> MeasurementModel:
     return m
 
 
-__all__ = ["save_model", "load_model", "model_from_document", "model_document", "robot_from_theta", "corrected_readings", "predict",
+__all__ = ["save_model", "load_model", "model_from_document", "description_toml", "model_document", "robot_from_theta", "corrected_readings", "predict",
            "compensate_command", "nominal_in_same_frame", "IdentifiedModel", "unit_of", "DEG"]

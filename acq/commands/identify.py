@@ -42,7 +42,8 @@ def add_arguments(p):
                    help="noise of hz_deg/v_deg/dist_mm rows (laser tracker, total station): angle 1-sigma in arc "
                         "seconds, distance 1-sigma in mm, plus ppm of the distance (default 1,0.01,1)")
     p.add_argument("--orientation-noise-deg", type=positive_float, default=0.01, metavar="DEG",
-                   help="1-sigma noise of rx_deg/ry_deg/rz_deg rows (a 6-D tracker probe), default 0.01")
+                   help="1-sigma noise per axis of rx_deg/ry_deg/rz_deg rows (a 6-D tracker probe; R = Rz(rz) "
+                        "Ry(ry) Rx(rx), the measured frame in the instrument frame), default 0.01")
     p.add_argument("--free", action="append", default=[], metavar="PATTERN",
                    help="estimate only the parameters matching these shell patterns (comma-separated or repeated; "
                         "joint names allowed: 'base.*,tool.*,arm_*_joint.a_mm'); the rest keep their design values")
@@ -100,27 +101,36 @@ def run(args) -> int:
     held_out = split_metrics(model, ident.theta[:model.P], measured) if full.split is not None else {}
     implausible += enforce(check_fit(ident.reduced_chi2, args.data), args.force_implausible, "identify")
     noise = _noise(args, measured, obs, ident, held_out)
+    orientation = _orientation(args, model, ident.theta[:model.P], measured)
+    n_rows = int(measured.split_mask("fit").sum()) if measured.split is not None else measured.n
     prov = provenance(args.robot)
     if args.out:
         save_model(args.out, model, ident, args.out_robot, provenance=prov)
     elif args.out_robot:
-        from calib.compensate import robot_from_theta
-        from calib.robot import robot_to_toml
+        from calib.compensate import description_toml, robot_from_theta
         from calib.fileio import atomic_write_text
-        atomic_write_text(args.out_robot, robot_to_toml(robot_from_theta(model, ident.theta)))
+        atomic_write_text(args.out_robot, description_toml(robot_from_theta(model, ident.theta)))
     exported = _exports(args, model, ident, table)
     if args.json:
         extra = {"plausibility_warnings": implausible} if implausible else {}
         if exported:
             extra["exported"] = {k: v for k, v in exported.items() if k != "lines"}
-        print(json.dumps({**model_document(model, ident, provenance=prov), **held_out, **extra,
+        if orientation:
+            extra["orientation"] = orientation
+        print(json.dumps({**model_document(model, ident, provenance=prov), **held_out, **extra, "n_poses": n_rows,
                           "noise_estimated_mm": noise.estimated_mm, "noise_estimate": noise.as_dict()}, indent=1))
         return 0
-    print(f"robocal identify {args.data}: {table.n} poses, {len(ident.free)} parameters estimated, "
+    print(f"robocal identify {args.data}: {n_rows} poses, {len(ident.free)} parameters estimated, "
           f"residual RMS {ident.residual_rms:.4f} mm, reduced chi-square {ident.reduced_chi2:.2f}")
     if held_out:
         print(f"  data's own split: {held_out['n_fit']} fit rows (RMS {held_out['fit_rms_mm']:.4f} mm), "
               f"{held_out['n_test']} test rows: RMS {held_out['test_rms_mm']:.4f} mm, max {held_out['test_max_mm']:.4f} mm")
+    if orientation:
+        o = orientation
+        print(f"  orientation: {o['statement']}")
+        print(f"  orientation error (geodesic): fit rows mean {o['fit']['mean_deg']:.4f} deg, max "
+              f"{o['fit']['max_deg']:.4f} deg" + (f"; test rows mean {o['test']['mean_deg']:.4f} deg, max "
+                                                  f"{o['test']['max_deg']:.4f} deg" if o.get("test") else ""))
     if noise.estimated_mm is not None:
         print(f"  noise per coordinate: given {noise.given_mm:.4f} mm, from the data {noise.estimated_mm:.4f} mm "
               f"({noise.how})")
@@ -144,6 +154,24 @@ def run(args) -> int:
     for line in exported.get("lines", []):
         print("  " + line)
     return 0
+
+
+def _orientation(args, model, theta, measured) -> dict:
+    """How 6-D rows were used and how well the fit reproduces their orientations (geodesic angles, fit and test
+    rows); {} without orientation columns."""
+    from calib import orientation as ori
+    if measured.orientation_rad is None:
+        return {}
+    out = {"statement": ori.statement(args.orientation_noise_deg), "convention": ori.CONVENTION,
+           "noise_deg": args.orientation_noise_deg, "lever_mm": ori.LEVER_MM}
+    for part in ("fit", "test"):
+        rows = measured.split_mask(part) if measured.split is not None else None
+        if rows is None and part == "test":
+            continue
+        sub = measured if rows is None else measured.subset(rows)
+        if sub.n:
+            out[part] = ori.summary_deg(ori.orientation_errors_deg(model, theta, sub))
+    return out
 
 
 def _exports(args, model, ident, table) -> dict:
