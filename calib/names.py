@@ -90,6 +90,15 @@ def _tokens(name: str) -> list[str]:
     return name.split(".")
 
 
+def joint_of(name: str, n: int) -> int | None:
+    """The 1-based joint a code name is about (``j3.a_mm``, ``joint_compliance.j3.k``), None for base, tool, ..."""
+    for tok in _tokens(name):
+        m = _JOINT_TOKEN.match(tok)
+        if m and 1 <= int(m.group(1)) <= n:
+            return int(m.group(1))
+    return None
+
+
 def display(name: str, robot) -> str:
     """A code name with its joints named: ``j7.a_mm`` -> ``arm_6_joint.a_mm``, ``joint_compliance.j3.k`` ->
     ``joint_compliance.arm_2_joint.k`` (units unchanged)."""
@@ -163,13 +172,70 @@ def shown_forms(name: str, robot) -> tuple[str, ...]:
     return tuple(forms)
 
 
-_TEXT_JOINT = re.compile(r"(?<![\w.])j(\d+)(?![\w])")
+_TEXT_JOINT = re.compile(r"(?<![\w.])[jq](\d+)(?![\w])")
+_TEXT_PHRASE = re.compile(r"\b([Jj])oint (\d+)\b(?!\.\d)")
+_TEXT_PLURAL = re.compile(r"\b([Jj])oints (\d+(?:(?:, | and )\d+)*)\b")
+
+
+def named(robot) -> bool:
+    """True when the robot's joints are shown by their description's names (see the module docstring)."""
+    return robot is not None and joint_names(robot) != tuple(f"j{k}" for k in range(1, robot.n + 1))
+
+
+def joint_label(robot, j: int, capital: bool = False) -> str:
+    """Joint ``j`` (1-based) in a sentence: its name, or ``joint 3`` for a robot whose joints have none."""
+    if named(robot):
+        return joint_name(robot, j)
+    return f"{'J' if capital else 'j'}oint {j}"
+
+
+def reading_label(robot, i: int) -> str:
+    """Controller reading ``i`` (1-based) in a sentence: its name (a URDF's joint, a reading convention's reading)
+    for a robot whose joints have names, else ``joint 3``."""
+    rn = tuple(getattr(robot, "reading_names", ()) or ())
+    if named(robot) and len(rn) >= i and _WORD.match(rn[i - 1]):
+        return rn[i - 1]
+    return f"joint {i}"
+
+
+def prose(text: str, robot) -> str:
+    """Text written with joint numbers (``joint 7``, ``joints 1 and 2``, ``j7``, ``q7``, parameter names such as
+    ``j7.a_mm``) with the joints named, for a robot whose joints have names; unchanged otherwise.  The output
+    boundary of producers whose labels are also keys (the diagnosis's candidates): they keep numbers inside."""
+    if not named(robot):
+        return text
+    names = joint_names(robot)
+
+    def one(k: str, whole: str) -> str:
+        return names[int(k) - 1] if 1 <= int(k) <= len(names) else whole
+
+    text = _TEXT_PLURAL.sub(lambda m: m.group(0)[:len("joints ")]
+                            + re.sub(r"\d+", lambda d: one(d.group(0), d.group(0)), m.group(2)), text)
+    text = _TEXT_PHRASE.sub(lambda m: one(m.group(2), m.group(0)), text)
+    return in_text(text, robot)
+
+
+def with_joint_names(doc, robot):
+    """A JSON document with ``<key>_name`` beside every integer ``joint`` / ``source_joint`` (1-based) key: the
+    index stays, the name is added."""
+    if isinstance(doc, list):
+        return [with_joint_names(v, robot) for v in doc]
+    if not isinstance(doc, dict):
+        return doc
+    out = {}
+    for k, v in doc.items():
+        out[k] = with_joint_names(v, robot)
+        if k in ("joint", "source_joint") and isinstance(v, int) and not isinstance(v, bool) and 1 <= v <= robot.n:
+            out[f"{k}_name"] = joint_name(robot, v)
+    return out
 
 
 def in_text(text: str, robot) -> str:
     """A label written with ``jK`` joint tokens (an effect's finding label: ``cross_coupling j4->j6``) with the
     joints named."""
     if robot is None:
+        return text
+    if not named(robot):
         return text
     names = joint_names(robot)
     return _TEXT_JOINT.sub(lambda m: names[int(m.group(1)) - 1] if 1 <= int(m.group(1)) <= len(names)

@@ -53,7 +53,8 @@ def add_arguments(p):
 
 
 def run(args) -> int:
-    from calib.compensate import model_document, save_model, unit_of
+    from calib import names as naming
+    from calib.compensate import model_document, save_model
     from calib.effects import THESIS_RUNNING_ERRORS, effect_from_text
     from calib.evaluation import (context_of, data_rows, fit_rows, point_covariance, split_metrics, station_names,
                                   station_start, with_orientation_points, with_polar_points)
@@ -77,7 +78,7 @@ def run(args) -> int:
     if not args.noise_mm > 0:
         raise RobocalError(f"identify: --noise-mm must be positive, got {args.noise_mm}")
     specs = list(args.effect) + (list(THESIS_RUNNING_ERRORS) if args.thesis_effects else [])
-    effects = [effect_from_text(s, robot.n) for s in specs]
+    effects = [effect_from_text(s, robot.n, robot) for s in specs]
     model = MeasurementModel(robot, effects + target_offsets, stations=station_names(full))
     ctx = context_of(model, table)
     cov = point_covariance(table)
@@ -134,21 +135,18 @@ def run(args) -> int:
     if noise.estimated_mm is not None:
         print(f"  noise per coordinate: given {noise.given_mm:.4f} mm, from the data {noise.estimated_mm:.4f} mm "
               f"({noise.how})")
-    for line in ident.identifiability.report(robot.description_joint_names):
+    for line in ident.identifiability.report(robot):
         print("  " + line)
     for line in ident.outlier_report.lines():
         print("  " + line)
     print(f"  {'parameter':<44}{'value':>14}{'1 sigma':>12}  unit")
-    for name in ident.free:
-        v, s = ident.value(name), ident.std(name)
-        unit = unit_of(name)
-        if unit == "rad":           # shown in degrees under the name that says so (what --prior reads back)
-            v, s, unit = v / DEG, s / DEG, "deg"
-            name = name[: -len("_rad")] + "_deg" if name.endswith("_rad") else name
-        print(f"  {name:<44}{v:>14.6g}{s:>12.3g}  {unit}")
+    for name in ident.free:       # joints named, angles in degrees: the names --free and --prior read back
+        shown, v, s, unit = naming.edge(name, ident.value(name), ident.std(name), robot)
+        print(f"  {shown:<44}{v:>14.6g}{s:>12.3g}  {unit}")
     corr = ident.correlations(0.9)
     if corr:
-        print("  correlations above 0.9: " + "; ".join(f"{a} ~ {b} ({r:+.3f})" for a, b, r in corr))
+        print("  correlations above 0.9: " + "; ".join(f"{naming.edge_name(a, robot)} ~ {naming.edge_name(b, robot)} "
+                                                        f"({r:+.3f})" for a, b, r in corr))
     if args.out:
         print(f"  written: {args.out}" + (f", {args.out_robot}" if args.out_robot else ""))
     for line in exported.get("lines", []):

@@ -34,8 +34,10 @@ def session_diagnosis(db: str) -> dict:
     from acq.session.exchange import pose_arrays, session_robot
     from calib.diagnose import diagnose
     from calib.diagnose.data import from_session_arrays
+    from calib.names import with_joint_names
     arrays = pose_arrays(str(db))
-    return diagnose(from_session_arrays(session_robot(str(db)), arrays, str(db))).to_json()
+    robot = session_robot(str(db))
+    return with_joint_names(diagnose(from_session_arrays(robot, arrays, str(db))).to_json(), robot)
 
 
 def session_urdf(db: str, res: dict, out: str):

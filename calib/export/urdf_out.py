@@ -233,7 +233,8 @@ def dh_urdf(robot, name: str | None = None) -> tuple[str, Corrections]:
                 f'    <parent link="{links[k]}"/>', f'    <child link="{links[k + 1]}"/>',
                 f'    <origin xyz="{" ".join(_num(v / 1000.0) for v in origin[:3, 3])}" '
                 f'rpy="{" ".join(_num(v) for v in rpy_of(origin[:3, :3]))}"/>',
-                '    <axis xyz="0 0 1"/>', f'    <limit lower="{_num(lo)}" upper="{_num(hi)}" effort="0" velocity="0"/>',
+                '    <axis xyz="0 0 1"/>',
+                f'    <limit lower="{_num(lo)}" upper="{_num(hi)}" effort="0" velocity="0"/>',
                 '  </joint>']
         parent_frame = frame
     n = len(names)
