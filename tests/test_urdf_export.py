@@ -259,7 +259,10 @@ def test_reprocess_writes_the_sessions_calibrated_urdf(tmp_path, capsys):
     """The shipped demo session (a Puma 560 DH description): reprocess --out-urdf writes the pose set's identified
     robot, read back and checked on the set's own poses; Pinocchio agrees with the model on random configurations."""
     out, res_json = tmp_path / "demo.urdf", tmp_path / "res.json"
-    text = _run(capsys, ["reprocess", str(EX / "demo-session.db"), "--out-urdf", str(out), "--json", str(res_json)])
+    text = _run(capsys, ["reprocess", str(EX / "demo-session.db"), "--out-urdf", str(out), "--json", str(res_json),
+                         "--out-dh-deltas", str(tmp_path / "d.csv")])
+    assert f"DH deltas written: {tmp_path / 'd.csv'}" in text
+    assert (tmp_path / "d.csv").read_text().count("\n") == 8           # comment, header, six joints
     assert "read back, its forward kinematics equals the calibrated model's on the 48 fitted poses" in text
     line = next(ln for ln in text.splitlines() if ln.startswith("not in the URDF"))
     assert "transmission_error j4" in line and "cross_coupling j4->j6" in line and "motor coupling matrix" in line
