@@ -20,6 +20,7 @@ writes one from the model's frames, and the same correction runs on it.
 """
 from __future__ import annotations
 
+import re
 import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -195,8 +196,15 @@ def rewrite(urdf_path: Path, origins: dict[str, np.ndarray], comment: str | None
     # what precedes the root (comments, processing instructions) one per line, as the file had it
     prolog = [etree.tostring(el, encoding="unicode", with_tail=False)
               for el in reversed(list(root.itersiblings(preceding=True)))]
-    decl = f'<?xml version="{doc.docinfo.xml_version or "1.0"}" encoding="utf-8"?>\n'
-    return decl + "".join(p + "\n" for p in prolog) + etree.tostring(root, encoding="unicode") + "\n"
+    body = etree.tostring(root, encoding="unicode")
+    # the declaration and the root's start tag as the file wrote them (lxml puts namespace declarations first)
+    original = urdf_path.read_text(encoding="utf-8", errors="replace")
+    decl = re.match(r"\s*(<\?xml[^>]*\?>)", original)
+    start = re.search(rf"<{re.escape(root.tag)}\b[^>]*>", original)
+    if start and not start.group(0).endswith("/>"):
+        body = re.sub(rf"<{re.escape(root.tag)}\b[^>]*>", lambda _: start.group(0), body, count=1)
+    head = (decl.group(1) if decl else f'<?xml version="{doc.docinfo.xml_version or "1.0"}"?>') + "\n"
+    return head + "".join(p + "\n" for p in prolog) + body + "\n"
 
 
 def dh_urdf(robot, name: str | None = None) -> tuple[str, Corrections]:
