@@ -272,3 +272,24 @@ def test_reprocess_writes_the_sessions_calibrated_urdf(tmp_path, capsys):
     model.write_text(json.dumps(res["robot"]))
     rng = np.random.default_rng(9)
     assert_round_trip(out, side, model, rng.uniform(-2.5, 2.5, (10, 6)))
+
+
+def test_a_reading_convention_goes_to_the_side_file(ur10_world, tmp_path, capsys):
+    """An encoder whose zero is not the joint's (the elbow read 5 deg off): the URDF holds joints, the side file the
+    readings' map, and the one line says so."""
+    tmp, truth, q, T, data, desc = ur10_world
+    lines = data.read_text().splitlines()
+    shifted = [lines[0]] + [",".join(f"{float(v) - 5.0:.10f}" if k == 2 else v for k, v in enumerate(ln.split(",")))
+                            for ln in lines[1:]]
+    (tmp_path / "r.csv").write_text("\n".join(shifted) + "\n")
+    conv = tmp_path / "ur10_readings.toml"
+    conv.write_text(desc.read_text() + "[readings]\nnames = " + json.dumps(UR10_JOINTS) + "\n[readings.joints]\n"
+                    "elbow_joint = { elbow_joint = 1.0, offset_deg = 5.0 }\n")
+    out = tmp_path / "cal.urdf"
+    text = _run(capsys, ["identify", str(tmp_path / "r.csv"), "--robot", str(conv), "--noise-mm", "0.01",
+                         "--out-urdf", str(out), "--out", str(tmp_path / "m.json")])
+    line = next(ln for ln in text.splitlines() if "not in the URDF" in ln)
+    assert "reading conventions (joint = matrix @ reading + offset)" in line
+    side = json.loads((tmp_path / "cal.side.json").read_text())
+    assert side["readings"]["offset"] == pytest.approx([0, 0, 5.0, 0, 0, 0])
+    assert_round_trip(out, side, tmp_path / "m.json", q[50:55])
