@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import argparse
 import math
+import re
 import os
 from pathlib import Path
 from typing import Callable
@@ -165,7 +166,8 @@ def existing_file(raw: str) -> str:
 
 
 def effect_spec(raw: str) -> str:
-    """An ``--effect KIND:FIELD:...`` text whose fields are finite numbers (the effect registry checks the rest)."""
+    """An ``--effect KIND:FIELD:...`` text whose fields are finite numbers or joint names (one word; the effect
+    registry checks the rest against the robot)."""
     kind, *fields = str(raw).split(":")
     if not kind:
         raise _fail("must start with an effect kind (KIND:FIELDS)", raw)
@@ -173,7 +175,9 @@ def effect_spec(raw: str) -> str:
         try:
             value = float(field)
         except ValueError:
-            raise _fail(f"field {i} must be a number", raw) from None
+            if re.fullmatch(r"[A-Za-z_][A-Za-z0-9_\-]*", field):
+                continue                                  # a joint's name
+            raise _fail(f"field {i} must be a number or a joint name", raw) from None
         if not math.isfinite(value) or abs(value) > 1e6:
             raise _fail(f"field {i} must be a finite number of at most 1e6", raw)
     return raw

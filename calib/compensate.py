@@ -28,18 +28,13 @@ from .identify import Identification
 from .targets import identified_tool_points
 from .jsonfile import FINITE, check_schema, read_json
 from .model import MeasurementModel
+from .names import joint_of, joint_name, unit_of
 from .robot import Robot, parse_robot, robot_to_toml
 from .units import DEG
 
 FORMAT = "robocal-model/1"
 
 
-def unit_of(name: str) -> str:
-    for suffix, unit in (("_mm", "mm"), ("_rad", "rad"), ("_rad_per_nm", "rad/(N m)"), ("_nm", "N m"),
-                         ("_per_degc", "1/degC"), ("_per_nmm2", "1/(N mm^2)")):
-        if name.endswith(suffix):
-            return unit
-    return "1"
 
 
 def robot_from_theta(model: MeasurementModel, theta: np.ndarray) -> Robot:
@@ -70,6 +65,9 @@ def model_document(model: MeasurementModel, ident: Identification, truth: dict[s
         params.append({"name": name, "value": float(ident.theta[i]), "error": float(ident.sigma[i]),
                        "unit": unit_of(name), "estimated": name in ident.free,
                        "truth": None if truth is None or name not in truth else float(truth[name])})
+        j = joint_of(name, model.robot.n)
+        if j is not None:                    # the index stays in the name; the description's name beside it
+            params[-1].update(joint=j, joint_name=joint_name(model.robot, j))
     free = [n for n in ident.free if n in model.index]
     idx = [model.index[n] for n in free]
     rep = ident.outlier_report
@@ -81,7 +79,7 @@ def model_document(model: MeasurementModel, ident: Identification, truth: dict[s
         "effects": [effect_spec(e) for e in model.effects],
         **({"stations": model.stations} if model.stations is not None else {}),
         "covariance": {"names": free, "matrix": _symmetric(ident.cov[np.ix_(idx, idx)]).tolist()},
-        "identifiability": ident.identifiability.report(model.robot.description_joint_names),
+        "identifiability": ident.identifiability.report(model.robot),
         "residual_rms": ident.residual_rms,
         "reduced_chi2": ident.reduced_chi2,
         # the flagged poses as objects (row: 1-based data row, pose_id, rejected), as diagnose's outliers.poses;
@@ -152,8 +150,12 @@ def load_model(path: str | Path) -> IdentifiedModel:
     """Rebuild the identified model from its JSON.  The whole document is checked first (structure by
     :data:`MODEL_SCHEMA`, then the descriptions, the effects, the covariance and a trial prediction), so a damaged
     file is one line naming the key, never a crash deep in the arithmetic."""
-    src = str(path)
-    doc = read_json(path, allow_nonfinite=True)
+    return model_from_document(read_json(path, allow_nonfinite=True), str(path))
+
+
+def model_from_document(doc, src: str) -> IdentifiedModel:
+    """The identified model from a model document already read (a model JSON, or the ``robot`` a reprocess
+    returns), checked as :func:`load_model` checks a file; ``src`` names it in messages."""
     if not isinstance(doc, dict) or doc.get("format") != FORMAT:
         raise RobocalError(f"{src}: not a robocal model file (format {FORMAT!r} expected)")
     check_schema(doc, MODEL_SCHEMA, src)
@@ -297,5 +299,6 @@ def nominal_in_same_frame(im: IdentifiedModel) -> MeasurementModel:
     return m
 
 
-__all__ = ["save_model", "load_model", "model_document", "robot_from_theta", "corrected_readings", "predict",
+__all__ = ["save_model", "load_model", "model_from_document", "model_document",
+           "robot_from_theta", "corrected_readings", "predict",
            "compensate_command", "compensate_readings", "nominal_in_same_frame", "IdentifiedModel", "unit_of", "DEG"]

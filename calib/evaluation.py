@@ -176,7 +176,9 @@ def evaluate_table(model: MeasurementModel, theta: np.ndarray, table: PoseTable,
     """Residuals of the ``test`` rows (all rows without a split), optionally after re-stationing each station."""
     if table.points_mm is None:
         raise RobocalError(f"{table.source}: columns x, y, z (measured points) are needed to evaluate")
+    from . import orientation as ori
     pred = predict_rows(model, theta, table, new_stations=with_locate)
+    axes = ori.axis_points(model, theta, table, new_stations=with_locate)
     test = table.split_mask("test")
     doc: dict = {"source": table.source, "rows": "test" if table.split is not None else "all"}
     if with_locate:
@@ -190,10 +192,16 @@ def evaluate_table(model: MeasurementModel, theta: np.ndarray, table: PoseTable,
         for s, loc in locs.items():
             m = st == s
             pred[m] = loc.apply(pred[m])
+            for a in axes or ():
+                a[m] = loc.apply(a[m])
         doc["stations"] = [loc.as_dict() for loc in locs.values()]
     res = table.points_mm[test] - pred[test]
     doc.update(summary(res))
     doc["by"] = breakdown(res, table.subset(test))
+    if axes is not None:                      # 6-D rows: the frame's error too, as a geodesic angle
+        err = ori.geodesic_deg(ori.rotations(table.orientation_rad[test]),
+                               ori.frames_from_points(*(a[test] for a in axes)))
+        doc["orientation"] = {**ori.summary_deg(err), "convention": ori.CONVENTION}
     return doc
 
 
@@ -270,36 +278,4 @@ def station_start(model: MeasurementModel, table: PoseTable) -> np.ndarray:
     return th
 
 
-def with_orientation_points(table: PoseTable, robot, noise_mm: float, sigma_angle_rad: float,
-                            lever_mm: float = 100.0):
-    """Rows that also carry a measured orientation (rx_deg, ry_deg, rz_deg: the tip's frame in the instrument frame,
-    R = Rz(rz) Ry(ry) Rx(rx)) enter the identification as two more points: the measured point plus ``lever_mm``
-    along the measured frame's x and y axes, as targets ``<T>@x`` and ``<T>@y`` whose positions on the tip are
-    identified with the chain (their covariance: the point's plus (lever x angle noise)^2 on each axis; the
-    correlation with the point's own row is neglected).  Returns the table and the robot with those tool points."""
-    if table.orientation_rad is None:
-        return table, robot
-    if table.points_mm is None:
-        raise RobocalError(f"{table.source}: rx_deg, ry_deg, rz_deg need x, y, z (the point of the measured frame)")
-    from .targets import reference_name
-    names = table.target or [reference_name(list(robot.tool_points_mm) or ["P"])] * table.n
-    if not robot.tool_points_mm:
-        robot = robot.with_tool({"P": robot.tool_point()})
-    from scipy.spatial.transform import Rotation
-    R = Rotation.from_euler("xyz", table.orientation_rad).as_matrix()          # (N, 3, 3)
-    cov = point_covariance(table)
-    if cov is None:
-        cov = np.broadcast_to(np.eye(3) * noise_mm ** 2, (table.n, 3, 3)).copy()
-    parts, points, targets, covs = [table], [table.points_mm], list(names), [cov]
-    tool = dict(robot.tool_points_mm)
-    for axis, suffix in ((0, "@x"), (1, "@y")):
-        parts.append(table)
-        points.append(table.points_mm + lever_mm * R[:, :, axis])
-        targets += [n + suffix for n in names]
-        covs.append(cov + np.eye(3) * (lever_mm * sigma_angle_rad) ** 2)
-        for n in dict.fromkeys(names):
-            tool.setdefault(n + suffix, tool[n] + lever_mm * np.eye(3)[axis])
-    out = table.subset(np.concatenate([np.arange(table.n)] * 3))
-    out.points_mm, out.target, out.cov_mm2 = np.concatenate(points), targets, np.concatenate(covs)
-    out.orientation_rad = None
-    return out, robot.with_tool(tool)
+from .orientation import with_orientation_points  # noqa: E402,F401  (6-D rows: calib.orientation)

@@ -14,10 +14,13 @@ its singular value decomposition says:
 """
 from __future__ import annotations
 
+import re
 from dataclasses import dataclass, field
 from typing import Callable
 
 import numpy as np
+
+from . import names as naming
 
 #: singular value ratio (column-scaled) below which a direction is not determinable in practice: it is held
 HOLD_RTOL = 1e-4
@@ -30,6 +33,8 @@ _WHAT = {
     "theta_offset_rad": "zero offset", "d_mm": "offset d", "a_mm": "length a", "alpha_rad": "twist alpha",
     "beta_rad": "Hayati beta",
 }
+#: a prismatic joint's reading adds to d: d is its zero offset (mm), theta turns the next link about its axis
+_WHAT_PRISMATIC = {**_WHAT, "theta_offset_rad": "turn about its axis", "d_mm": "zero offset"}
 _BASE = {"x_mm": "base position X", "y_mm": "base position Y", "z_mm": "base position Z", "yaw_rad": "base yaw",
          "pitch_rad": "base pitch", "roll_rad": "base roll"}
 _TOOL = {"x_mm": "tool point x", "y_mm": "tool point y", "z_mm": "tool point z"}
@@ -42,16 +47,20 @@ _STATION = {"x_mm": "position X", "y_mm": "position Y", "z_mm": "height", "yaw_r
             "trunnion_rad": "trunnion axis error", "index_rad": "vertical index error"}
 
 
-def describe(name: str, joint_names: tuple[str, ...] | None = None) -> str:
-    """A parameter in words, with its code name: ``shoulder offset d1 (j2.d_mm)``; with the description's
-    ``joint_names`` (a robot that is not the thesis's Puma): ``joint 3 (elbow_joint) length a (j3.a_mm)``."""
+def describe(name: str, robot=None) -> str:
+    """A parameter in words, with the name a person can type back (``--free``, ``--prior``): for a robot whose
+    joints have names, ``arm_2_joint length a (arm_2_joint.a_mm)``; for the thesis's Puma its own words, ``shoulder
+    offset d1 (j2.d_mm)``; else ``joint 3 length a (j3.a_mm)``.  A prismatic joint's zero offset is its d (mm)."""
     head, _, tail = name.partition(".")
-    if joint_names and head.startswith("j") and head[1:].isdigit() and tail in _WHAT \
-            and int(head[1:]) <= len(joint_names):
-        return f"joint {head[1:]} ({joint_names[int(head[1:]) - 1]}) {_WHAT[tail]} ({name})"
-    if name in THESIS_NAMES and not joint_names:
-        return f"{THESIS_NAMES[name]} ({name})"
-    head, _, tail = name.partition(".")
+    m = re.fullmatch(r"j(\d+)", head)
+    if m and tail in _WHAT and (robot is None or int(m.group(1)) <= robot.n):
+        j = int(m.group(1))
+        what = (_WHAT_PRISMATIC if naming.is_prismatic(robot, j) else _WHAT)[tail]
+        if naming.named(robot):
+            return f"{naming.joint_name(robot, j)} {what} ({naming.display(name, robot)})"
+        if name in THESIS_NAMES and not naming.is_prismatic(robot, j):
+            return f"{THESIS_NAMES[name]} ({name})"
+        return f"joint {j} {what} ({name})"
     if name == "B.x_mm":
         return f"the baseline L, i.e. the overall scale ({name})"
     if head.isupper() and tail in _STATION:
@@ -60,9 +69,7 @@ def describe(name: str, joint_names: tuple[str, ...] | None = None) -> str:
         return f"{_BASE[tail]} ({name})"
     if head == "tool" and tail in _TOOL:
         return f"{_TOOL[tail]} ({name})"
-    if head.startswith("j") and head[1:].isdigit() and tail in _WHAT:
-        return f"joint {head[1:]} {_WHAT[tail]} ({name})"
-    return name
+    return naming.display(name, robot)
 
 
 @dataclass
@@ -72,12 +79,22 @@ class Combination:
     coefficients: dict[str, float]
     ratio: float                          # singular value / largest singular value
     because: str = ""
+    #: why, when a joint that barely moves is the cause: (1-based joint, its range over the poses, rad or mm)
+    because_joint: tuple[int, float] | None = None
 
-    def words(self, joint_names: tuple[str, ...] | None = None) -> str:
+    def reason(self, robot=None) -> str:
+        """The cause in words, the joint named and its range in its own unit (mm for a prismatic joint)."""
+        if self.because_joint is None:
+            return self.because
+        j, span = self.because_joint
+        amount = f"{span:.1f} mm" if naming.is_prismatic(robot, j) else f"{np.degrees(span):.1f} deg"
+        return f"{naming.joint_label(robot, j)} barely moves (range {amount} over the poses)"
+
+    def words(self, robot=None) -> str:
         # largest first; coefficients equal to 1e-6 keep the dict's order (the held parameter first), so that rounding
         # does not swap the two names of a pair
         items = sorted(self.coefficients.items(), key=lambda kv: -round(abs(kv[1]), 6))
-        big = [describe(n, joint_names) for n, c in items if abs(c) >= 0.25 * abs(items[0][1])][:5]
+        big = [describe(n, robot) for n, c in items if abs(c) >= 0.25 * abs(items[0][1])][:5]
         if len(big) == 1:
             text = (f"{big[0]} has no effect on the measurements" if self.ratio <= RANK_RTOL
                     else f"{big[0]} is poorly determined")
@@ -86,7 +103,8 @@ class Combination:
             text = f"{verb} {big[0]} from {big[1]}"
         elif len(big) > 2:
             text = f"{verb} " + ", ".join(big[:-1]) + f" and {big[-1]}"
-        return text + (f", because {self.because}" if self.because else "")
+        why = self.reason(robot)
+        return text + (f", because {why}" if why else "")
 
 
 @dataclass
@@ -102,16 +120,17 @@ class Identifiability:
     weakest: list[Combination] = field(default_factory=list)   # the three smallest directions kept
     kept_condition: float = float("nan")
 
-    def report(self, joint_names: tuple[str, ...] | None = None) -> list[str]:
+    def report(self, robot=None) -> list[str]:
+        """The analysis in sentences; with ``robot`` its joints are named and its units used."""
         lines = [f"{len(self.names)} parameters, rank {self.rank}, condition number {self.condition:.3g} "
                  f"(column-scaled)"]
         for c in self.unidentifiable:
             what = "not identifiable" if c.ratio <= RANK_RTOL else f"not identifiable in practice (ratio {c.ratio:.1e})"
-            lines.append(f"{what}: " + c.words(joint_names))
+            lines.append(f"{what}: " + c.words(robot))
         for c in self.weak:
-            lines.append(f"weakly identifiable (singular value ratio {c.ratio:.1e}): " + c.words(joint_names))
+            lines.append(f"weakly identifiable (singular value ratio {c.ratio:.1e}): " + c.words(robot))
         if self.fixed:
-            lines.append("held at their design values: " + ", ".join(self.fixed))
+            lines.append("held at their design values: " + ", ".join(naming.display(n, robot) for n in self.fixed))
             lines.append(f"remaining {len(self.kept)} parameters: condition number {self.kept_condition:.3g}")
         return lines
 
@@ -166,7 +185,7 @@ def analyse(J: np.ndarray, names: list[str],
             v = col / np.linalg.norm(col)
             combo = Combination(coef, float(np.linalg.norm(R @ v) / smax))
             if rejacobian is not None and joint_ranges_rad is not None:
-                combo.because = _explain(v, combo.ratio, rejacobian, joint_ranges_rad, norms)
+                combo.because_joint = _explain(v, combo.ratio, rejacobian, joint_ranges_rad, norms)
             out.unidentifiable.append(combo)
     # the weakest directions among the kept parameters (reported as weak below WEAK_RTOL): the hold loop's last
     # decomposition is that of the kept columns
@@ -178,7 +197,7 @@ def analyse(J: np.ndarray, names: list[str],
             coef = {names[k]: float(v[k]) for k in np.flatnonzero(np.abs(v) > 0.05)}
             combo = Combination(coef, float(r_k[i]))
             if rejacobian is not None and joint_ranges_rad is not None:
-                combo.because = _explain(v, combo.ratio, rejacobian, joint_ranges_rad, norms)
+                combo.because_joint = _explain(v, combo.ratio, rejacobian, joint_ranges_rad, norms)
             out.weakest.append(combo)
             if r_k[i] < WEAK_RTOL:
                 out.weak.append(combo)
@@ -234,7 +253,8 @@ def _largest_singular(A: np.ndarray) -> float:
     return float(np.sqrt(max(np.linalg.eigvalsh(G)[-1], 0.0))) if G.size else 0.0
 
 
-def _explain(v: np.ndarray, before: float, rejacobian, ranges: np.ndarray, norms: np.ndarray) -> str:
+def _explain(v: np.ndarray, before: float, rejacobian, ranges: np.ndarray,
+             norms: np.ndarray) -> tuple[int, float] | None:
     """Which joint, if spread over its range, would make the direction ``v`` (scaled parameters) far better determined.
 
     Checked, not guessed: the direction's response ``|J v| / |J|`` (``before`` now) is recomputed with that joint's
@@ -247,5 +267,5 @@ def _explain(v: np.ndarray, before: float, rejacobian, ranges: np.ndarray, norms
         J2 = rejacobian(int(k)) / safe
         s2 = _largest_singular(J2)
         if s2 > 0 and np.linalg.norm(J2 @ v) / s2 > 10 * before + 1e-6:
-            return f"joint {k + 1} barely moves (range {np.degrees(ranges[k]):.1f} deg over the poses)"
-    return ""
+            return int(k) + 1, float(ranges[k])
+    return None

@@ -283,10 +283,12 @@ def check_drivers(model: MeasurementModel, obs, where: str) -> None:
     geometry absorbs, estimated from noise: one line instead, naming the effect and the condition that does not vary
     (the same words the diagnosis gives under "not tested": :func:`calib.effects.drivers.undriven`)."""
     from calib.effects.drivers import undriven
+    from .names import effect_label, prose
     for e in model.effects:
         why = undriven(e, obs.q_rad, obs.ctx, model.robot)
         if why:
-            raise RobocalError(f"{where}: effect {e.label}: nothing drives it in these data: {why}")
+            raise RobocalError(f"{where}: effect {effect_label(model.robot, e)}: nothing drives it in these data: "
+                               f"{prose(why, model.robot)}")
     theta = model.nominal.copy()
     for k in ("x_mm", "y_mm", "z_mm"):        # a tool point off every axis: the geometry must not hide the effect
         if f"tool.{k}" in model.index:
@@ -294,7 +296,8 @@ def check_drivers(model: MeasurementModel, obs, where: str) -> None:
     ev = model.evaluate(obs.q_rad, obs.ctx, theta, jacobian=True)
     for e, s in zip(model.effects, model.effect_slices):
         if not np.any(np.abs(ev.jacobian[:, :, s]) > 1e-12):
-            raise RobocalError(f"{where}: effect {e.label}: nothing drives it in these data (the condition it "
+            raise RobocalError(f"{where}: effect {effect_label(model.robot, e)}: nothing drives it in these data (the "
+                               f"condition it "
                                f"follows -- time, temperature, approach direction or load -- does not vary over the "
                                f"poses)")
 
@@ -450,7 +453,8 @@ def _outlier_step(model: MeasurementModel, st: _Setup, kidx, theta, mode: str, l
     if mode == "off":
         return prob, theta, OutlierReport("off")
     th_rob = _solve(prob, theta, kidx, "soft_l1", max_nfev)
-    report = decide(mode, pose_chi2(prob, th_rob, st.per), st.per, pose_conditions(obs.q_rad, obs.ctx, labels))
+    report = decide(mode, pose_chi2(prob, th_rob, st.per), st.per,
+                    pose_conditions(obs.q_rad, obs.ctx, labels, model.robot))
     if report.rejected:
         keep = np.setdiff1d(np.arange(obs.n), report.rejected)
         prob = _Problem(model, obs.subset(keep), prob.theta0[: model.P], priors)

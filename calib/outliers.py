@@ -109,13 +109,14 @@ def flag_poses(chi2_per_pose: np.ndarray, dof_per_pose: int) -> list[int]:
 
 
 def pose_conditions(q_rad: np.ndarray, ctx=None, labels: dict[str, list] | None = None,
-                    joint_names: list[str] | None = None) -> dict[str, np.ndarray]:
-    """The conditions a systematic effect could follow: each joint, time (else the measurement order), payload,
-    temperature, and any per-pose labels (station, target, procedure)."""
+                    robot=None) -> dict[str, np.ndarray]:
+    """The conditions a systematic effect could follow: each joint (named as :mod:`calib.names` shows it), time
+    (else the measurement order), payload, temperature, and any per-pose labels (station, target, procedure)."""
+    from .names import joint_label
     q = np.atleast_2d(q_rad)
     out: dict[str, np.ndarray] = {}
     for j in range(q.shape[1]):
-        out[f"joint {joint_names[j] if joint_names else j + 1}"] = q[:, j]
+        out[joint_label(robot, j + 1) if robot is not None else f"joint {j + 1}"] = q[:, j]
     t = getattr(ctx, "time_s", None)
     out["time" if t is not None and np.ptp(t) > 0 else "measurement order"] = (
         t if t is not None and np.ptp(t) > 0 else np.arange(len(q), dtype=float))

@@ -20,7 +20,8 @@ column                    meaning
 ``station``               instrument set-up the row was measured from (re-stationing: one transform each)
 ``hz_deg``, ``v_deg``,    a polar instrument's raw reading of the target (laser tracker, total station), in
 ``dist_mm``               the station's frame; used when x, y, z are absent
-``rx_deg`` .. ``rz_deg``  the measured orientation of the tip (roll-pitch-yaw, instrument frame)
+``rx_deg`` .. ``rz_deg``  the measured frame's orientation, instrument frame: R = Rz(rz) Ry(ry) Rx(rx)
+                          (:mod:`calib.orientation`: one row is one pose)
 ``time``                  s
 ``payload``               kg
 ``temperature``           deg C

@@ -14,44 +14,32 @@ from __future__ import annotations
 import fnmatch
 import re
 
+from . import names as naming
 from .errors import RobocalError
-from .units import DEG
 
 _PRIOR = re.compile(r"^\s*([^=\s]+)\s*=\s*([-+0-9.eE]+)\s*(?:±|\+-|\+/-)\s*([0-9.eE+]+)\s*$")
 
 
 def canonical(name: str, robot, known) -> tuple[str, float]:
-    """(parameter name, scale to internal units) for a user-given name; RobocalError for an unknown one."""
-    head, _, param = name.rpartition(".")
-    if head in robot.joint_names:
-        head = f"j{robot.joint_names.index(head) + 1}"
-    scale = 1.0
-    if param.endswith("_deg"):
-        param, scale = param[:-4] + "_rad", DEG
-    out = f"{head}.{param}" if head else param
-    if out not in known:
-        raise RobocalError(f"{name!r} is not a parameter of the model (e.g. {', '.join(list(known)[:3])}, "
-                           f"{robot.joint_names[0]}.a_mm)")
-    return out, scale
-
-
-def alias(name: str, robot) -> str:
-    """``j3.a_mm`` -> ``elbow_joint.a_mm`` (the description's joint name), for matching and reports."""
-    head, _, param = name.partition(".")
-    if re.fullmatch(r"j\d+", head) and int(head[1:]) <= len(robot.joint_names):
-        return f"{robot.joint_names[int(head[1:]) - 1]}.{param}"
-    return name
+    """(parameter name, scale to internal units) for a user-given name in any form the output prints
+    (:func:`calib.names.internal`); RobocalError for an unknown one."""
+    return naming.internal(name, robot, known)
 
 
 def free_from_patterns(model, patterns: list[str]) -> list[str]:
-    """Parameters whose name (or joint-name alias) matches any comma-separated shell pattern, in model order."""
+    """Parameters any of whose printed forms (code name, joints named, ``_deg`` for angles: :func:`calib.names.
+    shown_forms`) matches any comma-separated shell pattern, in model order."""
     pats = [p.strip() for text in patterns for p in text.split(",") if p.strip()]
-    out = [n for n in model.names
-           if any(fnmatch.fnmatchcase(n, p) or fnmatch.fnmatchcase(alias(n, model.robot), p) for p in pats)]
+    forms = {n: naming.shown_forms(n, model.robot) for n in model.names}
+
+    def hit(n, p):
+        return any(fnmatch.fnmatchcase(f, p) for f in forms[n])
+
+    out = [n for n in model.names if any(hit(n, p) for p in pats)]
     if not out:
         raise RobocalError(f"--free {','.join(pats)}: matches no parameter (e.g. 'base.*,tool.*,j*.a_mm')")
     for p in pats:
-        if not any(fnmatch.fnmatchcase(n, p) or fnmatch.fnmatchcase(alias(n, model.robot), p) for n in model.names):
+        if not any(hit(n, p) for n in model.names):
             raise RobocalError(f"--free: pattern {p!r} matches no parameter")
     return out
 

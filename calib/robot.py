@@ -324,7 +324,8 @@ class Robot:
             row, j = map(int, np.argwhere(bad)[0])
             unit = "mm" if self.prismatic[j] else "deg"
             pose = f"pose {row + 1}: " if q.shape[0] > 1 else ""
-            raise RobocalError(f"{where}: {pose}joint {j + 1} reading {q[row, j]:g} {unit} is outside "
+            from .names import joint_label
+            raise RobocalError(f"{where}: {pose}{joint_label(self, j + 1)} reading {q[row, j]:g} {unit} is outside "
                                f"{lo[j]:g}..{hi[j]:g} {unit} (a typing or unit mistake?)")
 
 

@@ -153,7 +153,8 @@ def test_one_fit_of_both_arms_and_the_shared_torso(tmp_path):
     data = tmp_path / "poses.csv"
     _write_data(data, real, robot, 80, 12)
     out = subprocess.run([sys.executable, "-m", "acq.cli", "identify", str(data), "--robot", desc, "--noise-mm", "0.05",
-                          "--json"], capture_output=True, text=True, cwd=tmp_path)
+                          "--json", "--out-urdf", str(tmp_path / "calibrated.urdf")], capture_output=True, text=True,
+                         cwd=tmp_path)
     assert out.returncode == 0, out.stderr
     doc = json.loads(out.stdout)
     names = [p["name"] for p in doc["parameters"]]
@@ -171,6 +172,29 @@ def test_one_fit_of_both_arms_and_the_shared_torso(tmp_path):
         robot.tool_points_mm[r["target"]]), frames[i]).point[0] for i, r in enumerate(rows)])
     meas = np.array([[float(r[c]) for c in "xyz"] for r in rows])
     assert np.sqrt(np.mean(np.sum((p_nom - meas) ** 2, axis=1))) > 5 * doc["test_rms_mm"]
+    # the calibrated URDF, read by Pinocchio and placed by the side file's base, predicts the test rows as well
+    pin = pytest.importorskip("pinocchio")
+    side = json.loads((tmp_path / "calibrated.side.json").read_text())
+    base = side["base_link_in_measurement_frame"]
+    from tests.fakes.tree_robot import hom, rpy_matrix
+    B = hom(rpy_matrix(np.radians(base["rpy_deg"])), np.array(base["xyz_mm"]))
+    pm = pin.buildModelFromUrdf(str(tmp_path / "calibrated.urdf"))
+    pd = pm.createData()
+    err = []
+    for r in rows:
+        if r["split"] != "test":
+            continue
+        qp = pin.neutral(pm)
+        vals = {k: np.radians(float(r[k])) for k in robot.reading_names}
+        vals["torso_3_joint"] = -(vals["torso_1_joint"] + vals["torso_2_joint"])
+        for name, v in vals.items():
+            qp[pm.joints[pm.getJointId(name)].idx_q] = v
+        pin.framesForwardKinematics(pm, pd, qp)
+        tp = side["tool_points"][r["target"]]
+        p = pd.oMf[pm.getFrameId(tp["link"])].act(np.array(tp["xyz_mm"]) / 1000.0) * 1000.0
+        err.append(B[:3, :3] @ p + B[:3, 3] - np.array([float(r[c]) for c in "xyz"]))
+    rms = float(np.sqrt(np.mean(np.sum(np.square(err), axis=1))))
+    assert rms == pytest.approx(doc["test_rms_mm"], rel=1e-6)
 
 
 def test_identified_tree_round_trips_through_its_description(tmp_path):

@@ -58,9 +58,11 @@ def run(args) -> int:
     if args.json:
         print(json.dumps(out))
         return 0
+    from calib.names import joint_names
     key = "joint_deg" if args.reading else "command_deg"
-    label = "true joint angles (deg)" if args.reading else "compensated command (deg)"
-    print(f"{label}: " + "  ".join(f"{v:.4f}" for v in out[key]))
+    label = "true joint values" if args.reading else "compensated command"
+    print(f"{label}: " + "  ".join(f"{name} {v:.4f} {unit}" for name, v, unit in
+                                   zip(joint_names(im.model.robot), out[key], out["joint_units"])))
     print(f"tool point (mm, measurement frame): x {out['x_mm']:.3f}  y {out['y_mm']:.3f}  z {out['z_mm']:.3f}  "
           f"(1 sigma {', '.join(f'{v:.3f}' for v in out['sigma_mm'])})")
     return 0

@@ -167,7 +167,9 @@ def run(args) -> int:
         write_report(diag, args.report, provenance=prov)
     if args.json:
         extra = {"plausibility_warnings": implausible} if implausible else {}
-        print(json.dumps({**diag.to_json(), "provenance": prov, **extra}, indent=1, default=float))
+        from calib.names import with_joint_names
+        print(json.dumps({**with_joint_names(diag.to_json(), data.robot), "provenance": prov, **extra}, indent=1,
+                         default=float))
     else:
         print(render(diag))
         if args.report:

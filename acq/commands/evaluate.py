@@ -35,6 +35,10 @@ def run(args) -> int:
         return 0
     print(f"robocal evaluate {args.data}: {doc['n']} {doc['rows']} rows: RMS {_fmt(doc['rms_mm'])} mm, "
           f"max {_fmt(doc['max_mm'])} mm, 95th percentile {_fmt(doc['p95_mm'])} mm")
+    if "orientation" in doc:
+        o = doc["orientation"]
+        print(f"  orientation ({o['convention']}): geodesic error mean {o['mean_deg']:.4f} deg, RMS "
+              f"{o['rms_deg']:.4f} deg, max {o['max_deg']:.4f} deg")
     for st in doc.get("stations", []):
         print(f"  station {st['station']} located from {st['n_rows']} rows (RMS there {st['rms_mm']:.3f} mm): "
               f"xyz_mm {', '.join(f'{v:.2f}' for v in st['xyz_mm'])}, "

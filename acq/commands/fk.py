@@ -24,6 +24,7 @@ def add_arguments(p):
 
 
 def run(args) -> int:
+    from calib.names import reading_label
     robot = load_robot(args.robot)
     if len(args.q) != robot.n_readings:
         raise RobocalError(f"fk: expected {robot.n_readings} joint readings for {robot.name} "
@@ -33,9 +34,10 @@ def run(args) -> int:
         try:
             v = float(text)
         except ValueError:
-            raise RobocalError(f"fk: joint {i} reading {text!r} is not a number (degrees)") from None
+            raise RobocalError(f"fk: {reading_label(robot, i)} reading {text!r} is not a number "
+                               f"({'mm' if robot.reading_prismatic[i - 1] else 'degrees'})") from None
         if not math.isfinite(v):
-            raise RobocalError(f"fk: joint {i} reading {text!r} is not finite")
+            raise RobocalError(f"fk: {reading_label(robot, i)} reading {text!r} is not finite")
         q.append(v)
     theta = robot.joints_from_readings(np.array([q]) * robot.reading_edge_scale)
     robot.check_readings(theta / robot.edge_scale, "fk")

@@ -27,6 +27,13 @@ def add_arguments(p):
                         "coupling 5->6)")
     p.add_argument("--out", type=output_file, metavar="MODEL.json", help="write every parameter with its uncertainty")
     p.add_argument("--out-robot", type=output_file, metavar="ROBOT.toml", help="write the identified robot description")
+    p.add_argument("--out-urdf", type=output_file, metavar="FILE.urdf",
+                   help="write the description as a calibrated URDF (corrected joint origins, every other element "
+                        "kept; a DH description gets a URDF made from its frames) and FILE.side.json with what a "
+                        "URDF cannot hold; the file is read back and checked against the model")
+    p.add_argument("--out-dh-deltas", type=output_file, metavar="FILE.csv",
+                   help="write per joint the identified change of theta, d, a, alpha (and beta) with 1 sigma: the "
+                        "form a controller takes (DH descriptions)")
     p.add_argument("--json", action="store_true", help="print the model document as JSON")
     add_outlier_arguments(p)
     add_unit_arguments(p)
@@ -35,7 +42,8 @@ def add_arguments(p):
                    help="noise of hz_deg/v_deg/dist_mm rows (laser tracker, total station): angle 1-sigma in arc "
                         "seconds, distance 1-sigma in mm, plus ppm of the distance (default 1,0.01,1)")
     p.add_argument("--orientation-noise-deg", type=positive_float, default=0.01, metavar="DEG",
-                   help="1-sigma noise of rx_deg/ry_deg/rz_deg rows (a 6-D tracker probe), default 0.01")
+                   help="1-sigma noise per axis of rx_deg/ry_deg/rz_deg rows (a 6-D tracker probe; R = Rz(rz) "
+                        "Ry(ry) Rx(rx), the measured frame in the instrument frame), default 0.01")
     p.add_argument("--free", action="append", default=[], metavar="PATTERN",
                    help="estimate only the parameters matching these shell patterns (comma-separated or repeated; "
                         "joint names allowed: 'base.*,tool.*,arm_*_joint.a_mm'); the rest keep their design values")
@@ -45,7 +53,8 @@ def add_arguments(p):
 
 
 def run(args) -> int:
-    from calib.compensate import model_document, save_model, unit_of
+    from calib import names as naming
+    from calib.compensate import model_document, save_model
     from calib.effects import THESIS_RUNNING_ERRORS, effect_from_text
     from calib.evaluation import (context_of, data_rows, fit_rows, point_covariance, split_metrics, station_names,
                                   station_start, with_orientation_points, with_polar_points)
@@ -69,7 +78,7 @@ def run(args) -> int:
     if not args.noise_mm > 0:
         raise RobocalError(f"identify: --noise-mm must be positive, got {args.noise_mm}")
     specs = list(args.effect) + (list(THESIS_RUNNING_ERRORS) if args.thesis_effects else [])
-    effects = [effect_from_text(s, robot.n) for s in specs]
+    effects = [effect_from_text(s, robot.n, robot) for s in specs]
     model = MeasurementModel(robot, effects + target_offsets, stations=station_names(full))
     ctx = context_of(model, table)
     cov = point_covariance(table)
@@ -93,6 +102,8 @@ def run(args) -> int:
     held_out = split_metrics(model, ident.theta[:model.P], measured) if full.split is not None else {}
     implausible += enforce(check_fit(ident.reduced_chi2, args.data), args.force_implausible, "identify")
     noise = _noise(args, measured, obs, ident, held_out, model.robot.tool_point_frames or None)
+    orientation = _orientation(args, model, ident.theta[:model.P], measured)
+    n_rows = int(measured.split_mask("fit").sum()) if measured.split is not None else measured.n
     prov = provenance(args.robot)
     if args.out:
         save_model(args.out, model, ident, args.out_robot, provenance=prov)
@@ -101,37 +112,86 @@ def run(args) -> int:
         from calib.robot import robot_to_toml
         from calib.fileio import atomic_write_text
         atomic_write_text(args.out_robot, robot_to_toml(robot_from_theta(model, ident.theta)))
+    exported = _exports(args, model, ident, table)
     if args.json:
         extra = {"plausibility_warnings": implausible} if implausible else {}
-        print(json.dumps({**model_document(model, ident, provenance=prov), **held_out, **extra,
+        if exported:
+            extra["exported"] = {k: v for k, v in exported.items() if k != "lines"}
+        if orientation:
+            extra["orientation"] = orientation
+        print(json.dumps({**model_document(model, ident, provenance=prov), **held_out, **extra, "n_poses": n_rows,
                           "noise_estimated_mm": noise.estimated_mm, "noise_estimate": noise.as_dict()}, indent=1))
         return 0
-    print(f"robocal identify {args.data}: {table.n} poses, {len(ident.free)} parameters estimated, "
+    print(f"robocal identify {args.data}: {n_rows} poses, {len(ident.free)} parameters estimated, "
           f"residual RMS {ident.residual_rms:.4f} mm, reduced chi-square {ident.reduced_chi2:.2f}")
     if held_out:
         print(f"  data's own split: {held_out['n_fit']} fit rows (RMS {held_out['fit_rms_mm']:.4f} mm), "
               f"{held_out['n_test']} test rows: RMS {held_out['test_rms_mm']:.4f} mm, max {held_out['test_max_mm']:.4f} mm")
+    if orientation:
+        o = orientation
+        print(f"  orientation: {o['statement']}")
+        print(f"  orientation error (geodesic): fit rows mean {o['fit']['mean_deg']:.4f} deg, max "
+              f"{o['fit']['max_deg']:.4f} deg" + (f"; test rows mean {o['test']['mean_deg']:.4f} deg, max "
+                                                  f"{o['test']['max_deg']:.4f} deg" if o.get("test") else ""))
     if noise.estimated_mm is not None:
         print(f"  noise per coordinate: given {noise.given_mm:.4f} mm, from the data {noise.estimated_mm:.4f} mm "
               f"({noise.how})")
-    for line in ident.identifiability.report(robot.description_joint_names):
+    for line in ident.identifiability.report(robot):
         print("  " + line)
     for line in ident.outlier_report.lines():
         print("  " + line)
     print(f"  {'parameter':<44}{'value':>14}{'1 sigma':>12}  unit")
-    for name in ident.free:
-        v, s = ident.value(name), ident.std(name)
-        unit = unit_of(name)
-        if unit == "rad":           # shown in degrees under the name that says so (what --prior reads back)
-            v, s, unit = v / DEG, s / DEG, "deg"
-            name = name[: -len("_rad")] + "_deg" if name.endswith("_rad") else name
-        print(f"  {name:<44}{v:>14.6g}{s:>12.3g}  {unit}")
+    for name in ident.free:       # joints named, angles in degrees: the names --free and --prior read back
+        shown, v, s, unit = naming.edge(name, ident.value(name), ident.std(name), robot)
+        print(f"  {shown:<44}{v:>14.6g}{s:>12.3g}  {unit}")
     corr = ident.correlations(0.9)
     if corr:
-        print("  correlations above 0.9: " + "; ".join(f"{a} ~ {b} ({r:+.3f})" for a, b, r in corr))
+        print("  correlations above 0.9: " + "; ".join(f"{naming.edge_name(a, robot)} ~ {naming.edge_name(b, robot)} "
+                                                        f"({r:+.3f})" for a, b, r in corr))
     if args.out:
         print(f"  written: {args.out}" + (f", {args.out_robot}" if args.out_robot else ""))
+    for line in exported.get("lines", []):
+        print("  " + line)
     return 0
+
+
+def _orientation(args, model, theta, measured) -> dict:
+    """How 6-D rows were used and how well the fit reproduces their orientations (geodesic angles, fit and test
+    rows); {} without orientation columns."""
+    from calib import orientation as ori
+    if measured.orientation_rad is None:
+        return {}
+    out = {"statement": ori.statement(args.orientation_noise_deg), "convention": ori.CONVENTION,
+           "noise_deg": args.orientation_noise_deg, "lever_mm": ori.LEVER_MM}
+    for part in ("fit", "test"):
+        rows = measured.split_mask(part) if measured.split is not None else None
+        if rows is None and part == "test":
+            continue
+        sub = measured if rows is None else measured.subset(rows)
+        if sub.n:
+            out[part] = ori.summary_deg(ori.orientation_errors_deg(model, theta, sub))
+    return out
+
+
+def _exports(args, model, ident, table) -> dict:
+    """``--out-urdf`` and ``--out-dh-deltas``: the files, and what the terminal and the JSON say about them."""
+    out: dict = {}
+    sigma = ident.sigma[: model.P]
+    theta = ident.theta[: model.P]
+    if args.out_urdf:
+        from calib.export.urdf_out import urdf_source
+        from calib.export.write import write_calibrated_urdf
+        exp = write_calibrated_urdf(args.out_urdf, urdf_source(args.robot), model, theta, sigma, table.q_rad,
+                                    f"robocal identify {args.data}")
+        out.update(urdf=exp.urdf, side_file=exp.side, urdf_check_max_mm=exp.check_mm, urdf_check_poses=exp.n_poses)
+        out.setdefault("lines", []).extend(exp.lines())
+    if args.out_dh_deltas:
+        from calib.export.dh_deltas import write_dh_deltas
+        from calib.export.urdf_out import urdf_source
+        write_dh_deltas(args.out_dh_deltas, model, theta, sigma, set(ident.free), urdf_source(args.robot))
+        out["dh_deltas"] = str(args.out_dh_deltas)
+        out.setdefault("lines", []).append(f"DH deltas written: {args.out_dh_deltas}")
+    return out
 
 
 def _noise(args, measured, obs, ident, held_out: dict, body: dict | None = None):

@@ -141,18 +141,18 @@ def _evaluate(args, model: MeasurementModel, names: list[str]) -> int:
     out = {"poses": table.n, "parameters": len(names), "observations": 3 * table.n, "rank": ident.rank,
            "condition": ident.condition, "held": ident.fixed, "kept_condition": ident.kept_condition,
            "indices_scaled": idx,
-           "not_identifiable": [c.words() for c in ident.unidentifiable],
-           "weakest": [{"ratio": c.ratio, "words": c.words()} for c in ident.weakest]}
+           "not_identifiable": [c.words(model.robot) for c in ident.unidentifiable],
+           "weakest": [{"ratio": c.ratio, "words": c.words(model.robot)} for c in ident.weakest]}
     if args.json:
         print(json.dumps(out, indent=2))
         return 0
     print(f"robocal plan poses --evaluate {args.evaluate}: {table.n} poses, {3 * table.n} observations, "
           f"{len(names)} parameters ({args.pset} set)")
-    for line in ident.report():
+    for line in ident.report(model.robot):
         print("  " + line)
     print("  weakest combinations kept:")
     for c in ident.weakest:
-        print(f"    ratio {c.ratio:.2e}: {c.words()}")
+        print(f"    ratio {c.ratio:.2e}: {c.words(model.robot)}")
     print("  observability (column-scaled): " + ", ".join(f"{k} {v:.3g}" for k, v in idx.items()))
     return 0
 

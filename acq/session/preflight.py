@@ -179,6 +179,7 @@ def _joint_limits(pf: Preflight, geo: StepGeometry) -> list[Finding]:
     q = geo.step.pose_deg
     if q is None:
         return []
+    from calib.names import joint_label
     r = pf.robot
     margin = pf.limits["joint_margin_deg"]
     out = []
@@ -190,7 +191,7 @@ def _joint_limits(pf: Preflight, geo: StepGeometry) -> list[Finding]:
             if beyond:
                 unit = "mm" if r.prismatic[j] else "deg"
                 out.append(Finding("joint limit", geo.step.key, float(q[j]), float(bound), unit,
-                                   f"joint {j + 1} at {q[j]:.1f} {unit}, limit {bound:.1f} {unit} "
+                                   f"{joint_label(r, j + 1)} at {q[j]:.1f} {unit}, limit {bound:.1f} {unit} "
                                    f"({lo if bound == lo + m else hi:.1f} with a {m:g} {unit} margin)"))
     return out
 

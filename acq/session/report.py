@@ -83,6 +83,16 @@ def _ruler_fig(f: dict, res: dict):
     return [("Ruler fit: residual of every reading", fig)]
 
 
+def _joint(res: dict, j, capital: bool = False) -> str:
+    """Joint ``j`` (1-based) as the session's description names it (``joint_labels`` of the reprocess result,
+    :func:`calib.names.joint_label`), ``joint j`` for a result without them."""
+    labels = res.get("joint_labels") or []
+    k = int(j)
+    if 1 <= k <= len(labels) and not labels[k - 1].startswith("joint "):
+        return labels[k - 1]
+    return f"{'J' if capital else 'j'}oint {k}"
+
+
 @figure("sweeps")
 def _sweeps_fig(f: dict, res: dict):
     if not f.get("sweeps"):
@@ -93,7 +103,7 @@ def _sweeps_fig(f: dict, res: dict):
     for j, s in f["sweeps"].items():
         P = np.array(s["points_mm"])
         c, n, r = np.array(s["centre_mm"]), np.array(s["normal"]), s["radius_mm"]
-        ax.scatter(*P.T, s=10, label=f"joint {j}")
+        ax.scatter(*P.T, s=10, label=_joint(res, j))
         e1 = np.cross(n, [1, 0, 0] if abs(n[0]) < 0.9 else [0, 1, 0])
         e1 /= np.linalg.norm(e1)
         e2 = np.cross(n, e1)
@@ -151,9 +161,9 @@ def _te_fig(f: dict, res: dict):
         if t.get("fit_deg") is not None:
             order = np.argsort(enc)
             ax.plot(enc[order], np.asarray(t["fit_deg"], float)[order], "-", label="harmonic fit")
-        ax.set_xlabel(f"joint {j} encoder angle (deg)"), ax.set_ylabel("transmission error (deg)")
+        ax.set_xlabel(f"{_joint(res, j)} encoder angle (deg)"), ax.set_ylabel("transmission error (deg)")
         ax.legend(fontsize=7)
-        out.append((f"Transmission error of joint {j}", fig))
+        out.append((f"Transmission error of {_joint(res, j)}", fig))
     return out
 
 
@@ -168,11 +178,11 @@ def _compliance_fig(f: dict, res: dict):
         ax.plot(T[~u], d[~u], "o-", label="loading")
         if u.any():
             ax.plot(T[u], d[u], "s--", label="unloading")
-        ax.set_xlabel(f"torque about joint {j} (N m)"), ax.set_ylabel("deflection (deg)")
+        ax.set_xlabel(f"torque about {_joint(res, j)} (N m)"), ax.set_ylabel("deflection (deg)")
         ax.legend(fontsize=7)
         span = float(np.ptp(T)) if len(T) else 0.0
         note = "" if span > 1e-6 else " — the loads produced no torque about this joint at this pose"
-        out.append((f"Joint {j}: deflection against the torque the loads produce{note}", fig))
+        out.append((f"{_joint(res, j, True)}: deflection against the torque the loads produce{note}", fig))
     return out
 
 
@@ -214,8 +224,8 @@ def _resolution_fig(f: dict, res: dict):
         fig, ax = plt.subplots(figsize=(6, 2.6))
         ax.errorbar(r["counts"], r["residual_deg"], r.get("sigma_deg"), fmt="o", ms=3)
         ax.axhline(0.0, color="k", lw=0.5)
-        ax.set_xlabel(f"joint {j} encoder counts"), ax.set_ylabel("angle − fitted line (deg)")
-        out.append((f"Joint {j}: {np.degrees(r['rad_per_count']) * 3600:.4g} arc seconds per count; the measured angle "
+        ax.set_xlabel(f"{_joint(res, j)} encoder counts"), ax.set_ylabel("angle − fitted line (deg)")
+        out.append((f"{_joint(res, j, True)}: {np.degrees(r['rad_per_count']) * 3600:.4g} arc seconds per count; the measured angle "
                     f"less the fitted line", fig))
     return out
 

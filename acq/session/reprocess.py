@@ -156,6 +156,7 @@ def _twin_for(data: SessionData):
 
 def reprocess(path: str, n_mc: int = 0, progress=None) -> dict:
     """Rerun every stage; returns the results document (see the module docstring)."""
+    from calib.names import joint_label
     t0 = time.perf_counter()
     data = load_session(path)
     twin = _twin_for(data)
@@ -256,6 +257,7 @@ def reprocess(path: str, n_mc: int = 0, progress=None) -> dict:
         "problems": problems,
         "problem_details": details,
         "robot": ident_doc,
+        "joint_labels": [joint_label(robot, j) for j in range(1, robot.n + 1)],     # how reports name the joints
         "figures": figs,
     }
 
@@ -522,7 +524,7 @@ def _pose_model(robot, running: dict, problems: list[str], specs=None):
     from calib.estimators.compliance import MAX_REL_ERROR_TWO_SLOPES
     from calib.model import MeasurementModel
     specs = running_error_specs({}, running) if specs is None else specs
-    effects = [effect_from_text(t, robot.n) for t in specs]
+    effects = [effect_from_text(t, robot.n, robot) for t in specs]
     model = MeasurementModel(robot, effects)
     theta0 = model.nominal.copy()
     priors: dict[str, tuple[float, float]] = {}
@@ -629,7 +631,7 @@ def _poses(steps, points, robot, setup, est, twin, figs, running=None, problems=
     for n in wanted:
         if n in ident.free:
             continue
-        why = [c.words() for c in ident.identifiability.unidentifiable + ident.identifiability.weak
+        why = [c.words(robot) for c in ident.identifiability.unidentifiable + ident.identifiability.weak
                if n in c.coefficients][:1]
         est.add(f"ident.{n}", ident.value(n), 0.0, _unit(n), truth_key=n, held=True,
                 note="held at its design value, not estimated" + (f": {why[0]}" if why else "")

@@ -207,4 +207,7 @@ def load_data(path: str | Path, robot: Robot | None = None, noise_mm: float | No
         d.split = list(table.split)
     d.ignored_columns = [str(c) for c in getattr(table, "ignored_columns", None) or ()]
     d.notes += [str(w.message) for w in caught]
+    if table.orientation_rad is not None:
+        from calib.orientation import dropped_note
+        d.notes.append(dropped_note(path))
     return d

@@ -1,6 +1,7 @@
 """The diagnosis as text tables for the terminal (what the operator reads first)."""
 from __future__ import annotations
 
+from ..names import prose
 from .engine import Diagnosis
 from .select import DOUBTFUL_SPREAD
 
@@ -89,4 +90,4 @@ def render(d: Diagnosis, max_factor_rows: int = 40) -> str:
                        + ("confirmed" if f["confirmed"] else "NOT confirmed"))
     for n in j["notes"]:
         out.append(f"   note: {n}")
-    return "\n".join(out)
+    return prose("\n".join(out), d.data.robot)        # joints as the description names them (calib.names)

@@ -8,6 +8,7 @@ from pathlib import Path
 import numpy as np
 
 from calib.errors import RobocalError
+from calib.names import joint_label, prose, with_joint_names
 
 
 def _plt():
@@ -50,7 +51,7 @@ def write_report(d, out_dir, provenance: dict | None = None) -> Path:
         ax.scatter(x, before, s=8, label="geometric")
         ax.scatter(x, after, s=8, label="final")
         ax.axhline(j["noise_floor_mm"], color="k", lw=0.8, ls="--")
-        ax.set_xlabel(f"q{k + 1} ({'mm' if d.data.robot.prismatic[k] else 'deg'})")
+        ax.set_xlabel(f"{joint_label(d.data.robot, k + 1)} ({'mm' if d.data.robot.prismatic[k] else 'deg'})")
         ax.set_ylabel("held-out |r| (mm)")
     axes[0][0].legend(fontsize=7)
     fig.tight_layout()
@@ -69,7 +70,7 @@ def write_report(d, out_dir, provenance: dict | None = None) -> Path:
             ax.bar(x + 0.2, [g.rms_after_mm for g in f.groups], 0.4, label="final")
             ax.axhline(j["noise_floor_mm"], color="k", lw=0.8, ls="--")
             ax.set_xticks(x, [g.label for g in f.groups], fontsize=7)
-            ax.set_title(f"{f.name} (Kruskal-Wallis p = {f.p_value:.2g})", fontsize=9)
+            ax.set_title(prose(f"{f.name} (Kruskal-Wallis p = {f.p_value:.2g})", d.data.robot), fontsize=9)
             ax.set_ylabel("RMS mm", fontsize=8)
         axes[0, 0].legend(fontsize=7)
         fig.tight_layout()
@@ -77,7 +78,8 @@ def write_report(d, out_dir, provenance: dict | None = None) -> Path:
         plt.close(fig)
         figs.append(("Held-out RMS by condition", "breakdown.png"))
 
-    steps = ["geometric"] + [f["label"] + (" (doubtful)" if f["doubtful"] else "") for f in j["findings"]]
+    steps = ["geometric"] + [prose(f["label"], d.data.robot) + (" (doubtful)" if f["doubtful"] else "")
+                             for f in j["findings"]]
     vals = [j["baseline_rms_mm"]] + [f["rms_after_mm"] for f in j["findings"]]
     fig, ax = plt.subplots(figsize=(max(4, 1.6 * len(steps)), 3))
     ax.plot(range(len(steps)), vals, "o-")
@@ -100,7 +102,8 @@ def write_report(d, out_dir, provenance: dict | None = None) -> Path:
         j["provenance"] = provenance
     (out / "index.html").write_text("<!doctype html><meta charset='utf-8'><title>robocal diagnose</title>"
                                     + "\n".join(body), encoding="utf-8")
-    (out / "diagnosis.json").write_text(json.dumps(j, indent=1, default=float), encoding="utf-8")
+    (out / "diagnosis.json").write_text(json.dumps(with_joint_names(j, d.data.robot), indent=1, default=float),
+                                        encoding="utf-8")
     return out / "index.html"
 
 

@@ -494,7 +494,7 @@ def _round(cx: _Context, cur: CVResult, remaining: list[Candidate], rounds: list
                       [lin.big.names[i] for i in lin.base_idx] + [f"candidate.{p}" for p in cand.free])
         if any(n.startswith("candidate.") for n in ida.fixed):
             cx.note(f"{cand.label}: held by the identifiability guard ("
-                    + "; ".join(c.words() for c in ida.unidentifiable) + ")")
+                    + "; ".join(c.words(cx.data.robot) for c in ida.unidentifiable) + ")")
             held.append(cand)
             continue
         tried += 1

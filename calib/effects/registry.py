@@ -40,11 +40,12 @@ def _joint_keys(cls: type[Effect]) -> list[str]:
     return (["joint"] if cls.has_joint else []) + [k for k, t in cls.options.items() if t is JointNumber]
 
 
-def effect_from_text(text: str, n_joints: int = 6) -> Effect:
+def effect_from_text(text: str, n_joints: int = 6, robot=None) -> Effect:
     """An effect to identify, from a short spec ``kind[:joint][:option...]`` (initial values zero or nominal):
 
     ``transmission_error:J:ORDER[:HARMONICS]``, ``joint_compliance:J``, ``backlash:J``, ``cross_coupling:J:SOURCE``,
-    ``link_compliance:J``, ``thermal_drift[:REFERENCE_DEGC]``.
+    ``link_compliance:J``, ``thermal_drift[:REFERENCE_DEGC]``.  A joint is its number or, with ``robot``, its name
+    as the output shows it (``joint_compliance:arm_6_joint``, :mod:`calib.names`).
     """
     kind, *args = text.split(":")
     cls = effect_class(kind, f"effect {text!r}")
@@ -53,10 +54,8 @@ def effect_from_text(text: str, n_joints: int = 6) -> Effect:
     if not lo <= len(args) <= hi:
         raise RobocalError(f"effect {text!r}: {kind} takes {lo if lo == hi else f'{lo} to {hi}'} field(s) after "
                            f"the kind")
-    try:
-        given = dict(zip(names, (float(a) for a in args)))
-    except ValueError:
-        raise RobocalError(f"effect {text!r}: fields must be numbers") from None
+    joint_keys = _joint_keys(cls)
+    given = {key: _field(text, key, a, key in joint_keys, robot) for key, a in zip(names, args)}
     for key in _joint_keys(cls):
         v = given.get(key)
         if v is not None and (v != int(v) or not 1 <= v <= n_joints):
@@ -66,6 +65,22 @@ def effect_from_text(text: str, n_joints: int = 6) -> Effect:
         return cls.zero(**kw)
     except ValueError as exc:
         raise RobocalError(f"effect {text!r}: {exc}") from None
+
+
+def _field(text: str, key: str, raw: str, is_joint: bool, robot) -> float:
+    """One ``--effect`` field as a number; a joint field may name the joint."""
+    try:
+        return float(raw)
+    except ValueError:
+        pass
+    if is_joint and robot is not None:
+        from ..names import joint_names, joint_number
+        j = joint_number(robot, raw)
+        if j is None:
+            raise RobocalError(f"effect {text!r}: {key} {raw!r} is not a joint of the robot (joints: "
+                               f"{', '.join(joint_names(robot))})")
+        return float(j)
+    raise RobocalError(f"effect {text!r}: fields must be numbers" + (" or joint names" if is_joint else ""))
 
 
 def effect_spec(e: Effect) -> dict:
