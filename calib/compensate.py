@@ -258,24 +258,36 @@ def compensate_readings(im: IdentifiedModel, nominal: MeasurementModel, r_desire
     r_des = np.atleast_2d(np.asarray(r_desired, float))
     points = _points_to_compensate(im)
     q_des = r_des @ M.T + off
-    target = [nominal.evaluate(q_des, None, None, tool_mm=xyz, link=f).point_mm for f, xyz in points]
-    r = r_des.copy()
-    err = np.full(len(r), np.inf)
-    for _ in range(iterations):
-        q = r @ M.T + off
-        evs = [im.model.evaluate(q, ctx, im.theta, jacobian=True, tool_mm=xyz, link=f) for f, xyz in points]
-        d = np.concatenate([t - ev.point_mm for t, ev in zip(target, evs)], axis=1)       # (N, 3K)
-        err = np.max(np.linalg.norm(d.reshape(len(r), -1, 3), axis=-1), axis=1)
-        if np.all(err < tol_mm):
-            break
-        Jr = np.concatenate([np.matmul(ev.joint_jacobian, M) for ev in evs], axis=1)    # (N, 3K, m)
-        r = r + np.einsum("nij,nj->ni", np.linalg.pinv(Jr), d)
+    target = np.stack([nominal.evaluate(q_des, None, None, tool_mm=xyz, link=f).point_mm for f, xyz in points], 1)
+    r, err = reach(im.model, im.theta, points, target, r_des, M, off, ctx, iterations, tol_mm)
     q = r @ M.T + off
     lim = robot.limits_rad
     outside = np.any((q < lim[:, 0] - 1e-9) | (q > lim[:, 1] + 1e-9), axis=1)
     if np.any(outside):
         i = int(np.flatnonzero(outside)[0])
         raise RobocalError(f"compensate: the corrected command of pose {i + 1} leaves the joint limits")
+    return r, err
+
+
+def reach(model: MeasurementModel, theta: np.ndarray, points: list[tuple[int, np.ndarray]], target_mm: np.ndarray,
+          r0: np.ndarray, M: np.ndarray, off: np.ndarray, ctx: PoseContext | None = None, iterations: int = 10,
+          tol_mm: float = 1e-6) -> tuple[np.ndarray, np.ndarray]:
+    """Readings (N, m) that put the model's ``points`` ((frame, position in it) each) at ``target_mm`` (N, K, 3),
+    Gauss-Newton from ``r0`` on the readings (joint = M reading + off): the one inverse of the forward model
+    (compensation, the ISO 9283 cube's commands).  Returns the readings and the remaining error (N,) in mm, the
+    largest over the points."""
+    r = np.array(np.atleast_2d(r0), float)
+    target = np.asarray(target_mm, float).reshape(len(r), -1)
+    err = np.full(len(r), np.inf)
+    for _ in range(iterations):
+        q = r @ M.T + off
+        evs = [model.evaluate(q, ctx, theta, jacobian=True, tool_mm=xyz, link=f) for f, xyz in points]
+        d = target - np.concatenate([ev.point_mm for ev in evs], axis=1)                   # (N, 3K)
+        err = np.max(np.linalg.norm(d.reshape(len(r), -1, 3), axis=-1), axis=1)
+        if np.all(err < tol_mm):
+            break
+        Jr = np.concatenate([np.matmul(ev.joint_jacobian, M) for ev in evs], axis=1)    # (N, 3K, m)
+        r = r + np.einsum("nij,nj->ni", np.linalg.pinv(Jr), d)
     return r, err
 
 
@@ -301,4 +313,4 @@ def nominal_in_same_frame(im: IdentifiedModel) -> MeasurementModel:
 
 __all__ = ["save_model", "load_model", "model_from_document", "model_document",
            "robot_from_theta", "corrected_readings", "predict",
-           "compensate_command", "compensate_readings", "nominal_in_same_frame", "IdentifiedModel", "unit_of", "DEG"]
+           "compensate_command", "compensate_readings", "reach", "nominal_in_same_frame", "IdentifiedModel", "unit_of", "DEG"]

@@ -446,14 +446,14 @@ def analyse_tree(tree: UrdfTree, base_link: str | None, point_links: list[str]) 
         return i
 
     for r in roots[1:]:                                 # further roots: a fixed link from frame 0 to each axis
-        fixed = UJoint(f"{base}->{r.name}", "fixed", base, r.parent, np.eye(4), np.array([0.0, 0, 1]), None, None)
+        fixed = UJoint(f"{base}-{r.name}", "fixed", base, r.parent, np.eye(4), np.array([0.0, 0, 1]), None, None)
         add(fixed, 0, -1, fixed.name, r.name, fixed=True)
     for j in moving:                                    # parents first: each joint's axis frame exists already
         pf = start_frame[j.name]
         ch = kids[j.name]
         own_link[j.name] = add(j, pf, -2, j.name, ch[0].name if ch else None)
         for c in ch[1:]:
-            add(j, pf, own_link[j.name], f"{j.name}->{c.name}", c.name)
+            add(j, pf, own_link[j.name], f"{j.name}-{c.name}", c.name)
     n = len(links)
     # mass and centre of mass of what each joint's own link carries rigidly (side branches held at zero included)
     mass, com = np.zeros(n), np.zeros((n, 3))

@@ -54,15 +54,16 @@ def run(args) -> int:
         units = ["mm" if pr else "deg" for pr in robot.reading_prismatic]
     out = {k: (float(v) if isinstance(v, (float, np.floating)) else v) for k, v in out.items()}
     out["joint_units"] = units
-    out["joint_names"] = list(robot.reading_names) if not args.reading else [robot.joint_names[k] for k in own]
+    from calib.names import joint_label, reading_label
+    out["joint_names"] = ([reading_label(robot, i + 1) for i in range(m)] if not args.reading
+                          else [joint_label(robot, k + 1) for k in own])
     if args.json:
         print(json.dumps(out))
         return 0
-    from calib.names import joint_names
     key = "joint_deg" if args.reading else "command_deg"
     label = "true joint values" if args.reading else "compensated command"
     print(f"{label}: " + "  ".join(f"{name} {v:.4f} {unit}" for name, v, unit in
-                                   zip(joint_names(im.model.robot), out[key], out["joint_units"])))
+                                   zip(out["joint_names"], out[key], out["joint_units"])))
     print(f"tool point (mm, measurement frame): x {out['x_mm']:.3f}  y {out['y_mm']:.3f}  z {out['z_mm']:.3f}  "
           f"(1 sigma {', '.join(f'{v:.3f}' for v in out['sigma_mm'])})")
     return 0
