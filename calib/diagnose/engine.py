@@ -25,6 +25,8 @@ from .select import MATERIAL_SHARE, Selection, forward_select, leftover_structur
 
 #: a final held-out RMS above this multiple of the floor is reported as an unexplained gap
 UNEXPLAINED_RATIO = 1.1
+#: fewest fit rows of a split (the choices are made on them, with folds of their own)
+MIN_FIT_ROWS = 8
 
 
 @dataclass
@@ -44,6 +46,8 @@ class Diagnosis:
     noise: noise.NoiseEstimate | None = None
     judged_floor_mm: float = float("nan")      # the floor the acceptance rule used (see calib.diagnose.noise)
     confirmation: object | None = None         # calib.diagnose.confirm.Confirmation, after --confirm
+    ladder: object | None = None               # calib.diagnose.ladder.Ladder: the model step by step, held out
+    n_test: int = 0                            # the split's test rows (0: k-fold on every row)
 
     @property
     def baseline_rms_mm(self) -> float:
@@ -98,10 +102,15 @@ class Diagnosis:
 
     def to_json(self) -> dict:
         d = self.data
+        inner = "leave-one-out" if self.n_folds == d.n else f"{self.n_folds}-fold"
+        lad = self.ladder
         return {
-            "source": d.source, "robot": d.robot.name, "poses": d.n, "folds": self.n_folds,
-            "heldout": ("the data's own split" if d.split else "leave-one-out" if self.n_folds == d.n
-                        else f"{self.n_folds}-fold"),
+            "source": d.source, "robot": d.robot.name, "poses": d.n + self.n_test, "folds": self.n_folds,
+            "heldout": (f"the data's own split: every choice on the {d.n} fit rows ({inner} inside them), the "
+                        f"{self.n_test} test rows scored once at the end" if self.n_test else inner),
+            "n_fit": d.n, "n_test": self.n_test,
+            **(lad.heldout.as_dict() if lad is not None and lad.heldout is not None else {}),
+            **({"ladder": lad.as_json(), "leave_one_group_out": lad.logo_json()} if lad is not None else {}),
             "geometry_level": self.level, "noise_from": d.noise_from,
             "noise_floor_mm": self.noise_floor_mm, "heldout_floor_mm": self.heldout_floor_mm,
             "baseline_rms_mm": self.baseline_rms_mm, "baseline_max_mm": self.geometric.max_mm,
@@ -188,6 +197,7 @@ def _diagnose(data, level, n_folds, alpha, max_effects, kinds, te_orders, flag_o
         raise RobocalError(f"--geometry must be full, offsets or auto, got {level!r}")
     check_mode(outliers, loss)
     prog = progress or (lambda s, f: None)
+    data, test = _split(data)           # the test rows are seen once, at the end (calib.diagnose.ladder)
     model = data.model()                # the chain and the data's own geometry (a tool point per target)
     prog("geometric fit", 0.0)
     data, out_rep = _outlier_step(data, model, level, outliers if flag_outliers else "off", loss)
@@ -203,10 +213,40 @@ def _diagnose(data, level, n_folds, alpha, max_effects, kinds, te_orders, flag_o
                          (lambda s, f: prog(s, 0.2 + 0.75 * f)), floor_mm=judged, loss=loss)
     leftover_structure(data, sel.final, sel.findings, alpha,
                        material_mm=MATERIAL_SHARE * max(0.0, geo.rms_mm - judged))
+    prog("ladder", 0.95)
+    from .ladder import build
+    inner = "leave-one-out" if len(folds) == data.n else f"{len(folds)}-fold"
+    protocol = (f"the data's own split: test rows scored once at the end, every choice on the fit rows ({inner} "
+                f"inside them)" if test is not None else
+                f"{inner} cross-validation (the effects were chosen on these folds: a split column gives a figure "
+                f"no choice has seen)")
+    lad = build(data, test, folds, level, geo, sel, loss, protocol)
     prog("done", 1.0)
     return Diagnosis(data, level, len(folds), noise_floor_mm(data), hfloor, geo, sel,
                      _breakdown(data, model, geo, sel), lib.skipped, out_rep.flagged, note, out_rep,
-                     noise.estimate(data, sel.final.rms_mm, free_noise), judged)
+                     noise.estimate(data, sel.final.rms_mm, free_noise), judged, ladder=lad,
+                     n_test=test.n if test is not None else 0)
+
+
+def _split(data: DiagnosisData) -> tuple[DiagnosisData, DiagnosisData | None]:
+    """The data's own split: (fit rows, test rows), each without the split column (the fit rows are then diagnosed
+    with folds of their own); without a split, (data, None)."""
+    if not data.split:
+        return data, None
+    s = np.asarray(data.split)
+    fit, test = np.flatnonzero(s == "fit"), np.flatnonzero(s == "test")
+    if len(test) == 0 or len(fit) == 0:
+        raise RobocalError(f"{data.source}: the split column needs both fit and test rows "
+                           f"({len(fit)} fit, {len(test)} test)")
+    if len(fit) < MIN_FIT_ROWS:
+        raise RobocalError(f"{data.source}: column split: {len(fit)} fit rows; every choice of the diagnosis is made "
+                           f"on them, with folds of their own: at least {MIN_FIT_ROWS} are needed")
+    out = []
+    for idx in (fit, test):
+        d = data.subset(idx)
+        d.split = None
+        out.append(d)
+    return out[0], out[1]
 
 
 def _breakdown(data: DiagnosisData, model: MeasurementModel, geo: CVResult, sel: Selection) -> list[Factor]:
