@@ -75,7 +75,7 @@ class Diagnosis:
                         "stability": f.stability if f.stability == f.stability else None,
                         "stated_spread": f.stated_spread if f.stated_spread == f.stated_spread else None,
                         "aliases": f.aliases, "doubtful": f.doubtful, "leftover": f.leftover or None,
-                        "excess_share": f.shrink_share})
+                        "excess_share": f.shrink_share, "found_jointly_with": f.jointly or None})
         if self.confirmation is not None:
             for d, c in zip(out, self.confirmation.findings()):
                 d["confirmed"] = c["confirmed"]
@@ -139,7 +139,7 @@ class Diagnosis:
 
 
 def _outlier_step(data: DiagnosisData, model: MeasurementModel, level: str, mode: str,
-                  loss: str) -> tuple[DiagnosisData, OutlierReport]:
+                  loss: str, rows: list[int] | None = None) -> tuple[DiagnosisData, OutlierReport]:
     """identify's own outlier decision on the geometric fit (one implementation); rejected poses leave the data."""
     if mode == "off":
         return data, OutlierReport("off")
@@ -147,7 +147,7 @@ def _outlier_step(data: DiagnosisData, model: MeasurementModel, level: str, mode
         level = "full" if data.n >= len(geometric_free(model, "full")) else "offsets"
     free = geometric_free(model, level)
     rep = identify(model, data.observations(), free=free, outliers=mode, loss=loss,
-                   labels=data.labels or None).outlier_report.numbered(None, data.pose_id)
+                   labels=data.labels or None).outlier_report.numbered(rows, data.pose_id)
     if rep.rejected:
         data = data.subset(np.setdiff1d(np.arange(data.n), rep.rejected))
     return data, rep
@@ -197,10 +197,11 @@ def _diagnose(data, level, n_folds, alpha, max_effects, kinds, te_orders, flag_o
         raise RobocalError(f"--geometry must be full, offsets or auto, got {level!r}")
     check_mode(outliers, loss)
     prog = progress or (lambda s, f: None)
+    rows = np.flatnonzero(np.asarray(data.split) == "fit") + 1 if data.split else None    # the file's numbering
     data, test = _split(data)           # the test rows are seen once, at the end (calib.diagnose.ladder)
     model = data.model()                # the chain and the data's own geometry (a tool point per target)
     prog("geometric fit", 0.0)
-    data, out_rep = _outlier_step(data, model, level, outliers if flag_outliers else "off", loss)
+    data, out_rep = _outlier_step(data, model, level, outliers if flag_outliers else "off", loss, rows)
     folds = data_folds(data, n_folds)
     level, geo, note = _geometric(data, model, level, folds, loss)
     geo_free = geometric_free(model, level)

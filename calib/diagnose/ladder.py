@@ -219,25 +219,41 @@ def build(data: DiagnosisData, test: DiagnosisData | None, folds, level: str, ge
         steps.append(sc.of_cv("+ joint offsets", "joint zero offsets", geo))
     base_effects = len(model.effects)
     final = sel.final
-    for i, f in enumerate(sel.findings):
-        cv = final if i == len(sel.findings) - 1 else f.fit
-        if cv is not None and len(cv.model.effects) == base_effects + i + 1:
-            steps.append(sc.of_cv(f"+ {f.candidate.label}", f.candidate.kind, cv, f.p_value))
+    n = 0
+    for group in _groups(sel.findings):
+        n += len(group)
+        f = group[-1]
+        name = "+ " + " + ".join(g.candidate.label for g in group)
+        kind = f.candidate.kind + (" (found jointly)" if len(group) > 1 else "")
+        cv = final if n == len(sel.findings) else f.fit
+        if cv is not None and len(cv.model.effects) == base_effects + n:
+            steps.append(sc.of_cv(name, kind, cv, f.p_value))
         else:       # the finding's own fit held one that backward elimination dropped: cut the final model
-            steps.append(_cumulative(sc, final, base_effects + i + 1, f))
+            steps.append(_cumulative(sc, final, base_effects + n, name, kind, f.p_value))
     lad = Ladder(steps, _logo(sc, level, final, steps, base_effects), protocol)
     lad.p_values = [(None, None)] + [_nested(a, b) for a, b in zip(steps, steps[1:])]
     lad.heldout = _heldout(sc, steps[0], steps[-1], final, protocol)
     return lad
 
 
-def _cumulative(sc: _Scorer, final: CVResult, n_effects: int, finding) -> Scored:
+def _groups(findings) -> list[list]:
+    """Consecutive findings accepted together (a joint group shares its fit) as one step each."""
+    out: list[list] = []
+    for f in findings:
+        if out and f.candidate.label in out[-1][-1].jointly:
+            out[-1].append(f)
+        else:
+            out.append([f])
+    return out
+
+
+def _cumulative(sc: _Scorer, final: CVResult, n_effects: int, name: str, kind: str, p) -> Scored:
     """The final model cut to its first ``n_effects`` effects, refitted exactly from the final fits."""
     m = final.model
     model = MeasurementModel(m.robot, list(m.effects[:n_effects]))
     free = [n for n in final.all_fit.free if n in model.index]
-    out = sc.exact(f"+ {finding.candidate.label}", finding.candidate.kind, model, free, final)
-    out.selection_p = finding.p_value
+    out = sc.exact(name, kind, model, free, final)
+    out.selection_p = p
     return out
 
 
