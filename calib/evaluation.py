@@ -237,7 +237,10 @@ def _before_after(im, table: PoseTable, test: np.ndarray, res: np.ndarray, locs:
             cov[m] = loc.R @ cov[m] @ loc.R.T
     protocol = ("the file's test rows" if table.split is not None else
                 "every row of the file (held out when the model was not fitted to them)")
-    return HeldOut(table.points_mm[test] - before[test], res, cov, protocol).as_dict()
+    from .heldout import orientation_errors_deg
+    return HeldOut(table.points_mm[test] - before[test], res, cov, protocol,
+                   orientation_errors_deg(model, im.before_theta(), sub),
+                   orientation_errors_deg(model, im.theta, sub)).as_dict()
 
 
 def split_metrics(model: MeasurementModel, theta: np.ndarray, table: PoseTable) -> dict:

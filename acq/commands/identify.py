@@ -196,15 +196,18 @@ def _heldout(fit: _Fit, sel, measured, obs, weights, table):
     which every fold repeats the whole choice on its own rows."""
     import numpy as np
     from calib.evaluation import context_of, point_covariance
-    from calib.heldout import crossval, predict_heldout
+    from calib.heldout import crossval, orientation_errors_deg, predict_heldout
 
     if measured.split is not None:
         test = measured.subset(measured.split_mask("test"))
         cov = point_covariance(test)
         if cov is None:
             cov = np.broadcast_to(np.eye(3) * weights.sigma_mm ** 2, (test.n, 3, 3))
-        return predict_heldout(fit.model, sel.located.ident.theta, sel.ident, test.q_rad, context_of(fit.model, test),
-                               test.points_mm, cov, "the data's own split: test rows, seen once at the end")
+        out = predict_heldout(fit.model, sel.located.ident.theta, sel.ident, test.q_rad, context_of(fit.model, test),
+                              test.points_mm, cov, "the data's own split: test rows, seen once at the end")
+        out.before_deg = orientation_errors_deg(fit.model, sel.located.ident.theta, test)
+        out.after_deg = orientation_errors_deg(fit.model, sel.ident.theta, test)
+        return out
 
     def choose(rows):
         s, _ = fit.select(weights.for_rows(rows), explain=False)

@@ -126,12 +126,20 @@ class Diagnosis:
             "gross_errors_flagged": [self.outlier_report.row(i) for i in self.outliers],
             "outliers": self.outlier_report.as_dict(),
             "notes": d.notes + ([self.level_note] if self.level_note else []),
+            "reduced_chi2": self.selection.final.all_fit.reduced_chi2,
+            "reduced_chi2_words": self.chi2_words(),
             "noise_estimated_mm": self.noise.estimated_mm if self.noise else None,
             "noise_estimate": self.noise.as_dict() if self.noise else None,
             "judged_floor_mm": self.judged_floor_mm,
             "unexplained": self.unexplained(),
             **({"confirmation": self.confirmation.as_dict()} if self.confirmation is not None else {}),
         }
+
+    def chi2_words(self) -> str:
+        """The final fit's reduced chi-square in words when far from 1, with its likely cause
+        (:func:`calib.fitreport.chi2_words`)."""
+        from calib.fitreport import chi2_words
+        return chi2_words(self.selection.final.all_fit, True, self.noise)
 
     def warning(self) -> str:
         """The one-line noise warning ("" when the given noise agrees with the data)."""

@@ -21,7 +21,10 @@ def render(d: Diagnosis, max_factor_rows: int = 40) -> str:
             f"   held-out RMS {j['baseline_rms_mm']:.4f} mm, max {j['baseline_max_mm']:.4f} mm",
             f"   noise floor of the instruments {j['noise_floor_mm']:.4f} mm "
             f"(held-out floor with parameter noise {j['heldout_floor_mm']:.4f} mm)",
-            f"   excess over the floor: {j['baseline_rms_mm'] - j['noise_floor_mm']:+.4f} mm", ""]
+            f"   excess over the floor: {j['baseline_rms_mm'] - j['noise_floor_mm']:+.4f} mm"]
+    if j.get("reduced_chi2_words"):
+        out.append(f"   final fit: {j['reduced_chi2_words']}")
+    out.append("")
     out.append("2. Where it lies (held-out residual RMS in mm by condition; p: Kruskal-Wallis over the groups, "
                "small = the gap depends on it)")
     rows = 0
