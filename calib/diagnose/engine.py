@@ -161,21 +161,25 @@ def _outlier_step(data: DiagnosisData, model: MeasurementModel, level: str, mode
     return data, rep
 
 
-def _geometric(data: DiagnosisData, model: MeasurementModel, level: str, folds, loss: str) -> tuple[str, CVResult, str]:
-    """The baseline: the geometric set fitted and scored held-out (``auto``: full unless the poses are too few)."""
+def _geometric(data: DiagnosisData, model: MeasurementModel, level: str, folds,
+               loss: str) -> tuple[str, CVResult, str, CVResult | None]:
+    """The baseline: the geometric set fitted and scored held-out (``auto``: full unless the poses are too few); and
+    the full set's fit when it was tried and not chosen (a step of the ladder that is not in the final model)."""
     if level == "auto":
         full = None
         if 3 * min(len(tr) for tr, _ in folds) >= len(geometric_free(model, "full")):
             full = cv_fit(model, data, geometric_free(model, "full"), folds, loss=loss)
         if full is not None and auto_level(model, data.n, len(folds), min(len(tr) for tr, _ in folds)) == "full":
-            return "full", full, ""
+            return "full", full, "", None
         offs = cv_fit(model, data, geometric_free(model, "offsets"), folds, loss=loss)
         if full is None:
-            return "offsets", offs, "too few poses to fit the full geometric set: the 'offsets' set is the baseline"
+            return ("offsets", offs, "too few poses to fit the full geometric set: the 'offsets' set is the baseline",
+                    None)
         level, geo = ("offsets", offs) if offs.chi2 < full.chi2 else ("full", full)
         return level, geo, (f"few poses for the full geometric set: held-out RMS {full.rms_mm:.3f} mm (full) vs "
-                            f"{offs.rms_mm:.3f} mm (offsets only); the '{level}' set is the baseline")
-    return level, cv_fit(model, data, geometric_free(model, level), folds, loss=loss), ""
+                            f"{offs.rms_mm:.3f} mm (offsets only); the '{level}' set is the baseline"), \
+            (full if level == "offsets" else None)
+    return level, cv_fit(model, data, geometric_free(model, level), folds, loss=loss), "", None
 
 
 def diagnose(data: DiagnosisData, level: str = "auto", n_folds: int | None = None, alpha: float = 0.01,
@@ -211,7 +215,7 @@ def _diagnose(data, level, n_folds, alpha, max_effects, kinds, te_orders, flag_o
     prog("geometric fit", 0.0)
     data, out_rep = _outlier_step(data, model, level, outliers if flag_outliers else "off", loss, rows)
     folds = data_folds(data, n_folds)
-    level, geo, note = _geometric(data, model, level, folds, loss)
+    level, geo, note, unused_full = _geometric(data, model, level, folds, loss)
     geo_free = geometric_free(model, level)
     lib = build_library(data, kinds, te_orders)
     hfloor = heldout_floor_mm(geo, data)
@@ -229,7 +233,7 @@ def _diagnose(data, level, n_folds, alpha, max_effects, kinds, te_orders, flag_o
                 f"inside them)" if test is not None else
                 f"{inner} cross-validation (the effects were chosen on these folds: a split column gives a figure "
                 f"no choice has seen)")
-    lad = build(data, test, folds, level, geo, sel, loss, protocol)
+    lad = build(data, test, folds, level, geo, sel, loss, protocol, unused_full)
     prog("done", 1.0)
     return Diagnosis(data, level, len(folds), noise_floor_mm(data), hfloor, geo, sel,
                      _breakdown(data, model, geo, sel), lib.skipped, out_rep.flagged, note, out_rep,

@@ -203,9 +203,10 @@ def _nested(prev: Scored, cur: Scored) -> tuple[float | None, float | None]:
 
 # -- the ladder ------------------------------------------------------------------------------------------------------
 def build(data: DiagnosisData, test: DiagnosisData | None, folds, level: str, geo: CVResult, sel,
-          loss: str, protocol: str) -> Ladder:
+          loss: str, protocol: str, unused_full: CVResult | None = None) -> Ladder:
     """The ladder of a finished diagnosis (see the module docstring).  ``geo``: the geometric baseline (its level
-    ``level``), ``sel``: the selection (:class:`calib.diagnose.select.Selection`)."""
+    ``level``), ``sel``: the selection (:class:`calib.diagnose.select.Selection`); ``unused_full``: the full geometric
+    set when it was fitted and predicted worse than the offsets (a step shown, not in the final model)."""
     sc = _Scorer(data, test, folds, loss)
     model = geo.model
     loc = [n for n in locate_free(model) if n in geo.all_fit.free]
@@ -217,10 +218,14 @@ def build(data: DiagnosisData, test: DiagnosisData | None, folds, level: str, ge
         steps += [offs, full]
     else:
         steps.append(sc.of_cv("+ joint offsets", "joint zero offsets", geo))
+        if unused_full is not None:
+            steps.append(sc.of_cv("+ full geometry", "the rest of the geometric set (predicts worse: not kept)",
+                                  unused_full, accepted=False))
     base_effects = len(model.effects)
     final = sel.final
     n = 0
-    for group in _groups(sel.findings):
+    groups = _groups(sel.findings)
+    for group in groups:
         n += len(group)
         f = group[-1]
         name = "+ " + " + ".join(g.candidate.label for g in group)
@@ -230,10 +235,21 @@ def build(data: DiagnosisData, test: DiagnosisData | None, folds, level: str, ge
             steps.append(sc.of_cv(name, kind, cv, f.p_value))
         else:       # the finding's own fit held one that backward elimination dropped: cut the final model
             steps.append(_cumulative(sc, final, base_effects + n, name, kind, f.p_value))
-    lad = Ladder(steps, _logo(sc, level, final, steps, base_effects), protocol)
-    lad.p_values = [(None, None)] + [_nested(a, b) for a, b in zip(steps, steps[1:])]
-    lad.heldout = _heldout(sc, steps[0], steps[-1], final, protocol)
+    lad = Ladder(steps, _logo(sc, level, final, steps, base_effects, groups), protocol)
+    lad.p_values = _p_values(steps)
+    lad.heldout = _heldout(sc, steps[0], [s for s in steps if s.accepted][-1], final, protocol)
     return lad
+
+
+def _p_values(steps: list[Scored]) -> list[tuple[float | None, float | None]]:
+    """Each step's nested F-test against the last step kept before it (a step not in the final model is tested
+    against the one before it, and skipped by the next)."""
+    out, kept = [(None, None)], steps[0]
+    for s in steps[1:]:
+        out.append(_nested(kept, s))
+        if s.accepted:
+            kept = s
+    return out
 
 
 def _groups(findings) -> list[list]:
@@ -257,21 +273,27 @@ def _cumulative(sc: _Scorer, final: CVResult, n_effects: int, name: str, kind: s
     return out
 
 
-def _logo(sc: _Scorer, level: str, final: CVResult, steps: list[Scored],
-          base_effects: int) -> list[tuple[Scored, Scored]]:
-    """The final model without each group: joint offsets, the rest of the geometry, each accepted effect."""
+def _logo(sc: _Scorer, level: str, final: CVResult, steps: list[Scored], base_effects: int,
+          groups: list[list]) -> list[tuple[Scored, Scored]]:
+    """The final model without each group: joint offsets, the rest of the geometry, each accepted effect group
+    (``groups``: the findings as the ladder groups them, in the order of the final model's effects)."""
     m = final.model
-    last = steps[-1]
+    kept = [s for s in steps if s.accepted]
+    last = kept[-1]
     offsets = [n for n in geometric_free(m, "offsets") if n not in locate_free(m)]
     out = [(sc.linear("", "joint offsets", final, offsets), last)]
     if level == "full":
         rest = [n for n in geometric_free(m, "full") if n not in geometric_free(m, "offsets")]
         out.append((sc.linear("", "the rest of the geometry", final, rest), last))
-    for k, e in enumerate(m.effects[base_effects:]):
-        if k == len(m.effects) - base_effects - 1:        # the final model without its last effect: the step before
-            out.append((_named(steps[-2], e.label), last))
+    first = base_effects
+    for i, group in enumerate(groups):
+        effects = m.effects[first:first + len(group)]
+        first += len(group)
+        label = " + ".join(e.label for e in effects)
+        if i == len(groups) - 1:            # the final model without its last group: the step before
+            out.append((_named(kept[-2], label), last))
             continue
-        out.append((sc.linear("", e.label, final, e.qualified_names()), last))
+        out.append((sc.linear("", label, final, [q for e in effects for q in e.qualified_names()]), last))
     return out
 
 
