@@ -10,12 +10,13 @@ pruned model better on held-out poses in every split).  So identify estimates on
    points, other targets and set-ups: not a property of the robot) and a parameter with a prior (a tolerance of the
    description, ``--prior``): the prior already holds it near its design value, with an uncertainty the predictions
    carry -- holding it exactly would make the predicted sigmas too small where the data do not reach;
-3. **prediction**: the nested candidates -- the located nominal description (base and tool points only), plus the
-   joint zero offsets, the significant set, the full set -- are compared by their leave-one-pose-out prediction error
-   on the fit rows (linearised: from each fit's hat matrix, exact for a linear least-squares problem and within a
-   few per cent for a converged calibration fit; one fit per candidate, no refits), and the lowest one is chosen.
-   The located nominal model is a candidate, so the choice is never a model that predicts the fit rows' left-out
-   poses worse than the robot's own description.
+3. **prediction**: the candidates -- the located nominal description (base and tool points only), plus the joint
+   zero offsets, the significant set, the full set -- are compared by their leave-one-pose-out prediction error on the
+   fit rows.  For a fixed model it comes from the fit's hat matrix (exact for a linear least-squares problem, within
+   0.2 % of real refits on the TIAGo set); for the significant set the elimination itself is repeated without each
+   left-out pose (:mod:`calib.pruning`), since scoring the pruned model alone would be optimistic.  The lowest wins;
+   within :data:`TIE` the model with fewer parameters.  The located nominal description is a candidate, so the
+   choice never predicts the left-out poses worse than the robot's own description.
 
 Every choice sees only the rows it is given: a caller with a held-out test set passes the fit rows alone.
 For each held parameter the result says why, and what more data would determine it: how many poses like these
@@ -32,8 +33,7 @@ from .accuracy import locate_free
 from .errors import RobocalError
 from .identify import Identification, PointObservations, _Problem, identify
 from .model import MeasurementModel
-
-from .pruning import SIGNIFICANT  # noqa: E402  (|estimate - design| / sigma below which a parameter is held)
+from .pruning import SIGNIFICANT        # |estimate - design| / sigma below which a parameter is held
 
 #: inner prediction errors within this share of the lowest are a tie, won by the model with fewer parameters
 TIE = 0.02
