@@ -82,10 +82,14 @@ class Diagnosis:
         return out
 
     def unexplained(self) -> dict | None:
-        """What is left above the floor after the accepted effects: where it lies and what came closest."""
+        """What is left above the floor after the accepted effects: where it lies and what came closest.  Also when
+        the gap is closed, but by a finding that only stands in for what follows its driver (its best order at the
+        edge of the grid, or the residual still ordered by its driver: an effect outside the library, such as a
+        quadratic joint error read as a slow sinusoid): ``stand_in`` names them, and the cause stays unexplained."""
         floor = self.judged_floor_mm if self.judged_floor_mm > 0 else self.heldout_floor_mm
         final = self.final_rms_mm
-        if not final > UNEXPLAINED_RATIO * floor:
+        stand_in = [{"finding": f.candidate.label, "why": f.leftover} for f in self.selection.findings if f.leftover]
+        if not final > UNEXPLAINED_RATIO * floor and not stand_in:
             return None
         base_excess = self.baseline_rms_mm - floor
         where = sorted((f for f in self.factors if f.p_value == f.p_value and f.p_value < 0.01),
@@ -98,7 +102,8 @@ class Diagnosis:
         return {"rms_mm": final, "floor_mm": floor, "excess_mm": final - floor,
                 "share_of_baseline_excess": (final - floor) / base_excess if base_excess > 0 else None,
                 "where": [{"factor": f.name, "p_value": f.p_value, "statistic": f.statistic} for f in where],
-                "closest_candidates": [m.as_dict() for m in near]}
+                "closest_candidates": [m.as_dict() for m in near], "stand_in": stand_in,
+                "gap_left": bool(final > UNEXPLAINED_RATIO * floor)}
 
     def to_json(self) -> dict:
         d = self.data

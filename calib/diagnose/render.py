@@ -82,9 +82,13 @@ def render(d: Diagnosis, max_factor_rows: int = 40) -> str:
                f"{j['noise_floor_mm']:.4f} mm" + (f"; {100 * shrink:.0f} % of the excess gap removed"
                                                   if shrink == shrink else ""))
     u = j["unexplained"]
-    if u:
+    if u and u["gap_left"]:
         out.append(f"   unexplained: {u['excess_mm']:.4f} mm above the floor {u['floor_mm']:.4f} mm -- something none "
                    f"of the accepted effects describes is left (or the noise model is optimistic)")
+    elif u:
+        out.append("   unexplained cause: the gap is closed, but by " + ", ".join(x["finding"] for x in u["stand_in"])
+                   + ", which only stands in for something outside the effect library (flagged doubtful above)")
+    if u:
         if u["where"]:
             out.append("     where: " + "; ".join(f"{w['factor']} (p = {_p(w['p_value'])})" for w in u["where"]))
         for c in u["closest_candidates"]:
