@@ -56,9 +56,12 @@ def robot_from_theta(model: MeasurementModel, theta: np.ndarray) -> Robot:
 
 
 def model_document(model: MeasurementModel, ident: Identification, truth: dict[str, float] | None = None,
-                   provenance: dict | None = None) -> dict:
+                   provenance: dict | None = None, extra: dict | None = None) -> dict:
     """The model JSON: every parameter with value, error (1 sigma), unit and whether it was estimated; with
-    ``provenance`` (:func:`calib.provenance.provenance`) under that key."""
+    ``provenance`` (:func:`calib.provenance.provenance`) under that key; ``extra`` keys added as they are
+    (``located_nominal``: the "before" model's located parameters; ``prediction_noise``: what a new point carries on
+    top of the parameters' error -- what ``robocal evaluate`` needs for the before/after figures and the predicted
+    sigmas)."""
     P = model.P
     params = []
     for i, name in enumerate(ident.names):
@@ -88,6 +91,7 @@ def model_document(model: MeasurementModel, ident: Identification, truth: dict[s
                                                          for i in ident.outliers],
         **({"outlier_report": rep.as_dict()} if rep is not None else {}),
         **({"provenance": provenance} if provenance is not None else {}),
+        **(extra or {}),
     }
 
 
@@ -97,8 +101,8 @@ def _symmetric(C: np.ndarray) -> np.ndarray:
 
 def save_model(path: str | Path, model: MeasurementModel, ident: Identification,
                robot_toml: str | Path | None = None, truth: dict[str, float] | None = None,
-               provenance: dict | None = None) -> dict:
-    doc = model_document(model, ident, truth, provenance)
+               provenance: dict | None = None, extra: dict | None = None) -> dict:
+    doc = model_document(model, ident, truth, provenance, extra)
     atomic_write_text(path, json.dumps(doc, indent=1))
     if robot_toml:
         atomic_write_text(robot_toml, doc["robot_toml"])
@@ -111,6 +115,16 @@ class IdentifiedModel:
     theta: np.ndarray
     cov: np.ndarray                 # (P, P) over the model's parameters, zeros where held
     nominal_robot: Robot            # the description the identification started from (what the controller uses)
+    located_nominal: dict[str, float] | None = None   # the "before" model: every parameter (design values, located base,
+                                                      # tool, targets and set-ups)
+    prediction_noise: dict | None = None              # {"sigma_mm": used per coordinate, "scale": applied to it}
+
+    def before_theta(self) -> np.ndarray | None:
+        """The located nominal model's parameters (the description's geometry, the located values), or None when the
+        file predates them."""
+        if not self.located_nominal or any(n not in self.located_nominal for n in self.model.names):
+            return None
+        return np.array([self.located_nominal[n] for n in self.model.names], float)
 
 
 #: the model JSON's structure (checked whole before anything is built from it)
@@ -134,6 +148,10 @@ MODEL_SCHEMA = {
                                                                  "maximum": 64}},
             "additionalProperties": FINITE}},
         "stations": {"type": "array", "maxItems": 10000, "items": {"type": "string"}, "uniqueItems": True},
+        "located_nominal": {"type": "object", "additionalProperties": {"type": "number", "notNaN": True,
+                                                                       "minimum": -1e30}},
+        "prediction_noise": {"type": "object", "properties": {"sigma_mm": {"type": "number", "minimum": 0},
+                                                              "scale": {"type": "number", "minimum": 0}}},
         "covariance": {"type": "object", "required": ["names", "matrix"], "properties": {
             "names": {"type": "array", "items": {"type": "string"}, "uniqueItems": True},
             "matrix": {"type": "array", "items": {"type": "array", "items": FINITE}}}},
@@ -203,7 +221,11 @@ def model_from_document(doc, src: str) -> IdentifiedModel:
         raise RobocalError(f"{src}: covariance.matrix: is not positive semi-definite")
     idx = [model.index[n] for n in names]
     cov[np.ix_(idx, idx)] = C
-    im = IdentifiedModel(model, theta, cov, nominal_robot)
+    located = doc.get("located_nominal")
+    noise = doc.get("prediction_noise")
+    im = IdentifiedModel(model, theta, cov, nominal_robot,
+                         {str(k): float(v) for k, v in located.items()} if isinstance(located, dict) else None,
+                         noise if isinstance(noise, dict) else None)
     _trial_prediction(im, src)
     return im
 

@@ -1,4 +1,5 @@
-"""The few test distributions robocal needs (chi-square and F tails, the Kruskal-Wallis test), from scipy.special.
+"""The few test distributions robocal needs (chi-square and F tails, the Kruskal-Wallis and Mann-Whitney tests, the
+hypergeometric tail), from scipy.special.
 
 Why not ``scipy.stats``: importing it takes 0.3-1 s (it builds every distribution object at import), more than a
 400-pose identification spends computing; scipy.special's functions are the same numerics underneath
@@ -59,3 +60,55 @@ def kruskal_p(*samples) -> float:
     rank_sums = np.array([r.sum() for r in np.split(average_ranks(values), np.cumsum(sizes[:-1]).astype(int))])
     h = (12.0 / (n * (n + 1)) * float(np.sum(rank_sums ** 2 / sizes)) - 3.0 * (n + 1)) / tie
     return float(chi2_sf(h, len(groups) - 1))
+
+
+def mann_whitney_p(x, y) -> float:
+    """Two-sided p-value of the Mann-Whitney U test (``stats.mannwhitneyu(x, y).pvalue``, its default method: the
+    exact distribution of U when a sample has at most 8 values and there are no ties, else the normal approximation with
+    the tie and continuity corrections)."""
+    from scipy.special import ndtr
+    x, y = np.asarray(x, float).ravel(), np.asarray(y, float).ravel()
+    n1, n2 = len(x), len(y)
+    if n1 == 0 or n2 == 0:
+        raise ValueError("the Mann-Whitney test needs two non-empty samples")
+    values = np.concatenate([x, y])
+    ranks = average_ranks(values)
+    u1 = float(ranks[:n1].sum()) - n1 * (n1 + 1) / 2.0
+    u = max(u1, n1 * n2 - u1)
+    _, counts = np.unique(values, return_counts=True)
+    if min(n1, n2) <= 8 and np.all(counts == 1):
+        return float(min(1.0, 2.0 * _u_sf(int(round(u)), n1, n2)))
+    n = n1 + n2
+    tie = float(np.sum(counts.astype(float) ** 3 - counts)) / (n * (n - 1))
+    sd = np.sqrt(n1 * n2 / 12.0 * ((n + 1) - tie))
+    if sd <= 0:
+        return 1.0
+    z = (u - n1 * n2 / 2.0 - 0.5) / sd
+    return float(min(1.0, 2.0 * ndtr(-z)))
+
+
+def _u_sf(u: int, n1: int, n2: int) -> float:
+    """P(U >= u) under the null (no ties).  The number of arrangements with U = k is the number of partitions of k
+    into at most m parts of at most n (m <= n the smaller sample): the coefficients of the Gaussian binomial
+    ``prod_{i=1..m} (1 - q^(n+i)) / (1 - q^i)``, multiplied out one factor at a time (m <= 8 here)."""
+    m, n = min(n1, n2), max(n1, n2)
+    c = np.zeros(m * n + 1)
+    c[0] = 1.0
+    for i in range(1, m + 1):
+        c[n + i:] -= c[: len(c) - n - i].copy()         # times (1 - q^(n+i))
+        for k in range(i, len(c)):                      # divided by (1 - q^i): a running sum with stride i
+            c[k] += c[k - i]
+    return float(c[u:].sum() / c.sum())
+
+
+def hypergeom_sf(k: int, total: int, successes: int, draws: int) -> float:
+    """P(X > k) for X hypergeometric (``stats.hypergeom.sf(k, total, successes, draws)``)."""
+    from scipy.special import gammaln
+
+    def lcomb(a, b):
+        return gammaln(a + 1) - gammaln(b + 1) - gammaln(a - b + 1)
+    x = np.arange(max(k + 1, 0, draws - (total - successes)), min(successes, draws) + 1)
+    if x.size == 0:
+        return 0.0
+    logp = lcomb(successes, x) + lcomb(total - successes, draws - x) - lcomb(total, draws)
+    return float(min(1.0, np.exp(logp).sum()))

@@ -149,12 +149,9 @@ def locate(pred: np.ndarray, table: PoseTable, rows: np.ndarray | None = None) -
 
 
 def summary(res: np.ndarray) -> dict:
-    """RMS, max and 95th percentile of residual lengths (mm)."""
-    d = np.linalg.norm(res, axis=1)
-    if d.size == 0:
-        return {"n": 0, "rms_mm": None, "max_mm": None, "p95_mm": None}
-    return {"n": int(d.size), "rms_mm": float(np.sqrt(np.mean(d ** 2))), "max_mm": float(d.max()),
-            "p95_mm": float(np.percentile(d, 95))}
+    """Mean, RMS, max and 95th percentile of residual lengths (mm): :func:`calib.accuracy.error_stats`."""
+    from .accuracy import error_stats
+    return error_stats(np.linalg.norm(np.asarray(res, float).reshape(-1, 3), axis=1))
 
 
 def breakdown(res: np.ndarray, table: PoseTable) -> dict[str, dict[str, dict]]:
@@ -172,8 +169,13 @@ def breakdown(res: np.ndarray, table: PoseTable) -> dict[str, dict[str, dict]]:
     return out
 
 
-def evaluate_table(model: MeasurementModel, theta: np.ndarray, table: PoseTable, with_locate: bool = False) -> dict:
-    """Residuals of the ``test`` rows (all rows without a split), optionally after re-stationing each station."""
+def evaluate_table(model: MeasurementModel, theta: np.ndarray, table: PoseTable, with_locate: bool = False,
+                   im=None) -> dict:
+    """Residuals of the ``test`` rows (all rows without a split), optionally after re-stationing each station.
+
+    With ``im`` (:class:`calib.compensate.IdentifiedModel` of a file that carries them): ``before`` (the located
+    nominal model the identification fitted beside the calibrated one) and ``after`` (:func:`calib.accuracy.
+    error_stats`), and the honesty of the predicted sigmas (``uncertainty``, :mod:`calib.heldout`)."""
     if table.points_mm is None:
         raise RobocalError(f"{table.source}: columns x, y, z (measured points) are needed to evaluate")
     from . import orientation as ori
@@ -181,19 +183,11 @@ def evaluate_table(model: MeasurementModel, theta: np.ndarray, table: PoseTable,
     axes = ori.axis_points(model, theta, table, new_stations=with_locate)
     test = table.split_mask("test")
     doc: dict = {"source": table.source, "rows": "test" if table.split is not None else "all"}
+    locs = _locations(pred, table, test) if with_locate else {}
     if with_locate:
-        fit = table.split_mask("fit") if table.split is not None else np.ones(table.n, bool)
-        st = np.array(stations_of(table))
-        locs = {}
-        for s in dict.fromkeys(st):
-            own_fit = (st == s) & fit & (~test if table.split is not None else True)
-            rows = own_fit if own_fit.sum() >= 3 else (st == s)
-            locs[str(s)] = fit_location(str(s), pred[rows], table.points_mm[rows])
-        for s, loc in locs.items():
-            m = st == s
-            pred[m] = loc.apply(pred[m])
-            for a in axes or ():
-                a[m] = loc.apply(a[m])
+        pred = _restation(pred, table, locs)
+        if axes is not None:
+            axes = tuple(_restation(a, table, locs) for a in axes)
         doc["stations"] = [loc.as_dict() for loc in locs.values()]
     res = table.points_mm[test] - pred[test]
     doc.update(summary(res))
@@ -202,7 +196,59 @@ def evaluate_table(model: MeasurementModel, theta: np.ndarray, table: PoseTable,
         err = ori.geodesic_deg(ori.rotations(table.orientation_rad[test]),
                                ori.frames_from_points(*(a[test] for a in axes)))
         doc["orientation"] = {**ori.summary_deg(err), "convention": ori.CONVENTION}
+    if im is not None and im.before_theta() is not None:
+        doc.update(_before_after(im, table, test, res, locs, with_locate))
     return doc
+
+
+def _locations(pred: np.ndarray, table: PoseTable, test: np.ndarray) -> dict[str, Location]:
+    """Each station's transform from its fit rows (3 or more; else its rows)."""
+    fit = table.split_mask("fit") if table.split is not None else np.ones(table.n, bool)
+    st = np.array(stations_of(table))
+    locs = {}
+    for s in dict.fromkeys(st):
+        own_fit = (st == s) & fit & (~test if table.split is not None else True)
+        rows = own_fit if own_fit.sum() >= 3 else (st == s)
+        locs[str(s)] = fit_location(str(s), pred[rows], table.points_mm[rows])
+    return locs
+
+
+def _restation(pred: np.ndarray, table: PoseTable, locs: dict[str, Location]) -> np.ndarray:
+    st = np.array(stations_of(table))
+    out = pred.copy()
+    for s, loc in locs.items():
+        m = st == s
+        out[m] = loc.apply(pred[m])
+    return out
+
+
+def _before_after(im, table: PoseTable, test: np.ndarray, res: np.ndarray, locs: dict, with_locate: bool) -> dict:
+    """``before``/``after`` on the rows evaluated (the located nominal model re-stationed the same way when
+    ``with_locate``), and the predicted sigmas' honesty (parameter covariance plus the fit's noise)."""
+    from .heldout import HeldOut
+    model = im.model
+    before = predict_rows(model, im.before_theta(), table, new_stations=with_locate)
+    if with_locate:
+        before = _restation(before, table, _locations(before, table, test))
+    sub = table.subset(test)
+    ev = model.evaluate(sub.q_rad, context_of(model, sub, new_stations=with_locate), im.theta, jacobian=True)
+    cov = np.einsum("nip,pq,njq->nij", ev.jacobian, im.cov, ev.jacobian)
+    noise = im.prediction_noise or {}
+    rows_cov = point_covariance(sub)
+    if rows_cov is None:
+        rows_cov = np.broadcast_to(np.eye(3) * float(noise.get("sigma_mm", 0.0)) ** 2, (sub.n, 3, 3))
+    cov = cov + float(noise.get("scale", 1.0)) * rows_cov
+    if with_locate:
+        st = np.array(stations_of(sub))
+        for s, loc in locs.items():
+            m = st == s
+            cov[m] = loc.R @ cov[m] @ loc.R.T
+    protocol = ("the file's test rows" if table.split is not None else
+                "every row of the file (held out when the model was not fitted to them)")
+    from .heldout import orientation_errors_deg
+    return HeldOut(table.points_mm[test] - before[test], res, cov, protocol,
+                   orientation_errors_deg(model, im.before_theta(), sub),
+                   orientation_errors_deg(model, im.theta, sub)).as_dict()
 
 
 def split_metrics(model: MeasurementModel, theta: np.ndarray, table: PoseTable) -> dict:

@@ -117,6 +117,11 @@ class Identification:
     n_obs: int
     stations: list[Station] | None = None
     outlier_report: OutlierReport | None = None    # flagged, rejected, cluster (calib.outliers)
+    #: directions of the kept parameters the data do not determine (calib.covariance): named, not given a sigma
+    undetermined: list = field(default_factory=list)
+    #: how the covariance is scaled: "inflate" (by the reduced chi-square when above 1) or "residual" (by it always:
+    #: no noise was given, the errors come from the fit's own scatter)
+    error_scale: str = "inflate"
 
     @property
     def sigma(self) -> np.ndarray:
@@ -128,14 +133,22 @@ class Identification:
     def std(self, name: str) -> float:
         return float(self.sigma[self.names.index(name)])
 
-    def correlations(self, threshold: float = 0.9) -> list[tuple[str, str, float]]:
+    def correlation_matrix(self) -> np.ndarray:
+        """Correlations of the estimated parameters (order of ``free``), within [-1, 1] (:mod:`calib.covariance`)."""
+        from .covariance import correlation
         idx = [self.names.index(n) for n in self.free]
-        C = self.cov[np.ix_(idx, idx)]
-        d = np.sqrt(np.diag(C))
-        R = C / np.outer(d, d)
+        return correlation(self.cov[np.ix_(idx, idx)])
+
+    def undetermined_names(self) -> set[str]:
+        """Estimated parameters carrying a direction the data do not determine (their sigma means nothing)."""
+        from .covariance import involved
+        return involved(self.undetermined)
+
+    def correlations(self, threshold: float = 0.9) -> list[tuple[str, str, float]]:
+        R = self.correlation_matrix()
         out = []
-        for a in range(len(idx)):
-            for b in range(a + 1, len(idx)):
+        for a in range(len(self.free)):
+            for b in range(a + 1, len(self.free)):
                 if abs(R[a, b]) > threshold:
                     out.append((self.free[a], self.free[b], float(R[a, b])))
         return out
@@ -462,14 +475,19 @@ def _outlier_step(model: MeasurementModel, st: _Setup, kidx, theta, mode: str, l
     return prob, th_rob, report
 
 
-def _uncertainty(model: MeasurementModel, prob: _Problem, theta: np.ndarray, kidx: np.ndarray):
-    """Step 4: covariance (inflated by the reduced chi-square above 1), reduced chi-square, unweighted RMS."""
+def _uncertainty(model: MeasurementModel, prob: _Problem, theta: np.ndarray, kidx: np.ndarray,
+                 error_scale: str = "inflate"):
+    """Step 4: covariance (inflated by the reduced chi-square above 1, or scaled by it either way with
+    ``error_scale="residual"``), reduced chi-square, unweighted RMS, undetermined directions
+    (:func:`calib.covariance.from_jacobian`: column-scaled SVD, never ``pinv(J^T J)``)."""
+    from .covariance import from_jacobian
     r, J = prob.residuals(theta)
     Jk = J[:, kidx]
     dof = max(1, len(r) - len(kidx))
     red = float(r @ r / dof)
     cov = np.zeros((len(prob.names), len(prob.names)))
-    cov[np.ix_(kidx, kidx)] = np.linalg.pinv(Jk.T @ Jk) * max(1.0, red)
+    c = from_jacobian(Jk, [prob.names[i] for i in kidx])
+    cov[np.ix_(kidx, kidx)] = c.matrix * (red if error_scale == "residual" else max(1.0, red))
     # unweighted residual RMS (mm for points, rad for angles)
     if not prob.angles:
         pred = model.points(prob.obs.q_rad, prob.obs.ctx, theta[: model.P])
@@ -478,19 +496,22 @@ def _uncertainty(model: MeasurementModel, prob: _Problem, theta: np.ndarray, kid
         sig = np.concatenate([[s.sigma_hz_rad, s.sigma_v_rad] for s in prob.stations(theta)])
         raw = r[: prob.obs.n * len(sig)].reshape(prob.obs.n, -1) * sig
         rms = float(np.sqrt(np.mean(raw ** 2)))
-    return cov, red, rms, len(r)
+    return cov, red, rms, len(r), c.undetermined
 
 
 def identify(model: MeasurementModel, obs: PointObservations | AngleObservations, free: list[str] | None = None,
              theta0: np.ndarray | None = None, robust: bool = True,
              priors: dict[str, tuple[float, float]] | None = None, start: bool = True,
              max_nfev: int = 200, outliers: str = "flag", loss: str = "linear",
-             labels: dict[str, list] | None = None) -> Identification:
+             labels: dict[str, list] | None = None, error_scale: str = "inflate") -> Identification:
     """Identify the free parameters from the observations (see the module docstring for the pipeline).
 
     ``outliers``: ``flag`` (report, keep), ``reject`` (leave out flagged poses that do not cluster) or ``off``
     (``robust=False`` is ``off``, as before); ``loss``: scipy's ``linear``, ``huber``, ``cauchy`` or ``soft_l1`` for
-    the final fit; ``labels``: per-pose groups (station, target) the outlier cluster test also looks at.
+    the final fit; ``labels``: per-pose groups (station, target) the outlier cluster test also looks at;
+    ``error_scale``: ``inflate`` (the covariance from the given noise, inflated by the reduced chi-square when that
+    exceeds 1) or ``residual`` (scaled by the reduced chi-square either way: the noise was not given, the weights only
+    say the relative precision of the points).
     """
     check_mode(outliers, loss)
     priors = priors or {}
@@ -506,7 +527,7 @@ def identify(model: MeasurementModel, obs: PointObservations | AngleObservations
     prob, theta, report = _outlier_step(model, st, kidx, st.theta, outliers if robust else "off", labels, priors,
                                         max_nfev)
     theta = _solve(prob, theta, kidx, loss, max_nfev)
-    cov, red, rms, n_obs = _uncertainty(model, prob, theta, kidx)
+    cov, red, rms, n_obs, undetermined = _uncertainty(model, prob, theta, kidx, error_scale)
     fixed = [n for n in prob.names if n not in kept]
     return Identification(prob.names, theta, kept, fixed, cov, st.ident, rms, red, report.flagged, n_obs,
-                          prob.stations(theta), report)
+                          prob.stations(theta), report, undetermined, error_scale)

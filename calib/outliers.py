@@ -132,7 +132,8 @@ def pose_conditions(q_rad: np.ndarray, ctx=None, labels: dict[str, list] | None 
 def _cluster_p(values: np.ndarray, flagged: np.ndarray) -> float:
     """How unlikely the flagged poses' values are under random choice: rank-sum for numbers, the hypergeometric
     tail of the most-hit group for labels."""
-    from scipy import stats        # 0.3-1 s to import: only when two or more poses are flagged
+    # calib.distributions, not scipy.stats: importing that took 0.5-1 s of a 400-pose diagnosis
+    from .distributions import hypergeom_sf, mann_whitney_p
 
     if values.dtype == object:
         groups, inv = np.unique(values, return_inverse=True)
@@ -141,11 +142,11 @@ def _cluster_p(values: np.ndarray, flagged: np.ndarray) -> float:
         hits = np.bincount(inv[flagged], minlength=len(groups))
         g = int(np.argmax(hits))
         size = int(np.sum(inv == g))
-        return float(stats.hypergeom.sf(hits[g] - 1, len(values), size, int(flagged.sum())))
+        return hypergeom_sf(int(hits[g]) - 1, len(values), size, int(flagged.sum()))
     if np.ptp(values) <= 0:
         return 1.0
     try:
-        return float(stats.mannwhitneyu(values[flagged], values[~flagged]).pvalue)
+        return mann_whitney_p(values[flagged], values[~flagged])
     except ValueError:
         return 1.0
 

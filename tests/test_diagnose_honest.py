@@ -136,12 +136,13 @@ def test_the_datas_own_split_and_too_few_training_poses(tmp_path, capsys):
     import json
     assert main(["diagnose", str(p), "--json", "--max-effects", "0"]) == 0
     j = json.loads(capsys.readouterr().out)
-    assert j["heldout"] == "the data's own split" and j["folds"] == 1
+    assert j["heldout"].startswith("the data's own split") and j["folds"] == 5       # inner folds on the fit rows
+    assert (j["n_fit"], j["n_test"], j["after"]["n"], j["poses"]) == (60, 30, 30, 90)
     bad = ["fit"] * 5 + ["test"] * 85
     q, _ = _case_csv(tmp_path, "bad.csv", Case(None, None, None, 0.0, seed=8, n_poses=90), {"split": bad})
     assert main(["diagnose", str(q), "--geometry", "full"]) == 2
     err = capsys.readouterr().err.strip()
-    assert "trains on 5 poses" in err and "\n" not in err
+    assert "5 fit rows" in err and "\n" not in err
 
 
 def test_confirm_file_for_a_robot_with_more_joints_is_refused_like_identify_refuses_it(tmp_path, capsys):

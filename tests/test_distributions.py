@@ -1,5 +1,5 @@
-"""calib.distributions (the chi-square and F tails and the Kruskal-Wallis test robocal uses instead of importing
-scipy.stats) against scipy.stats itself, the independent reference."""
+"""calib.distributions (the chi-square and F tails, the Kruskal-Wallis and Mann-Whitney tests and the hypergeometric
+tail robocal uses instead of importing scipy.stats) against scipy.stats itself, the independent reference."""
 from __future__ import annotations
 
 import numpy as np
@@ -48,3 +48,26 @@ def test_kruskal_refuses_what_cannot_be_tested():
 def test_average_ranks():
     v = np.array([3.0, 1.0, 3.0, 2.0, 3.0, -1.0])
     np.testing.assert_array_equal(d.average_ranks(v), stats.rankdata(v))
+
+
+def test_mann_whitney_matches_scipy_exact_and_asymptotic():
+    """The outlier cluster test's rank-sum: exact distribution (a small sample, no ties) and the normal approximation
+    with tie and continuity corrections, as scipy.stats.mannwhitneyu's default chooses."""
+    rng = np.random.default_rng(3)
+    for trial in range(200):
+        n1, n2 = int(rng.integers(1, 14)), int(rng.integers(1, 60))
+        if trial % 2:
+            n1, n2 = n2, n1
+        x, y = rng.normal(0.0, 1.0, n1), rng.normal(0.4, 1.0, n2)
+        if trial % 3 == 0:
+            x, y = np.round(x), np.round(y)
+        assert d.mann_whitney_p(x, y) == pytest.approx(stats.mannwhitneyu(x, y).pvalue, rel=1e-9, abs=1e-12)
+
+
+def test_hypergeometric_tail_matches_scipy():
+    rng = np.random.default_rng(4)
+    for _ in range(200):
+        M = int(rng.integers(2, 200))
+        n, N = int(rng.integers(0, M + 1)), int(rng.integers(0, M + 1))
+        k = int(rng.integers(-1, min(n, N) + 1))
+        assert d.hypergeom_sf(k, M, n, N) == pytest.approx(stats.hypergeom.sf(k, M, n, N), rel=1e-9, abs=1e-14)

@@ -139,7 +139,11 @@ ALL = [c for doc in DOCS for c in doc_commands(doc)]
 
 @pytest.fixture(scope="module")
 def scratch(tmp_path_factory):
-    tmp = tmp_path_factory.mktemp("docrun")
+    top = tmp_path_factory.mktemp("docrun")
+    tmp = top / "repo"                  # a checkout's place: ../shared (the real data beside it) as in CI
+    tmp.mkdir()
+    if (ROOT.parent / "shared").is_dir():
+        (top / "shared").symlink_to(ROOT.parent / "shared")
     for d in ("examples", "calib", "benchmarks"):
         (tmp / d).symlink_to(ROOT / d)
     bindir = tmp / ".bin"

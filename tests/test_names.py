@@ -68,13 +68,14 @@ def test_identify_says_names_and_takes_every_printed_name_back(capsys):
     assert "arm_6_joint.alpha_deg" in body and "torso_lift_joint turn about its axis" in body
     table = text.split("unit\n", 1)[1].splitlines()
     printed = [ln.split()[0] for ln in table if ln.startswith("  ") and len(ln.split()) == 4]
-    printed += re.findall(r"\(([\w.@]+)\)", body)                  # the identifiability sentences' names
+    printed += re.findall(r"\(([A-Za-z_][\w.@]*)\)", body)        # the identifiability sentences' names
     held = next(ln for ln in body.splitlines() if "held at their design values" in ln)
     printed += held.split(": ", 1)[1].split(", ")
     assert len(printed) > 40 and any(p.endswith("_deg") for p in printed)
     # every one is accepted by --free (one run: all of them)
     _run(capsys, ["identify", *TIAGO, "--free", ",".join(sorted(set(printed)))])
-    doc = json.loads(_run(capsys, ["identify", *TIAGO, "--free", "base.*,tool.*,arm_6_joint.*", "--json"]))
+    doc = json.loads(_run(capsys, ["identify", *TIAGO, "--free", "base.*,tool.*,arm_6_joint.*", "--select", "all",
+                                   "--json"]))
     p = {x["name"]: x for x in doc["parameters"]}
     assert p["j7.a_mm"]["joint"] == 7 and p["j7.a_mm"]["joint_name"] == "arm_6_joint"
     assert "joint" not in p["base.z_mm"]

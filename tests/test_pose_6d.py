@@ -66,7 +66,7 @@ def test_six_d_rows_end_to_end(six, capsys):
     common = [str(data), "--robot", str(UR10), "--noise-mm", "0.01", "--orientation-noise-deg", str(NOISE_DEG)]
     text = _run(capsys, ["identify", *common, "--out", str(model), "--out-robot", str(robot_toml)]).out
     # rows are poses, the convention and the noise are stated
-    assert text.startswith(f"robocal identify {data}: 28 poses,")
+    assert text.startswith(f"robocal identify {data}: accuracy on ") and "\n  28 poses," in text
     assert ("orientation: rx_deg..rz_deg: the measured frame in the instrument frame, R = Rz(rz) Ry(ry) Rx(rx); "
             "1 sigma 0.001 deg per axis") in text
     doc = json.loads(_run(capsys, ["identify", *common, "--json"]).out)

@@ -29,12 +29,19 @@ def run(args) -> int:
     from calib.evaluation import evaluate_table
 
     im, table = model_and_table(args, NAME)
-    doc = evaluate_table(im.model, im.theta, table, with_locate=args.locate)
+    doc = evaluate_table(im.model, im.theta, table, with_locate=args.locate, im=im)
     if args.json:
         print(json.dumps(doc, indent=1))
         return 0
-    print(f"robocal evaluate {args.data}: {doc['n']} {doc['rows']} rows: RMS {_fmt(doc['rms_mm'])} mm, "
-          f"max {_fmt(doc['max_mm'])} mm, 95th percentile {_fmt(doc['p95_mm'])} mm")
+    if "before" in doc:
+        from calib.accuracy import before_after_line
+        print(f"robocal evaluate {args.data}: " + before_after_line(doc))
+        u = doc["uncertainty"]
+        if u["median_abs_z"] is not None:
+            print(f"  predicted sigma: median |error|/sigma {u['median_abs_z']:.2f} (0.67 when honest), "
+                  f"{100 * u['within_2sigma']:.0f} % within 2 sigma (95 % when honest)")
+    print(f"{'  ' if 'before' in doc else f'robocal evaluate {args.data}: '}{doc['n']} {doc['rows']} rows: "
+          f"RMS {_fmt(doc['rms_mm'])} mm, max {_fmt(doc['max_mm'])} mm, 95th percentile {_fmt(doc['p95_mm'])} mm")
     if "orientation" in doc:
         o = doc["orientation"]
         print(f"  orientation ({o['convention']}): geodesic error mean {o['mean_deg']:.4f} deg, RMS "

@@ -17,8 +17,14 @@ HELP = "identify geometry (and running errors) from a pose-measurement CSV"
 def add_arguments(p):
     p.add_argument("data", metavar="DATA.csv", help="pose CSV: q1..q6 (deg), x, y, z (mm) and optional conditions")
     p.add_argument("--robot", metavar="FILE", help="robot description TOML (default: the thesis's Puma 560)")
-    p.add_argument("--noise-mm", type=positive_float, default=0.05,
-                   help="1-sigma point noise per coordinate (mm), used when the file has no sigma_*_mm columns")
+    p.add_argument("--noise-mm", type=positive_float, default=None,
+                   help="1-sigma point noise per coordinate (mm), used when the file has no sigma_*_mm columns; "
+                        "without either the noise is estimated from the data (repeats, several targets) or, when "
+                        "they cannot tell, the errors are scaled by the fit's residual (said in the output)")
+    p.add_argument("--select", choices=("auto", "all"), default="auto",
+                   help="auto (default): estimate only the parameters the data determine (significant at 2 sigma "
+                        "and improving the leave-one-pose-out prediction), holding the rest at their design values "
+                        "or priors; all: estimate the whole free set")
     p.add_argument("--effect", type=effect_spec, action="append", default=[], metavar="SPEC",
                    help="running error to identify, e.g. transmission_error:4:0.9, joint_compliance:3, "
                         "backlash:2, cross_coupling:6:5, link_compliance:2, thermal_drift (repeatable)")
@@ -59,7 +65,7 @@ def run(args) -> int:
     from calib.evaluation import (context_of, data_rows, fit_rows, point_covariance, split_metrics, station_names,
                                   station_start, with_orientation_points, with_polar_points)
     from calib.polar import PolarNoise
-    from calib.identify import PointObservations, check_drivers, default_free, identify
+    from calib.identify import PointObservations, check_drivers, default_free
     from calib.priors import free_from_patterns, priors_for
     from calib.model import MeasurementModel
     from calib.posecsv import read_pose_csv
@@ -71,18 +77,19 @@ def run(args) -> int:
     full = read_pose_csv(args.data, robot.n, robot.prismatic, robot=robot, **units(args))
     full = with_polar_points(full, PolarNoise.from_text(args.polar_noise) if args.polar_noise else None)
     measured = full                              # the rows as measured: what the held-out figures are about
-    full, robot = with_orientation_points(full, robot, args.noise_mm, args.orientation_noise_deg * DEG)
+    weight_mm = args.noise_mm if args.noise_mm is not None else 1.0      # relative weights until the noise is known
+    full, robot = with_orientation_points(full, robot, weight_mm, args.orientation_noise_deg * DEG)
     table, robot, target_offsets = fit_rows(full, robot)
     if table.points_mm is None:
         raise RobocalError(f"{args.data}: columns x, y, z (measured tool points, mm) are needed to identify")
-    if not args.noise_mm > 0:
+    if args.noise_mm is not None and not args.noise_mm > 0:
         raise RobocalError(f"identify: --noise-mm must be positive, got {args.noise_mm}")
     specs = list(args.effect) + (list(THESIS_RUNNING_ERRORS) if args.thesis_effects else [])
     effects = [effect_from_text(s, robot.n, robot) for s in specs]
     model = MeasurementModel(robot, effects + target_offsets, stations=station_names(full))
     ctx = context_of(model, table)
     cov = point_covariance(table)
-    obs = PointObservations(table.q_rad, table.points_mm, cov, sigma_mm=args.noise_mm, ctx=ctx)
+    obs = PointObservations(table.q_rad, table.points_mm, cov, sigma_mm=weight_mm, ctx=ctx)
     free = free_from_patterns(model, args.free) if args.free else None
     priors = priors_for(model, args.prior, free or default_free(model))
     # the rigid-fit start moves the base: only when the whole base is estimated (else it keeps its design value)
@@ -95,35 +102,53 @@ def run(args) -> int:
     theta0 = None
     if table.station is not None and len(set(table.station)) > 1:
         theta0, start = station_start(model, table), False        # each set-up placed by its own rigid fit
-    ident = identify(model, obs, free=free, priors=priors, start=start, theta0=theta0, outliers=args.outliers,
-                     loss=args.loss)
-    if ident.outlier_report is not None:       # flagged poses named as the file numbers them (rows, pose ids)
-        ident.outlier_report.numbered(*data_rows(measured, table))
+    fit = _Fit(model, free or default_free(model), priors, theta0, start, args.outliers, args.loss, args.select)
+    weights = _weights(args, table, obs, fit, measured)
+    obs = weights.obs
+    sel, first = fit.select(obs)
+    ident = sel.ident
+    if first.outlier_report is not None:       # flagged poses named as the file numbers them (rows, pose ids)
+        first.outlier_report.numbered(*data_rows(measured, table))
+        ident.outlier_report = first.outlier_report
     held_out = split_metrics(model, ident.theta[:model.P], measured) if full.split is not None else {}
+    heldout = _heldout(fit, sel, measured, obs, weights, table)
     implausible += enforce(check_fit(ident.reduced_chi2, args.data), args.force_implausible, "identify")
-    noise = _noise(args, measured, obs, ident, held_out, model.robot.tool_point_frames or None)
+    noise = _noise(args, measured, obs, ident, weights, model.robot.tool_point_frames or None)
     orientation = _orientation(args, model, ident.theta[:model.P], measured)
     n_rows = int(measured.split_mask("fit").sum()) if measured.split is not None else measured.n
     prov = provenance(args.robot)
+    from calib.heldout import noise_scale
+    extra = {"located_nominal": dict(zip(model.names, map(float, sel.located.ident.theta[: model.P]))),
+             "prediction_noise": {"sigma_mm": float(weights.sigma_mm), "scale": noise_scale(ident)}}
     if args.out:
-        save_model(args.out, model, ident, args.out_robot, provenance=prov)
+        save_model(args.out, model, ident, args.out_robot, provenance=prov, extra=extra)
     elif args.out_robot:
         from calib.compensate import robot_from_theta
         from calib.robot import robot_to_toml
         from calib.fileio import atomic_write_text
         atomic_write_text(args.out_robot, robot_to_toml(robot_from_theta(model, ident.theta)))
     exported = _exports(args, model, ident, table)
+    from calib.fitreport import chi2_words, noise_line
     if args.json:
-        extra = {"plausibility_warnings": implausible} if implausible else {}
+        warn = {"plausibility_warnings": implausible} if implausible else {}
         if exported:
-            extra["exported"] = {k: v for k, v in exported.items() if k != "lines"}
+            warn["exported"] = {k: v for k, v in exported.items() if k != "lines"}
         if orientation:
-            extra["orientation"] = orientation
-        print(json.dumps({**model_document(model, ident, provenance=prov), **held_out, **extra, "n_poses": n_rows,
+            warn["orientation"] = orientation
+        print(json.dumps({**model_document(model, ident, provenance=prov, extra=extra), **held_out,
+                          **heldout.as_dict(), **warn, "n_poses": n_rows,
+                          "selection": sel.as_dict(), "noise": weights.as_dict(ident),
+                          "reduced_chi2_words": chi2_words(ident, weights.given, noise),
                           "noise_estimated_mm": noise.estimated_mm, "noise_estimate": noise.as_dict()}, indent=1))
         return 0
-    print(f"robocal identify {args.data}: {n_rows} poses, {len(ident.free)} parameters estimated, "
-          f"residual RMS {ident.residual_rms:.4f} mm, reduced chi-square {ident.reduced_chi2:.2f}")
+    from calib.accuracy import before_after_line
+    print(f"robocal identify {args.data}: " + before_after_line(heldout.as_dict()))
+    print(f"  {n_rows} poses, {len(ident.free)} parameters estimated, residual RMS {ident.residual_rms:.4f} mm "
+          f"(a fit residual, not the accuracy), reduced chi-square {ident.reduced_chi2:.2f}")
+    print("  " + noise_line(weights.as_dict(ident)))
+    words = chi2_words(ident, weights.given, noise)
+    if words:
+        print("  " + words)
     if held_out:
         print(f"  data's own split: {held_out['n_fit']} fit rows (RMS {held_out['fit_rms_mm']:.4f} mm), "
               f"{held_out['n_test']} test rows: RMS {held_out['test_rms_mm']:.4f} mm, max {held_out['test_max_mm']:.4f} mm")
@@ -133,21 +158,20 @@ def run(args) -> int:
         print(f"  orientation error (geodesic): fit rows mean {o['fit']['mean_deg']:.4f} deg, max "
               f"{o['fit']['max_deg']:.4f} deg" + (f"; test rows mean {o['test']['mean_deg']:.4f} deg, max "
                                                   f"{o['test']['max_deg']:.4f} deg" if o.get("test") else ""))
-    if noise.estimated_mm is not None:
+    u = heldout.as_dict()["uncertainty"]
+    if u["median_abs_z"] is not None:
+        print(f"  predicted sigma of the held-out points: median |error|/sigma {u['median_abs_z']:.2f} (0.67 when "
+              f"honest), {100 * u['within_2sigma']:.0f} % within 2 sigma (95 % when honest)")
+    if noise.estimated_mm is not None and weights.given:
         print(f"  noise per coordinate: given {noise.given_mm:.4f} mm, from the data {noise.estimated_mm:.4f} mm "
               f"({noise.how})")
-    for line in ident.identifiability.report(robot):
+    for line in sel.lines(robot):
+        print("  " + line)
+    for line in first.identifiability.report(robot):
         print("  " + line)
     for line in ident.outlier_report.lines():
         print("  " + line)
-    print(f"  {'parameter':<44}{'value':>14}{'1 sigma':>12}  unit")
-    for name in ident.free:       # joints named, angles in degrees: the names --free and --prior read back
-        shown, v, s, unit = naming.edge(name, ident.value(name), ident.std(name), robot)
-        print(f"  {shown:<44}{v:>14.6g}{s:>12.3g}  {unit}")
-    corr = ident.correlations(0.9)
-    if corr:
-        print("  correlations above 0.9: " + "; ".join(f"{naming.edge_name(a, robot)} ~ {naming.edge_name(b, robot)} "
-                                                        f"({r:+.3f})" for a, b, r in corr))
+    _parameter_table(ident, robot)
     if args.out:
         print(f"  written: {args.out}" + (f", {args.out_robot}" if args.out_robot else ""))
     for line in exported.get("lines", []):
@@ -194,21 +218,85 @@ def _exports(args, model, ident, table) -> dict:
     return out
 
 
-def _noise(args, measured, obs, ident, held_out: dict, body: dict | None = None):
+def _parameter_table(ident, robot) -> None:
+    """The estimated parameters, joints named and angles in degrees (the names --free and --prior read back); a
+    parameter on a direction the data do not determine is named with that direction instead of a number."""
+    from calib import names as naming
+    undetermined = ident.undetermined_names()
+    print(f"  {'parameter':<44}{'value':>14}{'1 sigma':>12}  unit")
+    for name in ident.free:
+        shown, v, s, unit = naming.edge(name, ident.value(name), ident.std(name), robot)
+        sd = f"{s:>12.3g}" if name not in undetermined else f"{'undetermined':>12}"
+        print(f"  {shown:<44}{v:>14.6g}{sd}  {unit}")
+    for c in ident.undetermined:
+        print(f"  not determined by these data (no sigma given): {naming.prose(c.words(), robot)}")
+    corr = ident.correlations(0.9)
+    if corr:
+        print("  correlations above 0.9: " + "; ".join(f"{naming.edge_name(a, robot)} ~ {naming.edge_name(b, robot)} "
+                                                        f"({r:+.3f})" for a, b, r in corr))
+
+
+class _Fit:
+    """How this identify call fits any set of rows: the same free set, priors, start, outlier mode, loss and
+    selection rule for the final fit and for every cross-validation fold (so each fold repeats every choice)."""
+
+    def __init__(self, model, free, priors, theta0, start, outliers, loss, rule):
+        self.model, self.free, self.priors, self.theta0 = model, free, priors, theta0
+        self.start, self.outliers, self.loss, self.rule = start, outliers, loss, rule
+        self.error_scale = "inflate"
+
+    def select(self, obs, explain: bool = True):
+        from calib.selection import select
+        return select(self.model, obs, self.free, self.priors, self.theta0, self.start, self.outliers, self.loss,
+                      rule=self.rule, error_scale=self.error_scale, explain=explain)
+
+
+def _heldout(fit: _Fit, sel, measured, obs, weights, table):
+    """Before/after on held-out rows: the data's test rows (the fit saw none of them), else k-fold predictions in
+    which every fold repeats the whole choice on its own rows."""
+    import numpy as np
+    from calib.evaluation import context_of, point_covariance
+    from calib.heldout import crossval, orientation_errors_deg, predict_heldout
+
+    if measured.split is not None:
+        test = measured.subset(measured.split_mask("test"))
+        cov = point_covariance(test)
+        if cov is None:
+            cov = np.broadcast_to(np.eye(3) * weights.sigma_mm ** 2, (test.n, 3, 3))
+        out = predict_heldout(fit.model, sel.located.ident.theta, sel.ident, test.q_rad, context_of(fit.model, test),
+                              test.points_mm, cov, "the data's own split: test rows, seen once at the end")
+        out.before_deg = orientation_errors_deg(fit.model, sel.located.ident.theta, test)
+        out.after_deg = orientation_errors_deg(fit.model, sel.ident.theta, test)
+        return out
+
+    def choose(rows):
+        s, _ = fit.select(weights.for_rows(rows), explain=False)
+        return s.located.ident.theta, s.ident
+    return crossval(fit.model, obs, choose, 5, table.pose_id or None)
+
+
+def _weights(args, table, obs, fit: _Fit, measured):
+    """The points' noise: given (sigma columns, polar noise, --noise-mm), else estimated from the data without a
+    model (repeats, several targets per pose), else unknown: then the relative weights are kept, their scale set to
+    the fit's robust residual scale, and the errors scaled by the residual (``error_scale="residual"``)."""
+    from calib.fitreport import Weights
+    return Weights.decide(table, obs, args.noise_mm, fit, measured)
+
+
+def _noise(args, measured, obs, ident, weights, body: dict | None = None):
     """The noise the data show (calib.noise, shared with diagnose) against the given one; the one-line warning on
-    stderr when they disagree by more than 1.5x.  Without a model-free source the bound is the held-out residual
-    (the data's own split) or the fit's residual with its degrees of freedom (the given sigma times the square
-    root of the reduced chi-square)."""
+    stderr when they disagree by more than 1.5x.  Without a model-free source the bound is the fit's residual with
+    its degrees of freedom (the given sigma times the square root of the reduced chi-square) -- the test rows of a
+    split are not looked at: they are seen once, for the held-out figures."""
     import numpy as np
     from calib import noise as est
 
-    if held_out.get("test_rms_mm") is not None:
-        bound, how = held_out["test_rms_mm"] / np.sqrt(3.0), "held-out residual (upper bound)"
-    else:
-        bound, how = est.given_sigma_mm(obs.cov_mm2) * np.sqrt(ident.reduced_chi2), "fit residual (upper bound)"
-    n = est.for_rows(measured, args.noise_mm, bound, how, body=body)
-    line = n.warning(f"robocal identify {args.data}", "the parameters' error bars assume the given noise: give "
-                                                       "--noise-mm (or the sigma columns) as the data show it")
-    if line:
-        print(f"warning: {line}", file=sys.stderr)
+    bound, how = est.given_sigma_mm(obs.cov_mm2) * np.sqrt(ident.reduced_chi2), "fit residual (upper bound)"
+    fit_rows = measured.subset(measured.split_mask("fit")) if measured.split is not None else measured
+    n = est.for_rows(fit_rows, weights.sigma_mm, bound, how, body=body)
+    if weights.given:
+        line = n.warning(f"robocal identify {args.data}", "the parameters' error bars assume the given noise: give "
+                                                           "--noise-mm (or the sigma columns) as the data show it")
+        if line:
+            print(f"warning: {line}", file=sys.stderr)
     return n

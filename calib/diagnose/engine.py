@@ -25,6 +25,8 @@ from .select import MATERIAL_SHARE, Selection, forward_select, leftover_structur
 
 #: a final held-out RMS above this multiple of the floor is reported as an unexplained gap
 UNEXPLAINED_RATIO = 1.1
+#: fewest fit rows of a split (the choices are made on them, with folds of their own)
+MIN_FIT_ROWS = 8
 
 
 @dataclass
@@ -44,6 +46,8 @@ class Diagnosis:
     noise: noise.NoiseEstimate | None = None
     judged_floor_mm: float = float("nan")      # the floor the acceptance rule used (see calib.diagnose.noise)
     confirmation: object | None = None         # calib.diagnose.confirm.Confirmation, after --confirm
+    ladder: object | None = None               # calib.diagnose.ladder.Ladder: the model step by step, held out
+    n_test: int = 0                            # the split's test rows (0: k-fold on every row)
 
     @property
     def baseline_rms_mm(self) -> float:
@@ -71,17 +75,21 @@ class Diagnosis:
                         "stability": f.stability if f.stability == f.stability else None,
                         "stated_spread": f.stated_spread if f.stated_spread == f.stated_spread else None,
                         "aliases": f.aliases, "doubtful": f.doubtful, "leftover": f.leftover or None,
-                        "excess_share": f.shrink_share})
+                        "excess_share": f.shrink_share, "found_jointly_with": f.jointly or None})
         if self.confirmation is not None:
             for d, c in zip(out, self.confirmation.findings()):
                 d["confirmed"] = c["confirmed"]
         return out
 
     def unexplained(self) -> dict | None:
-        """What is left above the floor after the accepted effects: where it lies and what came closest."""
+        """What is left above the floor after the accepted effects: where it lies and what came closest.  Also when
+        the gap is closed, but by a finding that only stands in for what follows its driver (its best order at the
+        edge of the grid, or the residual still ordered by its driver: an effect outside the library, such as a
+        quadratic joint error read as a slow sinusoid): ``stand_in`` names them, and the cause stays unexplained."""
         floor = self.judged_floor_mm if self.judged_floor_mm > 0 else self.heldout_floor_mm
         final = self.final_rms_mm
-        if not final > UNEXPLAINED_RATIO * floor:
+        stand_in = [{"finding": f.candidate.label, "why": f.leftover} for f in self.selection.findings if f.leftover]
+        if not final > UNEXPLAINED_RATIO * floor and not stand_in:
             return None
         base_excess = self.baseline_rms_mm - floor
         where = sorted((f for f in self.factors if f.p_value == f.p_value and f.p_value < 0.01),
@@ -94,14 +102,20 @@ class Diagnosis:
         return {"rms_mm": final, "floor_mm": floor, "excess_mm": final - floor,
                 "share_of_baseline_excess": (final - floor) / base_excess if base_excess > 0 else None,
                 "where": [{"factor": f.name, "p_value": f.p_value, "statistic": f.statistic} for f in where],
-                "closest_candidates": [m.as_dict() for m in near]}
+                "closest_candidates": [m.as_dict() for m in near], "stand_in": stand_in,
+                "gap_left": bool(final > UNEXPLAINED_RATIO * floor)}
 
     def to_json(self) -> dict:
         d = self.data
+        inner = "leave-one-out" if self.n_folds == d.n else f"{self.n_folds}-fold"
+        lad = self.ladder
         return {
-            "source": d.source, "robot": d.robot.name, "poses": d.n, "folds": self.n_folds,
-            "heldout": ("the data's own split" if d.split else "leave-one-out" if self.n_folds == d.n
-                        else f"{self.n_folds}-fold"),
+            "source": d.source, "robot": d.robot.name, "poses": d.n + self.n_test, "folds": self.n_folds,
+            "heldout": (f"the data's own split: every choice on the {d.n} fit rows ({inner} inside them), the "
+                        f"{self.n_test} test rows scored once at the end" if self.n_test else inner),
+            "n_fit": d.n, "n_test": self.n_test,
+            **(lad.heldout.as_dict() if lad is not None and lad.heldout is not None else {}),
+            **({"ladder": lad.as_json(), "leave_one_group_out": lad.logo_json()} if lad is not None else {}),
             "geometry_level": self.level, "noise_from": d.noise_from,
             "noise_floor_mm": self.noise_floor_mm, "heldout_floor_mm": self.heldout_floor_mm,
             "baseline_rms_mm": self.baseline_rms_mm, "baseline_max_mm": self.geometric.max_mm,
@@ -117,6 +131,8 @@ class Diagnosis:
             "gross_errors_flagged": [self.outlier_report.row(i) for i in self.outliers],
             "outliers": self.outlier_report.as_dict(),
             "notes": d.notes + ([self.level_note] if self.level_note else []),
+            "reduced_chi2": self.selection.final.all_fit.reduced_chi2,
+            "reduced_chi2_words": self.chi2_words(),
             "noise_estimated_mm": self.noise.estimated_mm if self.noise else None,
             "noise_estimate": self.noise.as_dict() if self.noise else None,
             "judged_floor_mm": self.judged_floor_mm,
@@ -124,13 +140,19 @@ class Diagnosis:
             **({"confirmation": self.confirmation.as_dict()} if self.confirmation is not None else {}),
         }
 
+    def chi2_words(self) -> str:
+        """The final fit's reduced chi-square in words when far from 1, with its likely cause
+        (:func:`calib.fitreport.chi2_words`)."""
+        from calib.fitreport import chi2_words
+        return chi2_words(self.selection.final.all_fit, True, self.noise)
+
     def warning(self) -> str:
         """The one-line noise warning ("" when the given noise agrees with the data)."""
         return self.noise.warning(f"robocal diagnose {self.data.source}") if self.noise else ""
 
 
 def _outlier_step(data: DiagnosisData, model: MeasurementModel, level: str, mode: str,
-                  loss: str) -> tuple[DiagnosisData, OutlierReport]:
+                  loss: str, rows: list[int] | None = None) -> tuple[DiagnosisData, OutlierReport]:
     """identify's own outlier decision on the geometric fit (one implementation); rejected poses leave the data."""
     if mode == "off":
         return data, OutlierReport("off")
@@ -138,27 +160,31 @@ def _outlier_step(data: DiagnosisData, model: MeasurementModel, level: str, mode
         level = "full" if data.n >= len(geometric_free(model, "full")) else "offsets"
     free = geometric_free(model, level)
     rep = identify(model, data.observations(), free=free, outliers=mode, loss=loss,
-                   labels=data.labels or None).outlier_report.numbered(None, data.pose_id)
+                   labels=data.labels or None).outlier_report.numbered(rows, data.pose_id)
     if rep.rejected:
         data = data.subset(np.setdiff1d(np.arange(data.n), rep.rejected))
     return data, rep
 
 
-def _geometric(data: DiagnosisData, model: MeasurementModel, level: str, folds, loss: str) -> tuple[str, CVResult, str]:
-    """The baseline: the geometric set fitted and scored held-out (``auto``: full unless the poses are too few)."""
+def _geometric(data: DiagnosisData, model: MeasurementModel, level: str, folds,
+               loss: str) -> tuple[str, CVResult, str, CVResult | None]:
+    """The baseline: the geometric set fitted and scored held-out (``auto``: full unless the poses are too few); and
+    the full set's fit when it was tried and not chosen (a step of the ladder that is not in the final model)."""
     if level == "auto":
         full = None
         if 3 * min(len(tr) for tr, _ in folds) >= len(geometric_free(model, "full")):
             full = cv_fit(model, data, geometric_free(model, "full"), folds, loss=loss)
         if full is not None and auto_level(model, data.n, len(folds), min(len(tr) for tr, _ in folds)) == "full":
-            return "full", full, ""
+            return "full", full, "", None
         offs = cv_fit(model, data, geometric_free(model, "offsets"), folds, loss=loss)
         if full is None:
-            return "offsets", offs, "too few poses to fit the full geometric set: the 'offsets' set is the baseline"
+            return ("offsets", offs, "too few poses to fit the full geometric set: the 'offsets' set is the baseline",
+                    None)
         level, geo = ("offsets", offs) if offs.chi2 < full.chi2 else ("full", full)
         return level, geo, (f"few poses for the full geometric set: held-out RMS {full.rms_mm:.3f} mm (full) vs "
-                            f"{offs.rms_mm:.3f} mm (offsets only); the '{level}' set is the baseline")
-    return level, cv_fit(model, data, geometric_free(model, level), folds, loss=loss), ""
+                            f"{offs.rms_mm:.3f} mm (offsets only); the '{level}' set is the baseline"), \
+            (full if level == "offsets" else None)
+    return level, cv_fit(model, data, geometric_free(model, level), folds, loss=loss), "", None
 
 
 def diagnose(data: DiagnosisData, level: str = "auto", n_folds: int | None = None, alpha: float = 0.01,
@@ -188,11 +214,13 @@ def _diagnose(data, level, n_folds, alpha, max_effects, kinds, te_orders, flag_o
         raise RobocalError(f"--geometry must be full, offsets or auto, got {level!r}")
     check_mode(outliers, loss)
     prog = progress or (lambda s, f: None)
+    rows = np.flatnonzero(np.asarray(data.split) == "fit") + 1 if data.split else None    # the file's numbering
+    data, test = _split(data)           # the test rows are seen once, at the end (calib.diagnose.ladder)
     model = data.model()                # the chain and the data's own geometry (a tool point per target)
     prog("geometric fit", 0.0)
-    data, out_rep = _outlier_step(data, model, level, outliers if flag_outliers else "off", loss)
+    data, out_rep = _outlier_step(data, model, level, outliers if flag_outliers else "off", loss, rows)
     folds = data_folds(data, n_folds)
-    level, geo, note = _geometric(data, model, level, folds, loss)
+    level, geo, note, unused_full = _geometric(data, model, level, folds, loss)
     geo_free = geometric_free(model, level)
     lib = build_library(data, kinds, te_orders)
     hfloor = heldout_floor_mm(geo, data)
@@ -203,10 +231,40 @@ def _diagnose(data, level, n_folds, alpha, max_effects, kinds, te_orders, flag_o
                          (lambda s, f: prog(s, 0.2 + 0.75 * f)), floor_mm=judged, loss=loss)
     leftover_structure(data, sel.final, sel.findings, alpha,
                        material_mm=MATERIAL_SHARE * max(0.0, geo.rms_mm - judged))
+    prog("ladder", 0.95)
+    from .ladder import build
+    inner = "leave-one-out" if len(folds) == data.n else f"{len(folds)}-fold"
+    protocol = (f"the data's own split: test rows scored once at the end, every choice on the fit rows ({inner} "
+                f"inside them)" if test is not None else
+                f"{inner} cross-validation (the effects were chosen on these folds: a split column gives a figure "
+                f"no choice has seen)")
+    lad = build(data, test, folds, level, geo, sel, loss, protocol, unused_full)
     prog("done", 1.0)
     return Diagnosis(data, level, len(folds), noise_floor_mm(data), hfloor, geo, sel,
                      _breakdown(data, model, geo, sel), lib.skipped, out_rep.flagged, note, out_rep,
-                     noise.estimate(data, sel.final.rms_mm, free_noise), judged)
+                     noise.estimate(data, sel.final.rms_mm, free_noise), judged, ladder=lad,
+                     n_test=test.n if test is not None else 0)
+
+
+def _split(data: DiagnosisData) -> tuple[DiagnosisData, DiagnosisData | None]:
+    """The data's own split: (fit rows, test rows), each without the split column (the fit rows are then diagnosed
+    with folds of their own); without a split, (data, None)."""
+    if not data.split:
+        return data, None
+    s = np.asarray(data.split)
+    fit, test = np.flatnonzero(s == "fit"), np.flatnonzero(s == "test")
+    if len(test) == 0 or len(fit) == 0:
+        raise RobocalError(f"{data.source}: the split column needs both fit and test rows "
+                           f"({len(fit)} fit, {len(test)} test)")
+    if len(fit) < MIN_FIT_ROWS:
+        raise RobocalError(f"{data.source}: column split: {len(fit)} fit rows; every choice of the diagnosis is made "
+                           f"on them, with folds of their own: at least {MIN_FIT_ROWS} are needed")
+    out = []
+    for idx in (fit, test):
+        d = data.subset(idx)
+        d.split = None
+        out.append(d)
+    return out[0], out[1]
 
 
 def _breakdown(data: DiagnosisData, model: MeasurementModel, geo: CVResult, sel: Selection) -> list[Factor]:

@@ -21,8 +21,7 @@ from calib.model import MeasurementModel
 
 from .data import DiagnosisData
 
-#: below this many poses the held-out test is leave-one-out, above it k-fold
-LOO_MAX_POSES = 40
+from calib.accuracy import LOO_MAX_POSES, grouped_folds, make_folds  # noqa: F401 (re-exported: the diagnosis's folds)
 
 
 def data_folds(data: DiagnosisData, k: int | None = None) -> list[tuple[np.ndarray, np.ndarray]]:
@@ -47,25 +46,6 @@ def check_folds(folds, n_params: int, source: str) -> None:
             raise RobocalError(f"{source}: held-out fold {i + 1} trains on {len(tr)} poses ({3 * len(tr)} "
                                f"observations) for {n_params} parameters; use fewer folds, --geometry offsets or "
                                f"more poses")
-
-
-def make_folds(n: int, k: int | None = None, seed: int = 0) -> list[tuple[np.ndarray, np.ndarray]]:
-    """(train, test) index pairs; every pose is tested exactly once.  ``k=None``: 5-fold, or leave-one-out up to
-    :data:`LOO_MAX_POSES` poses."""
-    if k is None:
-        k = n if n <= LOO_MAX_POSES else 5
-    k = int(min(max(k, 2), n))
-    perm = np.random.default_rng(seed).permutation(n)
-    parts = np.array_split(perm, k)
-    return [(np.sort(np.concatenate(parts[:i] + parts[i + 1:])), np.sort(parts[i])) for i in range(k)]
-
-
-def grouped_folds(pose_id: list[str], k: int | None = None, seed: int = 0) -> list[tuple[np.ndarray, np.ndarray]]:
-    """:func:`make_folds` over poses rather than rows: the rows of one pose (its targets) are held out together, so
-    a pose is never predicted by a fit that saw the same configuration through another target."""
-    _, group = np.unique(np.asarray(pose_id), return_inverse=True)
-    return [(np.flatnonzero(np.isin(group, tr)), np.flatnonzero(np.isin(group, te)))
-            for tr, te in make_folds(int(group.max()) + 1, k, seed)]
 
 
 def geometric_free(model: MeasurementModel, level: str = "full") -> list[str]:

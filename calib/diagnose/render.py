@@ -12,14 +12,20 @@ def _p(p: float) -> str:
 
 def render(d: Diagnosis, max_factor_rows: int = 40) -> str:
     j = d.to_json()
-    out = [f"robocal diagnose {j['source']}: {j['poses']} poses, robot {j['robot']}",
-           f"held-out test: {j['heldout']}; geometric parameter set: {j['geometry_level']}; point noise from "
-           f"{j['noise_from']}", ""]
+    first = f"robocal diagnose {j['source']}: "
+    if "before" in j:
+        from calib.accuracy import before_after_line
+        first += before_after_line(j)
+    out = [first, f"{j['poses']} poses, robot {j['robot']}; held-out test: {j['heldout']}; geometric parameter set: "
+                  f"{j['geometry_level']}; point noise from {j['noise_from']}", ""]
     out += ["1. The gap (geometric model, poses it was not fitted to)",
             f"   held-out RMS {j['baseline_rms_mm']:.4f} mm, max {j['baseline_max_mm']:.4f} mm",
             f"   noise floor of the instruments {j['noise_floor_mm']:.4f} mm "
             f"(held-out floor with parameter noise {j['heldout_floor_mm']:.4f} mm)",
-            f"   excess over the floor: {j['baseline_rms_mm'] - j['noise_floor_mm']:+.4f} mm", ""]
+            f"   excess over the floor: {j['baseline_rms_mm'] - j['noise_floor_mm']:+.4f} mm"]
+    if j.get("reduced_chi2_words"):
+        out.append(f"   final fit: {j['reduced_chi2_words']}")
+    out.append("")
     out.append("2. Where it lies (held-out residual RMS in mm by condition; p: Kruskal-Wallis over the groups, "
                "small = the gap depends on it)")
     rows = 0
@@ -62,6 +68,14 @@ def render(d: Diagnosis, max_factor_rows: int = 40) -> str:
             out.append(f"     - ... {len(j['guard_notes']) - 12} more")
     out.append("")
     out.append("4. How far it shrinks")
+    if d.ladder is not None:
+        out.append(f"   the model step by step, each step refitted and scored on the held-out rows ("
+                   f"{d.ladder.protocol}; mm)")
+        out += d.ladder.lines()
+        u = j.get("uncertainty") or {}
+        if u.get("median_abs_z") is not None:
+            out.append(f"   predicted sigma of the held-out points: median |error|/sigma {u['median_abs_z']:.2f} "
+                       f"(0.67 when honest), {100 * u['within_2sigma']:.0f} % within 2 sigma (95 % when honest)")
     out.append(f"   geometric {j['baseline_rms_mm']:.4f} mm" + "".join(
         f" -> +{f['label']} {f['rms_after_mm']:.4f} mm" for f in j["findings"]))
     shrink = j["excess_gap_shrink"]
@@ -69,9 +83,13 @@ def render(d: Diagnosis, max_factor_rows: int = 40) -> str:
                f"{j['noise_floor_mm']:.4f} mm" + (f"; {100 * shrink:.0f} % of the excess gap removed"
                                                   if shrink == shrink else ""))
     u = j["unexplained"]
-    if u:
+    if u and u["gap_left"]:
         out.append(f"   unexplained: {u['excess_mm']:.4f} mm above the floor {u['floor_mm']:.4f} mm -- something none "
                    f"of the accepted effects describes is left (or the noise model is optimistic)")
+    elif u:
+        out.append("   unexplained cause: the gap is closed, but by " + ", ".join(x["finding"] for x in u["stand_in"])
+                   + ", which only stands in for something outside the effect library (flagged doubtful above)")
+    if u:
         if u["where"]:
             out.append("     where: " + "; ".join(f"{w['factor']} (p = {_p(w['p_value'])})" for w in u["where"]))
         for c in u["closest_candidates"]:

@@ -93,8 +93,13 @@ def write_report(d, out_dir, provenance: dict | None = None) -> Path:
     plt.close(fig)
     figs.append(("Held-out RMS after each accepted effect", "shrink.png"))
 
+    if j.get("ladder"):
+        figs.insert(0, ("The model step by step: held-out error at each step (mean, RMS, max)",
+                        _ladder_png(plt, j, out)))
+
     from .render import render
-    body = [f"<h1>robocal diagnose: {html.escape(j['source'])}</h1>", "<pre>" + html.escape(render(d)) + "</pre>"]
+    body = [f"<h1>robocal diagnose: {html.escape(j['source'])}</h1>", *_ladder_html(j),
+            "<pre>" + html.escape(render(d)) + "</pre>"]
     body += [f"<h2>{html.escape(t)}</h2><img src='{f}'>" for t, f in figs]
     if provenance is not None:
         from calib.provenance import provenance_html
@@ -105,6 +110,60 @@ def write_report(d, out_dir, provenance: dict | None = None) -> Path:
     (out / "diagnosis.json").write_text(json.dumps(with_joint_names(j, d.data.robot), indent=1, default=float),
                                         encoding="utf-8")
     return out / "index.html"
+
+
+def _ladder_png(plt, j: dict, out: Path) -> str:
+    """Mean, RMS and max of the held-out error at each step of the ladder."""
+    steps = j["ladder"]
+    x = np.arange(len(steps))
+    fig, ax = plt.subplots(figsize=(max(5, 1.5 * len(steps)), 3.2))
+    for key, lab, mark in (("test_mean_mm", "mean", "o-"), ("test_rms_mm", "RMS", "s-"), ("test_max_mm", "max", "^--")):
+        ax.plot(x, [s[key] for s in steps], mark, label=lab)
+    ax.axhline(j["noise_floor_mm"], color="k", lw=0.8, ls=":", label="noise floor")
+    ax.set_yscale("log")
+    ax.set_xticks(x, [s["model"] for s in steps], rotation=20, ha="right", fontsize=7)
+    ax.set_ylabel("held-out error (mm)")
+    ax.legend(fontsize=7)
+    fig.tight_layout()
+    fig.savefig(out / "ladder.png", dpi=90)
+    plt.close(fig)
+    return "ladder.png"
+
+
+def _ladder_html(j: dict) -> list[str]:
+    """Before/after, the ladder and the leave-one-group-out table as HTML tables (the owner's first screen)."""
+    e = html.escape
+
+    def num(v):
+        return "-" if v is None else f"{v:.4f}"
+    out = []
+    if j.get("before"):
+        b, a = j["before"], j["after"]
+        out.append(f"<h2 id='accuracy'>Accuracy before and after ({e(j['heldout_protocol'])})</h2>"
+                   f"<p>{e(j['error_convention'])}</p><table border='1' cellpadding='3'>"
+                   "<tr><th></th><th>n</th><th>mean mm</th><th>RMS mm</th><th>p95 mm</th><th>max mm</th></tr>"
+                   + "".join(f"<tr><td>{lab}</td><td>{s['n']}</td><td>{num(s['mean_mm'])}</td><td>{num(s['rms_mm'])}"
+                             f"</td><td>{num(s['p95_mm'])}</td><td>{num(s['max_mm'])}</td></tr>"
+                             for lab, s in (("before (located nominal)", b), ("after (calibrated)", a)))
+                   + "</table>")
+        u = j.get("uncertainty") or {}
+        if u.get("median_abs_z") is not None:
+            out.append(f"<p id='honesty'>Predicted sigma of the held-out points: median |error|/sigma "
+                       f"{u['median_abs_z']:.2f} (0.67 when honest), {100 * u['within_2sigma']:.0f} % within 2 sigma "
+                       f"(95 % when honest). {e(u['convention'])}.</p>")
+    if j.get("ladder"):
+        out.append("<h2 id='ladder'>The ladder</h2><table border='1' cellpadding='3'><tr><th>model</th><th>added</th>"
+                   "<th>parameters</th><th>mean mm</th><th>RMS mm</th><th>max mm</th><th>significance</th></tr>"
+                   + "".join(f"<tr><td>{e(s['model'])}</td><td>{e(s['added'])}</td><td>{s['n_params']}</td>"
+                             f"<td>{num(s['test_mean_mm'])}</td><td>{num(s['test_rms_mm'])}</td>"
+                             f"<td>{num(s['test_max_mm'])}</td><td>{e(s['significance'])}</td></tr>"
+                             for s in j["ladder"]) + "</table>")
+        out.append("<h3 id='leave-one-out'>Leave one group out</h3><table border='1' cellpadding='3'><tr>"
+                   "<th>final model without</th><th>RMS mm</th><th>mean mm</th><th>loss (RMS) mm</th></tr>"
+                   + "".join(f"<tr><td>{e(g['without'])}</td><td>{num(g['test_rms_mm'])}</td>"
+                             f"<td>{num(g['test_mean_mm'])}</td><td>{num(g['loss_rms_mm'])}</td></tr>"
+                             for g in j["leave_one_group_out"]) + "</table>")
+    return out
 
 
 def write_validation_report(v, out_dir) -> Path:

@@ -21,7 +21,10 @@ Each round:
    it shrinks the held-out gap by at least :data:`MATERIAL_SHARE` of the baseline's excess over the floor (the same
    share for a second effect on the same joint or the next link) *and* its parameters are stable across the folds
    (jackknife relative spread below :data:`STABLE_MAX`).  Otherwise the next is tried; when none passes, selection
-   stops and what is left is the unexplained gap, with the candidates that came closest.
+   stops and what is left is the unexplained gap, with the candidates that came closest.  A finding's parameters
+   must also lie 2 sigma or more from zero (the rule identify holds parameters by).
+6. **Jointly**: when no single candidate passes, the candidates of one kind on several joints are tried together
+   (:mod:`calib.diagnose.jointly`): several joint elasticities at once.
 """
 from __future__ import annotations
 
@@ -33,6 +36,7 @@ import numpy as np
 from calib.distributions import f_sf
 from calib.identifiability import analyse
 from calib.model import MeasurementModel
+from calib.pruning import SIGNIFICANT
 
 from .candidates import Candidate
 from .data import DiagnosisData
@@ -76,6 +80,7 @@ class Finding:
     fit: CVResult | None = None     # the model with this and the earlier findings, fitted (for --confirm)
     leftover: str = ""              # structure the final residual still shows along this effect's own driver
     stated_spread: float = float("nan")  # the parameters' stated 1-sigma (Jacobian or folds, the larger) / value
+    jointly: list[str] = field(default_factory=list)   # the other members of its joint group (calib.diagnose.jointly)
 
     @property
     def unstable(self) -> bool:
@@ -348,11 +353,13 @@ def _aliases(k: int, ok, tests: _Tests, lin: _Linear, alpha: float) -> list[str]
     return [lab for _, lab in sorted(out, reverse=True)[:3]]
 
 
-def _stability(model: MeasurementModel, cv: CVResult, cand: Candidate) -> tuple[float, np.ndarray]:
-    """Jackknife spread of the newest effect's estimated parameters over the folds: (relative spread, per-parameter
-    sigma of the whole effect's parameters, zero for the ones not estimated)."""
-    s = model.effect_slices[len(model.effects) - 1]
-    names = model.effects[-1].param_names
+def _stability(model: MeasurementModel, cv: CVResult, cand: Candidate, e_i: int = -1) -> tuple[float, np.ndarray]:
+    """Jackknife spread of an effect's estimated parameters over the folds (``e_i``: its index in the model, the
+    newest by default): (relative spread, per-parameter sigma of the whole effect's parameters, zero for the ones not
+    estimated)."""
+    e_i = e_i % len(model.effects)
+    s = model.effect_slices[e_i]
+    names = model.effects[e_i].param_names
     idx = [s.start + names.index(p) for p in cand.free]
     vals = np.array([f.theta[idx] for f in cv.folds])
     k = len(vals)
@@ -365,20 +372,23 @@ def _stability(model: MeasurementModel, cv: CVResult, cand: Candidate) -> tuple[
     return (float(np.linalg.norm(se)) / ref if ref > 0 else float("inf")), full
 
 
-def _stated_spread(model: MeasurementModel, cv: CVResult, cand: Candidate, fold_sigma: np.ndarray) -> float:
-    """The newest effect's stated 1-sigma (the larger of the Jacobian's and the folds' spread, as reported) relative
-    to its estimated value (norms over its estimated parameters)."""
-    s = model.effect_slices[len(model.effects) - 1]
-    names = model.effects[-1].param_names
+def _stated_spread(model: MeasurementModel, cv: CVResult, cand: Candidate, fold_sigma: np.ndarray,
+                   e_i: int = -1) -> float:
+    """An effect's stated 1-sigma (the larger of the Jacobian's and the folds' spread, as reported) relative to its
+    estimated value (norms over its estimated parameters); ``e_i`` as :func:`_stability`."""
+    e_i = e_i % len(model.effects)
+    s = model.effect_slices[e_i]
+    names = model.effects[e_i].param_names
     loc = [names.index(p) for p in cand.free]
     sig = np.maximum(cv.all_fit.sigma[s][loc], fold_sigma[loc])
     ref = float(np.linalg.norm(cv.all_fit.theta[s][loc]))
     return float(np.linalg.norm(sig)) / ref if ref > 0 else float("inf")
 
 
-def _param_report(cand: Candidate, model: MeasurementModel, cv: CVResult, fold_sigma: np.ndarray) -> dict:
+def _param_report(cand: Candidate, model: MeasurementModel, cv: CVResult, fold_sigma: np.ndarray,
+                  e_i: int = -1) -> dict:
     """Parameters in edge units; the 1-sigma is the larger of the Jacobian's and the folds' spread."""
-    e_i = len(model.effects) - 1
+    e_i = e_i % len(model.effects)
     s = model.effect_slices[e_i]
     names = model.effects[e_i].param_names
     theta = cv.all_fit.theta
@@ -388,14 +398,17 @@ def _param_report(cand: Candidate, model: MeasurementModel, cv: CVResult, fold_s
     return cand.parameters(vals, sigs)
 
 
-def _refit(data: DiagnosisData, cur: CVResult, cand: Candidate, geo_free: list[str],
+def _refit(data: DiagnosisData, cur: CVResult, cand: Candidate | list[Candidate], geo_free: list[str],
            loss: str) -> tuple[MeasurementModel, CVResult]:
-    """Step 5: the current model plus ``cand`` fitted fully in every fold (warm start) and on all poses."""
-    new_eff = cand.make()
-    model = MeasurementModel(data.robot, list(cur.model.effects) + [new_eff])
-    qual = [f"{new_eff.label}.{p}" for p in cand.free]
-    th0 = [np.concatenate([f.theta, new_eff.values]) for f in cur.folds]
-    th0_all = np.concatenate([cur.all_fit.theta[: cur.model.P], new_eff.values])
+    """Step 5: the current model plus ``cand`` (or several candidates together) fitted fully in every fold (warm
+    start) and on all poses."""
+    cands = cand if isinstance(cand, list) else [cand]
+    new = [c.make() for c in cands]
+    model = MeasurementModel(data.robot, list(cur.model.effects) + new)
+    qual = [f"{e.label}.{p}" for e, c in zip(new, cands) for p in c.free]
+    vals = np.concatenate([e.values for e in new])
+    th0 = [np.concatenate([f.theta, vals]) for f in cur.folds]
+    th0_all = np.concatenate([cur.all_fit.theta[: cur.model.P], vals])
     folds = [(f.train, f.test) for f in cur.folds]
     free_all = list(dict.fromkeys(geo_free + [n for n in cur.model.names[cur.model.n_geometric:]
                                               if n in cur.all_fit.free] + qual))
@@ -436,6 +449,10 @@ def _try_accept(cx: _Context, cur: CVResult, lin: _Linear, ok, tests: _Tests, k:
                f"of the excess gap ({1000 * cx.excess_mm:.1f} um)")
     elif spread > STABLE_MAX:
         why = f"its parameters are not stable across the folds (relative spread {spread:.2f})"
+    stated = _stated_spread(model, new, cand, fold_sigma)
+    if not why and stated > 1.0 / SIGNIFICANT:
+        why = (f"not significant: its value is within {SIGNIFICANT:g} sigma of zero (stated error "
+               f"{100 * stated:.0f} % of it), the rule identify holds parameters by")
     if why:
         cx.near.append(NearMiss(cand.label, new.rms_mm, float(tests.p[k]), why, cand.group))
         return why
@@ -443,7 +460,7 @@ def _try_accept(cx: _Context, cur: CVResult, lin: _Linear, ok, tests: _Tests, k:
                 _param_report(cand, model, new, fold_sigma), n_tested, spread,
                 _aliases(k, ok, tests, lin, cx.alpha),
                 gain / cx.excess_mm if cx.excess_mm > 0 else float("nan"), new,
-                stated_spread=_stated_spread(model, new, cand, fold_sigma))
+                stated_spread=stated)
     f.leftover = _grid_edge(cand, ok)
     return f, new
 
@@ -503,6 +520,11 @@ def _round(cx: _Context, cur: CVResult, remaining: list[Candidate], rounds: list
             rnd.accepted = cand.label
             return res, held
         why = why or f"best remaining candidate {cand.label} {res}"
+    from .jointly import joint_group
+    res = joint_group(cx, cur, lin, ok, tests, chi2, len(ok))
+    if isinstance(res, tuple):
+        rnd.accepted = " + ".join(f.candidate.label for f in res[0])
+        return res, held
     return why or "no candidate shrinks the held-out gap", held
 
 
@@ -534,7 +556,7 @@ def forward_select(data: DiagnosisData, base: CVResult, geo_free: list[str], can
         if isinstance(res, str):
             stop = res
             break
-        findings.append(res[0])
+        findings += res[0] if isinstance(res[0], list) else [res[0]]
         cur = res[1]
     cur = _backward(cx, cur, findings)
     return Selection(findings, rounds, cur, cx.notes, stop, cx.near)

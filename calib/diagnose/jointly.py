@@ -1,0 +1,93 @@
+"""Effects found jointly: several joints' elasticities (or scale errors, backlashes...) accepted together.
+
+Why: a real arm bends at every joint at once.  One by one, each joint's compliance explains a small share of the
+gap and falls under the acceptance rule's material share, so the greedy selection stops with all of them left out
+(DLR's ladder on Agile Justin: joint elasticity was the largest single group, as a group).  So when no single
+candidate is accepted in a round, the candidates of one kind on different joints that each improve the linearised
+held-out score are tried **together**: one nested F-test for the group (Bonferroni over the kinds tried), one full
+refit in every fold, the material-share rule on the group's gain, and the rule identify holds parameters by for
+each member (its value 2 sigma or more from zero, else it leaves the group and the group is refitted once).
+Each member becomes a finding that names the others it was found with.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from calib.distributions import f_sf
+from calib.pruning import SIGNIFICANT
+
+#: most members a group may have (the strongest by linearised score)
+MAX_MEMBERS = 8
+
+
+def joint_group(cx, cur, lin, ok, tests, chi2, n_tested: int):
+    """The best group of one kind that passes (a list of Findings and the new fit), or "" with nothing found."""
+    from .select import MATERIAL_SHARE, Finding, NearMiss, _param_report, _refit, _stability, _stated_spread
+
+    kinds = _groups(ok, chi2, cur.chi2)
+    for kind, members in kinds.items():
+        p, F = _group_test(lin, tests, ok, members)
+        p = min(1.0, p * len(kinds))
+        if p >= cx.alpha:
+            continue
+        cands = [ok[k][0] for k in members]
+        for _ in range(2):
+            model, new = _refit(cx.data, cur, cands, cx.geo_free, cx.loss)
+            first = len(model.effects) - len(cands)
+            spreads = [_stated_spread(model, new, c, _stability(model, new, c, first + i)[1], first + i)
+                       for i, c in enumerate(cands)]
+            keep = [c for c, s in zip(cands, spreads) if s <= 1.0 / SIGNIFICANT]
+            if len(keep) == len(cands) or len(keep) < 2:
+                break
+            cands = keep
+        gain = cur.rms_mm - new.rms_mm
+        label = " + ".join(c.label for c in cands)
+        if len(keep) < 2 or len(keep) != len(cands) or new.chi2 >= cur.chi2 or gain < MATERIAL_SHARE * cx.excess_mm:
+            cx.near.append(NearMiss(label, new.rms_mm, p, f"together (a joint group) they shrink the held-out RMS by "
+                                    f"{1000 * gain:.1f} um, or a member is not significant", cands[0].group))
+            continue
+        out = []
+        for i, c in enumerate(cands):
+            spread, fold_sigma = _stability(model, new, c, first + i)
+            f = Finding(c, new.rms_mm, new.max_mm, p, F, float("nan"), new.chi2,
+                        _param_report(c, model, new, fold_sigma, first + i), n_tested, spread, [],
+                        gain / cx.excess_mm if cx.excess_mm > 0 else float("nan"), new,
+                        stated_spread=_stated_spread(model, new, c, fold_sigma, first + i))
+            f.jointly = [o.label for o in cands if o is not c]
+            out.append(f)
+        return out, new
+    return ""
+
+
+def _groups(ok, chi2: np.ndarray, cur_chi2: float) -> dict[str, list[int]]:
+    """Per kind without an order grid, the best candidate per joint among those that improve the linearised score
+    (two or more joints)."""
+    best: dict[tuple, int] = {}
+    for k, (c, _) in enumerate(ok):
+        if c.order is not None or c.joint is None or not chi2[k] < cur_chi2:
+            continue
+        key = (c.kind, c.joint)
+        if key not in best or chi2[k] < chi2[best[key]]:
+            best[key] = k
+    out: dict[str, list[int]] = {}
+    for (kind, _), k in best.items():
+        out.setdefault(kind, []).append(k)
+    return {kind: sorted(ks, key=lambda k: chi2[k])[:MAX_MEMBERS] for kind, ks in out.items() if len(ks) >= 2}
+
+
+def _group_test(lin, tests, ok, members: list[int]) -> tuple[float, float]:
+    """Nested F-test of the members' columns together against the current model (whitened, all poses)."""
+    from .select import _project
+    if tests.r0 is None:
+        return 1.0, 0.0
+    cols = [c for k in members for c in ok[k][1]]
+    B = _project(lin.Qa, lin.Jw[:, cols])
+    dc, *_ = np.linalg.lstsq(B, tests.r0, rcond=None)
+    e = tests.r0 - B @ dc
+    rss0, rss1 = float(tests.r0 @ tests.r0), float(e @ e)
+    q = len(cols)
+    dof = tests.dof - q
+    if rss1 <= 0 or dof <= 0:
+        return 1.0, 0.0
+    F = max(0.0, (rss0 - rss1) / q) / (rss1 / dof)
+    return float(f_sf(F, q, dof)), float(F)

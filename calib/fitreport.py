@@ -1,0 +1,131 @@
+"""What a fit assumed about the noise, said in words (issue 24, item 5).
+
+Why: the parameters' error bars and every chi-square rest on the points' noise.  A default borrowed from another
+instrument (a theodolite's 0.05 mm for motion-capture data) made a reduced chi-square of 18,000 pass silently.  So:
+
+* the noise is **given** (sigma columns, polar noise, ``--noise-mm``), or **estimated** from the data without a model
+  (repeats, several targets per pose: :mod:`calib.noise`), or **unknown** -- then the points keep their relative
+  weights, the scale is the fit's own robust residual scale, and the errors are scaled by the residual; one line says
+  which (:func:`noise_line`) and the JSON carries it (:meth:`Weights.as_dict`);
+* a reduced chi-square far from 1 is said in words with its likely cause (:func:`chi2_words`).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .distributions import chi2_median, chi2_sf
+from .noise import combine, given_sigma_mm, model_free
+
+#: a reduced chi-square outside this range (and improbable at the fit's degrees of freedom) is said in words
+CHI2_FAR = (0.5, 2.0)
+
+
+@dataclass
+class Weights:
+    """The observations to fit, and where their noise came from."""
+
+    obs: object                       # calib.identify.PointObservations
+    given: bool
+    how: str                          # "--noise-mm", "the data's sigma columns", "repeats (...)", "unknown"
+    sigma_mm: float                   # per-coordinate 1-sigma in use (RMS over the points)
+    table: object = None              # the fit rows (calib.posecsv.PoseTable): a fold re-decides on its own rows
+    fit: object = None
+
+    @property
+    def error_scale(self) -> str:
+        return "inflate" if self.given or self.how != "unknown" else "residual"
+
+    @classmethod
+    def decide(cls, table, obs, noise_mm: float | None, fit, measured=None) -> "Weights":
+        """Given, estimated without a model, or unknown (see the module docstring); ``fit`` (with ``free``,
+        ``priors``, ``theta0``, ``start``, ``model``) is told the error scale.  ``measured``: the rows as the file
+        gave them (the fitted ``table`` may carry covariances robocal made: orientation rows' extra points)."""
+        from .evaluation import point_covariance
+        own = point_covariance(measured if measured is not None else table) is not None
+        if own or noise_mm is not None:
+            how = "the data's own uncertainty columns" if own else "--noise-mm"
+            w = cls(obs, True, how, given_sigma_mm(obs.cov_mm2), table, fit)
+        else:
+            found = model_free(table.q_rad, table.points_mm, obs.cov_mm2, pose_id=table.pose_id or None,
+                               target=table.target, body=fit.model.robot.tool_point_frames or None)
+            if found:
+                est = combine(given_sigma_mm(obs.cov_mm2), found)
+                w = cls(_rescaled(obs, est.estimated_mm / given_sigma_mm(obs.cov_mm2)), False, est.how,
+                        est.estimated_mm, table, fit)
+            else:
+                scale = _robust_scale(obs, fit)
+                w = cls(_rescaled(obs, scale), False, "unknown", given_sigma_mm(obs.cov_mm2) * scale, table, fit)
+        fit.error_scale = w.error_scale
+        return w
+
+    def for_rows(self, rows) -> object:
+        """The observations of ``rows`` weighted as this decision would weigh them on those rows alone (a
+        cross-validation fold makes the noise choice again)."""
+        rows = np.asarray(rows)
+        sub = self.obs.subset(rows)
+        if self.given or self.how != "unknown" or self.fit is None:
+            return sub
+        return _rescaled(sub, _robust_scale(sub, self.fit))
+
+    def as_dict(self, ident=None) -> dict:
+        out = {"given": self.given, "from": self.how, "sigma_mm": self.sigma_mm,
+               "errors_scaled_by_residual": self.error_scale == "residual"}
+        if ident is not None:
+            out["residual_sigma_mm"] = float(self.sigma_mm * np.sqrt(max(ident.reduced_chi2, 0.0)))
+        return out
+
+
+def _rescaled(obs, factor: float):
+    from .identify import PointObservations
+    return PointObservations(obs.q_rad, obs.points_mm, obs.cov_mm2 * factor ** 2, obs.sigma_mm * factor, obs.ctx)
+
+
+def _robust_scale(obs, fit) -> float:
+    """The factor taking the points' relative weights to the scatter a plain fit of the full free set shows, on a
+    robust scale (the median pose's chi-square: a few gross errors do not inflate it, so the outlier test that follows
+    still sees them)."""
+    from .identify import identify, pose_chi2, _Problem
+    idn = identify(fit.model, obs, free=fit.free, priors=fit.priors, theta0=fit.theta0, start=fit.start,
+                   outliers="off", error_scale="residual")
+    chi = pose_chi2(_Problem(fit.model, obs, idn.theta[: fit.model.P], {}), idn.theta, 3)
+    med = float(np.median(chi)) / float(chi2_median(3))
+    return float(np.sqrt(med)) if med > 0 else 1.0
+
+
+def noise_line(doc: dict) -> str:
+    """One line: where the noise came from, and whether the errors are scaled by the residual."""
+    if doc["given"]:
+        return f"noise: {doc['sigma_mm']:.4g} mm per coordinate, given ({doc['from']})"
+    if not doc["errors_scaled_by_residual"]:
+        return f"noise: {doc['sigma_mm']:.4g} mm per coordinate, estimated from the data without a model ({doc['from']})"
+    res = doc.get("residual_sigma_mm")
+    return ("noise: not given (--noise-mm, sigma columns) and not measurable without a model (no repeats, one target "
+            "per pose): the parameters' errors are scaled by the fit's residual"
+            + (f" ({res:.4g} mm per coordinate)" if res is not None else ""))
+
+
+def chi2_words(ident, given: bool, noise=None) -> str:
+    """A reduced chi-square far from 1 in words, with its cause ("" when near 1, or when the errors are scaled by the
+    residual: then it is 1 by construction).  ``noise``: the data's own estimate (:class:`calib.noise.
+    NoiseEstimate`), which tells a noise given too small from a model that misses something."""
+    red = float(ident.reduced_chi2)
+    if getattr(ident, "error_scale", "inflate") == "residual" or not np.isfinite(red):
+        return ""
+    dof = max(1, int(ident.n_obs) - len(ident.free))
+    p_hi = float(chi2_sf(red * dof, dof))
+    if CHI2_FAR[0] <= red <= CHI2_FAR[1] or 1e-3 < p_hi < 1 - 1e-3:
+        return ""
+    ratio = float(np.sqrt(red))
+    if red > 1:
+        why = ("either the noise given is too small or the model misses something systematic (robocal diagnose looks "
+               "for what)")
+        if noise is not None and noise.estimated_mm is not None and not noise.upper_bound:
+            why = ("the noise given is too small: the data show it without a model" if noise.given_too_small else
+                   "the model misses something systematic: the data's own noise estimate agrees with the given one "
+                   "(robocal diagnose looks for what)") + f" ({noise.estimated_mm:.3g} mm from {noise.how})"
+        return (f"reduced chi-square {red:.3g} is far above 1: the residual is {ratio:.3g}x the given noise; {why}; "
+                f"the errors are inflated by it")
+    return (f"reduced chi-square {red:.3g} is far below 1: the residual is {1 / ratio:.3g}x smaller than the given "
+            f"noise, which is too large (or the points are not independent); the errors are not scaled down")
