@@ -191,6 +191,10 @@ def _joint_columns(src, header_line, cols, n_joints, robot) -> tuple[list[str], 
                 raise RobocalError(f"{src}: line {header_line}: column {stray[0]} is not a joint of the description "
                                    f"{robot.source} (its joints: {', '.join(names)})")
             return names, pris
+        foreign = [c for c in cols if c.endswith("joint") and c not in names]
+        if foreign and robot.description_joint_names:
+            raise RobocalError(f"{src}: line {header_line}: column {foreign[0]} is not a joint of the description "
+                               f"{robot.source} (its joints: {', '.join(names)}): data of another robot?")
         n_joints = robot.n_readings
         return [f"q{j}" for j in range(1, n_joints + 1)], pris
     qcols = [f"q{j}" for j in range(1, n_joints + 1)]

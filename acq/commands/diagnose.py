@@ -149,11 +149,12 @@ def run(args) -> int:
 
     robot = load_robot(args.robot) if args.robot else None
     data = _read(args.data, robot, args.noise_mm, {**units(args), **order_options(args)})
+    # every file read and checked before the (long) diagnosis: a file for another robot is refused at once
+    others = [_read(path, data.robot, args.noise_mm, {**units(args), **order_options(args)})
+              for path in args.confirm or ()]
     implausible = _plausible(data, args)
-    others = []
-    for path in args.confirm or ():     # checked before the (long) diagnosis: a file for another robot is refused
-        others.append(_read(path, data.robot, args.noise_mm, {**units(args), **order_options(args)}))
-        implausible += _plausible(others[-1], args)
+    for other in others:
+        implausible += _plausible(other, args)
     with progress_display("robocal diagnose") as update:
         diag = diagnose(data, level=args.geometry, n_folds=args.folds, alpha=args.alpha,
                         max_effects=args.max_effects, outliers=args.outliers, loss=args.loss, progress=update)

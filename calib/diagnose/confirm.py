@@ -150,14 +150,6 @@ def check_same_robot(data: DiagnosisData, other: DiagnosisData) -> None:
                            f"{', '.join(a)}: another robot")
 
 
-def joint_name(data: DiagnosisData, joint: int | None) -> str | None:
-    """The description's name of a 1-based joint (a URDF's joint name; the thesis's names for a DH table)."""
-    if joint is None:
-        return None
-    names = data.robot.description_joint_names or data.robot.joint_names
-    return str(names[joint - 1]) if names and joint <= len(names) else f"j{joint}"
-
-
 def _effect_of(model, label: str) -> int:
     """Index in ``model.effects`` of the effect a finding is named after (the last one so named)."""
     hits = [i for i, e in enumerate(model.effects) if e.finding_label() == label]
@@ -231,7 +223,7 @@ def confirm(diag, other: DiagnosisData, keep: list[int] | None = None) -> Confir
         res, th = restationed(f.fit.model, f.fit.all_fit.theta[: f.fit.model.P], other)
         steps.append((f.candidate.label, rms_mm(res)))
         meta.append({"kind": f.candidate.kind, "joint": f.candidate.joint,
-                     "joint_name": joint_name(diag.data, f.candidate.joint)})
+                     "joint_name": diag.data.joint_name(f.candidate.joint)})
         refits.append(refit_on(diag, f, other, th))
     out = Confirmation(other.source, pose_count(other), noise_floor_mm(other), steps, meta, refits)
     return out

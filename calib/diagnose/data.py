@@ -77,6 +77,13 @@ class DiagnosisData:
                              sightings=self.sightings.subset(idx) if self.sightings is not None else None,
                              geometry_effects=list(self.geometry_effects), direction_note=self.direction_note)
 
+    def joint_name(self, joint: int | None) -> str | None:
+        """The description's name of a 1-based joint (a URDF's joint name; the DH table's names otherwise)."""
+        if joint is None:
+            return None
+        names = self.robot.description_joint_names or self.robot.joint_names
+        return str(names[joint - 1]) if names and 1 <= joint <= len(names) else f"j{joint}"
+
     @property
     def whitening(self) -> np.ndarray:
         """(N, 3, 3) W with W^T W = cov^-1: whitened residual = W r."""

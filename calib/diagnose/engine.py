@@ -64,7 +64,8 @@ class Diagnosis:
         out = []
         for f in self.selection.findings:
             c = f.candidate
-            out.append({"effect": c.kind, "joint": c.joint, "label": c.label,
+            out.append({"effect": c.kind, "joint": c.joint, "joint_name": self.data.joint_name(c.joint),
+                        "label": c.label,
                         "rms_after_mm": f.rms_after_mm, "max_after_mm": f.max_after_mm,
                         "p_value": f.p_value, "test": f"nested F on instrument-whitened residuals, Bonferroni over "
                                                       f"{f.n_tested} candidates",

@@ -41,7 +41,8 @@ def exported_model(diag, confirmed: list[bool] | None = None) -> Exported:
         return Exported(final.model, final.all_fit, labels)
     m = final.model
     drop = {lab for lab, ok in zip(labels, confirmed) if not ok}
-    keep_idx = [i for i, e in enumerate(m.effects) if e.finding_label() not in drop or i < len(diag.data.geometry_effects)]
+    n_geo = len(diag.data.geometry_effects)          # the data's own geometry (target offsets) always stays
+    keep_idx = [i for i, e in enumerate(m.effects) if i < n_geo or e.finding_label() not in drop]
     model = MeasurementModel(diag.data.robot, [m.effects[i] for i in keep_idx])
     theta = np.concatenate([final.all_fit.theta[: m.n_geometric]] +
                            [final.all_fit.theta[m.effect_slices[i]] for i in keep_idx])
