@@ -12,6 +12,10 @@ and may be accepted first.  Such a finding is not a finding of its own: it is re
   refitted in every fold; when the best explains the held-out gap as well as the stand-in (not worse by more than
   half the material share), it replaces it and the stand-in becomes its alias.  (A stand-in followed by other
   findings is left as it is: replacing it would mean refitting every later step.)
+
+And the simpler play first: a gravity-loaded play found last is replaced by the plain play of its joint unless it
+is significantly better (:func:`_simplify`).  The gravity variant's preload and tool mass are picked from a grid by
+the held-out score, and the best of many grid points beats the plain play by the choice alone near the floor.
 """
 from __future__ import annotations
 
@@ -31,6 +35,8 @@ STAND_INS = ("joint_scale", "transmission_error", "joint_compliance")
 PLAY = ("backlash", "backlash_gravity")
 #: play candidates refitted in every fold when a stand-in is the last finding
 REFIT_PLAYS = 2
+#: level of the test a gravity-loaded play must pass against the plain play of its joint
+SIMPLER_ALPHA = 0.01
 
 
 def _refit_with(data: DiagnosisData, cur: CVResult, effects, loss: str) -> CVResult:
@@ -69,6 +75,11 @@ def resolve(data: DiagnosisData, sel: Selection, candidates: list[Candidate], fl
             _drop(data, sel, f, play, excess, loss)
         elif f is sel.findings[-1]:
             _swap(data, sel, f, [p for p in candidates if p.kind in PLAY and p.joint == c.joint], excess, loss)
+    last = sel.findings[-1] if sel.findings else None
+    if last is not None and last.candidate.kind == "backlash_gravity" and \
+            any(p.kind == "backlash" and p.joint == last.candidate.joint for p in candidates):
+        grid = sum(p.kind == "backlash_gravity" and p.joint == last.candidate.joint for p in candidates)
+        _simplify(data, sel, last, grid, excess, loss)
 
 
 def _drop(data, sel: Selection, f: Finding, play: Finding, excess: float, loss: str) -> None:
@@ -107,8 +118,35 @@ def _screen(data: DiagnosisData, without: CVResult, plays: list[Candidate]) -> l
 
 
 def _swap(data, sel: Selection, f: Finding, plays: list[Candidate], excess: float, loss: str) -> None:
+    _replace(data, sel, f, plays, excess, loss, f"{f.candidate.label} (stands in for the play)")
+
+
+def _simplify(data, sel: Selection, f: Finding, n_grid: int, excess: float, loss: str) -> None:
+    """A gravity-loaded play that is not significantly better than the plain play of its joint: the plain one.
+    The grid of preloads and tool masses (``n_grid`` points on the joint) picks its best point by the held-out score,
+    which flatters it by the choice alone; so on all poses the gravity variant's whitened residual must beat the
+    plain play's beyond chance, an F-test (one degree of freedom: the choice of sides) Bonferroni-corrected over the
+    grid, at :data:`SIMPLER_ALPHA`."""
+    plain = Candidate("backlash", f.candidate.joint, free=("width_rad",))
+    grav = sel.final.all_fit
+
+    def not_better(fit: CVResult) -> bool:
+        m3 = 3 * data.n
+        dof = max(1, m3 - len(grav.free))
+        rss_g, rss_p = grav.reduced_chi2 * dof, fit.all_fit.reduced_chi2 * max(1, m3 - len(fit.all_fit.free))
+        F = (rss_p - rss_g) / max(rss_g / dof, 1e-300)
+        return F <= 0 or float(f_sf(F, 1, dof)) * max(1, n_grid) >= SIMPLER_ALPHA
+    _replace(data, sel, f, [plain], excess, loss, f"{f.candidate.label} (not significantly better than the plain "
+                                                  f"play)", accept=not_better)
+
+
+def _replace(data, sel: Selection, f: Finding, plays: list[Candidate], excess: float, loss: str,
+             alias: str, accept=None) -> bool:
+    """Replace the last finding ``f`` by the best of ``plays`` when it explains the held-out gap as well (not worse
+    by more than half the material share; or when ``accept(fit)`` says so); ``alias`` names ``f`` among the new
+    finding's aliases."""
     if not plays:
-        return
+        return False
     cur = sel.final
     i = _index(cur.model, f)
     base_effects = [e for k, e in enumerate(cur.model.effects) if k != i]
@@ -119,23 +157,21 @@ def _swap(data, sel: Selection, f: Finding, plays: list[Candidate], excess: floa
         if best is None or fit.chi2 < best[1].chi2:
             best = (p, fit)
     p, fit = best
-    if fit.rms_mm > cur.rms_mm + 0.5 * MATERIAL_SHARE * excess:
-        return
+    if not (accept(fit) if accept is not None else fit.rms_mm <= cur.rms_mm + 0.5 * MATERIAL_SHARE * excess):
+        return False
     model = fit.model
     spread, fold_sigma = _stability(model, fit, p)
     m3 = 3 * data.n
-    rss0, rss1 = without.all_fit.reduced_chi2, fit.all_fit.reduced_chi2
-    dof1 = max(1, m3 - len(fit.all_fit.free))
-    rss0, rss1 = rss0 * max(1, m3 - len(without.all_fit.free)), rss1 * dof1
+    dof0, dof1 = max(1, m3 - len(without.all_fit.free)), max(1, m3 - len(fit.all_fit.free))
+    rss0, rss1 = without.all_fit.reduced_chi2 * dof0, fit.all_fit.reduced_chi2 * dof1
     F = (rss0 - rss1) / max(rss1 / dof1, 1e-300)
+    before = sel.findings[-2].rms_after_mm if len(sel.findings) > 1 else without.rms_mm
     new = Finding(p, fit.rms_mm, fit.max_mm, min(1.0, float(f_sf(max(F, 0.0), 1, dof1)) * len(plays)), float(F),
                   float(rss1 - rss0 + np.log(m3)), fit.chi2, _param_report(p, model, fit, fold_sigma), len(plays),
-                  spread, [f"{f.candidate.label} (stands in for the play)"] + list(f.aliases),
-                  (sel.findings[-2].rms_after_mm if len(sel.findings) > 1 else without.rms_mm) - fit.rms_mm,
+                  spread, [alias] + list(f.aliases), (before - fit.rms_mm) / excess if excess > 0 else float("nan"),
                   fit, stated_spread=_stated_spread(model, fit, p, fold_sigma))
-    if excess > 0:
-        new.shrink_share /= excess
     sel.findings[-1] = new
     sel.final = fit
-    sel.skipped.append(f"{f.candidate.label}: only stands in for the play {p.label} (held-out RMS "
-                       f"{fit.rms_mm:.4f} mm with the play, {cur.rms_mm:.4f} mm with it)")
+    sel.skipped.append(f"{alias.split(' (')[0]}: replaced by {p.label} (held-out RMS {fit.rms_mm:.4f} mm with it, "
+                       f"{cur.rms_mm:.4f} mm before)")
+    return True
