@@ -66,8 +66,9 @@ def test_withheld_play_is_named_confirmed_and_agrees(case, files, capsys):
 
 def test_placebo_the_next_move_finds_no_play(files, capsys, tmp_path):
     """The same sessions with each row's direction of the NEXT move written as dir columns: no play is named."""
-    from .fakes.backlash_sessions import Session, approach_of  # noqa: F401
     import csv
+
+    from .fakes.backlash_sessions import approach_of
     src = files["plain_j3"][0]
     rows = list(csv.reader(open(src)))
     q = np.array([[float(v) for v in r[:6]] for r in rows[1:]]) * DEG
