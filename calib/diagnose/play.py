@@ -25,6 +25,8 @@ from .data import DiagnosisData
 PRELOAD_QUANTILES = tuple(np.round(np.arange(0.0, 0.951, 0.05), 2))
 #: lumped end-effector masses tried where the data give no payload, as shares of the robot's link mass
 TOOL_MASS_SHARES = (0.0, 0.03, 0.1)
+#: a side pattern is offered only when at least this share of the rows are off its most common side
+MIN_OTHER_SIDE = 0.05
 #: a joint whose load torque stays below this (N m) at every pose is not offered (a vertical axis)
 MIN_TORQUE_NM = 1e-3
 
@@ -37,6 +39,13 @@ def preloads(tau: np.ndarray) -> list[float]:
         k = int(round(qv * len(a)))
         out.append(0.0 if k == 0 else float(0.5 * (a[k - 1] + a[min(k, len(a) - 1)])))
     return out
+
+
+def _balanced(side: np.ndarray) -> bool:
+    """Whether the rows off the most common side are at least :data:`MIN_OTHER_SIDE` of them (and 3): sides
+    constant but for a few rows are an offset (the geometry's) and a few rows' noise, and a fold may see none."""
+    _, counts = np.unique(side, return_counts=True)
+    return len(side) - counts.max() >= max(3, MIN_OTHER_SIDE * len(side))
 
 
 def tool_masses(data: DiagnosisData) -> tuple[float, ...]:
@@ -72,7 +81,7 @@ def gravity_backlash_candidates(data: DiagnosisData, theta: np.ndarray | None, s
             known = np.any(data.ctx.direction[:, j - 1] != 0)   # else only gravity can set the side: preload 0
             for p in preloads(tau) if known else [0.0]:
                 side = tuple(np.where(np.abs(tau) > p, np.sign(tau), -data.ctx.direction[:, j - 1]))
-                if side in seen or len(set(side)) < 2:
+                if side in seen or not _balanced(np.array(side)):
                     continue
                 seen.add(side)
                 out.append(Candidate("backlash_gravity", j, free=("width_rad",), preload_nm=float(p),
