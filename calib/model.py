@@ -160,7 +160,7 @@ class MeasurementModel:
         """
         n = self.robot.n
         parts = self._torque_parts(fp, ctx)
-        pos, F, link, _, z, _, M, _ = parts
+        pos, F, link, _, z, o, M, _ = parts
         tau = np.einsum("njc,njc->nj", M, z) + ctx.joint_torque_nm
         frames = self._body_frames(fp, link)                                          # (Nc, B)
         # body b lies beyond link j's end: in the subtree of frame j+1, and not on that frame itself unless it is
@@ -169,8 +169,11 @@ class MeasurementModel:
         own = frames[:, :, None] == np.arange(1, n + 1)[None, None, :]
         beyond = (below & (~own | (link > n)[None, :, None])).transpose(0, 2, 1).astype(float)
         tip = np.matmul(beyond, F)                                                    # force beyond link j's end
+        # 1 kg hung at the tool point (body n), about every joint that carries it: an unknown end-effector mass
+        per_kg = np.einsum("njc,njc->nj", _cross(pos[:, n:n + 1] - o, fp.gravity()[:, None, :]), z) * parts[3][..., n]
         loads = Loads(joint_torque_nm=tau, tip_force_n=tip, point_force_n=F[:, n + 1:],
-                      point_at_mm=pos[:, n + 1:] * 1e3, point_link=link[n + 1:], joint_moment_nm=M)
+                      point_at_mm=pos[:, n + 1:] * 1e3, point_link=link[n + 1:], joint_moment_nm=M,
+                      tool_torque_per_kg=per_kg)
         if derivative:
             loads.dtau_dgeo = self._torque_derivative(fp, *parts)
         return loads

@@ -81,6 +81,7 @@ class PoseTable:
     line: list[int] = field(default_factory=list)  # source line of each row
     columns: dict[str, list[str]] = field(default_factory=dict)   # other columns, as text (grouping)
     cov_mm2: np.ndarray | None = None         # (N, 3, 3) covariance of points_mm when it is not sigma_mm's
+    direction_note: str = ""                  # how ``direction`` was inferred from the measurement order, if it was
 
     @property
     def n(self) -> int:
@@ -104,7 +105,8 @@ class PoseTable:
             if isinstance(v, np.ndarray):
                 return v[idx]
             return [v[i] for i in idx] if v else v
-        out = PoseTable(q_rad=self.q_rad[idx], source=self.source, ignored_columns=self.ignored_columns)
+        out = PoseTable(q_rad=self.q_rad[idx], source=self.source, ignored_columns=self.ignored_columns,
+                        direction_note=self.direction_note)
         for name in ("points_mm", "pose_id", "time_s", "payload_kg", "temperature_c", "direction", "sigma_mm",
                      "readings", "target", "split", "station", "polar", "orientation_rad", "line", "cov_mm2"):
             setattr(out, name, pick(getattr(self, name)))
@@ -190,6 +192,10 @@ def _joint_columns(src, header_line, cols, n_joints, robot) -> tuple[list[str], 
                 raise RobocalError(f"{src}: line {header_line}: column {stray[0]} is not a joint of the description "
                                    f"{robot.source} (its joints: {', '.join(names)})")
             return names, pris
+        foreign = [c for c in cols if c.endswith("joint") and c not in names]
+        if foreign and robot.description_joint_names:
+            raise RobocalError(f"{src}: line {header_line}: column {foreign[0]} is not a joint of the description "
+                               f"{robot.source} (its joints: {', '.join(names)}): data of another robot?")
         n_joints = robot.n_readings
         return [f"q{j}" for j in range(1, n_joints + 1)], pris
     qcols = [f"q{j}" for j in range(1, n_joints + 1)]
@@ -206,12 +212,15 @@ def _wide_targets(cols: list[str]) -> list[str]:
 
 
 def read_pose_csv(path: str | Path, n_joints: int = 6, prismatic=None, *, robot=None,
-                  angle_unit: str | None = None, length_unit: str | None = None) -> PoseTable:
+                  angle_unit: str | None = None, length_unit: str | None = None, order: str = "none",
+                  time_column: str | None = None, direction_threshold: tuple[float, float] | None = None) -> PoseTable:
     """Read a pose CSV; raise RobocalError naming file, line and column for anything malformed.
 
     ``prismatic`` (bool per joint, e.g. ``robot.prismatic``): those joints are given in the length unit.  With
     ``robot`` (a :class:`calib.robot.Robot`) the joint columns may carry its reading names, reading conventions turn
-    readings into joint variables, and ``target`` names are checked against its tool points."""
+    readings into joint variables, and ``target`` names are checked against its tool points.  ``order``,
+    ``time_column`` and ``direction_threshold`` (rad, mm): approach directions from the measurement order
+    (:mod:`calib.approach`; default: none inferred)."""
     path = Path(path)
     src, lines, file_units = _read_lines(path)
     if not lines:
@@ -262,6 +271,8 @@ def read_pose_csv(path: str | Path, n_joints: int = 6, prismatic=None, *, robot=
         if col in R.idx:
             setattr(table, attr, R.column(col, lo, hi))
     _directions(table, R, n_dir)
+    _measurement_order(table, R, cols, header_line, robot.prismatic if robot is not None else pris, order,
+                       time_column, direction_threshold)
     if wide:
         table = _expand_targets(table, R, wide, robot, lscale, header_line)
     _check_poses(table)
@@ -333,6 +344,28 @@ def _directions(table: PoseTable, R: _Rows, n: int) -> None:
                         raise RobocalError(f"{R.src}: line {ln}: column {c}: must be +1 or -1, got {val:g}")
                     d[r, j] = val
         table.direction = d
+
+
+def _measurement_order(table: PoseTable, R: _Rows, cols, header_line, prismatic, order, time_column,
+                       threshold) -> None:
+    """The time column (``--time-column`` or a recognised name) as the rows' time, and the approach directions
+    inferred from the measurement order when ``order`` asks for them (:func:`calib.approach.infer`)."""
+    from .approach import infer, time_column as find_time_column
+
+    tcol = find_time_column(cols, time_column, R.src, header_line) if (order != "none" or time_column) else None
+    if tcol is not None and tcol != "time":
+        t = R.column(tcol)
+        if table.time_s is None:
+            table.time_s = t
+        table.ignored_columns = [c for c in table.ignored_columns if c != tcol]
+        table.columns.pop(tcol, None)
+    thr_rad, thr_mm = threshold if threshold is not None else (None, None)
+    inf = infer(table.q_rad, prismatic, order, has_dir=table.direction is not None, time_col=tcol,
+                time_s=R.column(tcol) if tcol is not None else None, lines=table.line, src=R.src,
+                threshold_rad=thr_rad, threshold_mm=thr_mm)
+    if inf is not None:
+        table.direction = inf.direction
+        table.direction_note = inf.note()
 
 
 def _expand_targets(table: PoseTable, R: _Rows, wide: list[str], robot, lscale, header_line) -> PoseTable:

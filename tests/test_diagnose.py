@@ -81,8 +81,11 @@ def test_library_skips_candidates_whose_driver_is_missing():
     assert any(s.startswith("thermal_drift") for s in lib.skipped)
     full = build_library(d)
     assert {c.kind for c in full.candidates} == {"transmission_error", "joint_compliance", "backlash",
-                                                 "cross_coupling", "link_compliance", "thermal_drift", "joint_scale",
-                                                 "axis_tilt", "instrument_drift", "tool_flex"}
+                                                 "backlash_gravity", "cross_coupling", "link_compliance",
+                                                 "thermal_drift", "joint_scale", "axis_tilt", "instrument_drift",
+                                                 "tool_flex"}
+    # without directions, play can only be tested as gravity holds it everywhere (preload 0)
+    assert all(c.preload_nm == 0 for c in lib.candidates if c.kind == "backlash_gravity")
     # the Puma's parallel pair (joints 2, 3) already carries the Hayati term: nothing to add
     assert any(s.startswith("parallel_axes: no pair") for s in full.skipped)
     # joint compliance of the vertical waist joint can not be driven by gravity: no signal, held back
@@ -106,7 +109,7 @@ def test_cli_text_and_noise_option(tmp_path, capsys):
     p = _csv(tmp_path, Case(None, None, None, 0.0, seed=12, n_poses=60), with_sigma=False, with_dir=False)
     assert main(["diagnose", str(p)]) == 2
     assert "--noise-mm" in capsys.readouterr().err
-    assert main(["diagnose", str(p), "--noise-mm", "0.08", "--folds", "4"]) == 0
+    assert main(["diagnose", str(p), "--noise-mm", "0.08", "--folds", "4", "--order", "none"]) == 0
     out = capsys.readouterr().out
     assert "1. The gap" in out and "backlash: the data carries no approach directions" in out
 

@@ -103,7 +103,9 @@ def test_confirm_on_independent_data(tmp_path, capsys):
     assert main(["diagnose", str(data), "--json", "--confirm", str(day2), "--max-effects", "1"]) == 0
     j = json.loads(capsys.readouterr().out)
     assert j["findings"][0]["label"] == "joint_compliance j3" and j["findings"][0]["confirmed"] is True
-    assert j["confirmation"]["findings"][0]["rms_after_mm"] < 0.5 * j["confirmation"]["geometric_rms_mm"]
+    c = j["confirmation"][0]          # one object per --confirm file
+    assert c["findings"][0]["rms_after_mm"] < 0.5 * c["geometric_rms_mm"]
+    assert c["poses"] == 50 and c["findings"][0]["refit"]["session"]["compliance_deg_per_nm"] > 0
     assert main(["diagnose", str(data), "--confirm", str(clean), "--max-effects", "1"]) == 0
     assert "NOT confirmed" in capsys.readouterr().out
 

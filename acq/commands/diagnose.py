@@ -8,7 +8,7 @@ from __future__ import annotations
 import json
 import sys
 
-from acq.commands._csvargs import add_unit_arguments, units
+from acq.commands._csvargs import add_order_arguments, add_unit_arguments, order_options, units
 from acq.argtypes import add_force_argument, float_range, nonneg_int, output_dir, positive_float, positive_int
 from calib.errors import RobocalError
 from calib.outliers import LOSSES, OUTLIER_MODES
@@ -33,6 +33,7 @@ def add_arguments(p):
     p.add_argument("--robot", metavar="FILE", help="robot description: TOML, calibration TOML or URDF (default: the thesis's Puma "
                                                    "560)")
     add_unit_arguments(p)
+    add_order_arguments(p)
     p.add_argument("--noise-mm", type=positive_float, default=None, metavar="S",
                    help="1-sigma point noise per coordinate (mm) when DATA carries no per-point uncertainty")
     p.add_argument("--json", action="store_true", help="print the result as one JSON object")
@@ -46,9 +47,13 @@ def add_arguments(p):
     p.add_argument("--max-effects", type=nonneg_int, default=6, metavar="N", help="stop after N accepted effects")
     add_outlier_arguments(p)
     add_force_argument(p)
-    p.add_argument("--confirm", metavar="OTHER.csv",
-                   help="independent data (another day or set-up): refit only the base per station group and say, per "
-                        "finding, whether it shrinks the gap there too")
+    p.add_argument("--confirm", metavar="OTHER.csv", action="append",
+                   help="independent data (another day or set-up; repeat for several sessions): refit only the base "
+                        "per station group and say, per finding and session, whether it shrinks the gap there too, "
+                        "with the finding refitted on that session alone")
+    p.add_argument("--out", metavar="MODEL.json",
+                   help="write the final model (geometry and findings; with --confirm only the findings confirmed on "
+                        "at least one session) as robocal identify writes it, for evaluate and compensate")
     p.add_argument("--validate", action="store_true",
                    help="run the withheld-effect validation on twin data instead of diagnosing DATA")
     p.add_argument("--seeds", type=positive_int, default=3, metavar="N", help="seeds per case for --validate (default 3)")
@@ -143,11 +148,12 @@ def run(args) -> int:
     from ..progress import progress_display
 
     robot = load_robot(args.robot) if args.robot else None
-    data = _read(args.data, robot, args.noise_mm, units(args))
+    data = _read(args.data, robot, args.noise_mm, {**units(args), **order_options(args)})
+    # every file read and checked before the (long) diagnosis: a file for another robot is refused at once
+    others = [_read(path, data.robot, args.noise_mm, {**units(args), **order_options(args)})
+              for path in args.confirm or ()]
     implausible = _plausible(data, args)
-    other = None
-    if args.confirm:            # checked before the (long) diagnosis: a file for another robot is refused at once
-        other = _read(args.confirm, data.robot, args.noise_mm, units(args))
+    for other in others:
         implausible += _plausible(other, args)
     with progress_display("robocal diagnose") as update:
         diag = diagnose(data, level=args.geometry, n_folds=args.folds, alpha=args.alpha,
@@ -155,23 +161,34 @@ def run(args) -> int:
     from calib.plausibility import check_fit, enforce
     implausible += enforce(check_fit(diag.geometric.all_fit.reduced_chi2, str(args.data)), args.force_implausible,
                            "diagnose")
-    if args.confirm:
-        from calib.diagnose.confirm import confirm
-        diag.confirmation = confirm(diag, other)
+    from calib.diagnose.export import exported_model
+    exported = exported_model(diag)
+    if others:
+        from calib.diagnose.confirm import confirm_all
+        diag.confirmation = confirm_all(diag, others)
+        exported = diag.confirmation.exported
     if diag.warning():
         print(f"warning: {diag.warning()}", file=sys.stderr)
     from calib.provenance import provenance
     prov = provenance(args.robot or data.robot.source)
+    if args.out:
+        from calib.compensate import save_model
+        save_model(args.out, exported.model, exported.ident, provenance=prov)
     if args.report:
         from calib.diagnose.report import write_report
         write_report(diag, args.report, provenance=prov)
     if args.json:
         extra = {"plausibility_warnings": implausible} if implausible else {}
+        extra["exported_model"] = {**exported.as_dict(), "path": args.out}
         from calib.names import with_joint_names
         print(json.dumps({**with_joint_names(diag.to_json(), data.robot), "provenance": prov, **extra}, indent=1,
                          default=float))
     else:
         print(render(diag))
+        if exported.left_out:
+            print(f"   left out of the exported model (confirmed on no other session): {', '.join(exported.left_out)}")
+        if args.out:
+            print(f"\nmodel: {args.out} (" + (", ".join(exported.kept) or "geometry only") + ")")
         if args.report:
             print(f"\nreport: {args.report}/index.html")
     return 0

@@ -24,8 +24,11 @@ from calib.units import DEG
 from .data import DiagnosisData
 
 #: the effect names the diagnosis reports (the registry keys of calib.effects.EFFECTS)
-EFFECT_NAMES = ("transmission_error", "joint_compliance", "backlash", "cross_coupling", "link_compliance",
-                "thermal_drift", "joint_scale", "axis_tilt", "parallel_axes", "instrument_drift", "tool_flex")
+EFFECT_NAMES = ("transmission_error", "joint_compliance", "backlash", "backlash_gravity", "cross_coupling",
+                "link_compliance", "thermal_drift", "joint_scale", "axis_tilt", "parallel_axes", "instrument_drift",
+                "tool_flex")
+#: kinds that exclude each other on one joint: one play per joint, plain or gravity-loaded
+GROUP_OF = {"backlash_gravity": "backlash"}
 #: wobbles per turn tried for axis_tilt
 AXIS_TILT_ORDERS = (1, 2)
 #: step times tried for instrument_drift, as quantiles of the measurement time (besides a ramp)
@@ -44,11 +47,14 @@ class Candidate:
     free: tuple[str, ...] = ()        # parameters to estimate (unqualified names)
     step_s: float = 0.0               # instrument drift: step time (0: a ramp)
     reference_s: float = 0.0          # instrument drift: ramp reference time
+    preload_nm: float = 0.0           # gravity-loaded backlash: the torque below which the approach decides
+    tool_mass_kg: float = 0.0         # gravity-loaded backlash: lumped end-effector mass at the tool point
 
     @property
     def group(self) -> tuple:
-        """Candidates of one group exclude each other (one transmission error per joint, whatever the order)."""
-        return (self.kind, self.joint, self.source)
+        """Candidates of one group exclude each other (one transmission error per joint, whatever the order; one
+        play per joint, plain or gravity-loaded)."""
+        return (GROUP_OF.get(self.kind, self.kind), self.joint, self.source)
 
     @property
     def label(self) -> str:
@@ -59,7 +65,8 @@ class Candidate:
         """A fresh effect instance at (nearly) zero magnitude: the model's own code gives its Jacobian."""
         order = int(self.order) if self.kind == "axis_tilt" else self.order
         given = {"order": order, "harmonics": 1, "source": self.source, "reference_degc": self.reference_c,
-                 "step_s": self.step_s, "reference_s": self.reference_s}
+                 "step_s": self.step_s, "reference_s": self.reference_s, "preload_nm": self.preload_nm,
+                 "tool_mass_kg": self.tool_mass_kg}
         if not EFFECTS[self.kind].has_joint:
             return make_effect(self.kind, **{k: given[k] for k in EFFECTS[self.kind].options})
         return make_effect(self.kind, self.joint, **{k: given[k] for k in EFFECTS[self.kind].options})
@@ -76,11 +83,13 @@ class Library:
 
 
 def build_library(data: DiagnosisData, kinds: tuple[str, ...] = EFFECT_NAMES,
-                  te_orders: tuple[float, ...] = TE_ORDERS) -> Library:
+                  te_orders: tuple[float, ...] = TE_ORDERS, theta: np.ndarray | None = None) -> Library:
     """Every candidate the data can test, per joint where it applies; the rest listed with the reason.
 
     Whether the data varies what drives a candidate is the effect's own check (:func:`calib.effects.drivers.undriven`,
-    the one ``robocal identify`` refuses an ``--effect`` with): a candidate it rejects is listed under "not tested"."""
+    the one ``robocal identify`` refuses an ``--effect`` with): a candidate it rejects is listed under "not tested".
+    ``theta``: the geometric fit, where the gravity-loaded backlash grid reads the load torques
+    (:mod:`calib.diagnose.play`; the description's nominal values when None)."""
     robot = data.robot
     n = robot.n
     # a joint's own link: a branch link of a tree turns with its joint and a fixed link has no joint of its own, so
@@ -104,6 +113,9 @@ def build_library(data: DiagnosisData, kinds: tuple[str, ...] = EFFECT_NAMES,
             offer(Candidate("transmission_error", j, order=float(o), free=("s1_rad", "c1_rad")))
     offer.all([Candidate("joint_compliance", j, free=("compliance1_rad_per_nm",)) for j in rev])
     offer.all([Candidate("backlash", j, free=("width_rad",)) for j in own])
+    if "backlash_gravity" in kinds:
+        from .play import gravity_backlash_candidates
+        out.candidates += gravity_backlash_candidates(data, theta, out.skipped)
     for j in rev:
         for k in moving:
             if k != j:

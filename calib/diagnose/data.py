@@ -49,6 +49,7 @@ class DiagnosisData:
     #: the geometry beyond the chain every fit of the diagnosis carries: a tool point per extra target (an offset
     #: effect each, from :func:`calib.targets.with_targets`, as identify fits them), empty for one target
     geometry_effects: list = field(default_factory=list)
+    direction_note: str = ""               # how the approach directions were inferred (empty: given, or none)
 
     @property
     def n(self) -> int:
@@ -74,7 +75,14 @@ class DiagnosisData:
                              [self.split[i] for i in idx] if self.split else None,
                              list(self.ignored_columns),
                              sightings=self.sightings.subset(idx) if self.sightings is not None else None,
-                             geometry_effects=list(self.geometry_effects))
+                             geometry_effects=list(self.geometry_effects), direction_note=self.direction_note)
+
+    def joint_name(self, joint: int | None) -> str | None:
+        """The description's name of a 1-based joint (a URDF's joint name; the DH table's names otherwise)."""
+        if joint is None:
+            return None
+        names = self.robot.description_joint_names or self.robot.joint_names
+        return str(names[joint - 1]) if names and 1 <= joint <= len(names) else f"j{joint}"
 
     @property
     def whitening(self) -> np.ndarray:
@@ -175,9 +183,12 @@ def from_session_arrays(robot: Robot, arrays: dict, source: str) -> DiagnosisDat
 
 
 def load_data(path: str | Path, robot: Robot | None = None, noise_mm: float | None = None, *,
-              angle_unit: str | None = None, length_unit: str | None = None) -> DiagnosisData:
+              angle_unit: str | None = None, length_unit: str | None = None, order: str = "none",
+              time_column: str | None = None, direction_threshold: tuple[float, float] | None = None) -> DiagnosisData:
     """Read DATA: a pose-measurement CSV (units: see :func:`calib.posecsv.read_pose_csv`).  (Session databases come
-    through the session layer as arrays: :func:`from_session_arrays`.)"""
+    through the session layer as arrays: :func:`from_session_arrays`.)  ``order``, ``time_column``,
+    ``direction_threshold``: approach directions from the measurement order (:mod:`calib.approach`); how they were
+    inferred is a note of the data."""
     from calib.posecsv import read_pose_csv
     from calib.robot import load_robot
 
@@ -192,7 +203,8 @@ def load_data(path: str | Path, robot: Robot | None = None, noise_mm: float | No
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         table = read_pose_csv(path, robot.n, robot.prismatic, robot=robot, angle_unit=angle_unit,
-                              length_unit=length_unit)
+                              length_unit=length_unit, order=order, time_column=time_column,
+                              direction_threshold=direction_threshold)
     if table.points_mm is None:
         raise RobocalError(f"{path}: columns x, y, z (measured tool points, mm) are needed to diagnose")
     cov = None
@@ -210,4 +222,7 @@ def load_data(path: str | Path, robot: Robot | None = None, noise_mm: float | No
     if table.orientation_rad is not None:
         from calib.orientation import dropped_note
         d.notes.append(dropped_note(path))
+    if table.direction_note:
+        d.notes.append(table.direction_note)
+        d.direction_note = table.direction_note
     return d

@@ -21,6 +21,7 @@ from . import noise
 from .data import DiagnosisData
 from .gap import CVResult, auto_level, cv_fit, data_folds, geometric_free, heldout_floor_mm, noise_floor_mm
 from .select import MATERIAL_SHARE, Selection, forward_select, leftover_structure
+from .standins import resolve as resolve_standins
 
 
 #: a final held-out RMS above this multiple of the floor is reported as an unexplained gap
@@ -67,7 +68,8 @@ class Diagnosis:
         out = []
         for f in self.selection.findings:
             c = f.candidate
-            out.append({"effect": c.kind, "joint": c.joint, "label": c.label,
+            out.append({"effect": c.kind, "joint": c.joint, "joint_name": self.data.joint_name(c.joint),
+                        "label": c.label,
                         "rms_after_mm": f.rms_after_mm, "max_after_mm": f.max_after_mm,
                         "p_value": f.p_value, "test": f"nested F on instrument-whitened residuals, Bonferroni over "
                                                       f"{f.n_tested} candidates",
@@ -222,13 +224,14 @@ def _diagnose(data, level, n_folds, alpha, max_effects, kinds, te_orders, flag_o
     folds = data_folds(data, n_folds)
     level, geo, note, unused_full = _geometric(data, model, level, folds, loss)
     geo_free = geometric_free(model, level)
-    lib = build_library(data, kinds, te_orders)
+    lib = build_library(data, kinds, te_orders, theta=geo.all_fit.theta[: model.P])
     hfloor = heldout_floor_mm(geo, data)
     free_noise = noise.sources(data)          # model-free noise estimates: once (the both-faces one intersects)
     judged = hfloor * noise.estimate(data, geo.rms_mm, free_noise).floor_scale()
     prog("effect selection", 0.2)
     sel = forward_select(data, geo, geo_free, lib.candidates, alpha, max_effects,
                          (lambda s, f: prog(s, 0.2 + 0.75 * f)), floor_mm=judged, loss=loss)
+    resolve_standins(data, sel, lib.candidates, judged, geo.rms_mm, loss)     # scale/harmonic imitating play
     leftover_structure(data, sel.final, sel.findings, alpha,
                        material_mm=MATERIAL_SHARE * max(0.0, geo.rms_mm - judged))
     prog("ladder", 0.95)

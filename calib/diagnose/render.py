@@ -99,13 +99,46 @@ def render(d: Diagnosis, max_factor_rows: int = 40) -> str:
         out.append(f"   noise per coordinate: given {ne['given_mm']:.4f} mm, from the data {ne['estimated_mm']:.4f} mm "
                    f"({ne['from']})")
     out += [f"   note: {line}" for line in d.outlier_report.lines()]
-    c = j.get("confirmation")
-    if c:
-        out += ["", f"5. Confirmed on {c['source']} ({c['poses']} poses, base re-stationed per station; noise floor "
-                    f"{c['noise_floor_mm']:.4f} mm)", f"   geometric {c['geometric_rms_mm']:.4f} mm"]
-        for f in c["findings"]:
-            out.append(f"   + {f['label']}: {f['rms_after_mm']:.4f} mm ({1000 * f['shrink_mm']:+.1f} um): "
-                       + ("confirmed" if f["confirmed"] else "NOT confirmed"))
+    if j.get("confirmation"):
+        out += [""] + render_confirmation(j["confirmation"])
     for n in j["notes"]:
         out.append(f"   note: {n}")
     return prose("\n".join(out), d.data.robot)        # joints as the description names them (calib.names)
+
+
+def _params(p: dict | None) -> str:
+    """A refit's parameters as ``name value +- sigma`` (edge units), '-' when the session could not fit them."""
+    if not p:
+        return "-"
+    keys = [k for k in p if not k.endswith("_sigma") and "sigma_" not in k and isinstance(p[k], (int, float))]
+    parts = []
+    for k in keys:
+        sig = next((p[c] for c in [f"{k}_sigma"] + [k[:i] + "_sigma" + k[i:] for i in range(len(k)) if k[i] == "_"]
+                    if c in p), None)
+        parts.append(f"{k} {p[k]:.4g}" + (f" +- {sig:.2g}" if isinstance(sig, (int, float)) else ""))
+    return ", ".join(parts)
+
+
+def render_confirmation(sessions: list[dict]) -> list[str]:
+    """Section 5: per finding a table of the sessions (RMS before and after it, confirmed, its parameters refitted
+    on that session alone and whether they agree with the diagnosed data's)."""
+    out = ["5. Confirmed on other sessions (base re-located on each; the findings' parameters as fitted on the data, "
+           "then refitted on each session alone)",
+           f"   {'session':<48}{'poses':>6}{'geometric':>11}{'final':>9}"]
+    for c in sessions:
+        fin = f"{c['final_rms_mm']:.4f}" if c.get("final_rms_mm") is not None else "-"
+        out.append(f"   {c['source'][-48:]:<48}{c['poses']:>6}{c['geometric_rms_mm']:>11.4f}{fin:>9}")
+    for k, f in enumerate(sessions[0]["findings"] if sessions else []):
+        name = f" ({f['joint_name']})" if f.get("joint_name") else ""
+        train = (f.get("refit") or {}).get("training")
+        out += ["", f"   {f['label']}{name}: fitted on the data {_params(train)}",
+                f"     {'session':<40}{'before':>9}{'with it':>9}{'shrink um':>10}  {'confirmed':<14}"
+                f"refitted on the session alone"]
+        for c in sessions:
+            g = c["findings"][k]
+            r = g.get("refit")
+            agree = "" if not r else ("  agrees" if r["agree"] else "  DISAGREES")
+            out.append(f"     {c['source'][-40:]:<40}{g['rms_before_mm']:>9.4f}{g['rms_after_mm']:>9.4f}"
+                       f"{1000 * g['shrink_mm']:>+10.1f}  {'yes' if g['confirmed'] else 'NOT confirmed':<14}"
+                       f"{_params(r['session'] if r else None)}{agree}")
+    return out

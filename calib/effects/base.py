@@ -79,6 +79,7 @@ class Loads:
     point_at_mm: np.ndarray | None = None     # (N, K, 3) where each acts, measurement frame
     point_link: np.ndarray | None = None      # (K,) frame each point is fixed in
     joint_moment_nm: np.ndarray | None = None  # (N, n, 3) moment about joint j's origin of all it carries
+    tool_torque_per_kg: np.ndarray | None = None  # (N, n) N m about joint j of 1 kg at the tool point (0 if not carried)
 
 
 class JointNumber(int):

@@ -35,7 +35,8 @@ def _time(e: Effect, q_rad, ctx: PoseContext, robot) -> str | None:
 
 def _direction(e: Effect, q_rad, ctx: PoseContext, robot) -> str | None:
     if not np.any(ctx.direction != 0):
-        return f"the data carries no approach directions (dir1..dir{ctx.n_joints} columns)"
+        return (f"the data carries no approach directions (dir1..dir{ctx.n_joints} columns, or a measurement "
+                f"order to infer them from: a time column, --order rows)")
     if _varies(ctx.direction[:, e.joint - 1]):
         return None
     return f"every pose approached joint {e.joint} from the same side (dir{e.joint} constant)"
