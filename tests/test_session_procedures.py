@@ -117,7 +117,7 @@ def test_link_steps_ask_the_mass_and_reprocess_reads_both():
     """Contract C3: a link step that hangs a mass asks ``load_kg``; reprocess reads it as a force with standard
     gravity, and still reads ``load_n`` from sessions recorded before."""
     from calib.robot import load_robot
-    from acq.session.reprocess import _link_load_n
+    from acq.reduction.stages.link import link_load_n as _link_load_n
     from acq.session.setup import session_setup
     setup = session_setup(standard_setup(), load_robot())
     link = all_steps({"procedures": ["link_compliance"]}, setup)
@@ -166,10 +166,10 @@ def test_encoder_resolution_steps_are_what_reprocess_reads():
 
 
 def test_resolution_truth_is_the_twins_slope_over_the_run():
-    """reprocess's truth for the resolution run: the description's resolution when the twin has no running errors,
+    """The emulated truth for the resolution run: the description's resolution when the twin has no running errors,
     tilted by the transmission error (a little, not more than its amplitude allows) when it has."""
     import dataclasses
-    from acq.session.reprocess import _resolution_truth
+    from acq.emulate.truth.runs import resolution_in_estimator_terms
     from calib.estimators.resolution import design_resolution_rad
     from calib.twin import Twin, load_scenario
     from calib.units import DEG
@@ -179,12 +179,10 @@ def test_resolution_truth_is_the_twins_slope_over_the_run():
     q = np.zeros((7, 6))
     q[:, 5] = np.linspace(0.0, 150.0, 7) * DEG
     counts = np.rint(r.counts_from_joint(q))
-    sts = [{"counts": c[None]} for c in counts]
-    ok = np.ones(7, bool)
     signed = counts[:, 5] * np.sign(r.gear_ratio[5])
     cov = np.eye(7) * 1e-10
     bare = Twin(dataclasses.replace(sc, effects=[]), seed=0)
-    tv = _resolution_truth(bare, r, sts, ok, 6, signed, cov, design)
+    tv = resolution_in_estimator_terms(bare, 6, counts, signed, cov, design)
     assert abs(tv["scale"] - 1.0) < 1e-4 and abs(tv["rad_per_count"] / design - tv["scale"]) < 1e-12
-    tv = _resolution_truth(Twin(sc, seed=0), r, sts, ok, 6, signed, cov, design)
+    tv = resolution_in_estimator_terms(Twin(sc, seed=0), 6, counts, signed, cov, design)
     assert 1e-5 < abs(tv["scale"] - 1.0) < 3e-3

@@ -32,6 +32,7 @@ import numpy as np
 
 from calib.effects import PoseContext
 from calib.errors import RobocalError
+from calib.loads import HungMass, point_force_context
 from calib.twin import Twin
 from calib.units import DEG
 
@@ -47,15 +48,6 @@ class Target:
     tool_mm: tuple[float, float, float] | None = None
     point_mm: tuple[float, float, float] | None = None
     link: int | None = None
-
-
-@dataclass(frozen=True)
-class HungMass:
-    """A mass hung at a point fixed in frame ``link`` (0 base, j = link j): its weight pulls straight down there."""
-
-    link: int
-    point_mm: tuple[float, float, float]
-    mass_kg: float
 
 
 class TwinWorld:
@@ -151,9 +143,7 @@ class TwinWorld:
             ms = self._masses if loaded else ()
             return PoseContext(1, self.robot.n, direction=self._direction[None], load_direction=self._load_dir[None],
                                payload_kg=np.array([self._payload]), joint_torque_nm=self._torque[None],
-                               point_force_link=np.array([m.link for m in ms], int),
-                               point_force_mm=np.array([[m.point_mm for m in ms]], float).reshape(1, len(ms), 3),
-                               point_force_n=np.array([[m.mass_kg * self._g for m in ms]]).reshape(1, len(ms), 3))
+                               **point_force_context(ms, self._g))
 
     def _point(self, link: int | None, point_mm, loaded: bool = True) -> np.ndarray:
         """True position (3,) of a point fixed in frame ``link`` (None: the flange tool point ``point_mm``) at the
