@@ -74,8 +74,9 @@ class RobotProfile:
         return self.thesis
 
     def as_dict(self) -> dict:
-        """For the results document: what the reduction assumed about the robot."""
-        return {"name": self.name, "joints": self.n, "thesis": self.thesis, "ready_deg": list(self.ready_deg),
+        """For the results document: what the reduction assumed about the robot (``reference_robot``: the method's
+        own robot, the thesis's Puma structure)."""
+        return {"name": self.name, "joints": self.n, "reference_robot": self.thesis, "ready_deg": list(self.ready_deg),
                 "te_joints": list(self.te_joints), "coupled_pairs": [list(p) for p in self.coupled_pairs],
                 "tapped": self.tapped}
 

@@ -16,7 +16,8 @@ import pytest
 
 from acq.session.demo import build_demo, demo_plan, demo_setup
 from acq.session.preflight import Preflight, failing_lines, load_torques_nm
-from acq.session.procedures import READY_DEG, all_steps
+from acq.session.procedures import all_steps
+from calib.profile import THESIS_READY_DEG as READY_DEG
 from acq.session.setup import session_setup
 from acq.session.steps import Step, TargetSpec
 from calib.robot import load_robot

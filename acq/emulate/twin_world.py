@@ -33,11 +33,8 @@ import numpy as np
 from calib.effects import PoseContext
 from calib.errors import RobocalError
 from calib.loads import HungMass, point_force_context
+from calib.profile import profile_of
 from calib.twin import Twin
-from calib.units import DEG
-
-READY_DEG = (0.0, -90.0, 90.0, 0.0, 0.0, 0.0)
-
 
 @dataclass(frozen=True)
 class Target:
@@ -53,7 +50,7 @@ class Target:
 class TwinWorld:
     """World protocol implementation on a :class:`calib.twin.Twin` (thread-safe)."""
 
-    def __init__(self, twin: Twin, q0_deg=READY_DEG, *, seed: int | None = None, gauge_sigma_mm: float = 0.001):
+    def __init__(self, twin: Twin, q0_deg=None, *, seed: int | None = None, gauge_sigma_mm: float = 0.001):
         self.twin = twin
         self.robot = twin.robot
         self.stations = {s.name: s for s in twin.stations}
@@ -62,7 +59,8 @@ class TwinWorld:
         self._rng = np.random.default_rng(twin.scenario.seed if seed is None else seed)
         self._lock = threading.RLock()
         n = self.robot.n
-        self._q = np.asarray(q0_deg, float) * DEG          # where the joints are
+        q0 = profile_of(self.robot).ready_deg if q0_deg is None else q0_deg       # default: the reference pose
+        self._q = np.asarray(q0, float) * self.robot.edge_scale          # where the joints are
         self._q_cmd = self._q.copy()                          # where they were last commanded to
         self._direction = np.zeros(n)
         self._torque = np.zeros(n)

@@ -85,3 +85,26 @@ def torque_covariance(per_step: list[StepLoads], j: int, sig_geo: np.ndarray) ->
     Jp = np.array([p.dtau_dpoint[j - 1] for p in per_step]) * tol["tool_mm"]        # (steps, 3)
     dN = np.array([p.hung_nm_per_kg[j - 1] for p in per_step]) * tol["load_mass_kg"]
     return Jg @ Jg.T + Jp @ Jp.T + np.diag(dN ** 2)
+
+
+def compliance_deflection(per_step: list[StepLoads], fits: dict, j: int, skip: int | None = None):
+    """What the joints whose stiffness the session measured (``fits``: joint -> two-slope fit) turn about joint j's
+    axis over a series of steps, from the first: ``sum_i (z_i . z_j) (T_i - T_i[0]) / K_i`` -- a deflection of joint
+    i about its own axis turns a line on the tool by its projection on j's axis, so joints whose axes are parallel
+    to j's (a UR arm's shoulder, elbow and first wrist joint) add their whole deflection to any angle measured about
+    it.  Returns the deflection (steps,) and its covariance from the stiffnesses' errors; ``skip``: a joint left out
+    (the one being fitted).  Why: a series loads every joint up the chain, and a turn of the joint being measured
+    changes the gravity torque on the others."""
+    T = np.array([p.torque_nm for p in per_step])                  # (steps, n)
+    z = np.array([p.axes for p in per_step])                       # (steps, n, 3)
+    out, cov = np.zeros(len(per_step)), np.zeros((len(per_step), len(per_step)))
+    for i, res in sorted(fits.items()):
+        if i == skip:
+            continue
+        K, sK = res["K1_Nm_per_rad"].value, res["K1_Nm_per_rad"].error
+        v = np.einsum("sc,sc->s", z[:, i - 1], z[:, j - 1]) * (T[:, i - 1] - T[0, i - 1])
+        if not np.any(np.abs(v) > 1e-9 * max(K, 1.0)):
+            continue
+        out += v / K
+        cov += np.outer(v, v) * (sK / K ** 2) ** 2
+    return out, cov

@@ -13,9 +13,11 @@ from typing import Callable, Iterator
 
 import numpy as np
 
+from calib.units import G0_M_S2
+
 from . import checks as ck
-from .setup import point_p, station_names
-from .steps import READY_DEG, InputSpec, Step, TargetSpec
+from .setup import point_p, reference_pose_deg, setup_profile, station_names
+from .steps import InputSpec, Step, TargetSpec
 
 MARKS = ("C", "D", "E")
 
@@ -30,7 +32,7 @@ def _both(setup: dict) -> str:
     return f"theodolite {a}, then with {b}"
 
 
-def _pose(j: int, angle_deg: float, base=READY_DEG) -> tuple[float, ...]:
+def _pose(j: int, angle_deg: float, base) -> tuple[float, ...]:
     q = list(base)
     q[j - 1] += angle_deg
     return tuple(q)
@@ -127,12 +129,15 @@ def ruler(plan: dict, setup: dict) -> Iterator[Step]:
 
 # -- 4.3 joint sweeps ------------------------------------------------------------------------------------------------
 def sweeps(plan: dict, setup: dict) -> Iterator[Step]:
-    """Joint orientations and centres: each joint swept alone from READY, target P sighted at each position."""
+    """Joint orientations and centres: each joint swept alone from READY (the set-up's reference pose), target P
+    sighted at each position; by default every revolute joint of the robot."""
     p = plan.get("sweeps", {})
     n, span = p.get("points", 4), p.get("span_deg", 60.0)
-    for j in p.get("joints", [1, 2, 3, 4, 5, 6]):
+    ready = reference_pose_deg(setup)
+    joints = p.get("joints") or setup_profile(setup).sweep_joints
+    for j in joints:
         for i, a in enumerate(np.linspace(-span / 2, span / 2, n)):
-            q = _pose(j, float(a))
+            q = _pose(j, float(a), ready)
             yield Step(
                 key=f"sweep/j{j}/{i:02d}", procedure="sweep", title=f"Joint {j} sweep, position {i + 1}/{n}",
                 instruction=(f"Other joints at READY. Rotate joint {j} to about {q[j - 1]:+.1f} deg (always in "
@@ -140,16 +145,23 @@ def sweeps(plan: dict, setup: dict) -> Iterator[Step]:
                 pose_deg=q, targets=(sweep_target(setup, j),), repeats=p.get("repeats", 1),
                 meta={"joint": j, "index": i, "swept_joint": j})
     pp = point_p(setup)
-    joints = p.get("joints", [1, 2, 3, 4, 5, 6])
-    # P serves d3 with the wrist centre (joints 5 and 6's axes): sighted only when the plan sweeps those
-    if pp is not None and p.get("point_p", True) and {5, 6} <= set(joints):
+    # P serves d3 with the wrist centre (the last two joints' axes): sighted only when the set-up has a P, the plan
+    # sweeps those joints, and the robot's profile has the thesis's scheme (eq 4.3.15 is its Puma's)
+    if pp is not None and p.get("point_p", True) and _wrist_swept(setup, joints):
         link, tool, lp = pp
         yield Step(
             key="sweep/p", procedure="sweep", title="Point P on the tool's axis (d3, eq 4.3.15)",
-            instruction=(f"All joints at READY {_fmt(READY_DEG)}. Sight point P, the mark on the tool's axis "
+            instruction=(f"All joints at READY {_fmt(ready)}. Sight point P, the mark on the tool's axis "
                          f"{lp:g} mm beyond the flange (L_p), with {_both(setup)}."),
-            pose_deg=tuple(READY_DEG), targets=(TargetSpec("P", tool_mm=tool, link=link),),
+            pose_deg=tuple(ready), targets=(TargetSpec("P", tool_mm=tool, link=link),),
             repeats=p.get("repeats", 1), meta={"point": "P", "L_p_mm": lp})
+
+
+def _wrist_swept(setup: dict, joints) -> bool:
+    """Point P belongs to the thesis's scheme: its robot profile has it, and the plan sweeps the wrist's last two
+    joints (their axes give the wrist centre P is measured from)."""
+    profile = setup_profile(setup)
+    return profile.point_p and {profile.n - 1, profile.n} <= set(joints)
 
 
 # -- Chapter 6 pose set ----------------------------------------------------------------------------------------------
@@ -169,11 +181,14 @@ def transmission(plan: dict, setup: dict) -> Iterator[Step]:
     """Joint angle from the extended tool's targets A1, A2 against the encoder, over a joint's range."""
     p = plan.get("transmission", {})
     a1, a2 = extended_targets(setup)
-    for j in p.get("joints", [4, 6]):
-        lo, hi = p.get("range_deg", {}).get(str(j), (-100.0, 100.0))
+    ready = reference_pose_deg(setup)
+    profile = None if p.get("joints") and all(str(j) in p.get("range_deg", {}) for j in p["joints"]) \
+        else setup_profile(setup)
+    for j in p.get("joints") or profile.te_joints:
+        lo, hi = p.get("range_deg", {}).get(str(j)) or profile.te_range_deg[j]
         n = p.get("points", 9)
         for i, a in enumerate(np.linspace(lo, hi, n)):
-            q = _pose(j, float(a))
+            q = _pose(j, float(a), ready)
             yield Step(
                 key=f"te/j{j}/{i:02d}", procedure="transmission", title=f"Joint {j} transmission error {i + 1}/{n}",
                 instruction=(f"Extended tool fitted. Rotate joint {j} to {q[j - 1]:+.1f} deg (positive direction "
@@ -186,7 +201,7 @@ def _hung(cfg: dict, load_n: float) -> dict:
     (:func:`acq.session.setup.session_setup` maps old set-ups); ``tested_joint``: the joint it must turn."""
     if cfg.get("point_mm") is None or not cfg.get("loads_n"):
         return {}
-    kg = dict(zip(cfg["loads_n"], cfg.get("masses_kg", [v / 9.80665 for v in cfg["loads_n"]])))
+    kg = dict(zip(cfg["loads_n"], cfg.get("masses_kg", [v / G0_M_S2 for v in cfg["loads_n"]])))
     return {"loads": [{"link": int(cfg["link"]), "point_mm": list(cfg["point_mm"]), "mass_kg": kg[load_n]}],
             "tested_joint": int(cfg["link"])}
 
@@ -201,11 +216,11 @@ def compliance(plan: dict, setup: dict) -> Iterator[Step]:
     p = plan.get("compliance", {})
     a1, a2 = extended_targets(setup)
     sta, stb = station_names(setup)
-    for j in p.get("joints", [3, 4]):
+    for j in p.get("joints") or sorted(int(k) for k in setup.get("compliance", {})):
         cfg = setup["compliance"][str(j)]
         loads = list(cfg["loads_n"])
         series = [("load", v, +1) for v in loads] + [("unload", v, -1) for v in reversed(loads[:-1])]
-        q = tuple(cfg.get("pose_deg", READY_DEG))
+        q = tuple(cfg.get("pose_deg") or reference_pose_deg(setup))
         for i, (phase, load, direction) in enumerate(series):
             hung = _hung(cfg, load)
             what = f"{hung['loads'][0]['mass_kg']:.3g} kg ({load:g} N)" if hung else f"{load:g} N"
@@ -245,7 +260,7 @@ def link_compliance(plan: dict, setup: dict) -> Iterator[Step]:
             key=f"link/j{j}/{i:02d}", procedure="link_compliance", title=f"Link {j}: load {load:g} N",
             instruction=(f"Dial gauges at {', '.join(f'{x:g}' for x in xs)} mm from joint {j}'s centre, zeroed "
                          f"without load. Hang {load:g} N at {cfg['load_x_mm']:g} mm, wait 30 s, read every gauge."),
-            pose_deg=tuple(cfg.get("pose_deg", READY_DEG)), targets=(), faces=(),
+            pose_deg=tuple(cfg.get("pose_deg") or reference_pose_deg(setup)), targets=(), faces=(),
             inputs=(_link_load_input(hung, load),
                     *[InputSpec(f"gauge{g + 1}_mm", "mm", f"Dial gauge {g + 1} at {x:g} mm")
                       for g, x in enumerate(xs)]),
@@ -268,9 +283,9 @@ def coupling(plan: dict, setup: dict) -> Iterator[Step]:
     p = plan.get("coupling", {})
     th = p.get("angle_deg", 10.0)
     repeats = int(p.get("repeats", 1))
-    for j, k in p.get("pairs", [(5, 6), (4, 6), (4, 5)]):
-        start = READY_DEG
-        alone = _pose(k, th)
+    for j, k in p.get("pairs") or setup_profile(setup).coupled_pairs:
+        start = reference_pose_deg(setup)
+        alone = _pose(k, th, start)
         both = _pose(j, th, alone)
         for r in range(repeats):
             # repeats: the scatter between them (servo repeatability) is pooled into sigma_jk's error by reprocess;
@@ -299,9 +314,9 @@ def encoder_resolution(plan: dict, setup: dict) -> Iterator[Step]:
     p = plan.get("encoder_resolution", {})
     a1, a2 = extended_targets(setup)
     n, span = int(p.get("points", 7)), float(p.get("span_deg", 150.0))
-    for j in p.get("joints", [6]):
+    for j in p.get("joints") or setup_profile(setup).sweep_joints[-1:]:
         for i, a in enumerate(np.linspace(0.0, span, n)):
-            q = _pose(j, float(a))
+            q = _pose(j, float(a), reference_pose_deg(setup))
             yield Step(
                 key=f"resolution/j{j}/{i:02d}", procedure="encoder_resolution",
                 title=f"Joint {j} encoder resolution {i + 1}/{n}",

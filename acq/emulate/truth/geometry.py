@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from calib.angles import wrap_angle
 from calib.estimators.dh import misalignments, puma_formulas
 from calib.estimators.misalignment import ROW, compensated_puma_inputs
 from calib.kinematics import Kinematics
@@ -25,13 +26,16 @@ def ruler_truth(sc: Scoring, trace: dict) -> None:
 
 
 def _frames(sc: Scoring, q0: np.ndarray):
-    """Kinematics, the design parameters (the set-up's base), the design and the true chains at the reference
-    pose."""
+    """Kinematics, the design parameters (the set-up's base), the design chain at the reference pose, the twin's
+    true chain there and the joints' deflection from their readings (rad).  Why the deflection: the joints were swept
+    with the arm under its own weight and the gears' transmission error, so the axes the sweeps measure are those of
+    the twin's chain at its effective joint angles (the readings plus its running errors), not at the readings."""
     kin = Kinematics(sc.robot)
     p_design = nominal_theta(kin, sc.setup)
     truth = sc.truth
     p_true = np.array([truth.get(nm, v) for nm, v in zip(kin.names, p_design)])
-    return kin, p_design, kin.forward(q0[None], p_design), kin.forward(q0[None], p_true)
+    _, theta = sc.twin.true_points(q0[None])
+    return kin, p_design, kin.forward(q0[None], p_design), kin.forward(theta, p_true), theta[0] - q0
 
 
 def base_gauge_truth(truth: dict, setup: dict, R0: np.ndarray, tv: dict) -> dict:
@@ -60,8 +64,12 @@ def dh_truth(sc: Scoring, trace: dict) -> None:
         return
     robot, truth = sc.robot, sc.truth
     names = [e["name"][3:] for e in sc.res["estimates"] if e["name"].startswith("dh.")]
-    _, _, design, _ = _frames(sc, np.asarray(trace["q0_rad"], float))
+    _, _, design, _, bent = _frames(sc, np.asarray(trace["q0_rad"], float))
     tv = {n: truth[n] for n in names if n in truth}
+    for k in range(robot.n):                 # the sweeps see the joint where its running errors put it, as the
+        name = f"j{k + 1}.theta_offset_rad"   # estimate wrapped to a half turn
+        if name in tv:
+            tv[name] = float(wrap_angle(tv[name] + bent[k]))
     tv.update(base_gauge_truth(truth, sc.setup, design.frame_R[0, 0], tv))
     for k in np.flatnonzero(robot.hayati[:-1]):
         held, nxt = f"j{k + 1}.d_mm", f"j{k + 2}.d_mm"
@@ -75,12 +83,12 @@ def dh_truth(sc: Scoring, trace: dict) -> None:
 
 @truth_of("misalignment")
 def misalignment_truth(sc: Scoring, trace: dict) -> None:
-    """The twin's own axes at the reference pose against the design's."""
+    """The twin's own axes at the reference pose (its effective joint angles there) against the design's."""
     q0 = (sc.res.get("trace", {}).get("sweeps") or {}).get("q0_rad")
     if q0 is None:
         return
     n = sc.robot.n
-    _, _, design, true = _frames(sc, np.asarray(q0, float))
+    _, _, design, true, _ = _frames(sc, np.asarray(q0, float))
     zd = np.array([design.frame_R[0, j][:, 2] for j in range(n)])
     xf = np.array([design.frame_R[0, j + 1][:, 0] for j in range(n)])
     zt = np.array([true.frame_R[0, j][:, 2] for j in range(n)])
@@ -96,7 +104,7 @@ def compensation_truth(sc: Scoring, trace: dict) -> None:
     q0 = (sc.res.get("trace", {}).get("sweeps") or {}).get("q0_rad")
     if q0 is None or not trace:
         return
-    kin, _, design, fp = _frames(sc, np.asarray(q0, float))
+    kin, _, design, fp, _ = _frames(sc, np.asarray(q0, float))
     n_links, truth = kin.robot.n, sc.truth
     zd = np.array([design.frame_R[0, j][:, 2] for j in range(6)])
     xf = np.array([design.frame_R[0, j + 1][:, 0] for j in range(6)])

@@ -6,7 +6,7 @@ from importlib import import_module
 
 from ..registry import Stage, in_order
 
-MODULES = ("ruler", "sweeps", "misalignment", "compensation", "transmission", "compliance", "poses", "link",
+MODULES = ("ruler", "sweeps", "misalignment", "compensation", "compliance", "transmission", "poses", "link",
            "coupling", "resolution")
 
 

@@ -2,7 +2,9 @@
 about that axis, the torque from the geometry at each step's pose with its recorded loads
 (:mod:`acq.reduction.torques`), loading then unloading: the two-slope fit
 (:func:`calib.estimators.compliance.two_slope_fit`).  A joint about which the loads produce no torque (its axis along
-gravity, a lever along the axis) gets no number: "not determined" and why.  Gives the fits by joint."""
+gravity, a lever along the axis) gets no number: "not determined" and why.  The joints are fitted base first, and
+what the ones already fitted turn about the next one's axis under its loads is taken out of its deflections
+(:func:`acq.reduction.torques.compliance_deflection`).  Gives the fits by joint."""
 from __future__ import annotations
 
 import numpy as np
@@ -14,7 +16,7 @@ from calib.units import DEG
 from ..context import Reduction
 from ..joints import angles_about, by_joint
 from ..registry import Stage
-from ..torques import step_loads, swept_geometry, torque_covariance
+from ..torques import compliance_deflection, step_loads, swept_geometry, torque_covariance
 
 REPORTED = ("K1_Nm_per_rad", "K2_Nm_per_rad", "breakpoint_Nm", "offset_rad")
 #: torque range (N m) below which the loads did not turn the joint
@@ -40,6 +42,9 @@ def reduce_compliance(ctx: Reduction, steps: list[dict]) -> dict | None:
             continue
         sign = 1.0 if T[np.argmax(np.abs(T))] >= 0 else -1.0        # the fit's branches are for positive torques
         defl, sig, dcov = angles_about(sts, ctx.points, axis)
+        # the joints measured before it deflect too under these loads: their turn about this axis taken out
+        others, ocov = compliance_deflection(per_step, fits, j, skip=j)
+        defl, dcov = defl - others, dcov + ocov
         unload = np.array([s["spec"]["meta"]["phase"] == "unload" for s in sts])
         try:
             res = two_slope_fit(sign * T, sign * defl, unload, dcov, n_mc=ctx.n_mc,

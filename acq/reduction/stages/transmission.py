@@ -1,7 +1,9 @@
 """Transmission error (section 4.4): per joint, the angle turned from A1, A2 about the joint's own axis against the
 joint readings (tapped encoder counts), and the harmonic fit of the difference with the angles' full covariance
 (:func:`calib.estimators.transmission.fit_transmission_error`); Section 4.4's E_a (measured minus commanded) as
-well.  A joint whose fit fails, or whose order is not determined, is said so and left out of the running errors the
+well.  Turning the joint turns the arm's weight about the joints whose stiffness the session measured: their
+deflection about this joint's axis is taken out first (:func:`acq.reduction.torques.compliance_deflection`), else it
+reads as a first-order periodic error.  A joint whose fit fails, or whose order is not determined, is said so and left out of the running errors the
 pose set carries; the other joints still count.  Gives the fits by joint."""
 from __future__ import annotations
 
@@ -16,6 +18,7 @@ from calib.units import DEG
 from ..context import Reduction
 from ..joints import angles_about, angles_about_own_axis, by_joint, encoder_q, reading_q, relative_error
 from ..registry import Stage
+from ..torques import compliance_deflection, step_loads, swept_geometry
 
 
 def reference_quantisation(steps: list[dict], ctx: Reduction, j: int) -> np.ndarray:
@@ -48,6 +51,8 @@ def reduce_transmission(ctx: Reduction, steps: list[dict]) -> dict | None:
     if not steps:
         return None
     axes = ctx.outputs["axes"].axes if ctx.outputs.get("axes") is not None else {}
+    stiffness = ctx.outputs.get("compliance") or {}
+    model, theta, _ = swept_geometry(ctx)
     ctx.figs["transmission"] = {}
     fits, failed = {}, []
     for j, sts in sorted(by_joint(steps).items()):
@@ -59,6 +64,9 @@ def reduce_transmission(ctx: Reduction, steps: list[dict]) -> dict | None:
         enc = np.array([reading_q(s, ctx.robot)[j - 1] for s in sts])
         err = relative_error(meas, enc)
         cov = cov + reference_quantisation(sts, ctx, j)
+        if stiffness:                       # the gravity deflection of the measured joints, as the joint turns
+            bent, bcov = compliance_deflection([step_loads(s, ctx, model, theta) for s in sts], stiffness, j)
+            err, cov = err - bent, cov + bcov
         ok = np.isfinite(err)
         try:
             res = fit_transmission_error(enc[ok], err[ok], cov[np.ix_(ok, ok)], n_mc=ctx.n_mc)
@@ -80,5 +88,5 @@ def reduce_transmission(ctx: Reduction, steps: list[dict]) -> dict | None:
     return fits
 
 
-STAGE = Stage("transmission", reduce_transmission, procedures=("transmission",), needs=("axes",),
+STAGE = Stage("transmission", reduce_transmission, procedures=("transmission",), needs=("axes", "compliance"),
               gives="transmission")
