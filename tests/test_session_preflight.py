@@ -268,7 +268,7 @@ def test_plan_setup_writes_the_session_setup(tmp_path):
     (lambda s: s["compliance"]["4"].pop("point_mm"), "set-up: compliance.4: missing lever_mm"),
     (lambda s: s["compliance"]["4"].update(pose_deg=[0, 0]), "set-up: compliance.4: pose_deg needs 6"),
     (lambda s: s["compliance"].update({"9": s["compliance"]["3"]}), "set-up: compliance.9: joint 9 is not one of"),
-    (lambda s: s["link"].update(loads_n=[0, -5]), "set-up: link: loads must be finite and not negative"),
+    (lambda s: s["link"].update(loads_n=[0, -5]), "link.loads_n[1]: -5 is less than the minimum of 0"),   # schema
     (lambda s: s["link"].pop("gauges_x_mm"), "set-up: link: missing gauges_x_mm"),
 ])
 def test_malformed_setup_is_one_line(tmp_path, edit, text):

@@ -14,9 +14,11 @@ from __future__ import annotations
 import time
 
 from calib.errors import RobocalError
+from calib.kinematics import Kinematics
 from calib.profile import profile_of
 from calib.provenance import provenance
 
+from acq.session.rig import c3_setup
 from acq.session.setup import setup_robot
 from acq.session.store import code_version
 
@@ -57,6 +59,18 @@ def run_stage(ctx: Reduction, stage: Stage) -> None:
         ctx.outputs[stage.gives] = out
 
 
+def migrate_steps(data: SessionData, robot) -> None:
+    """Every step's physical set-up in the step vocabulary (masses at points on links, gauges as points with an axis,
+    the operator's entered mass applied), once, as the session is read: steps recorded before that vocabulary (a
+    force on a lever, gauges along a link) are translated by geometry (:func:`acq.session.rig.c3_setup`), so no
+    stage translates them again."""
+    kin = Kinematics(robot)
+    for st in data.steps:
+        spec = st["spec"]
+        if spec.get("setup"):
+            spec["setup"] = c3_setup(spec["setup"], spec.get("pose_deg"), st["inputs"], kin)
+
+
 def reduce_session(session: str | SessionData, n_mc: int = 0, progress=None) -> dict:
     """Reduce every stage of a session (its path, or as loaded); returns the results document (see the module
     docstring)."""
@@ -64,6 +78,7 @@ def reduce_session(session: str | SessionData, n_mc: int = 0, progress=None) -> 
     data = load_session(session) if isinstance(session, str) else session
     path = data.path
     robot = setup_robot(data.setup)
+    migrate_steps(data, robot)
     ctx = Reduction(data, robot, profile_of(robot), data.setup, n_mc)
     for stage in all_stages():
         run_stage(ctx, stage)

@@ -11,7 +11,6 @@ from calib.loads import hung_masses, point_force_context
 from calib.model import MeasurementModel
 from calib.units import DEG
 
-from acq.session.rig import c3_setup
 from acq.session.setup import DESCRIPTION_TOLERANCES, nominal_theta
 
 from .context import Reduction
@@ -55,9 +54,8 @@ def step_loads(step: dict, ctx: Reduction, model: MeasurementModel, theta: np.nd
     robot = ctx.robot
     spec = step["spec"]
     q = reading_q(step, robot)
-    s = c3_setup(spec["setup"], spec["pose_deg"], step["inputs"], model.kin)
     g = model.gravity_n_per_kg(theta)
-    masses = hung_masses(s.get("loads", []))
+    masses = hung_masses(spec["setup"].get("loads", []))           # in the step vocabulary since reading
     forces = point_force_context(masses, g)
     fp = model.kin.forward(q[None], theta[: model.n_geometric])
     ld = model.loads(fp, model.context(1, **forces), derivative=True)

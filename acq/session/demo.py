@@ -35,7 +35,7 @@ from .headless import ScriptedOperator
 from .plans import DEMO, session_plan, transmission_plan  # noqa: F401 (transmission_plan: for callers)
 from .preflight import Preflight
 from .bench import robot_setup
-from .setup import predictor, record_robot, session_setup, setup_stations, standard_setup
+from .setup import GAUGE_SIGMA_MM, predictor, record_robot, session_setup, setup_stations, standard_setup
 from .procedures import all_steps, tool_target
 from .rig import EmulatedBench, Rig
 from .runner import Runner
@@ -232,7 +232,8 @@ def build_demo(db: str | Path, seed: int = 0, resume: bool = False, script: dict
                                               "scenario_path": str(Path(scenario).resolve()) if scenario else None,
                                               "seed": seed},
                                     durable=not clock.simulated)       # a simulated session can be recorded again
-    world = TwinWorld(twin, seed=seed * 1000 + seed_offset)
+    world = TwinWorld(twin, seed=seed * 1000 + seed_offset,       # the gauges read with the set-up's noise
+                      gauge_sigma_mm=(setup.get("link") or {}).get("gauge_sigma_mm") or GAUGE_SIGMA_MM)
     tag = uuid.uuid4().hex[:8]
     names = []
     drivers = {}

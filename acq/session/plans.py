@@ -50,7 +50,7 @@ def runs_in_sight(plan: dict, setup: dict, preflight: Preflight, rounds: int = 4
     profile's range is what the joint's limits allow, the window what the cell can see."""
     from .procedures import transmission
     te = plan["transmission"]
-    for _ in range(rounds):
+    for _ in range(rounds):                  # the plan as JSON data: the procedure checks it on entry
         failed = {f.key for f in preflight.check(list(transmission(plan, setup)))}
         if not failed:
             return

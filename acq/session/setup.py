@@ -16,6 +16,7 @@ from calib.profile import THESIS_READY_DEG, profile_of
 from calib.theodolite import thesis_stations
 from calib.units import ARCSEC, DEG
 
+from .setup_file import default_of
 from .steps import Step
 
 
@@ -110,7 +111,7 @@ def reference_pose_deg(setup: dict) -> tuple[float, ...]:
 
 def station_names(setup: dict) -> tuple[str, str]:
     """The two stations' names as the set-up gives them (``stations.names``; default A and B)."""
-    names = setup.get("stations", {}).get("names") or ["A", "B"]
+    names = setup.get("stations", {}).get("names") or default_of("stations", "names")
     return str(names[0]), str(names[1])
 
 
@@ -134,7 +135,7 @@ def point_p(setup: dict, n_links: int | None = None):
 def setup_stations(setup: dict) -> dict:
     """Approximate stations from the setup (for the acquisition checks; reprocessing uses the ruler's)."""
     s = setup["stations"]
-    a, b = thesis_stations(s["L_mm"], s["gamma1_deg"] * DEG, s["gamma2_deg"] * DEG, s.get("sigma_arcsec", 3.0) * ARCSEC)
+    a, b = thesis_stations(s["L_mm"], s["gamma1_deg"] * DEG, s["gamma2_deg"] * DEG, s.get("sigma_arcsec", default_of("stations", "sigma_arcsec")) * ARCSEC)
     na, nb = station_names(setup)
     return {na: replace(a, name=na), nb: replace(b, name=nb)}
 
@@ -144,7 +145,7 @@ def nominal_theta(model: MeasurementModel, setup: dict) -> np.ndarray:
     th = model.nominal.copy()
     for k, v in zip(("x_mm", "y_mm", "z_mm"), setup.get("base_xyz_mm", [0.0, 0.0, 0.0])):
         th[model.index[f"base.{k}"]] = v
-    roll, pitch, yaw = np.asarray(setup.get("base_rpy_deg", [0.0, 0.0, 0.0]), float) * DEG
+    roll, pitch, yaw = np.asarray(setup.get("base_rpy_deg", default_of("base_rpy_deg")), float) * DEG
     for k, v in (("yaw_rad", yaw), ("pitch_rad", pitch), ("roll_rad", roll)):
         th[model.index[f"base.{k}"]] = v
     return th
@@ -256,16 +257,12 @@ def lever_point(fp, joint: int, lever_mm: float, theta_deg: float, up: np.ndarra
     return o + lever_mm * (np.cos(t) * h + np.sin(t) * up)
 
 
-#: the thesis's suggested radius of rotation of a swept target (section 5.3: about 600 mm; limits 100-1200 mm)
-SWEEP_RADIUS_MM = 600.0
-
-
 def design_sweep_targets(model: MeasurementModel, setup: dict, robot, radius_mm: float | dict | None = None) -> dict:
     """Per-joint sweep targets at ``radius_mm`` (default the set-up's ``sweep_radius_mm`` or 600 mm) about each
     joint's axis at the reference pose (the set-up's ``reference_pose_deg``, else the robot profile's), on the side
     facing the theodolites (see :func:`calib.setup_plan.sweep_targets`)."""
     from calib.setup_plan import sweep_targets
-    r = radius_mm if radius_mm is not None else setup.get("sweep_radius_mm", SWEEP_RADIUS_MM)
+    r = radius_mm if radius_mm is not None else setup.get("sweep_radius_mm", default_of("sweep_radius_mm"))
     radii = {int(k): float(v) for k, v in r.items()} if isinstance(r, dict) else \
         {j: float(r) for j in range(1, robot.n + 1)}
     mid = np.mean([st.position for st in setup_stations(setup).values()], axis=0)

@@ -13,6 +13,7 @@ from calib.units import DEG
 
 from acq.session.procedures import sweep_target
 from acq.session.setup import nominal_theta, point_p
+from acq.session.setup_file import default_of
 
 from . import Scoring, truth_of
 
@@ -51,7 +52,7 @@ def base_gauge_truth(truth: dict, setup: dict, R0: np.ndarray, tv: dict) -> dict
     if "j1.d_mm" in tv:
         out["j1.d_mm"] = tv["j1.d_mm"] + float((o_true - o_set) @ R0[:, 2])
     if "j1.theta_offset_rad" in tv and "base.yaw_rad" in truth:
-        yaw_set = float(np.asarray(setup.get("base_rpy_deg", [0.0, 0.0, 0.0]), float)[2]) * DEG
+        yaw_set = float(np.asarray(setup.get("base_rpy_deg", default_of("base_rpy_deg")), float)[2]) * DEG
         out["j1.theta_offset_rad"] = tv["j1.theta_offset_rad"] + truth["base.yaw_rad"] - yaw_set
     return out
 

@@ -19,7 +19,6 @@ from calib.estimators.link_compliance import RigidityBound, rigidity_from_design
 from calib.loads import hung_masses, point_force_context
 from calib.model import MeasurementModel
 
-from acq.session.rig import c3_setup
 from acq.session.setup import GAUGE_SIGMA_MM
 
 from ..context import Reduction
@@ -41,8 +40,7 @@ def gauge_rows(ctx: Reduction, steps: list[dict], j: int, joints: list[int]):
     g = model.gravity_n_per_kg(theta)
     y, rows, x, P = [], [], [], []
     for st in steps:
-        spec = st["spec"]
-        s = c3_setup(spec["setup"], spec["pose_deg"], st["inputs"], model.kin)
+        s = st["spec"]["setup"]                                   # in the step vocabulary since reading
         masses = hung_masses(s.get("loads", []))
         q = reading_q(st, ctx.robot)[None]
         loaded = model.context(1, **point_force_context(masses, g))
