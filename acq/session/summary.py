@@ -71,7 +71,7 @@ def accuracy_lines(acc: dict | None, tolerance_mm: float | None = None) -> list[
 
 
 def finding_flags(f: dict) -> str:
-    """What a finding's flags say, in words (see the README's diagnosis section)."""
+    """What a finding's flags say, in words (see docs/diagnosis.md)."""
     words = []
     if f.get("doubtful"):
         words.append("doubtful")
