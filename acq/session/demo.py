@@ -24,10 +24,11 @@ from pathlib import Path
 import numpy as np
 
 from acq.clock import Clock, SimClock
+from acq.emulate.scenario import STATIONS, scenario_text
 from acq.errors import DeviceTimeout
 from calib.model import MeasurementModel
 from calib.profile import profile_of
-from calib.robot import load_robot
+from calib.robot import RobotPath, load_robot
 from calib.twin import Twin, load_scenario, parse_scenario
 from calib.units import ARCSEC, DEG
 
@@ -145,9 +146,6 @@ def robot_twin(robot_path, seed: int) -> tuple[Twin, str, dict]:
     """A twin of the robot at ``robot_path`` (a :class:`calib.robot.RobotPath` may carry a URDF's chain cut): its
     generated scenario (:func:`acq.emulate.scenario.scenario_text`) and the set-up its bench starts from
     (:func:`acq.session.bench.robot_setup`, the scenario's stations)."""
-    from acq.emulate.scenario import STATIONS, scenario_text
-    from calib.robot import RobotPath
-    from calib.twin import parse_scenario
     path = RobotPath(str(Path(str(robot_path)).resolve()), getattr(robot_path, "base_link", None),
                      getattr(robot_path, "tip_link", None))
     robot = load_robot(path)

@@ -16,6 +16,7 @@ from calib.profile import RobotProfile, profile_of
 from calib.robot import Robot, load_robot
 
 from .preflight import Preflight
+from .procedures import transmission
 
 #: a real cell's parameters (per procedure; ``None``: the procedure is not in the default plan)
 CELL = {"ruler": {"repeats": 2}, "sweeps": {"points": 8, "span_deg": 90.0},
@@ -48,7 +49,6 @@ def runs_in_sight(plan: dict, setup: dict, preflight: Preflight, rounds: int = 4
     """Each transmission-error run narrowed to the widest window about the reference pose whose every step passes
     the pre-flight (a joint turned far enough puts the arm between a station and a target on some robots): the
     profile's range is what the joint's limits allow, the window what the cell can see."""
-    from .procedures import transmission
     te = plan["transmission"]
     for _ in range(rounds):                  # the plan as JSON data: the procedure checks it on entry
         failed = {f.key for f in preflight.check(list(transmission(plan, setup)))}
