@@ -3,7 +3,7 @@
 A command module defines ``NAME``, ``HELP`` and ``add_arguments(parser)`` and ``run(args) -> int``; it is found by
 scanning the package, so a new command is one new file (a registry, not an if/elif chain).
 
-Exit status and messages (the README's "Errors" section):
+Exit status and messages (docs/user-guide.md, "Errors and exit status"):
 
 - 0: done.
 - 2: bad input the operator can fix -- an option (checked at parse time by :mod:`acq.argtypes`), a file, a device.

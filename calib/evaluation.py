@@ -15,10 +15,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .angles import rigid_fit, wrap_angle
 from .errors import RobocalError
 from .model import MeasurementModel
 from .effects.target_offset import TargetOffset
 from .posecsv import PoseTable
+from .robot import rpy_from_matrix
+from .units import DEG
 from .targets import TargetContext, reference_name, station_effects, station_index, target_index, with_targets
 
 
@@ -111,9 +114,8 @@ class Location:
         return p @ self.R.T + self.t_mm
 
     def as_dict(self) -> dict:
-        from scipy.spatial.transform import Rotation     # 0.3-0.8 s to import (all of scipy.spatial): when used
-        # R = Rz(yaw) Ry(pitch) Rx(roll), the base convention: scipy's extrinsic "xyz"
-        roll, pitch, yaw = Rotation.from_matrix(self.R).as_euler("xyz", degrees=True)
+        # R = Rz(yaw) Ry(pitch) Rx(roll), the base convention
+        roll, pitch, yaw = rpy_from_matrix(self.R) / DEG
         return {"station": self.station, "xyz_mm": [float(v) for v in self.t_mm],
                 "rpy_deg": [float(roll), float(pitch), float(yaw)], "n_rows": self.n_rows, "rms_mm": self.rms_mm}
 
@@ -122,11 +124,7 @@ def fit_location(station: str, pred: np.ndarray, meas: np.ndarray) -> Location:
     """The rigid transform taking predicted points onto measured ones (least squares)."""
     if len(pred) < 3:
         raise RobocalError(f"locate: station {station!r} has {len(pred)} measured points; at least 3 are needed")
-    from scipy.spatial.transform import Rotation
-    cp, cm = pred.mean(axis=0), meas.mean(axis=0)
-    rot, _ = Rotation.align_vectors(meas - cm, pred - cp)
-    R = rot.as_matrix()
-    t = cm - R @ cp
+    R, t = rigid_fit(pred, meas)
     res = meas - (pred @ R.T + t)
     return Location(station, R, t, len(pred), float(np.sqrt(np.mean(np.sum(res ** 2, axis=1)))))
 
@@ -314,7 +312,7 @@ def station_start(model: MeasurementModel, table: PoseTable) -> np.ndarray:
     for e, sl in zip(model.effects, model.effect_slices):
         if isinstance(e, StationOffset) and e.station in bases:
             d = bases[e.station] - bases[0]
-            d[3:] = np.angle(np.exp(1j * d[3:]))
+            d[3:] = wrap_angle(d[3:])
             th[sl] = d
     # Chapter 6's linear step (eq 6.6) for the chain's translations, as identify's own start does for one station
     from .identify import PointObservations, linear_translations

@@ -23,11 +23,13 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .angles import rigid_fit, wrap_angle
 from .effects import PoseContext
 from .errors import RobocalError
 from .identifiability import Identifiability, analyse
 from .model import MeasurementModel
 from .outliers import OutlierReport, check_mode, decide, pose_conditions
+from .robot import rpy_from_matrix
 from .theodolite import Station
 
 
@@ -239,7 +241,7 @@ class _Problem:
         else:
             st = self.stations(theta)
             d = self.obs.readings_rad - self.model.readings_of(ev, st, self.obs.faces)
-            d[:, 0::2] = np.angle(np.exp(1j * d[:, 0::2]))
+            d[:, 0::2] = wrap_angle(d[:, 0::2])
             r = (d / self._sigmas(st)).ravel()
         if self.priors:
             r = np.concatenate([r, [(val - theta[self.names.index(n)]) / sd for n, (val, sd) in self.priors.items()]])
@@ -283,7 +285,7 @@ class _Problem:
                     p[pi] += sign * h
                     hz, v = s.with_params(p).observe(points_mm, self.obs.faces[si])
                     vals.append((hz, v))
-                dh = np.angle(np.exp(1j * (vals[0][0] - vals[1][0]))) / (2 * h)
+                dh = wrap_angle(vals[0][0] - vals[1][0]) / (2 * h)
                 dv = (vals[0][1] - vals[1][1]) / (2 * h)
                 J[:, 2 * si, si * k + pi] = dh
                 J[:, 2 * si + 1, si * k + pi] = dv
@@ -321,16 +323,8 @@ def initial_base(model: MeasurementModel, q_rad, points_mm, ctx=None, theta=None
     idx = [model.index[f"base.{k}"] for k in ("x_mm", "y_mm", "z_mm", "yaw_rad", "pitch_rad", "roll_rad")]
     th[idx] = 0.0
     p_robot = model.points(q_rad, ctx, th)
-    a = p_robot - p_robot.mean(0)
-    b = points_mm - points_mm.mean(0)
-    U, _, Vt = np.linalg.svd(a.T @ b)
-    D = np.diag([1.0, 1.0, np.sign(np.linalg.det(Vt.T @ U.T))])
-    R = Vt.T @ D @ U.T
-    t = points_mm.mean(0) - R @ p_robot.mean(0)
-    # R = Rz(yaw) Ry(pitch) Rx(roll)
-    pitch = -np.arcsin(np.clip(R[2, 0], -1, 1))
-    roll = np.arctan2(R[2, 1], R[2, 2])
-    yaw = np.arctan2(R[1, 0], R[0, 0])
+    R, t = rigid_fit(p_robot, points_mm)
+    roll, pitch, yaw = rpy_from_matrix(R)
     th[idx] = [*t, yaw, pitch, roll]
     return th
 

@@ -38,6 +38,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
+from .angles import wrap_angle
 from .distributions import chi2_isf
 from .errors import GeometryError, RobocalError
 from .units import ARCSEC
@@ -254,7 +255,7 @@ def _face_differences(s: Sightings) -> dict[str, list[tuple]]:
             v1 = float(np.mean([r["v_rad"] for r in f1]))
             v2 = float(np.mean([2 * np.pi - r["v_rad"] for r in f2]))
             w = 1.0 / (1.0 / len(f1) + 1.0 / len(f2))
-            out.setdefault(st, []).append((float(np.angle(np.exp(1j * (h1 - h2)))), v1 - v2, 0.5 * (v1 + v2), w))
+            out.setdefault(st, []).append((float(wrap_angle(h1 - h2)), v1 - v2, 0.5 * (v1 + v2), w))
     return out
 
 

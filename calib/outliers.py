@@ -32,7 +32,7 @@ CLUSTER_ALPHA = 0.01
 SYSTEMATIC_SHARE = 0.1
 
 
-#: what the pose numbers of the JSON mean (identify and diagnose alike; the README's identification section)
+#: what the pose numbers of the JSON mean (identify and diagnose alike; docs/user-guide.md, "Identification")
 NUMBERING = ("row: 1-based data row of the file as printed (header, unit and comment lines not counted); "
              "pose_id: the file's pose column, null without one")
 

@@ -25,15 +25,13 @@ from functools import cached_property
 
 import numpy as np
 
+from .angles import wrap_angle
 from .errors import GeometryError
 from .units import ARCSEC
 
 TWO_PI = 2 * np.pi
 
 
-def _wrap(a):
-    """Wrap angles to (-pi, pi]."""
-    return np.angle(np.exp(1j * np.asarray(a)))
 
 
 def station_rotation(yaw_rad, tilt_x_rad=0.0, tilt_y_rad=0.0) -> np.ndarray:
@@ -172,7 +170,7 @@ def face_mean(hz: np.ndarray, v: np.ndarray, face: np.ndarray) -> tuple[float, f
     hz1 = np.where(face == 2, hz - np.pi, hz)
     v1 = np.where(face == 2, 2 * np.pi - v, v)
     ref = hz1[0]
-    return float(np.mod(ref + np.mean(_wrap(hz1 - ref)), 2 * np.pi)), float(np.mean(v1))
+    return float(np.mod(ref + np.mean(wrap_angle(hz1 - ref)), 2 * np.pi)), float(np.mean(v1))
 
 
 @dataclass
@@ -261,7 +259,7 @@ def _residuals(stations, faces, hz, vv, p):
     rs, Js = [], []
     for s, f, h, v in zip(stations, faces, hz, vv):
         ch, cv, J = s.observe(p, f, with_jacobian=True)
-        rs += [_wrap(h - ch), v - cv]
+        rs += [wrap_angle(h - ch), v - cv]
         Js.append(J)
     return np.stack(rs, -1), np.concatenate(Js, axis=-2)
 
@@ -284,7 +282,7 @@ def thesis_readings(a: Station, b: Station, points_mm: np.ndarray):
     """The thesis's raw readings alpha', beta' (circle readings at A, B) and phi (A's elevation), radians."""
     hz_a, v_a = a.observe(points_mm)
     hz_b, _ = b.observe(points_mm)
-    return _wrap(-hz_a), _wrap(hz_b), np.pi / 2 - v_a
+    return wrap_angle(-hz_a), wrap_angle(hz_b), np.pi / 2 - v_a
 
 
 def thesis_point(alpha_p, beta_p, phi, L_mm, gamma1_rad, gamma2_rad) -> np.ndarray:

@@ -34,7 +34,9 @@ TOP = {
     "effect": Field("tables", default=[]),
 }
 TWIN = {"seed": Field("int", default=0, min=0), "robot": Field("str", default=""),
-        "name": Field("str", default="twin")}
+        "name": Field("str", default="twin"),
+        # a URDF robot's chain cut (empty: the root / the only moving leaf)
+        "base_link": Field("str", default=""), "tip_link": Field("str", default="")}
 GEOMETRY = {
     "set": Field("table", default={}),                       # parameter name -> true value (mm / deg)
     "random_alpha_deg": Field("number", default=0.0, min=0),  # 1-sigma seeded deviations
@@ -105,7 +107,7 @@ def _scenario(chk: Checker, data: dict) -> Scenario:
     """A checked scenario from the parsed file: robot, true geometry, stations, noise, effects (in that order)."""
     top = chk.table(data, TOP, "")
     tw = chk.table(top["twin"], TWIN, "twin")
-    robot = load_robot(tw["robot"] or None)
+    robot = load_robot(tw["robot"] or None, tw["base_link"] or None, tw["tip_link"] or None)
     truth = _true_geometry(chk, top, robot, np.random.default_rng(tw["seed"]))
     stations = _stations(chk.table(top["stations"], STATIONS, "stations"))
     noise = chk.table(top["noise"], NOISE, "noise")

@@ -131,13 +131,16 @@ def test_report_as_a_person_sees_it(example_result, tmp_path):
 def test_a_failed_stage_is_explained_not_dumped(monkeypatch, tmp_path, capsys):
     """A computation that fails on a stage's readings: the operator reads which stage and what to do; the exception
     text stays in the JSON's problem_details, out of the terminal and the report."""
+    import dataclasses
+
+    import acq.reduction.stages.transmission as te
     import acq.session.reprocess as rp
     from acq.session.report import write_report
     from acq.session.summary import print_summary
 
     def broken(*a, **k):
         raise np.linalg.LinAlgError("Singular matrix")
-    monkeypatch.setattr(rp, "_transmission", broken)
+    monkeypatch.setattr(te, "STAGE", dataclasses.replace(te.STAGE, run=broken))
     res = rp.reprocess(str(EXAMPLE))
     te = [p for p in res["problems"] if p.startswith("transmission:")]
     assert te and "Singular" not in te[0] and "repeat its steps" in te[0]

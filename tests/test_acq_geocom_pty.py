@@ -3,6 +3,8 @@ from __future__ import annotations
 
 import pytest
 
+from tests.dev_extra import require
+
 from acq.drivers.geocom import GeoComTheodolite
 from acq.emulate.geocom_device import GeoComDevice
 from acq.emulate.pty_host import PtyHost
@@ -10,8 +12,8 @@ from acq.errors import DeviceTimeout, LinkLost
 from tests.fakes.faults import FaultyDevice
 from tests.fakes.worlds import quiet_world
 
-geocompy_comm = pytest.importorskip("geocompy.communication")
-geocompy_geo = pytest.importorskip("geocompy.geo")
+geocompy_comm = require("geocompy.communication", "geocompy")
+geocompy_geo = require("geocompy.geo", "geocompy")
 
 
 def test_driver_over_pty():

@@ -4,12 +4,14 @@ from __future__ import annotations
 import math
 
 import pytest
+
+from tests.dev_extra import require
 from hypothesis import given, settings, strategies as st
 
 from acq.drivers import gsi_codec as gsi
 from tests.fakes.fuzz_targets import gsi_cross_check
 
-gf = pytest.importorskip("geocompy.gsi.gsiformat")
+gf = require("geocompy.gsi.gsiformat", "geocompy")
 
 
 @settings(max_examples=400, deadline=None)

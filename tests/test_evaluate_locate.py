@@ -6,9 +6,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from tests.dev_extra import require
+
 from acq.cli import main
 
-pin = pytest.importorskip("pinocchio")
+pin = require("pinocchio", "pin")
 EX = Path(__file__).resolve().parents[1] / "examples"
 NAMES = ["shoulder_pan_joint", "shoulder_lift_joint", "elbow_joint", "wrist_1_joint", "wrist_2_joint", "wrist_3_joint"]
 

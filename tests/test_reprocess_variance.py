@@ -1,5 +1,5 @@
-"""The pose set's error terms from the transmission-error run (``reprocess._te_run_variance``) and the floor of the
-total variance (``reprocess._floored_sigma``): refits are stood in for by a linear response whose sensitivity to the
+"""The pose set's error terms from the transmission-error run (``pose_errors.te_run_variance``) and the floor of the
+total variance (``pose_errors.floored_sigma``): refits are stood in for by a linear response whose sensitivity to the
 order is known, so the propagated term can be checked against it."""
 from __future__ import annotations
 
@@ -8,8 +8,8 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-import calib.identify
-from acq.session import reprocess as rp
+import acq.reduction.pose_errors as rp
+from calib.errors import RobocalError
 
 NAMES = ["a_mm", "transmission_error.j4.s1_rad", "transmission_error.j4.c1_rad", "held_mm"]
 FREE = NAMES[:3]
@@ -25,7 +25,7 @@ def _case(monkeypatch, omega_sd=1.234567891e-6, fail=None, red=4.0):
                           cov=np.diag([omega_sd, 0.01, 0.2]) ** 2)
     priors = {"transmission_error.j4.s1_rad": (0.01, 0.01), "transmission_error.j4.c1_rad": (0.02, 0.01)}
     specs = ["transmission_error:4:0.9"]
-    monkeypatch.setattr(rp, "_pose_model", lambda robot, running, problems, sp: (sp, None, None))
+    monkeypatch.setattr(rp, "pose_model", lambda robot, running, problems, sp: (sp, None, None))
 
     def refit(model, obs, **kw):
         order = float(model[0].rsplit(":", 1)[1])
@@ -33,12 +33,12 @@ def _case(monkeypatch, omega_sd=1.234567891e-6, fail=None, red=4.0):
         if fail == "nan":
             theta[0] = np.nan
         if fail == "raise":
-            raise calib.identify.RobocalError("singular")
+            raise RobocalError("singular")
         return SimpleNamespace(theta=theta)
 
-    monkeypatch.setattr(calib.identify, "identify", refit)
+    monkeypatch.setattr(rp, "identify", refit)
     problems = []
-    add, prior = rp._te_run_variance(None, {"transmission": {4: res}}, specs, None, ident, priors, problems)
+    add, prior = rp.te_run_variance(None, {"transmission": {4: res}}, specs, None, ident, priors, problems)
     return ident, res, priors, add, prior, problems
 
 
@@ -78,7 +78,7 @@ def test_floor_at_the_fits_own_variance_never_zero():
     var = np.array([4.0, -1.0, 0.5, np.nan, 1.0])
     fit = np.array([3.0, 2.0, 1.0, 1.0, 1.0])
     prior = np.array([1.0, 1.0, 0.2, 0.0, 1.5])
-    sigma, hit = rp._floored_sigma(var, fit, prior)
+    sigma, hit = rp.floored_sigma(var, fit, prior)
     np.testing.assert_allclose(sigma, np.sqrt([4.0, 1.0, 0.8, 1.0, 1.0]))
     assert hit.tolist() == [False, True, True, True, False]
     assert np.all(sigma > 0)
@@ -90,9 +90,9 @@ def _station_case(monkeypatch, resolve):
     fit = SimpleNamespace(cov=np.diag([0.1, 0.2]) ** 2)
     D = [np.array([[1.0, 1.0], [0.0, 0.0], [0.0, 0.0]])] * 4
     obs = SimpleNamespace(q_rad=np.zeros((4, 6)), points_mm=np.zeros((4, 3)), cov_mm2=None)
-    monkeypatch.setattr(calib.identify, "identify", resolve)
+    monkeypatch.setattr(rp, "identify", resolve)
     problems: list[str] = []
-    return rp._station_variance(None, obs, D, ident, {}, fit, problems), problems
+    return rp.station_variance(None, obs, D, ident, {}, fit, problems), problems
 
 
 def test_station_term_follows_the_resolves_and_a_failure_is_said_not_a_silent_zero(monkeypatch):
@@ -107,7 +107,7 @@ def test_station_term_follows_the_resolves_and_a_failure_is_said_not_a_silent_ze
     assert var[0] == pytest.approx(9.0 * (0.1 ** 2 + 0.2 ** 2)) and np.all(var[1:] == 0) and not problems
 
     def failing(model, obs, **kw):
-        raise rp.RobocalError("singular")
+        raise RobocalError("singular")
     var, problems = _station_case(monkeypatch, failing)
     assert np.all(var == 0) and len(problems) == 1 and "left out" in problems[0] and "singular" in problems[0]
 

@@ -16,7 +16,8 @@ import pytest
 
 from acq.session.demo import build_demo, demo_plan, demo_setup
 from acq.session.preflight import Preflight, failing_lines, load_torques_nm
-from acq.session.procedures import READY_DEG, all_steps
+from acq.session.procedures import all_steps
+from calib.profile import THESIS_READY_DEG as READY_DEG
 from acq.session.setup import session_setup
 from acq.session.steps import Step, TargetSpec
 from calib.robot import load_robot
@@ -267,7 +268,7 @@ def test_plan_setup_writes_the_session_setup(tmp_path):
     (lambda s: s["compliance"]["4"].pop("point_mm"), "set-up: compliance.4: missing lever_mm"),
     (lambda s: s["compliance"]["4"].update(pose_deg=[0, 0]), "set-up: compliance.4: pose_deg needs 6"),
     (lambda s: s["compliance"].update({"9": s["compliance"]["3"]}), "set-up: compliance.9: joint 9 is not one of"),
-    (lambda s: s["link"].update(loads_n=[0, -5]), "set-up: link: loads must be finite and not negative"),
+    (lambda s: s["link"].update(loads_n=[0, -5]), "link.loads_n[1]: -5 is less than the minimum of 0"),   # schema
     (lambda s: s["link"].pop("gauges_x_mm"), "set-up: link: missing gauges_x_mm"),
 ])
 def test_malformed_setup_is_one_line(tmp_path, edit, text):

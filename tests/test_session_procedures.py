@@ -3,6 +3,7 @@ that varies R, the registry that replaces name branches."""
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 from acq.session import checks as ck
 from acq.session.procedures import PROCEDURES, all_steps, mark_index, mark_names, procedure_info
@@ -114,21 +115,27 @@ def test_steps_as_commands():
 
 
 def test_link_steps_ask_the_mass_and_reprocess_reads_both():
-    """Contract C3: a link step that hangs a mass asks ``load_kg``; reprocess reads it as a force with standard
-    gravity, and still reads ``load_n`` from sessions recorded before."""
+    """Contract C3: a link step that hangs a mass asks ``load_kg``; the reduction reads the mass entered (as a point
+    force with the description's gravity), and an older step's ``load_n`` as that force's mass."""
+    from calib.kinematics import Kinematics
     from calib.robot import load_robot
-    from acq.session.reprocess import _link_load_n
+    from acq.session.rig import c3_setup
     from acq.session.setup import session_setup
-    setup = session_setup(standard_setup(), load_robot())
+    robot = load_robot()
+    kin = Kinematics(robot)
+    g = float(np.linalg.norm(robot.gravity_m_s2))
+    setup = session_setup(standard_setup(), robot)
     link = all_steps({"procedures": ["link_compliance"]}, setup)
     for s in link:
         (inp,) = [i for i in s.inputs if i.name.startswith("load")]
         assert inp.name == "load_kg" and inp.unit == "kg"
         assert inp.suggested == s.setup["loads"][0]["mass_kg"]
-        assert abs(_link_load_n({"load_kg": inp.suggested}, s.setup) - s.setup["load_n"]) < 1e-2
-    assert _link_load_n({"load_kg": 2.0}, {"load_n": 0.0}) == 2.0 * 9.80665
-    assert _link_load_n({"load_n": 12.5}, {"load_n": 10.0}) == 12.5          # an older session's entry
-    assert _link_load_n({}, {"load_n": 10.0}) == 10.0
+        assert abs(inp.suggested * g - s.setup["load_n"]) < 1e-2
+        assert c3_setup(s.setup, s.pose_deg, {"load_kg": 2.0}, kin)["loads"][0]["mass_kg"] == 2.0
+    # an older step: a force on a lever, no loads in the step vocabulary
+    old_step = {"joint": 2, "load_n": 10.0, "load_x_mm": 300.0, "gauges_x_mm": [100.0, 200.0]}
+    (load,) = c3_setup(old_step, [0.0, 0.0, 90.0, 0.0, 0.0, 0.0], {"load_n": 12.5}, kin)["loads"]
+    assert load["mass_kg"] == pytest.approx(12.5 / g) and load["link"] == 2
     # a set-up without load points keeps the old force prompt
     old = {**setup, "link": {k: v for k, v in setup["link"].items() if k != "load_point_mm"}}
     old["link"]["load_point_mm"] = None
@@ -166,10 +173,10 @@ def test_encoder_resolution_steps_are_what_reprocess_reads():
 
 
 def test_resolution_truth_is_the_twins_slope_over_the_run():
-    """reprocess's truth for the resolution run: the description's resolution when the twin has no running errors,
+    """The emulated truth for the resolution run: the description's resolution when the twin has no running errors,
     tilted by the transmission error (a little, not more than its amplitude allows) when it has."""
     import dataclasses
-    from acq.session.reprocess import _resolution_truth
+    from acq.emulate.truth.runs import resolution_in_estimator_terms
     from calib.estimators.resolution import design_resolution_rad
     from calib.twin import Twin, load_scenario
     from calib.units import DEG
@@ -179,12 +186,10 @@ def test_resolution_truth_is_the_twins_slope_over_the_run():
     q = np.zeros((7, 6))
     q[:, 5] = np.linspace(0.0, 150.0, 7) * DEG
     counts = np.rint(r.counts_from_joint(q))
-    sts = [{"counts": c[None]} for c in counts]
-    ok = np.ones(7, bool)
     signed = counts[:, 5] * np.sign(r.gear_ratio[5])
     cov = np.eye(7) * 1e-10
     bare = Twin(dataclasses.replace(sc, effects=[]), seed=0)
-    tv = _resolution_truth(bare, r, sts, ok, 6, signed, cov, design)
+    tv = resolution_in_estimator_terms(bare, 6, counts, signed, cov, design)
     assert abs(tv["scale"] - 1.0) < 1e-4 and abs(tv["rad_per_count"] / design - tv["scale"]) < 1e-12
-    tv = _resolution_truth(Twin(sc, seed=0), r, sts, ok, 6, signed, cov, design)
+    tv = resolution_in_estimator_terms(Twin(sc, seed=0), 6, counts, signed, cov, design)
     assert 1e-5 < abs(tv["scale"] - 1.0) < 3e-3

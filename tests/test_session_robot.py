@@ -9,6 +9,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from tests.dev_extra import require
+
 from acq.cli import main
 from calib.errors import RobocalError
 from calib.robot import RobotPath
@@ -46,7 +48,7 @@ def test_reprocess_of_an_imported_session_uses_the_setups_cut(tmp_path):
     """Points of wrist_3_link in base_link's frame, computed by Pinocchio (an independent implementation), imported
     with a set-up naming the UR10 cut at base_link: reprocess identifies that chain (its robot document names the
     cut) and fits the points to their noise."""
-    pin = pytest.importorskip("pinocchio")
+    pin = require("pinocchio", "pin")
     from acq.session.reprocess import reprocess
     from acq.session.setup import standard_setup
     model = pin.buildModelFromUrdf(UR10)

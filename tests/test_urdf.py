@@ -2,6 +2,8 @@
 import numpy as np
 import pytest
 
+from tests.dev_extra import require
+
 from calib.errors import RobocalError
 from calib.kinematics import Kinematics
 from calib.robot import load_robot, robot_from_urdf
@@ -13,7 +15,7 @@ CASES = [("ur10_robot.urdf", None, None), ("tx40_mdh_modified.urdf", None, None)
 
 
 def _pin_tip(path, base, tip, names, q_by_name):
-    pin = pytest.importorskip("pinocchio")
+    pin = require("pinocchio", "pin")
     model = pin.buildModelFromUrdf(path)
     data = model.createData()
     q = pin.neutral(model)
@@ -68,7 +70,7 @@ def test_masses_are_the_urdf_inertials():
     # ur_description UR10 link masses (shoulder 7.778 ... wrist_1, wrist_2 1.96)
     np.testing.assert_allclose(robot.mass_kg[:5], [7.778, 12.93, 3.87, 1.96, 1.96], atol=1e-9)
     # wrist_3 carries a fixed camera mount: Pinocchio folds the same bodies onto the joint
-    pin = pytest.importorskip("pinocchio")
+    pin = require("pinocchio", "pin")
     model = pin.buildModelFromUrdf(path)
     want = [model.inertias[model.getJointId(n)].mass for n in robot.joint_names]
     np.testing.assert_allclose(robot.mass_kg, want, atol=1e-9)
@@ -83,7 +85,7 @@ def test_mass_centre_is_where_the_urdf_puts_it():
     kin = Kinematics(robot)
     fp = kin.forward(robot.joints_from_readings(r[None]))
     com_world = fp.frame_R[0, -1] @ robot.com_mm[-1] + fp.frame_t[0, -1]
-    pin = pytest.importorskip("pinocchio")
+    pin = require("pinocchio", "pin")
     model = pin.buildModelFromUrdf(path)
     data = model.createData()
     q = pin.neutral(model)

@@ -30,6 +30,9 @@ def add_arguments(p):
                         "own stations and robot base")
     p.add_argument("--te-joints", type=te_joints, metavar="J,J,...", default=None,
                    help="joints whose transmission error the session measures (default 4,6; 2 and 3 on request)")
+    p.add_argument("--robot", metavar="FILE",
+                   help="robot description (TOML or URDF) to emulate instead of the thesis's Puma 560: its twin and "
+                        "bench come from the description, and every procedure that applies to it is recorded")
     add_report_options(p)
 
 
@@ -64,7 +67,16 @@ def run(args) -> int:
         raise RobocalError(f"demo: --te-joints cannot change a resumed session's plan ({db} keeps the one it was "
                            f"recorded with): resume without --te-joints, or start a new --db with it")
     t0 = time.perf_counter()
-    demo = build_demo(db, seed=args.seed, resume=args.resume, setup=base, te_joints=args.te_joints)
+    if args.te_joints and not args.resume:     # checked against the robot's planned runs before anything is built
+        from acq.session.plans import transmission_plan
+        from calib.profile import profile_of
+        from calib.robot import load_robot
+        transmission_plan(args.te_joints, profile=profile_of(load_robot(args.robot)))
+    if args.resume and args.robot:
+        raise RobocalError(f"demo: --robot cannot change a resumed session's robot ({db} keeps the one it was "
+                           f"recorded with): resume without --robot")
+    demo = build_demo(db, seed=args.seed, resume=args.resume, setup=base, te_joints=args.te_joints,
+                      robot=args.robot)
     try:
         with progress_display("recording session", after_s=0.5) as update:
             pp = ProgressPrinter(lambda done, total, key: update(key, done / max(total, 1)))

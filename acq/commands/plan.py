@@ -264,7 +264,9 @@ def _plan_and_setup(args):
         from acq.commands.session import default_plan
         from acq.session.setup_file import read_partial_setup
         setup = read_partial_setup(path, ("stations", "base_xyz_mm", "ruler"))
-        q = read_pose_csv(args.poses).q_rad / DEG if args.poses else None
-        plan = setup.get("plan") or default_plan(q)
     robot = load_robot(args.robot) if args.robot else setup_robot(setup)
-    return plan, session_setup(setup, robot), robot
+    setup = session_setup(setup, robot)
+    if not path.read_bytes()[:16] == b"SQLite format 3\x00":
+        q = read_pose_csv(args.poses).q_rad / DEG if args.poses else None
+        plan = setup.get("plan") or default_plan(q, setup=setup, robot=robot)
+    return plan, setup, robot

@@ -27,7 +27,8 @@ def add_arguments(p):
     p.add_argument("--db", type=output_file, metavar="PATH", default="session.db",
                    help="session database (created, or resumed if it exists; default session.db)")
     p.add_argument("--emulate", action="store_true",
-                   help="use the emulated instruments driven by the simulated Puma 560 (the twin)")
+                   help="use the emulated instruments driven by a simulated robot (the twin; the thesis's Puma 560, "
+                        "or --robot's)")
     p.add_argument("--seed", type=seed_int, default=0, help="seed of the emulated instruments")
     p.add_argument("--only", metavar="PREFIX", action="append", default=[],
                    help="run only the steps whose key starts with PREFIX (e.g. ruler, sweep/j2); repeatable")
@@ -37,7 +38,9 @@ def add_arguments(p):
                    help="the encoder tap (python-can interface and channel, or a serial URL)")
     p.add_argument("--setup", metavar="SETUP.json", help="bench geometry (see --write-setup)")
     p.add_argument("--poses", metavar="POSES.csv", help="Chapter 6 pose set (q1..q6, deg)")
-    p.add_argument("--robot", metavar="FILE", help="robot description TOML (default: the thesis's Puma 560)")
+    p.add_argument("--robot", metavar="FILE",
+                   help="robot description, TOML or URDF (default: the thesis's Puma 560); with --emulate, the robot "
+                        "the twin emulates")
     p.add_argument("--te-joints", type=te_joints, metavar="J,J,...", default=None,
                    help="joints whose transmission error a new session measures (default 4,6; 2 and 3 on request), "
                         "plan key transmission.joints")
@@ -49,7 +52,7 @@ def _only(prefixes):
     return (lambda step: step.key.startswith(prefixes)) if prefixes else None
 
 
-def emulated_builder(db: str, seed: int, only: list[str] | tuple = (), te_joints=None):
+def emulated_builder(db: str, seed: int, only: list[str] | tuple = (), te_joints=None, robot=None):
     """A TUI builder on the emulated rig (the demo's wiring: real drivers, emulated devices) in real time: a human
     watches the encoder windows and readings arrive at the pace a real cell gives them."""
     from acq.clock import RealClock
@@ -61,8 +64,8 @@ def emulated_builder(db: str, seed: int, only: list[str] | tuple = (), te_joints
     def build(operator):
         resume = Path(db).exists() and Path(db).stat().st_size > 0
         rig = build_demo(db, seed=seed, resume=resume, operator=operator, steps_filter=keep, te_joints=te_joints,
-                         clock=RealClock())
-        return SessionHandle(rig.runner, rig.close, f"emulated Puma 560 — {db}", db,
+                         clock=RealClock(), robot=None if resume else robot)
+        return SessionHandle(rig.runner, rig.close, f"emulated {rig.twin.robot.name} — {db}", db,
                              identities=rig.runner.rig.identities())
 
     return build
@@ -89,24 +92,17 @@ def parse_tap(text: str) -> tuple[str, dict]:
     raise RobocalError(f"session: --tap {text!r}: expected can:INTERFACE:CHANNEL or serial:URL")
 
 
-def default_plan(poses_deg=None, te_joints=None) -> dict:
-    """The standard plan for a real cell (the demo's, with the operator's pose set when given); ``te_joints``: the
-    transmission-error joints (``--te-joints``, plan key ``transmission.joints``; default 4 and 6)."""
-    from acq.session.demo import transmission_plan
-    plan = {
-        "procedures": ["levelling", "instrument_check", "ruler", "sweeps", "transmission", "compliance",
-                       "link_compliance", "coupling"],
-        "ruler": {"repeats": 2},
-        "sweeps": {"points": 8, "span_deg": 90.0, "joints": [1, 2, 3, 4, 5, 6]},
-        "transmission": transmission_plan(te_joints),
-        "compliance": {"joints": [3, 4]},
-        "coupling": {"angle_deg": 10.0, "pairs": [[5, 6], [4, 6], [4, 5]]},
-        "seed": 0,
-    }
-    if poses_deg is not None:
-        plan["procedures"].insert(plan["procedures"].index("sweeps") + 1, "poses")
-        plan["poses"] = {"q_deg": [[round(float(v), 4) for v in row] for row in poses_deg]}
-    return plan
+def default_plan(poses_deg=None, te_joints=None, setup: dict | None = None, robot=None) -> dict:
+    """The standard plan for a real cell (:func:`acq.session.plans.session_plan` with the :data:`CELL
+    <acq.session.plans.CELL>` preset), with the operator's pose set when given; ``te_joints``: the
+    transmission-error joints (``--te-joints``, plan key ``transmission.joints``; default the robot profile's).
+    ``robot`` and ``setup`` default to the thesis's Puma on its standard bench."""
+    from acq.session.plans import CELL, session_plan
+    from acq.session.setup import session_setup, standard_setup
+    from calib.robot import load_robot
+    robot = load_robot(None) if robot is None else robot
+    setup = session_setup(standard_setup() if setup is None else setup, robot)
+    return session_plan(robot, setup, CELL, te_joints, poses_deg)
 
 
 def setup_template() -> dict:
@@ -163,8 +159,9 @@ def real_builder(db: str, theodolites: list[str], tap: str | None, setup_path: s
     robot = setup_robot(setup)
     if not resume:
         q = read_pose_csv(poses, robot.n).q_rad / DEG if poses else None
-        plan = default_plan(q, te_joints)
     setup = session_setup(setup, robot)
+    if not resume:
+        plan = default_plan(q, te_joints, setup, robot)
     want = sorted(station_names(setup))
     if sorted(s[0] for s in specs) != want:
         raise RobocalError(f"session: give two theodolites, stations {' and '.join(want)} as the set-up names them "
@@ -245,12 +242,15 @@ def run(args) -> int:
         raise RobocalError(f"session: --te-joints cannot change a resumed session's plan ({args.db} keeps the one it "
                            f"was recorded with): resume without --te-joints, or start a new --db with it")
     if args.emulate:
+        if args.robot and Path(args.db).exists() and Path(args.db).stat().st_size > 0:
+            raise RobocalError(f"session: --robot cannot change a resumed session's robot ({args.db} keeps the one it "
+                               f"was recorded with): resume without --robot")
         if args.setup:
             from acq.session.setup_file import read_setup
             read_setup(args.setup)                       # a bad file is reported as such wherever it is given
             raise RobocalError("session: --setup does not apply to --emulate (the emulated cell has its own "
                                "set-up; robocal demo --setup records an emulated session with a set-up file)")
-        builder = emulated_builder(args.db, args.seed, args.only, args.te_joints)
+        builder = emulated_builder(args.db, args.seed, args.only, args.te_joints, args.robot)
     elif args.theodolite:
         builder = real_builder(args.db, args.theodolite, args.tap, args.setup, args.poses, args.robot, args.only,
                                args.te_joints)

@@ -69,11 +69,11 @@ def make_world(scenario: str | None = None, seed: int = 0, noise: bool = True, q
     """
     from calib.twin import Twin, load_scenario
 
-    from .twin_world import READY_DEG, TwinWorld
+    from .twin_world import TwinWorld
     sc = load_scenario(scenario or None)
     if not noise:
         sc = dataclasses.replace(sc, angle_noise=False, gross_rate=0.0)
-    return TwinWorld(Twin(sc, seed=seed), READY_DEG if q0_deg is None else q0_deg, seed=seed)
+    return TwinWorld(Twin(sc, seed=seed), q0_deg, seed=seed)
 
 
 _WORLD = ("seed", "noise", "scenario")

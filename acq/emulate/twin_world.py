@@ -32,11 +32,9 @@ import numpy as np
 
 from calib.effects import PoseContext
 from calib.errors import RobocalError
+from calib.loads import HungMass, point_force_context
+from calib.profile import profile_of
 from calib.twin import Twin
-from calib.units import DEG
-
-READY_DEG = (0.0, -90.0, 90.0, 0.0, 0.0, 0.0)
-
 
 @dataclass(frozen=True)
 class Target:
@@ -49,19 +47,10 @@ class Target:
     link: int | None = None
 
 
-@dataclass(frozen=True)
-class HungMass:
-    """A mass hung at a point fixed in frame ``link`` (0 base, j = link j): its weight pulls straight down there."""
-
-    link: int
-    point_mm: tuple[float, float, float]
-    mass_kg: float
-
-
 class TwinWorld:
     """World protocol implementation on a :class:`calib.twin.Twin` (thread-safe)."""
 
-    def __init__(self, twin: Twin, q0_deg=READY_DEG, *, seed: int | None = None, gauge_sigma_mm: float = 0.001):
+    def __init__(self, twin: Twin, q0_deg=None, *, seed: int | None = None, gauge_sigma_mm: float = 0.001):
         self.twin = twin
         self.robot = twin.robot
         self.stations = {s.name: s for s in twin.stations}
@@ -70,7 +59,8 @@ class TwinWorld:
         self._rng = np.random.default_rng(twin.scenario.seed if seed is None else seed)
         self._lock = threading.RLock()
         n = self.robot.n
-        self._q = np.asarray(q0_deg, float) * DEG          # where the joints are
+        q0 = profile_of(self.robot).ready_deg if q0_deg is None else q0_deg       # default: the reference pose
+        self._q = np.asarray(q0, float) * self.robot.edge_scale          # where the joints are
         self._q_cmd = self._q.copy()                          # where they were last commanded to
         self._direction = np.zeros(n)
         self._torque = np.zeros(n)
@@ -151,9 +141,7 @@ class TwinWorld:
             ms = self._masses if loaded else ()
             return PoseContext(1, self.robot.n, direction=self._direction[None], load_direction=self._load_dir[None],
                                payload_kg=np.array([self._payload]), joint_torque_nm=self._torque[None],
-                               point_force_link=np.array([m.link for m in ms], int),
-                               point_force_mm=np.array([[m.point_mm for m in ms]], float).reshape(1, len(ms), 3),
-                               point_force_n=np.array([[m.mass_kg * self._g for m in ms]]).reshape(1, len(ms), 3))
+                               **point_force_context(ms, self._g))
 
     def _point(self, link: int | None, point_mm, loaded: bool = True) -> np.ndarray:
         """True position (3,) of a point fixed in frame ``link`` (None: the flange tool point ``point_mm``) at the

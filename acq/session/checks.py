@@ -23,6 +23,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from calib.angles import wrap_angle
 from calib.errors import RobocalError
 from calib.theodolite import Station, face_mean, intersect  # noqa: F401 (face_mean: re-exported)
 from calib.units import ARCSEC, DEG
@@ -56,8 +57,6 @@ class Check:
                 "limit_value": self.limit, "unit": self.unit, "message": self.message}
 
 
-def _wrap(a):
-    return (np.asarray(a) + np.pi) % (2 * np.pi) - np.pi
 
 
 def face_agreement(readings: list[dict], limit_arcsec: float) -> list[Check]:
@@ -70,7 +69,7 @@ def face_agreement(readings: list[dict], limit_arcsec: float) -> list[Check]:
             continue
         hz1, v1 = np.mean([r["hz_rad"] for r in f1]), np.mean([r["v_rad"] for r in f1])
         hz2, v2 = np.mean([r["hz_rad"] for r in f2]), np.mean([r["v_rad"] for r in f2])
-        two_c = abs(float(_wrap(hz1 - (hz2 - np.pi)))) / ARCSEC
+        two_c = abs(float(wrap_angle(hz1 - (hz2 - np.pi)))) / ARCSEC
         two_k = abs(float(v1 + v2 - 2 * np.pi)) / ARCSEC
         worst = max(two_c, two_k)
         ok = worst <= limit_arcsec
@@ -87,7 +86,7 @@ def repeat_spread(readings: list[dict], limit_arcsec: float) -> list[Check]:
         if len(rs) < 2:
             continue
         hz = np.array([r["hz_rad"] for r in rs])
-        s = max(float(np.std(_wrap(hz - hz[0]), ddof=1)), float(np.std([r["v_rad"] for r in rs], ddof=1))) / ARCSEC
+        s = max(float(np.std(wrap_angle(hz - hz[0]), ddof=1)), float(np.std([r["v_rad"] for r in rs], ddof=1))) / ARCSEC
         ok = s <= limit_arcsec
         out.append(Check(f"repeat spread {key[0]} {key[1]} face {key[2]}", ok, s, limit_arcsec, "arcsec",
                          "repeats agree" if ok else "repeat sightings scatter: the target or instrument moved; "
@@ -211,7 +210,7 @@ def instrument_errors(step, readings: list[dict], values: dict, limits: dict) ->
             continue
         hz1, v1 = _circ_mean([r["hz_rad"] for r in f1]), np.mean([r["v_rad"] for r in f1])
         hz2, v2 = _circ_mean([r["hz_rad"] for r in f2]), np.mean([r["v_rad"] for r in f2])
-        c = float(_wrap(hz1 - (hz2 - np.pi))) / 2 / ARCSEC
+        c = float(wrap_angle(hz1 - (hz2 - np.pi))) / 2 / ARCSEC
         i = float(v1 + v2 - 2 * np.pi) / 2 / ARCSEC
         worst = max(abs(c), abs(i))
         ok = worst <= lim

@@ -24,54 +24,42 @@ from pathlib import Path
 import numpy as np
 
 from acq.clock import Clock, SimClock
+from acq.emulate.scenario import STATIONS, scenario_text
 from acq.errors import DeviceTimeout
 from calib.model import MeasurementModel
-from calib.twin import Twin, load_scenario
+from calib.profile import profile_of
+from calib.robot import RobotPath, load_robot
+from calib.twin import Twin, load_scenario, parse_scenario
 from calib.units import ARCSEC, DEG
 
 from .headless import ScriptedOperator
+from .plans import DEMO, session_plan, transmission_plan  # noqa: F401 (transmission_plan: for callers)
 from .preflight import Preflight
-from .setup import predictor, session_setup, setup_stations, standard_setup
+from .bench import robot_setup
+from .setup import GAUGE_SIGMA_MM, predictor, record_robot, session_setup, setup_stations, standard_setup
 from .procedures import all_steps, tool_target
 from .rig import EmulatedBench, Rig
 from .runner import Runner
 from .steps import Step
 from .store import SessionStore
 
+#: the demo's title on the thesis's Puma (another robot's demo names its description)
 DEMO_TITLE = "robocal demo: emulated Puma 560 (twin) and two GeoCOM theodolites"
 #: poses in the demo's Chapter 6 set: enough to identify the geometry with the running errors (about 30 free
 #: parameters) at a few sigma of the truth, still a quick recording
 DEMO_POSES = 48
 #: wait after each move before recording encoders (the tap's frames in flight carry the previous pose); real time only
 DEMO_SETTLE_S = 0.02
-#: transmission-error runs: joint 4 inside its -110..170 deg limits (with the pre-flight's 2 deg margin), joint 6 over
-#: most of its +-266 deg
-TE_RANGE_DEG = {"4": [-105.0, 165.0], "6": [-150.0, 150.0],
-                #: joints 2 and 3 (options, ``--te-joints``): +-90 deg about READY, the upper arm from horizontal
-                #: to horizontal and the forearm from along it to folded back level, inside their limits with the
-                #: pre-flight's margin and in both stations' sight (checked by the pre-flight like every step)
-                "2": [-90.0, 90.0], "3": [-90.0, 90.0]}
-#: the joints whose transmission error the default plans measure (the thesis's: the wrist's)
-DEFAULT_TE_JOINTS = (4, 6)
-
-
-def transmission_plan(joints=None, points: int = 25, repeats: int = 2) -> dict:
-    """The plan's ``transmission`` entry for ``joints`` (default :data:`DEFAULT_TE_JOINTS`), each over its range in
-    :data:`TE_RANGE_DEG`; what ``--te-joints`` of ``robocal session`` and ``robocal demo`` maps to."""
-    js = [int(j) for j in (joints or DEFAULT_TE_JOINTS)]
-    return {"joints": js, "points": points, "repeats": repeats, "range_deg": {str(j): TE_RANGE_DEG[str(j)] for j in js}}
-#: the encoder-resolution run (Fig 5.14): joint 6 over 150 deg in 6 steps -- few steps keep the demo quick, the wide
-#: arc fixes the run's own axis well enough that the slope's error is a few 1e-4 of the resolution
-RESOLUTION_RUN = {"joints": [6], "points": 6, "span_deg": 150.0, "repeats": 1}
 
 
 def demo_setup(twin: Twin, base: dict | None = None) -> dict:
     """The bench geometry a technician would write down for the emulated cell: ``base`` (a set-up file from
-    ``robocal plan setup``; default :func:`acq.session.setup.standard_setup`) with the stations and the robot's base
+    ``robocal plan setup``; default the robot's bench, :func:`acq.session.bench.robot_setup`) with the stations and
+    the robot's base
     as measured on the twin's cell (rounded like a tape and mutual sighting give them: not the twin's truth)."""
     tp = twin.true_parameters()
     a, b = twin.stations
-    setup = json.loads(json.dumps(base)) if base is not None else standard_setup()
+    setup = json.loads(json.dumps(base)) if base is not None else robot_setup(twin.robot)
     setup.update({
         "robot": setup.get("robot", ""), "scenario": setup.get("scenario", ""),
         "base_xyz_mm": [round(tp[f"base.{k}_mm"], 0) for k in "xyz"], "base_rpy_deg": [0.0, 0.0, 0.0],
@@ -83,58 +71,89 @@ def demo_setup(twin: Twin, base: dict | None = None) -> dict:
     return setup
 
 
-def demo_plan(twin: Twin, seed: int, n_poses: int = DEMO_POSES, quick: bool = True, te_joints=None) -> dict:
-    """Which procedures with which parameters; the pose set is chosen now so a resume replays the same poses."""
+def demo_plan(twin: Twin, seed: int, n_poses: int = DEMO_POSES, quick: bool = True, te_joints=None,
+              setup: dict | None = None) -> dict:
+    """Which procedures with which parameters: :func:`acq.session.plans.session_plan` with the :data:`DEMO
+    <acq.session.plans.DEMO>` preset and a pose set chosen now (so a resume replays the same poses)."""
     from calib.plan import select_poses
+    setup = session_setup(demo_setup(twin), twin.robot) if setup is None else setup
     model = MeasurementModel(twin.robot)
     lim = twin.robot.limits_rad
     try:
         plan = select_poses(model, n_poses, seed=seed, pool=300 if quick else 2000, test=100,
-                            accept=lambda q: _visible(twin, q), compare=False)
-        q = np.asarray(plan.q_rad) / DEG
+                            accept=lambda q: _visible(twin, q, setup), compare=False)
+        q = np.asarray(plan.q_rad) / twin.robot.edge_scale
     except Exception:           # planning is an aid; fall back to seeded random poses within the limits
         rng = np.random.default_rng(seed)
-        q = (lim[:, 0] + 0.2 * np.ptp(lim, 1) + 0.6 * np.ptp(lim, 1) * rng.random((n_poses, twin.robot.n))) / DEG
-    return {
-        "procedures": ["levelling", "instrument_check", "ruler", "sweeps", "poses", "transmission", "compliance",
-                       "link_compliance", "coupling", "encoder_resolution"],
-        "ruler": {"repeats": 2},
-        "sweeps": {"points": 5, "span_deg": 60.0, "joints": [1, 2, 3, 4, 5, 6]},
-        "poses": {"q_deg": np.round(q, 3).tolist()},
-        "transmission": transmission_plan(te_joints),
-        "compliance": {"joints": [3, 4], "repeats": 3},
-        "coupling": {"angle_deg": 10.0, "pairs": [[5, 6], [4, 6], [4, 5]], "repeats": 4},
-        "encoder_resolution": RESOLUTION_RUN,
-        "seed": seed,
-    }
+        q = (lim[:, 0] + 0.2 * np.ptp(lim, 1) + 0.6 * np.ptp(lim, 1) * rng.random((n_poses, twin.robot.n))) \
+            / twin.robot.edge_scale
+    return session_plan(twin.robot, setup, DEMO, te_joints, np.round(q, 3), seed)
 
 
-def _visible(twin: Twin, q_rad: np.ndarray) -> np.ndarray:
-    """Poses whose tool target is in front of both stations, above the floor, not too close, and that pass the
-    pre-flight (sight lines clear of the arm, inside the limits) with the demo's set-up."""
-    pts = MeasurementModel(twin.robot).points(q_rad, theta=_nominal_theta(twin))
-    ok = (pts[:, 1] > 1200) & (pts[:, 2] > -400)
-    setup = session_setup(demo_setup(twin), twin.robot)
-    pf = Preflight(twin.robot, setup)
-    target = tool_target(setup)
-    cand = np.flatnonzero(ok)
-    steps = [Step(f"pose/{i}", "poses", "", "", pose_deg=tuple(np.asarray(q_rad[i]) / DEG), targets=(target,))
-             for i in cand]
-    failed = {f.key for f in pf.check(steps)}
-    ok[cand] = [s.key not in failed for s in steps]
-    return ok
+#: the floor below the robot's frame 0 (mm): the thesis cell's is 400 mm below the instruments' horizon, the Puma's
+#: frame 0 185 mm above it
+FLOOR_BELOW_BASE_MM = 585.0
 
 
-def _nominal_theta(twin: Twin, tool_mm=(50.0, 0.0, 100.0)) -> np.ndarray:
+#: the floor below the robot's frame 0 (mm): the thesis cell's is 400 mm below the instruments' horizon, the Puma's
+#: frame 0 185 mm above it
+FLOOR_BELOW_BASE_MM = 585.0
+
+
+def _runs_in_sight(plan: dict, setup: dict, preflight: Preflight, rounds: int = 4) -> None:
+    """Each transmission-error run narrowed to the widest window about the reference pose whose every step passes
+    the pre-flight (a joint turned far enough puts the arm between a station and a target on some robots): the
+    profile's range is what the joint's limits allow, the window what the cell can see."""
+    from .procedures import transmission
+    te = plan["transmission"]
+    for _ in range(rounds):
+        failed = {f.key for f in preflight.check(list(transmission(plan, setup)))}
+        if not failed:
+            return
+        for j in te["joints"]:
+            lo, hi = te["range_deg"][str(j)]
+            offsets = np.linspace(lo, hi, te["points"])
+            bad = [a for i, a in enumerate(offsets) if f"te/j{j}/{i:02d}" in failed]
+            if bad:
+                below, above = [a for a in bad if a < 0], [a for a in bad if a >= 0]
+                te["range_deg"][str(j)] = [float(max(below) + 5.0) if below else lo,
+                                           float(min(above) - 5.0) if above else hi]
+
+
+def _visible(twin: Twin, q_rad: np.ndarray, setup: dict) -> np.ndarray:
+    """Poses whose tool target is in front of both stations, above the floor (:data:`FLOOR_BELOW_BASE_MM` below
+    the robot's base), not too close, and that pass the pre-flight (sight lines clear of the arm, inside the limits)
+    with the set-up."""
     m = MeasurementModel(twin.robot)
     th = m.nominal.copy()
     tp = twin.true_parameters()
     for k in ("x_mm", "y_mm", "z_mm"):
         th[m.index[f"base.{k}"]] = tp[f"base.{k}"]
-    th[: m.n_geometric] = m.kin.params_with_tool(np.asarray(tool_mm, float), th[: m.n_geometric])
-    return th
+    th[: m.n_geometric] = m.kin.params_with_tool(np.asarray(setup["tool_target_mm"], float), th[: m.n_geometric])
+    pts = m.points(q_rad, theta=th)
+    ok = (pts[:, 1] > 1200) & (pts[:, 2] > tp["base.z_mm"] - FLOOR_BELOW_BASE_MM)
+    pf = Preflight(twin.robot, setup)
+    target = tool_target(setup)
+    cand = np.flatnonzero(ok)
+    steps = [Step(f"pose/{i}", "poses", "", "", pose_deg=tuple(np.asarray(q_rad[i]) / twin.robot.edge_scale),
+                  targets=(target,)) for i in cand]
+    failed = {f.key for f in pf.check(steps)}
+    ok[cand] = [s.key not in failed for s in steps]
+    return ok
 
 
+def robot_twin(robot_path, seed: int) -> tuple[Twin, str, dict]:
+    """A twin of the robot at ``robot_path`` (a :class:`calib.robot.RobotPath` may carry a URDF's chain cut): its
+    generated scenario (:func:`acq.emulate.scenario.scenario_text`) and the set-up its bench starts from
+    (:func:`acq.session.bench.robot_setup`, the scenario's stations)."""
+    path = RobotPath(str(Path(str(robot_path)).resolve()), getattr(robot_path, "base_link", None),
+                     getattr(robot_path, "tip_link", None))
+    robot = load_robot(path)
+    base = record_robot(standard_setup(), path)
+    base["stations"] = {**base["stations"], **{k: v for k, v in STATIONS.items() if k in base["stations"]}}
+    setup = robot_setup(robot, base)
+    text = scenario_text(robot, str(path), setup, seed)
+    return Twin(parse_scenario(text, f"scenario of {robot.name}"), seed=seed), text, setup
 
 
 @dataclass
@@ -157,13 +176,15 @@ class DemoRig:
 
 def build_demo(db: str | Path, seed: int = 0, resume: bool = False, script: dict | None = None,
                plan: dict | None = None, steps_filter=None, operator=None, setup: dict | None = None,
-               scenario: str | None = None, te_joints=None, clock: Clock | None = None) -> DemoRig:
+               scenario: str | None = None, te_joints=None, clock: Clock | None = None, robot=None) -> DemoRig:
     """Open (or create) the demo session in ``db`` and wire emulated devices, bench, operator and runner.
 
     ``setup``: a set-up file's content (``robocal plan setup --out``) for a new session; its stations and base are
     replaced by the emulated cell's (:func:`demo_setup`).  ``scenario``: a twin scenario TOML (default: the default
     scenario); a resumed session keeps its own.  ``te_joints``: the transmission-error joints of the default plan
-    (``--te-joints``; default :data:`DEFAULT_TE_JOINTS`).  ``clock``: the emulated devices' and the rig's time; by
+    (``--te-joints``; default the robot profile's).  ``robot``: a robot description (``--robot``; a
+    :class:`calib.robot.RobotPath` carries a URDF's chain cut) for a new session: its twin's scenario is generated
+    (:func:`robot_twin`) and kept in the session.  ``clock``: the emulated devices' and the rig's time; by
     default a :class:`~acq.clock.SimClock` (the encoder windows take no wall time), a
     :class:`~acq.clock.RealClock` where a human watches the session (the TUI's ``--emulate``)."""
 
@@ -188,20 +209,29 @@ def build_demo(db: str | Path, seed: int = 0, resume: bool = False, script: dict
         # a resumed emulated session continues with a fresh noise stream (the twin's truth is the same)
         seed_offset = 1 + len(store.done_keys())
         meta_d = json_column(meta.get("metadata_json") or "{}", f"{db}: session metadata_json")
-        scenario = meta_d.get("scenario_path")
+        scenario, text = meta_d.get("scenario_path"), meta_d.get("scenario_toml")
+        twin = Twin(parse_scenario(text, f"{db}: scenario") if text else load_scenario(scenario or None), seed=seed)
     else:
-        plan_d = None
         seed_offset = 0
-    twin = Twin(load_scenario(scenario or None), seed=seed)
-    if not resume:
+        text = None
+        if robot:
+            twin, text, base = robot_twin(robot, seed)
+            setup = base if setup is None else {**{k: v for k, v in setup.items() if k not in ("base_link", "tip_link")},
+                                                 **{k: base[k] for k in ("robot", "base_link", "tip_link") if k in base}}
+        else:
+            twin = Twin(load_scenario(scenario or None), seed=seed)
         setup = session_setup(demo_setup(twin, setup), twin.robot)
-        plan_d = plan or demo_plan(twin, seed, te_joints=te_joints)
-        store = SessionStore.create(db, DEMO_TITLE, plan_d, setup, operator="scripted demo operator",
-                                    metadata={"emulated": True, "scenario": "default" if not scenario else "file",
+        plan_d = plan or demo_plan(twin, seed, te_joints=te_joints, setup=setup)
+        title = DEMO_TITLE if profile_of(twin.robot).thesis else \
+            f"robocal demo: emulated {twin.robot.name} (twin) and two GeoCOM theodolites"
+        kind = "generated" if text else ("file" if scenario else "default")
+        store = SessionStore.create(db, title, plan_d, setup, operator="scripted demo operator",
+                                    metadata={"emulated": True, "scenario": kind, "scenario_toml": text,
                                               "scenario_path": str(Path(scenario).resolve()) if scenario else None,
                                               "seed": seed},
                                     durable=not clock.simulated)       # a simulated session can be recorded again
-    world = TwinWorld(twin, seed=seed * 1000 + seed_offset)
+    world = TwinWorld(twin, seed=seed * 1000 + seed_offset,       # the gauges read with the set-up's noise
+                      gauge_sigma_mm=(setup.get("link") or {}).get("gauge_sigma_mm") or GAUGE_SIGMA_MM)
     tag = uuid.uuid4().hex[:8]
     names = []
     drivers = {}
@@ -211,14 +241,17 @@ def build_demo(db: str | Path, seed: int = 0, resume: bool = False, script: dict
         names.append(name)
         drivers[st] = open_theodolite("geocom", url, name=f"theodolite {st}")
     channel = f"robocal-demo-{tag}"
-    node = CanTapNode(SenderVirtualBus(channel=channel),
-                      TapModel(world, twin.robot, rate_hz=500.0, clock=clock), own_bus=True)
-    tap = open_tap("can", interface="virtual", channel=channel, robot=twin.robot)
+    node = tap = None
+    if profile_of(twin.robot).tapped:           # the tap carries six joints' counts
+        node = CanTapNode(SenderVirtualBus(channel=channel),
+                          TapModel(world, twin.robot, rate_hz=500.0, clock=clock), own_bus=True)
+        tap = open_tap("can", interface="virtual", channel=channel, robot=twin.robot)
     rig = Rig(drivers, tap, clock=clock)
     rig.start()                                 # the reader listens before the node sends its first sample
-    node.start()
-    if clock.simulated:
-        clock.add_drain(_tap_drain(rig, node))
+    if node is not None:
+        node.start()
+        if clock.simulated:
+            clock.add_drain(_tap_drain(rig, node))
     known = _device_ids(store)               # a crash may have left some devices recorded and others not
     for role, driver, url, ident in rig.identities():
         if role in known:
@@ -252,7 +285,7 @@ def build_demo(db: str | Path, seed: int = 0, resume: bool = False, script: dict
                     refit_stations=lambda st: stations_from_store(st, setup),
                     preflight=Preflight(twin.robot, setup))
     d = DemoRig(runner, world, twin, store, names)
-    d._nodes = [node]
+    d._nodes = [node] if node is not None else []
     return d
 
 

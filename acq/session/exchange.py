@@ -38,8 +38,9 @@ from calib.fileio import atomic_write_text
 from calib.textin import read_text
 from calib.units import DEG
 
+from acq.reduction.session import load_session
+
 from .procedures import mark_index
-from .reprocess import load_session
 from .store import SessionStore, StepRecord, connect_readonly, json_column
 
 READING_COLUMNS = ["step", "procedure", "station", "target", "face", "hz_deg", "v_deg", "q1_deg", "q2_deg", "q3_deg",
@@ -110,14 +111,14 @@ def pose_arrays(db: str) -> dict:
     from calib.estimators.points import StationFit, locate_targets
 
     from .imported import imported_conditions, imported_labels, imported_point
-    from .reprocess import _Est, _encoder_q, _ruler
+    from acq.reduction.joints import reading_q
+    from acq.reduction.stages.ruler import fitted_stations
+
     from .setup import setup_robot, setup_stations
     d = load_session(db)
     robot = setup_robot(d.setup)
     ruler = [s for s in d.steps if s["procedure"] == "ruler"]
-    sigma = d.setup["stations"].get("sigma_arcsec", 3.0) * 4.84813681109536e-06
-    fit = (_ruler(ruler, d.setup, sigma, _Est(None), None, {}) if ruler else None) \
-        or StationFit.exact(setup_stations(d.setup))
+    fit = fitted_stations(ruler, d.setup)[1] if ruler else StationFit.exact(setup_stations(d.setup))
     stations = fit.stations
     q, P, C, keys, angle, used, raw = [], [], [], [], [], [], []
     for s in d.steps:
@@ -130,8 +131,7 @@ def pose_arrays(db: str) -> dict:
             p, cov = imported_point(s)
         else:
             continue
-        qe = _encoder_q(s, robot)
-        q.append(qe if qe is not None else np.asarray(s["spec"]["pose_deg"]) * DEG)
+        q.append(reading_q(s, robot))
         P.append(p)
         C.append(cov)
         keys.append(s["key"])

@@ -1,7 +1,8 @@
 """Every Chapter 4 procedure (and the Chapter 6 pose set) as a generator of :class:`~acq.session.steps.Step`.
 
 Read a procedure top to bottom to know what the operator will be asked, in order.  Procedures take the session
-``plan`` (their parameters) and ``setup`` (the geometry of the bench) and never touch a device: the runner does the
+``plan`` (their parameters: :class:`~acq.session.plan_doc.SessionPlan`, or its JSON form, checked on entry) and
+``setup`` (the geometry of the bench) and never touch a device: the runner does the
 I/O, checks and storage.  Step keys are stable (``sweep/j2/03``), so a resumed session skips what is committed.
 
 Units: poses in degrees (what the operator types into the teach pendant), lengths in mm, loads as masses in kg (old set-ups: forces in N).
@@ -13,9 +14,13 @@ from typing import Callable, Iterator
 
 import numpy as np
 
+from calib.errors import RobocalError
+from calib.units import G0_M_S2
+
 from . import checks as ck
-from .setup import point_p, station_names
-from .steps import READY_DEG, InputSpec, Step, TargetSpec
+from .plan_doc import SessionPlan, plan_of
+from .setup import point_p, reference_pose_deg, setup_profile, station_names
+from .steps import InputSpec, Step, TargetSpec
 
 MARKS = ("C", "D", "E")
 
@@ -30,7 +35,7 @@ def _both(setup: dict) -> str:
     return f"theodolite {a}, then with {b}"
 
 
-def _pose(j: int, angle_deg: float, base=READY_DEG) -> tuple[float, ...]:
+def _pose(j: int, angle_deg: float, base) -> tuple[float, ...]:
     q = list(base)
     q[j - 1] += angle_deg
     return tuple(q)
@@ -73,14 +78,14 @@ def levelling(plan: dict, setup: dict) -> Iterator[Step]:
 def instrument_check(plan: dict, setup: dict) -> Iterator[Step]:
     """Both faces of both instruments on a far target: their collimation and index errors.  Two-face means cancel
     them, but an instrument far out of adjustment (or a face change that did not happen) shows here first."""
-    p = plan.get("instrument_check", {})
+    p = plan_of(plan).instrument_check
     far = setup.get("far_target_mm")
     yield Step(
         key="instrument/far", procedure="instrument_check", title="Instrument check on the far target",
         instruction=("Sight the far target F (a sharp mark on the wall, a few metres away) with each theodolite, face "
                      "I then face II, twice. The check compares the faces: collimation and index error."),
         targets=(TargetSpec("F", point_mm=None if far is None else tuple(float(v) for v in far)),),
-        faces=(1, 2), repeats=p.get("repeats", 2), encoders=False, meta={})
+        faces=(1, 2), repeats=p.repeats, encoders=False, meta={})
 
 
 # -- 4.2 ruler -----------------------------------------------------------------------------------------------------
@@ -109,7 +114,7 @@ def ruler(plan: dict, setup: dict) -> Iterator[Step]:
     marks = r["marks_mm"]
     names = mark_names(len(marks))
     sta, stb = station_names(setup)
-    p = plan.get("ruler", {})
+    p = plan_of(plan).ruler
     for k, pl in enumerate(r["placements"]):
         c = np.asarray(pl["C_mm"], float) if pl.get("C_mm") is not None else None
         u = np.asarray(pl.get("dir", [1.0, 0.0, 0.0]), float)
@@ -121,64 +126,76 @@ def ruler(plan: dict, setup: dict) -> Iterator[Step]:
                 instruction=(f"Ruler placement {k + 1} ({pl.get('where', 'as set up')}), levelled in the plane of "
                              f"the theodolites. Sight mark {name} ({marks[m]:.1f} mm from C) with theodolite {sta}, "
                              f"then with {stb}, face I then face II."),
-                targets=(TargetSpec(name, point_mm=point),), repeats=p.get("repeats", 1), encoders=False,
+                targets=(TargetSpec(name, point_mm=point),), repeats=p.repeats, encoders=False,
                 meta={"placement": k, "mark": m})
 
 
 # -- 4.3 joint sweeps ------------------------------------------------------------------------------------------------
 def sweeps(plan: dict, setup: dict) -> Iterator[Step]:
-    """Joint orientations and centres: each joint swept alone from READY, target P sighted at each position."""
-    p = plan.get("sweeps", {})
-    n, span = p.get("points", 4), p.get("span_deg", 60.0)
-    for j in p.get("joints", [1, 2, 3, 4, 5, 6]):
+    """Joint orientations and centres: each joint swept alone from READY (the set-up's reference pose), target P
+    sighted at each position; by default every revolute joint of the robot."""
+    p = plan_of(plan).sweeps
+    n, span = p.points, p.span_deg
+    ready = reference_pose_deg(setup)
+    joints = p.joints or setup_profile(setup).sweep_joints
+    for j in joints:
         for i, a in enumerate(np.linspace(-span / 2, span / 2, n)):
-            q = _pose(j, float(a))
+            q = _pose(j, float(a), ready)
             yield Step(
                 key=f"sweep/j{j}/{i:02d}", procedure="sweep", title=f"Joint {j} sweep, position {i + 1}/{n}",
                 instruction=(f"Other joints at READY. Rotate joint {j} to about {q[j - 1]:+.1f} deg (always in "
                              f"the positive direction), sight target P with {_both(setup)}."),
-                pose_deg=q, targets=(sweep_target(setup, j),), repeats=p.get("repeats", 1),
+                pose_deg=q, targets=(sweep_target(setup, j),), repeats=p.repeats,
                 meta={"joint": j, "index": i, "swept_joint": j})
     pp = point_p(setup)
-    joints = p.get("joints", [1, 2, 3, 4, 5, 6])
-    # P serves d3 with the wrist centre (joints 5 and 6's axes): sighted only when the plan sweeps those
-    if pp is not None and p.get("point_p", True) and {5, 6} <= set(joints):
+    # P serves d3 with the wrist centre (the last two joints' axes): sighted only when the set-up has a P, the plan
+    # sweeps those joints, and the robot's profile has the thesis's scheme (eq 4.3.15 is its Puma's)
+    if pp is not None and p.point_p and _wrist_swept(setup, joints):
         link, tool, lp = pp
         yield Step(
             key="sweep/p", procedure="sweep", title="Point P on the tool's axis (d3, eq 4.3.15)",
-            instruction=(f"All joints at READY {_fmt(READY_DEG)}. Sight point P, the mark on the tool's axis "
+            instruction=(f"All joints at READY {_fmt(ready)}. Sight point P, the mark on the tool's axis "
                          f"{lp:g} mm beyond the flange (L_p), with {_both(setup)}."),
-            pose_deg=tuple(READY_DEG), targets=(TargetSpec("P", tool_mm=tool, link=link),),
-            repeats=p.get("repeats", 1), meta={"point": "P", "L_p_mm": lp})
+            pose_deg=tuple(ready), targets=(TargetSpec("P", tool_mm=tool, link=link),),
+            repeats=p.repeats, meta={"point": "P", "L_p_mm": lp})
+
+
+def _wrist_swept(setup: dict, joints) -> bool:
+    """Point P belongs to the thesis's scheme: its robot profile has it, and the plan sweeps the wrist's last two
+    joints (their axes give the wrist centre P is measured from)."""
+    profile = setup_profile(setup)
+    return profile.point_p and {profile.n - 1, profile.n} <= set(joints)
 
 
 # -- Chapter 6 pose set ----------------------------------------------------------------------------------------------
 def poses(plan: dict, setup: dict) -> Iterator[Step]:
     """The identification pose set (from ``robocal plan poses`` or chosen at session creation)."""
-    p = plan.get("poses", {})
-    qs = p.get("q_deg", [])
+    p = plan_of(plan).poses
+    qs = p.q_deg
     for i, q in enumerate(qs):
         yield Step(
             key=f"poses/{i:03d}", procedure="poses", title=f"Pose {i + 1}/{len(qs)}",
             instruction=f"Move the robot to {_fmt(q)}, sight target P with {_both(setup)}.",
-            pose_deg=tuple(q), targets=(tool_target(setup),), repeats=p.get("repeats", 1), meta={"index": i})
+            pose_deg=tuple(q), targets=(tool_target(setup),), repeats=p.repeats, meta={"index": i})
 
 
 # -- 4.4 transmission error ------------------------------------------------------------------------------------------
 def transmission(plan: dict, setup: dict) -> Iterator[Step]:
     """Joint angle from the extended tool's targets A1, A2 against the encoder, over a joint's range."""
-    p = plan.get("transmission", {})
+    p = plan_of(plan).transmission
     a1, a2 = extended_targets(setup)
-    for j in p.get("joints", [4, 6]):
-        lo, hi = p.get("range_deg", {}).get(str(j), (-100.0, 100.0))
-        n = p.get("points", 9)
+    ready = reference_pose_deg(setup)
+    profile = None if p.joints and all(str(j) in p.range_deg for j in p.joints) else setup_profile(setup)
+    for j in p.joints or profile.te_joints:
+        lo, hi = p.range_deg.get(str(j)) or profile.te_range_deg[j]
+        n = p.points
         for i, a in enumerate(np.linspace(lo, hi, n)):
-            q = _pose(j, float(a))
+            q = _pose(j, float(a), ready)
             yield Step(
                 key=f"te/j{j}/{i:02d}", procedure="transmission", title=f"Joint {j} transmission error {i + 1}/{n}",
                 instruction=(f"Extended tool fitted. Rotate joint {j} to {q[j - 1]:+.1f} deg (positive direction "
                              f"only, no load), sight A1 then A2 with {_both(setup)}."),
-                pose_deg=q, targets=(a1, a2), repeats=p.get("repeats", 1), meta={"joint": j, "index": i})
+                pose_deg=q, targets=(a1, a2), repeats=p.repeats, meta={"joint": j, "index": i})
 
 
 def _hung(cfg: dict, load_n: float) -> dict:
@@ -186,7 +203,7 @@ def _hung(cfg: dict, load_n: float) -> dict:
     (:func:`acq.session.setup.session_setup` maps old set-ups); ``tested_joint``: the joint it must turn."""
     if cfg.get("point_mm") is None or not cfg.get("loads_n"):
         return {}
-    kg = dict(zip(cfg["loads_n"], cfg.get("masses_kg", [v / 9.80665 for v in cfg["loads_n"]])))
+    kg = dict(zip(cfg["loads_n"], cfg.get("masses_kg", [v / G0_M_S2 for v in cfg["loads_n"]])))
     return {"loads": [{"link": int(cfg["link"]), "point_mm": list(cfg["point_mm"]), "mass_kg": kg[load_n]}],
             "tested_joint": int(cfg["link"])}
 
@@ -198,14 +215,14 @@ def compliance(plan: dict, setup: dict) -> Iterator[Step]:
     In the step vocabulary (contract C3) each step hangs ``setup["loads"]`` (one mass at the set-up's point) with
     ``load_direction`` ``{"j": +1 / -1}``, and the operator enters the mass actually hung (``load_kg``); a set-up
     without points (not mapped by :func:`acq.session.setup.session_setup`) keeps the old lever prompts in N."""
-    p = plan.get("compliance", {})
+    p = plan_of(plan).compliance
     a1, a2 = extended_targets(setup)
     sta, stb = station_names(setup)
-    for j in p.get("joints", [3, 4]):
+    for j in p.joints or sorted(int(k) for k in setup.get("compliance", {})):
         cfg = setup["compliance"][str(j)]
         loads = list(cfg["loads_n"])
         series = [("load", v, +1) for v in loads] + [("unload", v, -1) for v in reversed(loads[:-1])]
-        q = tuple(cfg.get("pose_deg", READY_DEG))
+        q = tuple(cfg.get("pose_deg") or reference_pose_deg(setup))
         for i, (phase, load, direction) in enumerate(series):
             hung = _hung(cfg, load)
             what = f"{hung['loads'][0]['mass_kg']:.3g} kg ({load:g} N)" if hung else f"{load:g} N"
@@ -216,7 +233,7 @@ def compliance(plan: dict, setup: dict) -> Iterator[Step]:
                              f"{'Hang' if direction > 0 else 'Remove weights to leave'} {what} on the lever at "
                              f"{cfg['lever_mm']:g} mm from joint {j}'s axis, wait for the arm to settle, enter the "
                              f"load, then sight A1 and A2 with theodolite {sta}, then with {stb}."),
-                pose_deg=q, targets=(a1, a2), repeats=p.get("repeats", 1),
+                pose_deg=q, targets=(a1, a2), repeats=p.repeats,
                 inputs=_load_inputs(j, cfg, load, hung),
                 setup={"joint": j, "load_n": load, "lever_mm": cfg["lever_mm"],
                        "theta_i_deg": cfg.get("theta_i_deg", 0.0),
@@ -245,7 +262,7 @@ def link_compliance(plan: dict, setup: dict) -> Iterator[Step]:
             key=f"link/j{j}/{i:02d}", procedure="link_compliance", title=f"Link {j}: load {load:g} N",
             instruction=(f"Dial gauges at {', '.join(f'{x:g}' for x in xs)} mm from joint {j}'s centre, zeroed "
                          f"without load. Hang {load:g} N at {cfg['load_x_mm']:g} mm, wait 30 s, read every gauge."),
-            pose_deg=tuple(cfg.get("pose_deg", READY_DEG)), targets=(), faces=(),
+            pose_deg=tuple(cfg.get("pose_deg") or reference_pose_deg(setup)), targets=(), faces=(),
             inputs=(_link_load_input(hung, load),
                     *[InputSpec(f"gauge{g + 1}_mm", "mm", f"Dial gauge {g + 1} at {x:g} mm")
                       for g, x in enumerate(xs)]),
@@ -265,12 +282,12 @@ def _link_load_input(hung: dict, load_n: float) -> InputSpec:
 # -- 4.7 wrist coupling ----------------------------------------------------------------------------------------------
 def coupling(plan: dict, setup: dict) -> Iterator[Step]:
     """Joint k alone through theta, then j and k together: the encoder of k shows sigma_jk theta_j more."""
-    p = plan.get("coupling", {})
-    th = p.get("angle_deg", 10.0)
-    repeats = int(p.get("repeats", 1))
-    for j, k in p.get("pairs", [(5, 6), (4, 6), (4, 5)]):
-        start = READY_DEG
-        alone = _pose(k, th)
+    p = plan_of(plan).coupling
+    th = p.angle_deg
+    repeats = p.repeats
+    for j, k in p.pairs or setup_profile(setup).coupled_pairs:
+        start = reference_pose_deg(setup)
+        alone = _pose(k, th, start)
         both = _pose(j, th, alone)
         for r in range(repeats):
             # repeats: the scatter between them (servo repeatability) is pooled into sigma_jk's error by reprocess;
@@ -296,18 +313,18 @@ def encoder_resolution(plan: dict, setup: dict) -> Iterator[Step]:
     slope by 0.5 % (measured on the demo's twin); it stays below 180 deg because the angles are taken from the first
     step.  The fitted axis's own error is in the slope's error (reprocess ``_resolution``): with the extended tool's
     A1->A2 line as much along the axis as across it, it is most of that error."""
-    p = plan.get("encoder_resolution", {})
+    p = plan_of(plan).encoder_resolution
     a1, a2 = extended_targets(setup)
-    n, span = int(p.get("points", 7)), float(p.get("span_deg", 150.0))
-    for j in p.get("joints", [6]):
+    n, span = p.points, p.span_deg
+    for j in p.joints or setup_profile(setup).sweep_joints[-1:]:
         for i, a in enumerate(np.linspace(0.0, span, n)):
-            q = _pose(j, float(a))
+            q = _pose(j, float(a), reference_pose_deg(setup))
             yield Step(
                 key=f"resolution/j{j}/{i:02d}", procedure="encoder_resolution",
                 title=f"Joint {j} encoder resolution {i + 1}/{n}",
                 instruction=(f"Extended tool fitted. Step joint {j} to {q[j - 1]:+.2f} deg (positive direction only, "
                              f"no load), hold; the encoder stream is recorded; sight A1 then A2 with {_both(setup)}."),
-                pose_deg=q, targets=(a1, a2), repeats=p.get("repeats", 1), meta={"joint": j, "index": i})
+                pose_deg=q, targets=(a1, a2), repeats=p.repeats, meta={"joint": j, "index": i})
 
 
 @dataclass(frozen=True)
@@ -355,14 +372,15 @@ register_procedure("coupling", coupling)
 register_procedure("encoder_resolution", encoder_resolution)
 
 
-def all_steps(plan: dict, setup: dict) -> list[Step]:
-    """Every step of the session's plan, in order; keys are checked for uniqueness (resume depends on them)."""
+def all_steps(plan: dict | SessionPlan, setup: dict) -> list[Step]:
+    """Every step of the session's plan (checked here, once: :func:`acq.session.plan_doc.plan_of`), in order; keys
+    are checked for uniqueness (resume depends on them)."""
+    plan = plan_of(plan)
     out: list[Step] = []
-    for name in plan["procedures"]:
+    for name in plan.procedures:
         try:
             proc = PROCEDURES[name]
         except KeyError:
-            from calib.errors import RobocalError
             raise RobocalError(f"session plan: unknown procedure {name!r} (known: {', '.join(PROCEDURES)})")
         out.extend(proc(plan, setup))
     keys = [s.key for s in out]

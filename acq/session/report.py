@@ -23,8 +23,8 @@ import numpy as np
 from calib.fileio import atomic_path, atomic_write_text
 from calib.units import DEG
 
-from .sections import DETERMINED, NEGLIGIBLE, SECTIONS, UNDETERMINED, WEAK, Section, bound_text, in_session, \
-    needs_action, section_bounds, section_estimates, section_problems, section_verdict, shown, thesis_rows
+from .sections import DETERMINED, NEGLIGIBLE, SECTIONS, UNDETERMINED, WEAK, Section, beside_the_thesis, bound_text, \
+    needs_action, section_bounds, section_estimates, section_problems, section_verdict, shown, shows, thesis_rows
 
 STYLE = """
 body { font-family: system-ui, -apple-system, "Segoe UI", sans-serif; max-width: 60rem; margin: 1.5rem auto;
@@ -402,8 +402,9 @@ def _section_html(sec: Section, res: dict, record, figs_png: dict[str, list[tupl
     sb = section_bounds(sec, bounds)
     if not mine and not sp and not sb and (record is None or sec.key not in record.procedures):
         return ""
-    v, why = section_verdict(sec, est, probs, bounds)
-    out = [f"<section id='{sec.key}'><h2>{html.escape(sec.title)}</h2>",
+    v, why = section_verdict(sec, est, probs, bounds, beside_the_thesis(res))
+    anchor = sec.key if not sec.only_with_results else f"{sec.key}-{sec.prefixes[0].rstrip('.')}"
+    out = [f"<section id='{anchor}'><h2>{html.escape(sec.title)}</h2>",
            f"<p>{html.escape(sec.what)}</p>", _what_was_done(sec, record),
            f"<p class='verdict {_verdict_class(v)}'>Verdict: {v}" + ("" if v == DETERMINED else
                                                                      f" — {html.escape(why)}") + "</p>"]
@@ -426,7 +427,7 @@ def _section_html(sec: Section, res: dict, record, figs_png: dict[str, list[tupl
                        f"</figcaption></figure>")
     if mine:
         out.append(_estimates_table(mine))
-    out.append(_thesis_table(thesis_rows(sec, mine)))
+    out.append(_thesis_table(thesis_rows(sec, mine, beside_the_thesis(res))))
     out.append("</section>")
     return "".join(out)
 
@@ -494,7 +495,7 @@ def report_html(res: dict, tolerance_mm: float | None = None, record=None) -> st
     figs = {k: [(c, _png(fig)) for c, fig in v] for k, v in render_figures(res).items()}
     body = [f"<h1>Calibration report</h1><p class='muted'>robocal — {html.escape(res['session']['title'])}</p>",
             _answer(res, record, tolerance_mm, figs)]
-    present = [sec for sec in SECTIONS if in_session(sec, res)]
+    present = [sec for sec in SECTIONS if shows(sec, res)]
     body += [_section_html(sec, res, record, figs) for sec in present]
     body.append(_diagnosis_html(res.get("diagnosis")))
     known = {p for sec in present for p in section_problems(sec, res.get("problems", []))}

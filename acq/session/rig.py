@@ -22,6 +22,8 @@ import numpy as np
 
 from acq.clock import Clock, RealClock
 from acq.drivers.base import AngleReading
+from calib.loads import hung_masses
+from calib.units import DEG
 
 from .steps import Step, TargetSpec
 
@@ -207,14 +209,11 @@ class EmulatedBench(Bench):
         self._kin = Kinematics(world.robot)            # the description: what the technician knows
 
     def prepare(self, step: Step, inputs: dict) -> None:
-        from acq.emulate.twin_world import HungMass
-        from calib.units import DEG
         w = self.world
         if step.pose_deg is not None:
             w.command(np.asarray(step.pose_deg, float) * DEG)
         s = c3_setup(step.setup, step.pose_deg, inputs, self._kin)
-        w.hang([HungMass(int(ld["link"]), tuple(float(x) for x in ld["point_mm"]), float(ld["mass_kg"]))
-                for ld in s.get("loads", [])], load_directions(s, w.robot.n))
+        w.hang(hung_masses(s.get("loads", [])), load_directions(s, w.robot.n))
 
     def aim(self, target: TargetSpec) -> None:
         self.world.aim(self._Target(target.name, tool_mm=target.tool_mm, point_mm=target.point_mm,
@@ -275,7 +274,6 @@ def load_directions(setup: dict, n: int) -> np.ndarray:
 
 def _along_link(kin, pose_deg, j: int):
     """x mm -> the point (frame j coordinates) at x from joint j's axis along link j's body (the beam that bends)."""
-    from calib.units import DEG
     q = np.zeros(kin.n) if pose_deg is None else np.asarray(pose_deg, float) * DEG
     fp = kin.forward(q[None])
     (start,), (end,) = fp.link_beam(j)

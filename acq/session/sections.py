@@ -117,6 +117,8 @@ class Section:
     thesis: list[ThesisRow] = field(default_factory=list)
     figures: tuple[str, ...] = ()    # keys of the figure registry (acq.session.report)
     bounded: str = ""                # what a one-sided bound (no measurable effect) means here, for the verdict
+    thesis_bounded: str = ""         # the thesis's own finding to put before it (a session of the thesis's Puma)
+    only_with_results: bool = False  # shown only when it has estimates, bounds or problems (a stage that may not apply)
 
 
 SECTIONS: list[Section] = []
@@ -137,22 +139,27 @@ section(Section(
      ThesisRow("γ1 (Fig 5.4)", "ruler.gamma1_rad", -1.489, "deg", 0.013),
      ThesisRow("γ2 (Fig 5.4)", "ruler.gamma2_rad", 1.358, "deg", 0.010)], ("ruler",)))
 section(Section(
-    "sweep", "Joint axes and DH parameters (circle point analysis, §4.3)", ("dh.", "misalign.", "comp."),
+    "sweep", "Joint axes and DH parameters (circle point analysis, §4.3)", ("dh.", "misalign."),
     "Each joint swept alone while a target on its link is sighted; a circle and its axis fitted per joint; the DH "
-    "parameters follow from successive axes.  Beside them the thesis's own reduction (comp.*): the joint centres "
-    "expressed in S_fj by the compensation scheme (eqs 4.3.12-13), then eq 4.3.15, with d3 from point P sighted on "
-    "the tool's axis L_p beyond the flange (its a2 reads X along the robot base's x, the opposite sign of Fig 5.10's).",
-    ("sweeps", "sweep", "compensation scheme"),
+    "parameters follow from successive axes, and each measured axis against its design direction (misalign.*).",
+    ("sweeps", "sweep", "misalignment"),
     "Widen the sweep of a joint whose axis is weakly determined, or put its target farther from the axis "
     "(100-1200 mm, about 600 mm suggested).",
     [ThesisRow("a1 (Fig 5.10)", "dh.j2.a_mm", 431.0, "mm"),
      ThesisRow("a2 (Fig 5.10)", "dh.j3.a_mm", -29.7, "mm"),
-     ThesisRow("d2 (Fig 5.10)", "dh.j4.d_mm", 432.2, "mm"),
-     ThesisRow("a1, compensation scheme (eqs 4.3.12-15)", "comp.a1_mm", 431.0, "mm"),
+     ThesisRow("d2 (Fig 5.10)", "dh.j4.d_mm", 432.2, "mm")], ("sweeps", "dh_lengths", "dh_angles")))
+section(Section(
+    "sweep", "The thesis's compensation scheme (eqs 4.3.12-15)", ("comp.",),
+    "The thesis's own reduction of the sweeps, for a robot of its Puma's structure: the joint centres expressed in "
+    "S_fj by the compensation scheme (eqs 4.3.12-13), then eq 4.3.15, with d3 from point P sighted on the tool's axis "
+    "L_p beyond the flange (its a2 reads X along the robot base's x, the opposite sign of Fig 5.10's).",
+    ("compensation scheme",),
+    "Sight point P at READY with both stations, and sweep every joint.",
+    [ThesisRow("a1, compensation scheme (eqs 4.3.12-15)", "comp.a1_mm", 431.0, "mm"),
      ThesisRow("d1, compensation scheme", "comp.d1_mm", 154.5, "mm"),
      ThesisRow("d2, compensation scheme", "comp.d2_mm", 432.2, "mm",
                note="eq 4.3.15's d2 is the elbow-wrist distance √(d2² + a2²); Fig 5.10 prints it corrected"),
-     ThesisRow("d3 from P and L_p (eq 4.3.15)", "comp.d3_mm", 56.4, "mm")], ("sweeps", "dh_lengths", "dh_angles")))
+     ThesisRow("d3 from P and L_p (eq 4.3.15)", "comp.d3_mm", 56.4, "mm")], only_with_results=True))
 section(Section(
     "transmission", "Transmission error (§4.4)", ("te.",),
     "The joint angle from two targets on an extended tool, against the encoder, over the joint's range; a harmonic "
@@ -177,8 +184,8 @@ section(Section(
     "Dial gauges along a link, loads at its end; the flexural rigidity from the gauge readings.",
     ("link", "link compliance"),
     "Repeat with larger loads or gauges farther from the joint.", [], ("link",),
-    bounded="thesis §5.7: link compliance negligible against joint compliance; the gauges show no significant "
-            "bending"))
+    bounded="the gauges show no significant bending",
+    thesis_bounded="thesis §5.7: link compliance negligible against joint compliance"))
 section(Section(
     "coupling", "Wrist cross coupling (§4.7)", ("coupling.",),
     "A wrist joint moved alone, then with its neighbour; the tapped encoder counts give σ_jk.", ("coupling",),
@@ -238,14 +245,32 @@ def section_problems(sec: Section, problems: list[str]) -> list[str]:
     return [p for p in problems if p.split(":", 1)[0].strip().lower() in keys]
 
 
+def beside_the_thesis(res: dict) -> bool:
+    """Whether a results document's robot is the thesis's Puma (its profile says so; a document from before the
+    profile: assumed), so its numbers may stand beside the thesis's."""
+    return bool((res.get("profile") or {}).get("reference_robot", True))
+
+
+def shows(sec: Section, res: dict) -> bool:
+    """Whether a section appears for these results: its procedure was recorded, and, for a section of a stage that
+    may not apply, it has something to say."""
+    if not in_session(sec, res):
+        return False
+    return not sec.only_with_results or bool(section_estimates(sec, res.get("estimates", []))
+                                             or section_bounds(sec, res.get("bounds", []))
+                                             or section_problems(sec, res.get("problems", [])))
+
+
 def section_verdict(sec: Section, estimates: list[dict], problems: list[str],
-                    bounds: list[dict] = ()) -> tuple[str, str]:
+                    bounds: list[dict] = (), thesis: bool = True) -> tuple[str, str]:
     """(verdict, reason) of a whole section: the worst of its estimates, negligible when it states a bound instead
-    (the effect is below what the procedure resolves), or not determined when it failed."""
+    (the effect is below what the procedure resolves; with ``thesis``, the thesis's own finding put before it), or
+    not determined when it failed."""
     mine = section_estimates(sec, estimates)
     probs = section_problems(sec, problems)
     if not mine and section_bounds(sec, list(bounds)) and not probs:
-        return NEGLIGIBLE, sec.bounded or "below what the procedure can resolve: a one-sided bound is stated"
+        said = "; ".join(filter(None, [sec.thesis_bounded if thesis else "", sec.bounded]))
+        return NEGLIGIBLE, said or "below what the procedure can resolve: a one-sided bound is stated"
     if not mine:
         return UNDETERMINED, (probs[0].split(":", 1)[1].strip() if probs else "no data for this procedure")
     estimated = [e for e in mine if not e.get("held")]
@@ -266,8 +291,11 @@ def _fmt_err(e: dict) -> str:
     return "none" if s.error is None else f"{s.error:.3g} {s.unit} on {s.value:.6g} {s.unit}"
 
 
-def thesis_rows(sec: Section, estimates: list[dict]) -> list[dict]:
-    """robocal's value beside the thesis's, and their difference in units of robocal's stated error."""
+def thesis_rows(sec: Section, estimates: list[dict], thesis: bool = True) -> list[dict]:
+    """robocal's value beside the thesis's, and their difference in units of robocal's stated error (none unless
+    ``thesis``: the robot is the thesis's Puma, :func:`beside_the_thesis`)."""
+    if not thesis:
+        return []
     by_name = {e["name"]: e for e in estimates}
     out = []
     for row in sec.thesis:

@@ -5,16 +5,19 @@ from __future__ import annotations
 
 import json
 from contextlib import contextmanager
+from functools import lru_cache
 from dataclasses import replace
 
 import numpy as np
 
 from calib.errors import RobocalError
 from calib.model import MeasurementModel
+from calib.profile import THESIS_READY_DEG, profile_of
 from calib.theodolite import thesis_stations
 from calib.units import ARCSEC, DEG
 
-from .steps import READY_DEG, Step
+from .setup_file import default_of
+from .steps import Step
 
 
 def standard_setup() -> dict:
@@ -49,7 +52,7 @@ def standard_setup() -> dict:
                                  {"where": "1.8 m in front, turned", "C_mm": [-200.0, 1800.0, 0.0],
                                   "dir": [1, 0.15, 0], "marks": ["C", "D", "E3"]}]},
         "compliance": {"3": {"lever_mm": 500.0, "loads_n": [0, 10, 20, 30, 45, 60, 75], "theta_i_deg": 0.0,
-                             "pose_deg": list(READY_DEG)},
+                             "pose_deg": list(THESIS_READY_DEG)},
                        # joint 4 loaded with the forearm level (its axis horizontal): a lever clamped on the wrist
                        # housing (link 4), level, 500 mm out along joint 5's axis; joint 1 at -90 deg points the
                        # forearm at the theodolites, so the joint turns A1 -> A2 across their sight lines (across
@@ -88,9 +91,27 @@ def setup_robot(setup: dict):
     return load_robot(setup.get("robot") or None, setup.get("base_link") or None, setup.get("tip_link") or None)
 
 
+def setup_profile(setup: dict):
+    """The profile (:func:`calib.profile.profile_of`) of the robot the set-up names: what the plan's defaults
+    come from (which joints, which pairs)."""
+    return _profile(setup.get("robot") or "", setup.get("base_link") or "", setup.get("tip_link") or "")
+
+
+@lru_cache(maxsize=16)
+def _profile(robot: str, base_link: str, tip_link: str):
+    """Cached: a plan's generators ask for it once per procedure."""
+    return profile_of(setup_robot({"robot": robot, "base_link": base_link, "tip_link": tip_link}))
+
+
+def reference_pose_deg(setup: dict) -> tuple[float, ...]:
+    """The pose the joints are swept about and the runs start from (deg): the set-up's ``reference_pose_deg``,
+    which :func:`session_setup` fills from the robot's profile; the thesis's READY for a set-up written before."""
+    return tuple(float(v) for v in (setup.get("reference_pose_deg") or THESIS_READY_DEG))
+
+
 def station_names(setup: dict) -> tuple[str, str]:
     """The two stations' names as the set-up gives them (``stations.names``; default A and B)."""
-    names = setup.get("stations", {}).get("names") or ["A", "B"]
+    names = setup.get("stations", {}).get("names") or default_of("stations", "names")
     return str(names[0]), str(names[1])
 
 
@@ -114,7 +135,7 @@ def point_p(setup: dict, n_links: int | None = None):
 def setup_stations(setup: dict) -> dict:
     """Approximate stations from the setup (for the acquisition checks; reprocessing uses the ruler's)."""
     s = setup["stations"]
-    a, b = thesis_stations(s["L_mm"], s["gamma1_deg"] * DEG, s["gamma2_deg"] * DEG, s.get("sigma_arcsec", 3.0) * ARCSEC)
+    a, b = thesis_stations(s["L_mm"], s["gamma1_deg"] * DEG, s["gamma2_deg"] * DEG, s.get("sigma_arcsec", default_of("stations", "sigma_arcsec")) * ARCSEC)
     na, nb = station_names(setup)
     return {na: replace(a, name=na), nb: replace(b, name=nb)}
 
@@ -124,7 +145,7 @@ def nominal_theta(model: MeasurementModel, setup: dict) -> np.ndarray:
     th = model.nominal.copy()
     for k, v in zip(("x_mm", "y_mm", "z_mm"), setup.get("base_xyz_mm", [0.0, 0.0, 0.0])):
         th[model.index[f"base.{k}"]] = v
-    roll, pitch, yaw = np.asarray(setup.get("base_rpy_deg", [0.0, 0.0, 0.0]), float) * DEG
+    roll, pitch, yaw = np.asarray(setup.get("base_rpy_deg", default_of("base_rpy_deg")), float) * DEG
     for k, v in (("yaw_rad", yaw), ("pitch_rad", pitch), ("roll_rad", roll)):
         th[model.index[f"base.{k}"]] = v
     return th
@@ -135,6 +156,10 @@ def nominal_theta(model: MeasurementModel, setup: dict) -> np.ndarray:
 #: with a tape and a level, the tool target from its drawing.
 DESCRIPTION_TOLERANCES = {"length_mm": 5.0, "angle_deg": 0.3, "base_mm": 10.0, "base_angle_deg": 0.3,
                           "tool_mm": 2.0, "load_mass_kg": 0.01}
+
+
+#: a dial gauge's reading noise (mm, 1-sigma) when the set-up's ``link.gauge_sigma_mm`` does not say: a 1 um gauge
+GAUGE_SIGMA_MM = 0.001
 
 
 def _prior_sigmas(names: list[str], tol: dict) -> np.ndarray:
@@ -201,7 +226,7 @@ def predictor(robot, setup: dict, tolerances: dict | None = None):
 
 
 # -- the session set-up: old keys onto new ones ----------------------------------------------------------------------
-def _frame_point(fp, link: int, p_world: np.ndarray) -> list[float]:
+def frame_point(fp, link: int, p_world: np.ndarray) -> list[float]:
     """A measurement-frame point in frame ``link`` coordinates at the pose of ``fp`` (one pose)."""
     return [round(float(v), 3) for v in fp.frame_R[0, link].T @ (p_world - fp.frame_t[0, link])]
 
@@ -221,7 +246,7 @@ def lever_of(fp, joint: int, p_world: np.ndarray, up: np.ndarray) -> tuple[float
     return L, float(np.degrees(np.arcsin(np.clip(r @ up / L, -1, 1)))) if L > 0 else 0.0
 
 
-def _lever_point(fp, joint: int, lever_mm: float, theta_deg: float, up: np.ndarray) -> np.ndarray:
+def lever_point(fp, joint: int, lever_mm: float, theta_deg: float, up: np.ndarray) -> np.ndarray:
     """The point ``lever_mm`` from joint ``joint``'s axis, level across it, raised ``theta_deg`` (old set-ups)."""
     z, o = fp.joint_axis[0, joint - 1], fp.joint_origin[0, joint - 1]
     h = np.cross(z, up)
@@ -232,19 +257,17 @@ def _lever_point(fp, joint: int, lever_mm: float, theta_deg: float, up: np.ndarr
     return o + lever_mm * (np.cos(t) * h + np.sin(t) * up)
 
 
-#: the thesis's suggested radius of rotation of a swept target (section 5.3: about 600 mm; limits 100-1200 mm)
-SWEEP_RADIUS_MM = 600.0
-
-
 def design_sweep_targets(model: MeasurementModel, setup: dict, robot, radius_mm: float | dict | None = None) -> dict:
     """Per-joint sweep targets at ``radius_mm`` (default the set-up's ``sweep_radius_mm`` or 600 mm) about each
-    joint's axis at READY, on the side facing the theodolites (see :func:`calib.setup_plan.sweep_targets`)."""
+    joint's axis at the reference pose (the set-up's ``reference_pose_deg``, else the robot profile's), on the side
+    facing the theodolites (see :func:`calib.setup_plan.sweep_targets`)."""
     from calib.setup_plan import sweep_targets
-    r = radius_mm if radius_mm is not None else setup.get("sweep_radius_mm", SWEEP_RADIUS_MM)
+    r = radius_mm if radius_mm is not None else setup.get("sweep_radius_mm", default_of("sweep_radius_mm"))
     radii = {int(k): float(v) for k, v in r.items()} if isinstance(r, dict) else \
         {j: float(r) for j in range(1, robot.n + 1)}
     mid = np.mean([st.position for st in setup_stations(setup).values()], axis=0)
-    return sweep_targets(model, nominal_theta(model, setup), np.asarray(READY_DEG) * DEG, radii, mid)
+    q = np.asarray(setup.get("reference_pose_deg") or profile_of(robot).ready_deg, float) * robot.edge_scale
+    return sweep_targets(model, nominal_theta(model, setup), q, radii, mid)
 
 
 @contextmanager
@@ -281,11 +304,11 @@ def _check_entry(where: str, robot, joint: int, pose, link: int, masses) -> None
         raise RobocalError(f"set-up: {where}: loads must be finite and not negative, got {list(masses)}")
 
 
-def _compliance_entry(key: str, cfg: dict, robot, chain, g: float) -> None:
+def _compliance_entry(key: str, cfg: dict, robot, chain, g: float, ready) -> None:
     """One joint-compliance entry: a lever (old keys) or a point on link j (new), both filled in."""
     j = int(key)
     cfg.setdefault("link", j)
-    pose = cfg.setdefault("pose_deg", list(READY_DEG))
+    pose = cfg.setdefault("pose_deg", list(ready))
     if "masses_kg" not in cfg:
         cfg["masses_kg"] = [round(float(v) / g, 4) for v in cfg["loads_n"]]
     cfg.setdefault("loads_n", [round(float(v) * g, 3) for v in cfg["masses_kg"]])
@@ -293,19 +316,19 @@ def _compliance_entry(key: str, cfg: dict, robot, chain, g: float) -> None:
     fp = chain(pose)
     up = up_direction(fp, robot)
     if "point_mm" not in cfg:
-        p = _lever_point(fp, j, float(cfg["lever_mm"]), float(cfg.get("theta_i_deg", 0.0)), up)
-        cfg["point_mm"] = _frame_point(fp, int(cfg["link"]), p)
+        p = lever_point(fp, j, float(cfg["lever_mm"]), float(cfg.get("theta_i_deg", 0.0)), up)
+        cfg["point_mm"] = frame_point(fp, int(cfg["link"]), p)
     p = fp.frame_R[0, cfg["link"]] @ np.asarray(cfg["point_mm"], float) + fp.frame_t[0, cfg["link"]]
     lever, theta = lever_of(fp, j, p, up)
     cfg.setdefault("lever_mm", round(lever, 3))
     cfg.setdefault("theta_i_deg", round(theta, 3))
 
 
-def _link_entry(link: dict, robot, chain, g: float) -> None:
+def _link_entry(link: dict, robot, chain, g: float, ready) -> None:
     """The link-compliance entry: gauges and the load along link j (old keys) or as points on it (new)."""
-    j = int(link.setdefault("link", link.get("joint", 2)))
+    j = int(link.setdefault("link", link["joint"]))
     link.setdefault("joint", j)
-    pose = link.setdefault("pose_deg", list(READY_DEG))
+    pose = link.setdefault("pose_deg", list(ready))
     if "masses_kg" not in link:
         link["masses_kg"] = [round(float(v) / g, 4) for v in link["loads_n"]]
     link.setdefault("loads_n", [round(float(v) * g, 3) for v in link["masses_kg"]])
@@ -336,16 +359,20 @@ def session_setup(setup: dict, robot) -> dict:
     with _section("base_xyz_mm / base_rpy_deg"):
         th = nominal_theta(m, out)[: m.n_geometric]
     g = float(np.linalg.norm(robot.gravity_m_s2))
+    with _section("reference_pose_deg"):
+        ready = out.setdefault("reference_pose_deg", list(profile_of(robot).ready_deg))
+        if len(ready) != robot.n or not np.all(np.isfinite(np.asarray(ready, float))):
+            raise ValueError(f"needs {robot.n} finite joint readings, got {list(ready)}")
 
     def chain(q_deg):
-        return m.kin.forward(np.asarray(q_deg, float)[None] * DEG, th)
+        return m.kin.forward(np.asarray(q_deg, float)[None] * robot.edge_scale, th)
 
     for key, cfg in out.get("compliance", {}).items():
         with _section(f"compliance.{key}"):
-            _compliance_entry(key, cfg, robot, chain, g)
+            _compliance_entry(key, cfg, robot, chain, g, ready)
     if out.get("link"):
         with _section("link"):
-            _link_entry(out["link"], robot, chain, g)
+            _link_entry(out["link"], robot, chain, g, ready)
     point_p(out, robot.n)                                    # a bad point P is one line here, not a crash later
     for k, pl in enumerate(out.get("ruler", {}).get("placements", [])):
         with _section(f"ruler.placements[{k}].marks"):

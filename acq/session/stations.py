@@ -17,6 +17,7 @@ from calib.theodolite import Station, thesis_stations
 from calib.units import ARCSEC
 
 from .setup import station_names
+from .setup_file import default_of
 from .store import json_column
 
 
@@ -37,7 +38,7 @@ def fit_ruler(rows: np.ndarray, setup: dict):
     from calib.estimators.ruler import RulerSightings, ruler_lsq
     if len(rows) == 0:
         raise RobocalError("ruler: no sightings")
-    sigma = setup["stations"].get("sigma_arcsec", 3.0) * ARCSEC
+    sigma = setup["stations"].get("sigma_arcsec", default_of("stations", "sigma_arcsec")) * ARCSEC
     a = np.asarray(rows, float)
     s = RulerSightings(a[:, 0], a[:, 1], a[:, 2], a[:, 3], a[:, 4], a[:, 5])
     res = ruler_lsq(s, setup["ruler"]["marks_mm"], sigma)

@@ -9,9 +9,6 @@ from __future__ import annotations
 
 from dataclasses import asdict, dataclass, field
 
-#: the Puma's READY pose (joint readings, deg): the reference of the sweeps, coupling runs and most loads
-READY_DEG = (0.0, -90.0, 90.0, 0.0, 0.0, 0.0)
-
 
 @dataclass(frozen=True)
 class InputSpec:

@@ -8,8 +8,8 @@ import math
 from rich.console import Console
 from rich.table import Table
 
-from .sections import DETERMINED, NEGLIGIBLE, SECTIONS, UNDETERMINED, WEAK, bound_text, in_session, needs_action, \
-    section_bounds, section_estimates, section_problems, section_verdict, shown, verdict_of
+from .sections import DETERMINED, NEGLIGIBLE, SECTIONS, UNDETERMINED, WEAK, beside_the_thesis, bound_text, \
+    needs_action, section_bounds, section_estimates, section_problems, section_verdict, shown, shows, verdict_of
 
 #: a section with at most this many estimates lists them all; a larger one shows its counts and weakest few
 LIST_UP_TO = 6
@@ -71,7 +71,7 @@ def accuracy_lines(acc: dict | None, tolerance_mm: float | None = None) -> list[
 
 
 def finding_flags(f: dict) -> str:
-    """What a finding's flags say, in words (see the README's diagnosis section)."""
+    """What a finding's flags say, in words (see docs/diagnosis.md)."""
     words = []
     if f.get("doubtful"):
         words.append("doubtful")
@@ -103,14 +103,14 @@ def summary_lines(res: dict) -> list[tuple[str, str]]:
     out: list[tuple[str, str]] = [("bold", f"{res['session']['title']}")]
     out += [("bold", line) for line in accuracy_lines(res.get("accuracy"))]
     est, probs, bounds = res.get("estimates", []), res.get("problems", []), res.get("bounds", [])
-    shown_sections = [sec for sec in SECTIONS if in_session(sec, res)]
+    shown_sections = [sec for sec in SECTIONS if shows(sec, res)]
     for sec in shown_sections:
         mine = section_estimates(sec, est)
         sp = section_problems(sec, probs)
         sb = section_bounds(sec, bounds)
         if not mine and not sp and not sb:
             continue
-        v, why = section_verdict(sec, est, probs, bounds)
+        v, why = section_verdict(sec, est, probs, bounds, beside_the_thesis(res))
         out.append((f"bold {_COLOUR[v]}", f"{sec.title}: {v}" + ("" if v == DETERMINED else f" — {why}")))
         out += [("", f"  {bound_text(b)}" + _bound_truth(b)) for b in sb]
         if len(mine) <= LIST_UP_TO:

@@ -17,6 +17,12 @@ from ..tomlspec import Field
 from .base import Effect, Loads, register_effect
 
 
+def cantilever_shape(x_mm, a_mm):
+    """``y * 6 EI / P``: the deflection shape (mm^3) at ``x`` for a unit load at ``a`` on a clamped cantilever."""
+    x, a = np.asarray(x_mm, float), np.asarray(a_mm, float)
+    return np.where(x <= a, x * x * (3 * a - x), a * a * (3 * x - a))
+
+
 @register_effect
 class LinkCompliance(Effect):
     kind = "link_compliance"
@@ -58,7 +64,7 @@ class LinkCompliance(Effect):
         x = L if where is None or where > j else np.clip(np.einsum("nc,nc->n", point - start, u), 0.0, L)
         x = x[:, None]
         # unit compliance response (per unit 1/EI) at x: deflection and slope of the superposed cantilever loads
-        defl = np.where(x <= a, x * x * (3 * a - x), a * a * (3 * x - a)) / 6.0
+        defl = cantilever_shape(x, a) / 6.0
         slope = np.where(x <= a, x * (2 * a - x), a * a) / 2.0
         d_vec = np.einsum("nk,nkc->nc", defl, Fperp)
         rot = np.cross(u, np.einsum("nk,nkc->nc", slope, Fperp))                   # rotation vector at x

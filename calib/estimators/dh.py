@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..angles import wrap_angle
 from ..uncertainty import EstimateSet, propagate
 from ._common import EstimationError, finite
 
@@ -93,9 +94,9 @@ def dh_from_axes(c: np.ndarray, z: np.ndarray, q_rad: np.ndarray, frame0_R: np.n
             alpha = np.arctan2(-_dot(zn, yv), _dot(zn, zp))
             beta = np.zeros_like(a)
         if alpha_ref is not None:
-            alpha = alpha_ref[k] + np.angle(np.exp(1j * (alpha - alpha_ref[k])))
+            alpha = alpha_ref[k] + wrap_angle(alpha - alpha_ref[k])
         theta = np.arctan2(_dot(np.cross(xp, x), zp), _dot(xp, x))
-        off = np.angle(np.exp(1j * (theta - q_rad[k])))
+        off = wrap_angle(theta - q_rad[k])
         out.append(np.stack([off, d, a, alpha, beta], -1))
         # next frame: x_j = R_F Rx(alpha) Ry(beta) e_x
         xj = np.cos(beta)[..., None] * x + (np.sin(alpha) * np.sin(beta))[..., None] * yv \

@@ -27,16 +27,11 @@ from statistics import NormalDist
 
 import numpy as np
 
+from ..effects.link_compliance import cantilever_shape  # noqa: F401 (the one formula; tests import it here)
 from ..uncertainty import EstimateSet, propagate
 from ._common import EstimationError, at_least, finite
 
 PROC = "link compliance"
-
-
-def cantilever_shape(x_mm, a_mm):
-    """``y * 6 EI / P``: the deflection shape (mm^3) at ``x`` for a unit load at ``a`` on a clamped cantilever."""
-    x, a = np.asarray(x_mm, float), np.asarray(a_mm, float)
-    return np.where(x <= a, x * x * (3 * a - x), a * a * (3 * x - a))
 
 
 def _design(x, a, P, joint):
@@ -86,90 +81,127 @@ def _readings(gauge_x_mm, load_x_mm, load_N, deflection_mm, sigma_mm, step):
     return x, a, P, y
 
 
-def _compliance_fit(x, a, P, y, sigma_mm):
-    """Least-squares ``c = 1/EI`` of ``y = c P shape / 6`` and its 1-sigma error (gauge noise ``sigma_mm``)."""
-    s = _design(x, a, P, False)[:, 0]
-    ss = float(s @ s)
-    return float(s @ y) / ss, sigma_mm / np.sqrt(ss)
+def _wls(X: np.ndarray, y: np.ndarray, C: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Weighted least squares of ``y = X c`` with the readings' covariance ``C``: ``(c, cov_c)``."""
+    Ci = np.linalg.inv(C)
+    cov = np.linalg.inv(X.T @ Ci @ X)
+    return cov @ X.T @ Ci @ y, cov
+
+
+def _check_design(X, y, C, step):
+    X = np.asarray(X, float).reshape(len(np.ravel(y)), -1)
+    y, C = np.asarray(y, float).ravel(), np.asarray(C, float)
+    finite(PROC, step, design=X, deflection=y, covariance=C)
+    at_least(PROC, step, "readings", y.size, X.shape[1])
+    if C.shape != (y.size, y.size) or np.any(np.diag(C) <= 0):
+        raise EstimationError(PROC, step, "the readings' covariance must be square and every reading's variance "
+                              "positive")
+    if not np.any(X[:, 0]):
+        raise EstimationError(PROC, step, "no load was applied")
+    return X, y, C
+
+
+def bound_from_design(X, y, C, confidence: float = 0.95) -> RigidityBound:
+    """EI >= bound at ``confidence`` (one-sided) from readings that show no significant bending.
+
+    ``X`` (N, K): per reading its deflection per unit compliance ``1/EI`` (mm per mm^-2 N^-1: ``P shape / 6`` on a
+    cantilever; from the model's geometry in a session) in column 0, other compliances fitted alongside in the rest
+    (a joint's, which the gauges separate from the link's by the deflection's shape); ``y`` (N,) the deflections
+    (mm); ``C`` their covariance.  The upper confidence limit of the compliance is ``c_U = max(c, 0) + z sigma_c``
+    (``z`` the one-sided normal quantile: 1.645 at 95 %); a compliance cannot be negative, so clipping a negative fit
+    to zero only makes the bound conservative; ``EI >= 1 / c_U``.  With ``c <= 0`` the bound is the detection limit
+    ``1 / (z sigma_c)``."""
+    step = "lower bound on EI"
+    X, y, C = _check_design(X, y, C, step)
+    if not 0.5 < confidence < 1.0:
+        raise EstimationError(PROC, step, f"confidence {confidence:g} must lie between 0.5 and 1")
+    c, cov = _wls(X, y, C)
+    sc = float(np.sqrt(cov[0, 0]))
+    z = NormalDist().inv_cdf(confidence)
+    return RigidityBound(1.0 / (max(c[0], 0.0) + z * sc), confidence, float(c[0]), sc, 1.0 / (z * sc),
+                         float(np.max(np.abs(y))), float(np.sqrt(np.mean(np.diag(C)))))
 
 
 def rigidity_lower_bound(gauge_x_mm, load_x_mm, load_N, deflection_mm, sigma_mm: float,
                          confidence: float = 0.95) -> RigidityBound:
-    """EI >= bound at ``confidence`` (one-sided) from dial-gauge readings that show no significant bending.
+    """:func:`bound_from_design` for a cantilever: gauges at ``x``, the load ``P`` at ``a`` (one row per reading)."""
+    x, a, P, y = _readings(gauge_x_mm, load_x_mm, load_N, deflection_mm, sigma_mm, "lower bound on EI")
+    return bound_from_design(_design(x, a, P, False), y, sigma_mm ** 2 * np.eye(y.size), confidence)
 
-    The upper confidence limit of the compliance is ``c_U = max(c, 0) + z sigma_c`` (``z`` the one-sided normal
-    quantile: 1.645 at 95 %); a compliance cannot be negative, so clipping a negative fit to zero only makes the bound
-    conservative; ``EI >= 1 / c_U``.  With ``c <= 0`` the bound is the detection limit ``1 / (z sigma_c)``."""
-    step = "lower bound on EI"
-    x, a, P, y = _readings(gauge_x_mm, load_x_mm, load_N, deflection_mm, sigma_mm, step)
-    if not 0.5 < confidence < 1.0:
-        raise EstimationError(PROC, step, f"confidence {confidence:g} must lie between 0.5 and 1")
-    c, sc = _compliance_fit(x, a, P, y, sigma_mm)
-    z = NormalDist().inv_cdf(confidence)
-    return RigidityBound(1.0 / (max(c, 0.0) + z * sc), confidence, c, sc, 1.0 / (z * sc),
-                         float(np.max(np.abs(y))), float(sigma_mm))
+
+def rigidity_from_design(X, y, C, names=("EI_Nmm2",), second_moment_mm4: float | None = None,
+                         n_mc: int = 20_000, rng=0, confidence: float = 0.95) -> EstimateSet | RigidityBound:
+    """What the gauges say about the link (design ``X``, readings ``y``, covariance ``C`` as in
+    :func:`bound_from_design`): EI with its error (:func:`flexural_rigidity_from_design`) when the fitted compliance
+    is significant (:data:`SIGNIFICANT` of its errors) and the deflections rise above the gauge noise, else the
+    one-sided lower bound: a stiff link is a result, not a failure."""
+    X, y, C = _check_design(X, y, C, "cantilever fit")
+    c, cov = _wls(X, y, C)
+    if c[0] < SIGNIFICANT * np.sqrt(cov[0, 0]) or np.max(np.abs(y)) <= 3 * np.sqrt(np.max(np.diag(C))):
+        return bound_from_design(X, y, C, confidence)
+    return flexural_rigidity_from_design(X, y, C, names, second_moment_mm4, n_mc, rng)
 
 
 def link_rigidity(gauge_x_mm, load_x_mm, load_N, deflection_mm, sigma_mm: float,
                   second_moment_mm4: float | None = None, n_mc: int = 20_000, rng=0,
                   confidence: float = 0.95) -> EstimateSet | RigidityBound:
-    """What the gauges say about the link: EI with its error (:func:`flexural_rigidity`) when the fitted compliance
-    is significant (:data:`SIGNIFICANT` of its errors) and the deflections rise above the gauge noise, else the
-    one-sided lower bound (:func:`rigidity_lower_bound`): a stiff link is a result, not a failure."""
+    """:func:`rigidity_from_design` for a cantilever: gauges at ``x``, the load ``P`` at ``a``."""
     x, a, P, y = _readings(gauge_x_mm, load_x_mm, load_N, deflection_mm, sigma_mm, "cantilever fit")
-    c, sc = _compliance_fit(x, a, P, y, sigma_mm)
-    if c < SIGNIFICANT * sc or np.max(np.abs(y)) <= 3 * sigma_mm:
-        return rigidity_lower_bound(x, a, P, y, sigma_mm, confidence)
-    return flexural_rigidity(x, a, P, y, sigma_mm, second_moment_mm4=second_moment_mm4, n_mc=n_mc, rng=rng)
+    return rigidity_from_design(_design(x, a, P, False), y, sigma_mm ** 2 * np.eye(y.size),
+                                second_moment_mm4=second_moment_mm4, n_mc=n_mc, rng=rng, confidence=confidence)
+
+
+def flexural_rigidity_from_design(X, y, C, names=("EI_Nmm2",), second_moment_mm4: float | None = None,
+                                  n_mc: int = 20_000, rng=0) -> EstimateSet:
+    """EI (N mm^2) from deflections ``y`` with covariance ``C`` (design ``X`` as in :func:`bound_from_design`),
+    errors three ways; the stiffness of the next columns too when ``names`` names them (N m/rad; a column not named is
+    fitted alongside and not reported: a joint's turn that is no more than noise may come out negative); with
+    ``second_moment_mm4`` the Young's modulus ``E = EI / I`` (N/mm^2 = MPa) too."""
+    step = "cantilever fit"
+    X, y, C = _check_design(X, y, C, step)
+    k = X.shape[1]
+    if np.max(np.abs(y)) <= 3 * np.sqrt(np.max(np.diag(C))):
+        raise EstimationError(PROC, step, f"the loads produced no measurable deflection (largest {np.max(np.abs(y)):.3g}"
+                              f" mm vs gauge noise {np.sqrt(np.max(np.diag(C))):.3g} mm): EI is not determined")
+    XtX = X.T @ X
+    if np.linalg.cond(XtX / np.outer(np.sqrt(np.diag(XtX)), np.sqrt(np.diag(XtX)))) > 1e12:
+        raise EstimationError(PROC, step, "the readings cannot separate the unknowns (move gauges or loads)")
+    names = list(names)[:k]
+    r = len(names)
+    units = ["N mm^2"] + ["N m/rad"] * (r - 1)
+    if second_moment_mm4:
+        names.append("E_MPa")
+        units.append("N/mm^2")
+    c, Cc = _wls(X, y, C)
+    A = Cc @ X.T @ np.linalg.inv(C)                 # c = A y
+
+    def f(z):
+        cz = np.einsum("kn,...n->...k", A, z)
+        out = [1.0 / cz[..., i] for i in range(r)]
+        if second_moment_mm4:
+            out.append(1.0 / cz[..., 0] / second_moment_mm4)
+        return np.stack(out, -1)
+
+    if np.any(c[:r] <= 0):
+        raise EstimationError(PROC, step, "a fitted compliance is not positive: deflections do not follow the loads")
+    G = np.zeros((len(names), k))
+    G[np.arange(r), np.arange(r)] = -1 / c[:r] ** 2
+    if second_moment_mm4:
+        G[-1, 0] = -1 / c[0] ** 2 / second_moment_mm4
+    res = propagate(f, y, C, names, units, n_mc=n_mc, rng=rng, first_order_cov=G @ Cc @ G.T)
+    res.extras["residual_mm"] = y - X @ c
+    return res
 
 
 def flexural_rigidity(gauge_x_mm, load_x_mm, load_N, deflection_mm, sigma_mm: float, include_joint: bool = False,
                       second_moment_mm4: float | None = None, n_mc: int = 20_000, rng=0) -> EstimateSet:
-    """EI (N mm^2) -- and K_j (N m/rad) with ``include_joint`` -- from dial-gauge readings, errors three ways.
-
-    One row per reading: gauge position ``x``, load position ``a``, load ``P`` and measured deflection (mm, positive
-    in the load's direction, zero-load reading subtracted).  With ``second_moment_mm4`` the Young's modulus
-    ``E = EI / I`` (N/mm^2 = MPa) is reported too.
-    """
+    """:func:`flexural_rigidity_from_design` for a cantilever: one row per reading, gauge position ``x``, load
+    position ``a``, load ``P`` and measured deflection (mm, positive in the load's direction, zero-load reading
+    subtracted); with ``include_joint`` the joint's stiffness ``K_joint`` (its rigid turn ``x P a / K``) too."""
     step = "cantilever fit"
     x, a, P, y = _readings(gauge_x_mm, load_x_mm, load_N, deflection_mm, sigma_mm, step)
     at_least(PROC, step, "readings", y.size, 3 if include_joint else 2)
-    if np.max(np.abs(y)) <= 3 * sigma_mm:
-        raise EstimationError(PROC, step, f"the loads produced no measurable deflection (largest {np.max(np.abs(y)):.3g}"
-                              f" mm vs gauge noise {sigma_mm:.3g} mm): EI is not determined")
     if include_joint and np.unique(x).size < 2:
         raise EstimationError(PROC, step, "separating joint from link compliance needs gauges at 2 or more positions")
-    X = _design(x, a, P, include_joint)
-    XtX = X.T @ X
-    if np.linalg.cond(XtX) > 1e12:
-        raise EstimationError(PROC, step, "the readings cannot separate the unknowns (move gauges or loads)")
-    names = ["EI_Nmm2"] + (["K_joint_Nm_per_rad"] if include_joint else [])
-    units = ["N mm^2"] + (["N m/rad"] if include_joint else [])
-    if second_moment_mm4:
-        names.append("E_MPa")
-        units.append("N/mm^2")
-    Xp = np.linalg.pinv(X)
-
-    def f(z):
-        c = np.einsum("kn,...n->...k", Xp, z)
-        out = [1.0 / c[..., 0]]
-        if include_joint:
-            out.append(1.0 / c[..., 1])
-        if second_moment_mm4:
-            out.append(1.0 / c[..., 0] / second_moment_mm4)
-        return np.stack(out, -1)
-
-    c = Xp @ y
-    if np.any(c <= 0):
-        raise EstimationError(PROC, step, "a fitted compliance is not positive: deflections do not follow the loads")
-    Cc = sigma_mm ** 2 * np.linalg.inv(XtX)
-    G = np.zeros((len(names), c.size))
-    G[0, 0] = -1 / c[0] ** 2
-    if include_joint:
-        G[1, 1] = -1 / c[1] ** 2
-    if second_moment_mm4:
-        G[-1, 0] = -1 / c[0] ** 2 / second_moment_mm4
-    res = propagate(f, y, np.eye(y.size) * sigma_mm ** 2, names, units, n_mc=n_mc, rng=rng,
-                    first_order_cov=G @ Cc @ G.T)
-    res.extras["residual_mm"] = y - X @ c
-    return res
+    return flexural_rigidity_from_design(_design(x, a, P, include_joint), y, sigma_mm ** 2 * np.eye(y.size),
+                                         ("EI_Nmm2", "K_joint_Nm_per_rad"), second_moment_mm4, n_mc, rng)

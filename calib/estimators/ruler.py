@@ -29,6 +29,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..angles import wrap_angle
 from ..theodolite import observe_params
 from ..uncertainty import EstimateSet, propagate
 from ._common import EstimationError, angles_in_range, at_least, finite
@@ -39,8 +40,6 @@ CLOSED_NAMES = ["L_mm", "gamma1_rad", "gamma2_rad"]
 CLOSED_UNITS = ["mm", "rad", "rad"]
 
 
-def _wrap(a):
-    return np.angle(np.exp(1j * np.asarray(a)))
 
 
 def _arg(w):
@@ -59,8 +58,8 @@ def closed_form(x: np.ndarray) -> np.ndarray:
     x = np.asarray(x, float)
     aC, aD, aE, bC, bD, bE, R, r1 = np.moveaxis(x, -1, 0)
     r2 = R - r1
-    a1, a2 = _wrap(aC - aD), _wrap(aD - aE)
-    b1, b2 = _wrap(bD - bC), _wrap(bE - bD)
+    a1, a2 = wrap_angle(aC - aD), wrap_angle(aD - aE)
+    b1, b2 = wrap_angle(bD - bC), wrap_angle(bE - bD)
     A, B = a1 + a2, b1 + b2
     th1 = np.arctan2(np.sin(A), r1 * np.sin(a2) / (r2 * np.sin(a1)) - np.cos(A))
     th2 = np.arctan2(np.sin(B), r1 * np.sin(b2) / (r2 * np.sin(b1)) - np.cos(B))
@@ -72,7 +71,7 @@ def closed_form(x: np.ndarray) -> np.ndarray:
     L = np.linalg.norm(pa - pb, axis=-1)
     ang_A = _arg(-pa) - _arg(pb - pa)                               # ccw at A from A->B to A->C
     ang_B = _arg(pa - pb) - _arg(pd - pb)                           # cw at B from B->A to B->D
-    return np.stack([L, _wrap(aC - _wrap(ang_A)), _wrap(bD - _wrap(ang_B))], -1)
+    return np.stack([L, wrap_angle(aC - wrap_angle(ang_A)), wrap_angle(bD - wrap_angle(ang_B))], -1)
 
 
 def closed_form_first_order(x: np.ndarray) -> np.ndarray:
@@ -87,7 +86,7 @@ def closed_form_first_order(x: np.ndarray) -> np.ndarray:
     x = np.asarray(x, float)
     aC, aD, aE, bC, bD, bE, R, r1 = x
     r2 = R - r1
-    a1, a2, b1, b2 = _wrap(aC - aD), _wrap(aD - aE), _wrap(bD - bC), _wrap(bE - bD)
+    a1, a2, b1, b2 = wrap_angle(aC - aD), wrap_angle(aD - aE), wrap_angle(bD - bC), wrap_angle(bE - bD)
     # step 0: intermediate variables v = [a1, a2, b1, b2, R, r1] from the inputs
     M0 = np.zeros((6, 8))
     M0[0, [0, 1]] = [1, -1]
@@ -161,8 +160,8 @@ def _check_closed(x):
     R, r1 = x[6], x[7]
     if not (0 < r1 < R):
         raise EstimationError(PROC, "closed form", f"ruler marks must satisfy 0 < r1 < R (got r1 {r1}, R {R} mm)")
-    a1, a2 = _wrap(x[0] - x[1]), _wrap(x[1] - x[2])
-    b1, b2 = _wrap(x[4] - x[3]), _wrap(x[5] - x[4])
+    a1, a2 = wrap_angle(x[0] - x[1]), wrap_angle(x[1] - x[2])
+    b1, b2 = wrap_angle(x[4] - x[3]), wrap_angle(x[5] - x[4])
     for nm, v in (("alpha1 (C-D at A)", a1), ("alpha2 (D-E at A)", a2), ("beta1 (C-D at B)", b1),
                   ("beta2 (D-E at B)", b2)):
         if not (1e-5 < v < np.pi - 1e-5):
@@ -265,7 +264,7 @@ class _RulerModel:
         marks, obs = _align(marks, p), _align(obs, p)
         pred = self.readings(p, marks)
         n = self.s.n
-        return np.concatenate([_wrap(obs[..., :n] - pred[..., :n]), obs[..., n:] - pred[..., n:]], -1)
+        return np.concatenate([wrap_angle(obs[..., :n] - pred[..., :n]), obs[..., n:] - pred[..., n:]], -1)
 
 
 def _align(a: np.ndarray, p: np.ndarray) -> np.ndarray:
@@ -289,7 +288,7 @@ def _initial_guess(model: _RulerModel, s: RulerSightings, marks: np.ndarray) -> 
         h = np.where(f == 2, h - np.pi, h)                    # face II -> face I direction
         v = np.where(f == 2, 2 * np.pi - v, v)
         hz = np.angle(np.mean(np.exp(1j * h)))
-        return (_wrap(-hz) if st == 0 else _wrap(hz)), float(np.mean(v))
+        return (wrap_angle(-hz) if st == 0 else wrap_angle(hz)), float(np.mean(v))
 
     mid = model.n_marks // 2
     last = model.n_marks - 1
@@ -428,5 +427,5 @@ def closed_form_readings(s: RulerSightings, placement: int = 0) -> np.ndarray:
                 raise EstimationError(PROC, "closed form", f"mark {'CDE'[mk]} not sighted face I from "
                                       f"station {'AB'[st]} in placement {placement}")
             h = s.hz_rad[sel][0]
-            out.append(_wrap(-h) if st == 0 else _wrap(h))
+            out.append(wrap_angle(-h) if st == 0 else wrap_angle(h))
     return np.array(out)

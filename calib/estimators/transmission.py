@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..angles import wrap_angle
 from ..uncertainty import EstimateSet, default_steps, jacobian, propagate, spread_sd, widen
 from ._common import EstimationError, angles_in_range, at_least, error_covariance, finite
 from .axes import fit_circle
@@ -156,7 +157,7 @@ def commanded_angle_errors(theta_measured_rad, cov_rad2, theta_desired_rad) -> E
     P = (rel @ Ki) / (rel @ Ki @ rel)                          # GLS slope through the origin
 
     def f(z):
-        e = np.angle(np.exp(1j * (z[..., 1:] - z[..., :1] - rel)))      # measured angles wrap past 180 deg
+        e = wrap_angle(z[..., 1:] - z[..., :1] - rel)      # measured angles wrap past 180 deg
         return np.concatenate([e, (e @ P)[..., None]], -1)
 
     names = [f"E_a{i}_rad" for i in range(1, m.size)] + ["E_a_slope"]

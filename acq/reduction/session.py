@@ -1,0 +1,87 @@
+"""A stored session as the reduction reads it: the session row, its plan and set-up, and every accepted step with the
+readings, operator inputs and encoder counts of its accepted (last) attempt.  Opened read-only; every JSON column and
+array blob is checked as it is read, so a damaged file is one line naming it."""
+from __future__ import annotations
+
+import sqlite3
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from calib.errors import RobocalError
+
+from acq.session.setup_file import setup_from_text
+from acq.session.store import StoreError, connect_readonly, from_npy, json_column
+
+
+@dataclass
+class SessionData:
+    path: str
+    session: dict
+    plan: dict
+    setup: dict
+    steps: list[dict]                               # accepted steps, each with readings, chunks, inputs
+    devices: list[dict] = field(default_factory=list)
+
+    @property
+    def metadata(self) -> dict:
+        """The session's metadata (``emulated``, ``scenario_path``, ``seed`` for an emulated one)."""
+        return json_column(self.session.get("metadata_json") or "{}", f"{self.path}: session metadata_json")
+
+    def by_procedure(self) -> dict[str, list[dict]]:
+        """The accepted steps grouped by their procedure, in the order recorded."""
+        out: dict[str, list[dict]] = {}
+        for st in self.steps:
+            out.setdefault(st["procedure"], []).append(st)
+        return out
+
+
+def _rows(conn, sql, args=()):
+    cur = conn.execute(sql, args)
+    cols = [d[0] for d in cur.description]
+    return [dict(zip(cols, r)) for r in cur.fetchall()]
+
+
+def load_session(path: str) -> SessionData:
+    """Every accepted step with the readings of its accepted (last) attempt; opened read-only."""
+    conn = connect_readonly(path)
+    try:
+        return _load(conn, path)
+    except sqlite3.DatabaseError as exc:
+        raise StoreError(f"{path}: damaged database ({exc})") from None
+    finally:
+        conn.close()
+
+
+def _load(conn, path: str) -> SessionData:
+    """The rows of :func:`load_session`, each JSON column and array blob checked as it is read."""
+    sess = _rows(conn, "SELECT * FROM session ORDER BY session_id LIMIT 1")
+    if not sess:
+        raise RobocalError(f"{path}: holds no session")
+    s = sess[0]
+    steps = _rows(conn, "SELECT * FROM step WHERE session_id=? AND status='accepted' ORDER BY seq",
+                  (s["session_id"],))
+    for st in steps:
+        a = st["attempts"]
+        st["spec"] = json_column(st["spec_json"], f"{path}: step {st['key']!r}: spec_json")
+        st["readings"] = _rows(conn, "SELECT station, target, face, repeat, hz_rad, v_rad FROM reading "
+                                     "WHERE step_id=? AND attempt=? ORDER BY reading_id", (st["step_id"], a))
+        st["inputs"] = {r["name"]: r["value"] for r in _rows(
+            conn, "SELECT name, value FROM operator_input WHERE step_id=? AND attempt=? ORDER BY input_id",
+            (st["step_id"], a))}
+        ch = _rows(conn, "SELECT counts FROM encoder_chunk WHERE step_id=? AND attempt=? ORDER BY chunk_id",
+                   (st["step_id"], a))
+        st["counts"] = _counts(ch, f"{path}: step {st['key']!r}: encoder counts")
+    devices = _rows(conn, "SELECT role, driver, url, identity_json FROM device")
+    return SessionData(path, s, json_column(s["plan_json"], f"{path}: session plan_json"),
+                       setup_from_text(s["setup_json"], f"{path}: session setup_json"), steps, devices)
+
+
+def _counts(chunks: list[dict], where: str) -> np.ndarray | None:
+    """The encoder counts of a step's chunks, one (samples, joints) array; damaged blobs are one line."""
+    if not chunks:
+        return None
+    arrays = [from_npy(c["counts"], where) for c in chunks]
+    if any(a.ndim != 2 or a.shape[1] != arrays[0].shape[1] for a in arrays):
+        raise StoreError(f"{where}: damaged array data (chunks of different shapes)")
+    return np.concatenate(arrays)

@@ -1,0 +1,142 @@
+"""A session's plan as typed data: which procedures, with which parameters -- one JSON Schema for the whole plan
+(the session database keeps it as JSON), checked once when a plan enters (:func:`plan_of`), and the parameters'
+defaults in one place, the dataclasses below.  A joint list left empty means "the robot profile's"
+(:mod:`calib.profile`), which the procedures ask for when they generate the steps.
+
+Angles in degrees (what the operator types into the teach pendant), joints 1-based.
+"""
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass, field
+from typing import Any
+
+from calib.jsonfile import FINITE, check_schema
+
+_COUNT = {"type": "integer", "minimum": 1, "maximum": 10000}
+_JOINTS = {"type": "array", "items": {"type": "integer", "minimum": 1, "maximum": 64}, "uniqueItems": True}
+
+
+def _obj(properties: dict) -> dict:
+    return {"type": "object", "properties": properties, "additionalProperties": False}
+
+
+@dataclass(frozen=True)
+class RulerPlan:
+    repeats: int = 1
+
+
+@dataclass(frozen=True)
+class InstrumentCheckPlan:
+    repeats: int = 2
+
+
+@dataclass(frozen=True)
+class SweepPlan:
+    points: int = 4
+    span_deg: float = 60.0
+    repeats: int = 1
+    joints: tuple[int, ...] = ()
+    point_p: bool = True             # sight point P (eq 4.3.15's d3) when the robot's profile has the scheme
+
+
+@dataclass(frozen=True)
+class PosesPlan:
+    q_deg: tuple[tuple[float, ...], ...] = ()
+    repeats: int = 1
+
+
+@dataclass(frozen=True)
+class TransmissionPlan:
+    joints: tuple[int, ...] = ()
+    points: int = 9
+    repeats: int = 1
+    range_deg: dict[str, tuple[float, float]] = field(default_factory=dict)   # joint -> offsets from READY
+
+
+@dataclass(frozen=True)
+class CompliancePlan:
+    joints: tuple[int, ...] = ()     # default: the joints the set-up loads
+    repeats: int = 1
+
+
+@dataclass(frozen=True)
+class CouplingPlan:
+    pairs: tuple[tuple[int, int], ...] = ()
+    angle_deg: float = 10.0
+    repeats: int = 1
+
+
+@dataclass(frozen=True)
+class ResolutionPlan:
+    joints: tuple[int, ...] = ()
+    points: int = 7
+    span_deg: float = 150.0
+    repeats: int = 1
+
+
+#: plan key -> its parameters' type
+SECTIONS = {"ruler": RulerPlan, "instrument_check": InstrumentCheckPlan, "sweeps": SweepPlan, "poses": PosesPlan,
+            "transmission": TransmissionPlan, "compliance": CompliancePlan, "coupling": CouplingPlan,
+            "encoder_resolution": ResolutionPlan}
+
+PLAN_SCHEMA: dict[str, Any] = {
+    "type": "object", "additionalProperties": False,
+    "properties": {
+        # names of the procedure registry (acq.session.procedures: an unknown one is said there, with the known)
+        "procedures": {"type": "array", "items": {"type": "string"}, "uniqueItems": True},
+        "seed": {"type": "integer", "minimum": 0},
+        "ruler": _obj({"repeats": _COUNT}),
+        "instrument_check": _obj({"repeats": _COUNT}),
+        "sweeps": _obj({"points": {**_COUNT, "minimum": 2}, "span_deg": {**FINITE, "exclusiveMinimum": 0},
+                        "repeats": _COUNT, "joints": _JOINTS, "point_p": {"type": "boolean"}}),
+        "poses": _obj({"q_deg": {"type": "array", "items": {"type": "array", "items": FINITE, "minItems": 1}},
+                       "repeats": _COUNT}),
+        "transmission": _obj({"joints": _JOINTS, "points": {**_COUNT, "minimum": 2}, "repeats": _COUNT,
+                              "range_deg": {"type": "object", "propertyNames": {"pattern": "^[0-9]+$"},
+                                            "additionalProperties": {"type": "array", "items": FINITE,
+                                                                     "minItems": 2, "maxItems": 2}}}),
+        "compliance": _obj({"joints": _JOINTS, "repeats": _COUNT}),
+        "coupling": _obj({"pairs": {"type": "array", "items": {"type": "array", "items": {"type": "integer",
+                                                                                          "minimum": 1},
+                                                                  "minItems": 2, "maxItems": 2}},
+                          "angle_deg": FINITE, "repeats": _COUNT}),
+        "encoder_resolution": _obj({"joints": _JOINTS, "points": {**_COUNT, "minimum": 2},
+                                    "span_deg": {**FINITE, "exclusiveMinimum": 0}, "repeats": _COUNT}),
+    },
+}
+
+
+@dataclass(frozen=True)
+class SessionPlan:
+    """The whole plan (see the module docstring)."""
+
+    procedures: tuple[str, ...] = ()          # in order; a procedure generator alone reads only its own entry
+    seed: int = 0
+    ruler: RulerPlan = RulerPlan()
+    instrument_check: InstrumentCheckPlan = InstrumentCheckPlan()
+    sweeps: SweepPlan = SweepPlan()
+    poses: PosesPlan = PosesPlan()
+    transmission: TransmissionPlan = TransmissionPlan()
+    compliance: CompliancePlan = CompliancePlan()
+    coupling: CouplingPlan = CouplingPlan()
+    encoder_resolution: ResolutionPlan = ResolutionPlan()
+
+    def to_dict(self) -> dict:
+        """The plan as JSON data (what the session database keeps)."""
+        return asdict(self)
+
+
+def _tuples(v):
+    return tuple(_tuples(x) for x in v) if isinstance(v, (list, tuple)) else v
+
+
+def plan_of(doc: dict | SessionPlan, where: str = "session plan") -> SessionPlan:
+    """The typed plan of a plan document, checked against :data:`PLAN_SCHEMA` (one line naming ``where`` and the
+    key when it does not follow it); a :class:`SessionPlan` as it is."""
+    if isinstance(doc, SessionPlan):
+        return doc
+    check_schema(doc, PLAN_SCHEMA, where)
+    parts = {k: SECTIONS[k](**{f: (_tuples(v) if f != "range_deg" else {j: tuple(r) for j, r in v.items()})
+                                for f, v in doc[k].items()})
+             for k in SECTIONS if k in doc}
+    return SessionPlan(tuple(doc.get("procedures", ())), int(doc.get("seed", 0)), **parts)
