@@ -69,8 +69,8 @@ def test_ruler_and_one_joint_sweep_end_to_end(tmp_path):
             assert (tmp_path / "s_report" / "report.html").exists()
             step = str(app.query_one("#step").render())
             assert "report.html" in step
-            table = app.query_one("#checks")
-            names = [str(table.get_row_at(i)[0]) for i in range(table.row_count)]
+            assert app.table_columns[:3] == ["estimate", "value", "1 sigma"]
+            names = [str(r[0]) for r in app.table_rows]
             assert any("L_mm" in n for n in names), names
             await pilot.press("q")
 
@@ -129,12 +129,24 @@ def test_operator_input_must_be_a_number(tmp_path):
         async with app.run_test(size=(180, 50)) as pilot:
             await answer_all(app, pilot, lambda a: a.pending is not None and a.pending.request.kind == "setup"
                              and a.pending.request.step.inputs, press_first=0)
-            spec = app.pending.request.step.inputs[0]
+            specs = app.pending.request.step.inputs
+            spec = specs[0]
             box = app.query_one(f"#in-{spec.name}")
+            assert box.value == "" and str(spec.suggested) in box.placeholder or f"{spec.suggested:g}" in box.placeholder
             box.value = "ten"
             app.action_answer("continue")
             assert app.pending is not None and not app.pending.future.done()     # refused, still waiting
             box.value = "44.5"
+            app.action_answer("continue")                                       # the lever is not entered yet
+            assert app.pending is not None and not app.pending.future.done()
+            lever = app.query_one(f"#in-{specs[1].name}")
+            for _ in range(40):
+                await pilot.pause(0.05)
+                if app.focused is lever:
+                    break
+            assert app.focused is lever                                         # the missing field has the keys
+            for other in specs[1:]:
+                app.query_one(f"#in-{other.name}").value = f"{other.suggested:g}"
             app.action_answer("continue")
             await answer_all(app, pilot, lambda a: a.finished is not None, press_first=0)
             assert app.data[app.current_key].inputs[spec.name] == 44.5
