@@ -27,8 +27,8 @@ def _builder(holder):
 async def _at_prompt(app, pilot):
     for _ in range(100):
         await pilot.pause(0.05)
-        if app.pending is not None and app.query(f"#in-{LOAD.name}"):
-            await pilot.pause(0.1)
+        if app.pending is not None and app.query(f"#in-{LOAD.name}") and \
+                app.focused is app.query_one(f"#in-{LOAD.name}"):          # the first field has the keys
             return
     raise AssertionError("the set-up prompt never showed")
 

@@ -253,7 +253,7 @@ def inputs_as_planned(step, readings: list[dict], values: dict, limits: dict) ->
         both = f"entered {v:g} {spec.unit}, the plan {spec.suggested:g} {spec.unit}"
         out.append(Check(f"as planned {spec.name}", ok, dev, spec.tolerance, spec.unit,
                          f"{spec.prompt}: {both}" if ok else
-                         f"{spec.prompt}: {both} -- {dev:g} {spec.unit} apart. Hang what the plan asks and "
+                         f"{spec.prompt}: {both}, {dev:.3g} {spec.unit} apart — hang what the plan asks and "
                          f"repeat (r), or accept (a) if {v:g} {spec.unit} is really what is there: the entered value "
                          f"is the one used"))
     return out

@@ -19,7 +19,7 @@ from textual.app import App, ComposeResult
 from textual.binding import Binding
 from textual.containers import Horizontal, Vertical, VerticalScroll
 from textual.screen import ModalScreen
-from textual.widgets import Footer, Header, Markdown, RichLog, Static, Tree
+from textual.widgets import Header, Markdown, RichLog, Static, Tree
 from textual_plotext import PlotextPlot
 
 from acq.session.runner import Answer, Event, Runner
@@ -95,6 +95,7 @@ class RobocalApp(App):
     #step { height: auto; min-height: 4; border: round $accent; padding: 0 1; }
     #diagram { height: auto; color: $text-muted; padding: 0 1; }
     #prompt { height: auto; padding: 0 1; background: $boost; }
+    #keys { dock: bottom; height: 1; background: $panel; padding: 0 1; }
     #inputs { height: auto; padding: 0 1; }
     .input-row { height: 1; }
     .input-label { width: auto; padding: 0 1 0 0; }
@@ -117,6 +118,10 @@ class RobocalApp(App):
     Screen.-narrow #plan { display: none; }
     Screen.-narrow #right { display: none; }
     Screen.-short #diagram { display: none; }
+    /* short terminals (80x24): no frames -- their rows go to the checks; the panels keep a tint or a rule apart */
+    Screen.-short #step { border: none; min-height: 2; background: $boost; }
+    Screen.-short #live { border: none; border-top: hkey $success; }
+    Screen.-short #checks { border: none; border-top: hkey $primary; }
     #body.show-plan #plan { display: block; }
     #body.show-side #right { display: block; }
     #body.show-diagram #diagram { display: block; }
@@ -170,6 +175,7 @@ class RobocalApp(App):
         self.preflight_lines: list[str] = []                 # why the runner refused to start, one line a step
         self.table_columns: list[str] = list(CHECK_COLUMNS)  # what the checks panel shows now (tests read it)
         self.table_rows: list[tuple] = []
+        self._panels: dict[str, Static] = {}
 
     # -- layout -------------------------------------------------------------------------------------------------
     def compose(self) -> ComposeResult:
@@ -181,13 +187,18 @@ class RobocalApp(App):
                 yield Static("", id="diagram")
                 yield Static("", id="prompt")
                 yield Vertical(id="inputs")
-                yield Static("", id="checks")              # above the readings: at a decision it matters more
                 yield Static("no readings yet", id="live")
+                yield Static("", id="checks")
                 yield PlotextPlot(id="plot")
             with Vertical(id="right"):
                 yield Static("", id="devices")
-                yield RichLog(id="log", wrap=True, markup=False)
-        yield Footer()
+                yield RichLog(id="log", wrap=True, markup=False, min_width=20)   # wrapped to its column
+        yield Static("", id="keys")
+
+    def panel(self, selector: str) -> Static:
+        """A panel of the main screen, found once: timers and resizes reach it while a modal (help, the abort
+        question) is on top, where a query of the active screen finds nothing."""
+        return self._panels[selector]
 
     def on_mount(self) -> None:
         # only the value fields take focus: Tab goes to the first field whatever the width (the plan tree, shown
@@ -195,6 +206,8 @@ class RobocalApp(App):
         self.query_one("#plan", Tree).can_focus = False
         self.query_one("#middle").can_focus = False
         self.query_one("#log").can_focus = False
+        self._panels = {sel: self.query_one(sel) for sel in ("#middle", "#checks", "#live", "#devices", "#keys")}
+        self._refresh_keys()
         self.operator.app = self
         self.query_one("#step", Static).update("Connecting to the instruments…")
         # opening devices does I/O: never in the UI thread
@@ -229,6 +242,13 @@ class RobocalApp(App):
                        self.set_interval(1.0, self._refresh_devices)]
         self._refresh_devices()
 
+    #: width of the step's column from which the checks and results are a table of columns; narrower, each row is
+    #: its first column then the rest as one wrapped text (a reason column of 12 characters was unreadable)
+    WIDE_TABLE_COLUMNS = 110
+
+    #: header columns that are not the title: the icon, the clock, the " — " and the margins
+    HEADER_RESERVED = 22
+
     #: characters of a step title shown in the plan tree (the full title shows when the node is highlighted)
     PLAN_LABEL_CHARS = 28
 
@@ -250,7 +270,10 @@ class RobocalApp(App):
         for proc, node in self.groups.items():
             node.set_label(self.progress.group_label(proc))
         cur = self.steps_by_key[self.current_key].procedure if self.current_key in self.steps_by_key else None
-        self.sub_title = self.progress.header(cur, time.monotonic())
+        room = self.size.width - self.HEADER_RESERVED - len(self.TITLE)
+        self.title = self.TITLE if room >= 40 else "robocal"          # 80 columns: the progress needs the room
+        self.sub_title = self.progress.header(cur, time.monotonic(), self.size.width - self.HEADER_RESERVED
+                                              - len(self.title))
 
     def _relayout_text(self) -> None:
         """Measure the wrapped texts again at the width they have now: a text set while the layout was still
@@ -260,6 +283,7 @@ class RobocalApp(App):
 
     def on_resize(self, event) -> None:
         self.call_after_refresh(self._relayout_text)
+        self.call_after_refresh(lambda: self._show_table(self.table_columns, self.table_rows))
 
     @on(Tree.NodeHighlighted, "#plan")
     def _plan_highlighted(self, event: Tree.NodeHighlighted) -> None:
@@ -355,9 +379,10 @@ class RobocalApp(App):
     def _show_table(self, columns, rows: list[tuple]) -> None:
         """The checks panel (later the results): a table as wide as the panel, reasons wrapped, every row shown."""
         self.table_columns, self.table_rows = list(columns), list(rows)
-        panel = self.query_one("#checks", Static)
+        panel = self.panel("#checks")
         panel.set_class(bool(rows), "has-rows")
-        panel.update(table_of(self.table_columns, self.table_rows) if rows else "")
+        wide = self.panel("#middle").size.width >= self.WIDE_TABLE_COLUMNS
+        panel.update(table_of(self.table_columns, self.table_rows, stacked=not wide) if rows else "")
 
     def _ev_step_saved(self, d: dict) -> None:
         key = d["key"]
@@ -404,7 +429,7 @@ class RobocalApp(App):
                 threading.Thread(target=self._final_results, args=(where,), daemon=True).start()
         self.query_one("#step", Static).update(msg + "\n\nPress q to quit.")
         self.query_one("#prompt", Static).update("")
-        self.refresh_bindings()
+        self._refresh_keys()
 
     def _final_results(self, db: str) -> None:
         """Reprocess the finished session (read-only) and write its report, off the UI thread."""
@@ -464,7 +489,7 @@ class RobocalApp(App):
         if req.kind == "setup" and req.step.inputs:
             box.mount_all(input_rows(req.step.inputs))
             self.call_after_refresh(self._focus_field, req.step.inputs[0].name)
-        self.refresh_bindings()
+        self._refresh_keys()
 
     def _focus_field(self, name: str) -> None:
         fields = self.query(f"#in-{name}")
@@ -496,6 +521,28 @@ class RobocalApp(App):
                 fields[0].focus()
             return
         self.screen.focus_next()
+
+    def _refresh_keys(self) -> None:
+        """The key bar: every key that acts now, with what it does, in one line (80 columns hold them all).
+
+        Why not Textual's footer: it rebuilds its widgets whenever the keys change -- twice a prompt -- and that took
+        a few hundred ms a key on a loaded 2-core machine (benchmarks/bench_tui_keys.py); this is one line of text."""
+        shown = []
+        for key, active in self.screen.active_bindings.items():
+            b = active.binding
+            if b.show and active.enabled and (b.action, key) not in shown:
+                shown.append((b.action, key))
+        text = "  ".join(f"[b]{self.get_key_display(self.screen.active_bindings[k].binding)}[/b] "
+                         f"{self.screen.active_bindings[k].binding.description}" for _, k in shown)
+        if text != getattr(self, "_keys_text", None):
+            self._keys_text = text
+            self.panel("#keys").update(text)
+
+    def on_descendant_focus(self, event) -> None:
+        self._refresh_keys()                       # a field's number keys are its own while it has focus
+
+    def on_descendant_blur(self, event) -> None:
+        self.call_after_refresh(self._refresh_keys)
 
     def check_action(self, action: str, parameters: tuple) -> bool | None:
         """The footer shows the step's keys that do something now (the keys of a field never hide them)."""
@@ -554,7 +601,7 @@ class RobocalApp(App):
         self.query_one("#prompt", Static).update(f"[dim]{action}…[/]")
         self.query_one("#inputs", Vertical).remove_children()
         msg.future.set_result(Answer(action, values))
-        self.refresh_bindings()
+        self._refresh_keys()
 
     def _request_between_prompts(self, action: str) -> None:
         """``p`` / ``x`` while the runner acquires: it stops at the next step boundary (``x`` asks first)."""
@@ -628,16 +675,18 @@ class RobocalApp(App):
         tap = getattr(self.handle.runner.rig, "tap", None) if self.handle else None
         sample = tap.latest() if tap is not None else None
         if sample is not None:
-            live = self.query_one("#live", Static)
-            width = max((live.size.width or 80) - 4, 20)
+            live = self.panel("#live")
+            width = max(live.size.width or 76, 20)             # the content's width (frame and padding excluded)
             lines += joint_table(sample.counts, sample.joint_rad, width)
-        live = self.query_one("#live", Static)
+        live = self.panel("#live")
         live.set_class(bool(lines), "has-data")
         live.update("\n".join(lines) or "no readings yet")
 
     def _refresh_devices(self) -> None:
         if self.handle is None:
             return
+        if self.finished is None and self.steps_by_key:
+            self._show_progress()                          # the time left counts down between steps
         rig = self.handle.runner.rig
         lines = []
         # identities were read by the builder; the UI thread never talks to a device (the runner thread owns them)
@@ -651,7 +700,7 @@ class RobocalApp(App):
             lines.append(f"tap: {s.frames} frames, {s.bad_frames} bad, {getattr(s, 'lost_samples', 0)} lost, "
                          f"{s.reconnects} reconnects — {health}")
         lines.append(f"state: {self.state}")
-        self.query_one("#devices", Static).update("\n".join(lines))
+        self.panel("#devices").update("\n".join(lines))
 
     def _update_plot(self, procedure: str) -> None:
         if self.handle is None:

@@ -129,14 +129,17 @@ class Progress:
     def group_label(self, procedure: str) -> str:
         return f"{procedure}  {self.done.get(procedure, 0)}/{self.total.get(procedure, 0)}"
 
-    def header(self, current: str | None, now_s: float | None = None) -> str:
-        """Short enough for an 80-column header: ``12/176 steps · sweep 3/30 · about 14 min left``."""
+    def header(self, current: str | None, now_s: float | None = None, width: int | None = None) -> str:
+        """``12/176 steps · sweep 3/30 · about 14 min left``; within ``width`` characters the current procedure's
+        count goes first (the plan shows it too), the time left and the step count stay."""
         parts = [f"{self.steps_done}/{self.steps_total} steps"]
-        if current in self.total:
-            parts.append(f"{current} {self.done[current]}/{self.total[current]}")
         left = self.remaining_s(now_s)
         if left is not None and self.steps_done < self.steps_total:
             parts.append(f"about {duration_text(left)} left")
+        if current in self.total:
+            with_current = parts[:1] + [f"{current} {self.done[current]}/{self.total[current]}"] + parts[1:]
+            if width is None or len(" · ".join(with_current)) <= width:
+                parts = with_current
         return " · ".join(parts)
 
 
@@ -152,17 +155,31 @@ def duration_text(seconds: float) -> str:
     return f"{minutes} min" if minutes < 60 else f"{minutes // 60} h {minutes % 60:02d} min"
 
 
-def table_of(columns: list[str], rows: list[tuple], wrap_last: bool = True):
-    """A Rich table as wide as its panel whose last column (a check's reason) wraps instead of being cut: the
-    panel then takes the height the rows need."""
+#: columns whose values are named in a stacked row (a bare second number would read as the first's repeat)
+LABELLED = ("limit", "1 sigma", "truth")
+
+
+def table_of(columns: list[str], rows: list[tuple], stacked: bool = False):
+    """A Rich table as wide as its panel whose last column (a check's reason) wraps instead of being cut, so the
+    panel takes the height the rows need.  ``stacked`` (narrow terminals): two columns, the first one's and the rest
+    run together as one wrapped text, ``name · value · limit · reason``."""
     from rich import box
     from rich.table import Table
 
-    t = Table(expand=True, box=box.SIMPLE_HEAD, pad_edge=False, padding=(0, 1), show_edge=False)
+    t = Table(expand=True, box=box.SIMPLE_HEAD, pad_edge=False, padding=(0, 1), show_edge=False,
+              show_header=not stacked)
+    if stacked:
+        first = 1 if columns[:2] == ["check", "result"] else 0      # a check: its verdict leads the row
+        t.add_column(columns[first], no_wrap=True)
+        t.add_column(" · ".join(c for i, c in enumerate(columns) if i != first), ratio=1, overflow="fold")
+        for r in rows:
+            t.add_row(r[first], " · ".join(f"{columns[i]} {v}" if columns[i] in LABELLED else str(v)
+                                           for i, v in enumerate(r) if i != first and str(v)))
+        return t
     for i, name in enumerate(columns):
         last = i == len(columns) - 1
-        t.add_column(name, ratio=1 if last and wrap_last else None, overflow="fold",
-                     no_wrap=not (last and wrap_last), justify="left" if i == 0 or last else "right")
+        t.add_column(name, ratio=1 if last else None, overflow="fold", no_wrap=not last,
+                     justify="left" if i == 0 or last else "right")
     for r in rows:
         t.add_row(*r)
     return t
