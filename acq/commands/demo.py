@@ -15,6 +15,11 @@ from acq.argtypes import output_dir, output_file, seed_int, te_joints
 
 NAME = "demo"
 HELP = "record an emulated calibration session of every procedure, then reprocess it"
+EXAMPLES = """\
+robocal demo                                    # record an emulated session (robocal-demo.db), reprocess it
+robocal demo --db run.db --report report/ --pdf   # ... and write the report, HTML and PDF
+robocal demo --db run.db --resume               # continue an interrupted one
+"""
 
 
 def add_arguments(p):

@@ -10,6 +10,11 @@ from acq.commands.demo import add_report_options
 
 NAME = "reprocess"
 HELP = "rerun the calibration from a saved session (read-only), write JSON estimates and an HTML report"
+EXAMPLES = """\
+robocal reprocess cell.db --report report/ --json results.json
+robocal reprocess cell.db --report report/ --pdf --tolerance-mm 0.5
+robocal reprocess cell.db --mc 200              # Monte Carlo errors as well
+"""
 
 
 def add_arguments(p):

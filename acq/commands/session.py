@@ -13,14 +13,21 @@ writes an annotated template to start from.  ``--poses`` adds the Chapter 6 pose
 from __future__ import annotations
 
 import json
+import sys
 from pathlib import Path
 
 from calib.errors import RobocalError
 from calib.fileio import atomic_write_text
-from acq.argtypes import output_file, seed_int, te_joints
+from acq.argtypes import add_robot_argument, output_file, seed_int, te_joints
 
 NAME = "session"
 HELP = "guide the operator through a calibration session (Textual TUI)"
+EXAMPLES = """\
+robocal session --emulate --db cell.db           # the emulated cell (resumes when cell.db exists)
+robocal session --emulate --only ruler --only sweep/j2
+robocal session --db cell.db --setup setup.json --tap can:socketcan:can0 \\
+    --theodolite A=geocom:/dev/ttyUSB0 --theodolite B=geocom:/dev/ttyUSB1
+"""
 
 
 def add_arguments(p):
@@ -37,7 +44,7 @@ def add_arguments(p):
                    help="the encoder tap (python-can interface and channel, or a serial URL)")
     p.add_argument("--setup", metavar="SETUP.json", help="bench geometry (see --write-setup)")
     p.add_argument("--poses", metavar="POSES.csv", help="Chapter 6 pose set (q1..q6, deg)")
-    p.add_argument("--robot", metavar="FILE", help="robot description TOML (default: the thesis's Puma 560)")
+    add_robot_argument(p, "the thesis's Puma 560; a resumed session keeps the one it was recorded with")
     p.add_argument("--te-joints", type=te_joints, metavar="J,J,...", default=None,
                    help="joints whose transmission error a new session measures (default 4,6; 2 and 3 on request), "
                         "plan key transmission.joints")
@@ -236,6 +243,15 @@ def _stored_plan_setup(db: str) -> tuple[dict, dict]:
     return stored_plan_setup(db)
 
 
+def _need_terminal() -> None:
+    """The TUI reads keys from stdin and draws on stderr: without a terminal there it would run unseen, a core busy,
+    until killed -- so it refuses, in one line."""
+    if not (sys.stdin.isatty() and sys.stderr.isatty()):
+        raise RobocalError("session: needs a terminal (the TUI reads the keyboard on stdin and draws on stderr, and "
+                           "one of them is not a terminal here); run it in a terminal, or record unattended with "
+                           "robocal demo")
+
+
 def run(args) -> int:
     if args.write_setup:
         atomic_write_text(args.write_setup, json.dumps(setup_template(), indent=2))
@@ -257,6 +273,7 @@ def run(args) -> int:
     else:
         raise RobocalError("session: give --emulate, or the devices (--theodolite A=KIND:URL --theodolite "
                            "B=KIND:URL [--tap ...]) and --setup")
+    _need_terminal()
     from acq.tui.app import RobocalApp
 
     app = RobocalApp(builder)
