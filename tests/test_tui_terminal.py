@@ -42,5 +42,7 @@ def test_a_load_step_fits_the_terminal_and_a_wrong_mass_is_shown_whole(tmp_path,
         t.keys("x")
         t.wait_for("Abort the session?")
         t.keys("y")
-        t.wait_for("Press q to quit")
+        s = t.wait_for("Press q to quit")
+        assert "Aborted." in s and "0 of 1 steps saved in" in panel_text(s, "Aborted.")
+        assert "resume with: robocal session --db" in panel_text(s, "Aborted.")
         t.keys("q")

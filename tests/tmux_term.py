@@ -34,7 +34,9 @@ class Terminal:
         subprocess.run(["tmux", "kill-session", "-t", self.name], capture_output=True)
 
     def screen(self) -> str:
-        return subprocess.run(["tmux", "capture-pane", "-p", "-t", self.name], capture_output=True, text=True).stdout
+        # -J: a line the terminal wrapped (a long path printed after the TUI is gone) comes back whole
+        return subprocess.run(["tmux", "capture-pane", "-p", "-J", "-t", self.name], capture_output=True,
+                              text=True).stdout
 
     def keys(self, *keys: str, pause_s: float = 0.3) -> None:
         for k in keys:

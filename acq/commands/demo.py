@@ -12,6 +12,7 @@ from pathlib import Path
 from calib.errors import RobocalError
 from calib.fileio import atomic_write_text
 from acq.argtypes import output_dir, output_file, seed_int, te_joints
+from acq.interrupt import HungUp, command_line, exit_status, hangups_interrupt, kept_text, report_text, say
 
 NAME = "demo"
 HELP = "record an emulated calibration session of every procedure, then reprocess it"
@@ -70,11 +71,19 @@ def run(args) -> int:
                            f"recorded with): resume without --te-joints, or start a new --db with it")
     t0 = time.perf_counter()
     demo = build_demo(db, seed=args.seed, resume=args.resume, setup=base, te_joints=args.te_joints)
+    resume = _resume_command(args, db)
+    say(f"recording the session into {db} (Ctrl-C stops it; every step saved is kept)")
+    pp = ProgressPrinter()
     try:
-        with progress_display("recording session", after_s=0.5) as update:
-            pp = ProgressPrinter(lambda done, total, key: update(key, done / max(total, 1)))
+        with hangups_interrupt(), progress_display("recording session", after_s=0.5) as update:
+            pp.update = lambda done, total, key: update(key, done / max(total, 1))
             demo.runner.subscribe(pp)
             state = demo.runner.run()
+    except KeyboardInterrupt as exc:             # Ctrl-C or a closed terminal: say what was kept, and where
+        saved, total = len(demo.store.done_keys()), len(demo.runner.steps)
+        say(f"{'the terminal closed' if isinstance(exc, HungUp) else 'interrupted'}: "
+            f"{kept_text(saved, total, str(db), resume)}")
+        return exit_status(exc)
     finally:
         demo.close()
     t_rec = time.perf_counter() - t0
@@ -87,8 +96,10 @@ def run(args) -> int:
             print(f"pre-flight: {line}", file=sys.stderr)
         raise RobocalError(f"session {db}: the pre-flight failed for {len(pp.preflight_lines)} step(s) (listed "
                            f"above); nothing was recorded")
-    if state != "finished":
-        raise RobocalError(f"session {db} ended {state}; continue it with: robocal demo --resume --db {db}")
+    if state != "finished":                      # paused, aborted, or failed on a device
+        why = f" ({pp.error})" if pp.error else ""
+        say(f"the session ended {state}{why}: {kept_text(pp.saved, pp.total, str(db), resume)}")
+        return 1
     with progress_display("reprocessing", after_s=0.5) as update:
         res = reprocess(str(db), progress=update)
     _summary(res, args.verbose, args.tolerance_mm)
@@ -96,10 +107,23 @@ def run(args) -> int:
         from acq.session.report import write_report
         print(f"report: {write_report(res, args.report, tolerance_mm=args.tolerance_mm, pdf=args.pdf)}",
               file=sys.stderr)
+    else:
+        say(f"session database: {db}; {report_text(str(db))}")
     if args.json:
         _write_json(res, args.json)
     print(f"total {time.perf_counter() - t0:.1f} s", file=sys.stderr)
     return 0
+
+
+def _resume_command(args, db: Path) -> str:
+    """The exact command that continues this demo: its database with --resume and the outputs asked for (the seed,
+    set-up and plan are the database's own)."""
+    words = ["robocal", "demo", "--resume", "--db", str(db)]
+    for flag, value in (("--json", args.json), ("--report", args.report), ("--tolerance-mm", args.tolerance_mm)):
+        if value is not None:
+            words += [flag, str(value)]
+    words += [flag for flag, on in (("--pdf", args.pdf), ("--verbose", args.verbose)) if on]
+    return command_line(words)
 
 
 def _write_json(res: dict, out: str) -> None:

@@ -19,6 +19,7 @@ from pathlib import Path
 from calib.errors import RobocalError
 from calib.fileio import atomic_write_text
 from acq.argtypes import add_robot_argument, output_file, seed_int, te_joints
+from acq.interrupt import EXIT_HUNG_UP, EXIT_INTERRUPTED, command_line, report_text, say
 
 NAME = "session"
 HELP = "guide the operator through a calibration session (Textual TUI)"
@@ -276,10 +277,37 @@ def run(args) -> int:
     _need_terminal()
     from acq.tui.app import RobocalApp
 
-    app = RobocalApp(builder)
+    app = RobocalApp(builder, resume_command=resume_command(args))
     app.run()
-    if app.finished and app.finished.get("error"):
-        print(f"robocal session: stopped: {app.finished['error']} — the session resumes with the same --db")
-        return 1
-    print(f"robocal session: data in {args.db}")
-    return 0
+    return _after(app, args.db)
+
+
+def _after(app, db: str) -> int:
+    """What the terminal shows once the TUI is gone: the database, and either the command that makes the report
+    (finished) or how many steps are kept and the command that resumes (stopped, quit, Ctrl-C, terminal closed)."""
+    fin = app.finished or {}
+    if fin.get("exit_status") == "success":
+        say(f"robocal session: finished; data in {db}\n{report_text(db)}")
+        return 0
+    if fin.get("exit_status") == "refused" or app.handle is None and not app.progress.steps_total:
+        say(f"robocal session: {fin.get('error') or 'not started'}; nothing recorded in {db}")
+        return 1 if fin else 0
+    why = {"interrupt": "interrupted", "hangup": "the terminal closed"}.get(app.ended_by or "", "")
+    why = why or (f"stopped: {fin['error']}" if fin.get("error") else f"{fin.get('exit_status') or 'quit'}")
+    say(f"robocal session: {why}: {app.kept()}")
+    if app.ended_by:
+        return EXIT_HUNG_UP if app.ended_by == "hangup" else EXIT_INTERRUPTED
+    return 1 if fin.get("error") else 0
+
+
+def resume_command(args) -> str:
+    """The exact command that resumes this session: its database and devices, the same step filter; not what a
+    resumed session keeps from its recording (set-up, poses, robot, transmission joints, seed)."""
+    words = ["robocal", "session", "--db", args.db]
+    words += ["--emulate"] if args.emulate else []
+    for t in args.theodolite:
+        words += ["--theodolite", t]
+    words += ["--tap", args.tap] if args.tap else []
+    for prefix in args.only:
+        words += ["--only", prefix]
+    return command_line(words)

@@ -73,6 +73,7 @@ class ProgressPrinter:
         self.total = 0
         self.failed_checks = 0
         self.preflight_lines: list[str] = []
+        self.error: str | None = None                 # why the session ended, when it failed
 
     def __call__(self, ev: Event) -> None:
         if ev.kind == "session":
@@ -86,3 +87,5 @@ class ProgressPrinter:
             self.preflight_lines = list(ev.data["lines"])
         elif ev.kind == "check" and not ev.data["passed"]:
             self.failed_checks += 1
+        elif ev.kind == "finished":
+            self.error = ev.data.get("error")

@@ -7,6 +7,8 @@ See :mod:`acq.tui.bridge` for how the two threads meet.
 """
 from __future__ import annotations
 
+import asyncio
+import signal
 import threading
 import time
 from dataclasses import dataclass
@@ -22,6 +24,7 @@ from textual.screen import ModalScreen
 from textual.widgets import Header, Markdown, RichLog, Static, Tree
 from textual_plotext import PlotextPlot
 
+from acq.interrupt import kept_text, report_text
 from acq.session.runner import Answer, Event, Runner
 
 from .bridge import LiveValues, OperatorPrompt, RunnerEvent, TuiOperator
@@ -144,14 +147,19 @@ class RobocalApp(App):
         Binding("d", "toggle_panel('diagram')", "diagram", show=False),
         Binding("question_mark", "help", "help"),
         Binding("q", "quit", "quit"),
-        Binding("ctrl+c", "quit", "quit", show=False, priority=True),     # what an operator presses to get out
+        Binding("ctrl+c", "interrupt", "quit", show=False, priority=True),  # what an operator presses to get out
         Binding("tab", "next_field", "next field", show=False, priority=True),
         Binding("pagedown", "scroll_step(1)", "scroll", show=False),
         Binding("pageup", "scroll_step(-1)", "scroll", show=False),
     ]
 
-    def __init__(self, builder: Builder, live_hz: float = 10.0, clock: bool = True, final_results: bool = True):
+    def __init__(self, builder: Builder, live_hz: float = 10.0, clock: bool = True, final_results: bool = True,
+                 resume_command: str | None = None):
         super().__init__()
+        #: the exact command that resumes this session (``robocal session`` passes its own), shown when it stops
+        self.resume_command = resume_command
+        self.ended_by: str | None = None                     # "interrupt" (Ctrl-C) or "hangup" (terminal closed)
+        self.db_path = ""
         self.clock = clock
         self.final_results = final_results
         self.results_dir: str | None = None
@@ -209,6 +217,10 @@ class RobocalApp(App):
         self._panels = {sel: self.query_one(sel) for sel in ("#middle", "#checks", "#live", "#devices", "#keys")}
         self._refresh_keys()
         self.operator.app = self
+        try:                                   # a closed terminal ends the session as Ctrl-C does (main thread only)
+            asyncio.get_running_loop().add_signal_handler(signal.SIGHUP, self._hung_up)
+        except (AttributeError, NotImplementedError, RuntimeError, ValueError):
+            pass
         self.query_one("#step", Static).update("Connecting to the instruments…")
         # opening devices does I/O: never in the UI thread
         threading.Thread(target=self._connect, name="robocal-connect", daemon=True).start()
@@ -233,6 +245,7 @@ class RobocalApp(App):
             handle.close()
             return
         self.handle = handle
+        self.db_path = handle.db_path                       # kept after the handle is closed, for the last words
         runner = handle.runner
         self.sub_title = handle.title
         self._build_plan(runner)
@@ -417,19 +430,24 @@ class RobocalApp(App):
                    f"the set-up so these steps pass (robocal plan check prints the pre-flight; the operator guide "
                    f"says what each check means), then start again.")
         elif err:
-            msg = (f"[b red]The session stopped: {err}[/]\nEverything saved so far is in {where}; fix the cause "
-                   f"(device connected? powered?) and start again to resume.")
-        elif status == "paused":
-            msg = f"[b]Paused.[/] Saved so far in {where}; start the session again to resume."
+            msg = (f"[b red]The session stopped: {err}[/]\n{self.kept()}\nFix the cause (device connected? "
+                   f"powered?) first.")
+        elif status in ("paused", "abort"):
+            msg = f"[b]{'Paused' if status == 'paused' else 'Aborted'}.[/] {self.kept()}"
         else:
-            msg = (f"[b green]Session {status}.[/] Data: {where}\n"
-                   f"Reprocess and report: robocal reprocess {where} --report report/ --json results.json")
+            msg = f"[b green]Session {status}.[/] Data: {where}\n{report_text(where)}"
             if status == "success" and where and self.final_results:
                 msg += "\nComputing the results…"
                 threading.Thread(target=self._final_results, args=(where,), daemon=True).start()
         self.query_one("#step", Static).update(msg + "\n\nPress q to quit.")
         self.query_one("#prompt", Static).update("")
         self._refresh_keys()
+
+    def kept(self) -> str:
+        """How many steps are saved, where, and the exact command that resumes (every way a session stops)."""
+        where = self.db_path or "the session database"
+        resume = self.resume_command or "the same robocal session command, same --db"
+        return kept_text(self.progress.steps_done, self.progress.steps_total, where, resume)
 
     def _final_results(self, db: str) -> None:
         """Reprocess the finished session (read-only) and write its report, off the UI thread."""
@@ -564,7 +582,7 @@ class RobocalApp(App):
             self.notify(f"'{action}' is not possible now (choose: {', '.join(msg.request.choices)})", severity="warning")
             return
         if action == "abort":
-            self.push_screen(ConfirmAbort(self._where()), lambda yes: self._answer(msg, "abort", {}) if yes else None)
+            self.push_screen(ConfirmAbort(self.db_path or "the session database"), lambda yes: self._answer(msg, "abort", {}) if yes else None)
             return
         values = {}
         if action == "continue":
@@ -613,15 +631,23 @@ class RobocalApp(App):
             h.runner.request_pause()
             self.notify("pausing after this step")
         else:
-            self.push_screen(ConfirmAbort(self._where()), lambda yes: h.runner.request_abort() if yes else None)
-
-    def _where(self) -> str:
-        return self.handle.db_path if self.handle is not None and self.handle.db_path else "the session database"
+            self.push_screen(ConfirmAbort(self.db_path or "the session database"), lambda yes: h.runner.request_abort() if yes else None)
 
     def action_help(self) -> None:
         self.push_screen(HelpScreen())
 
     async def action_quit(self) -> None:
+        self._stop_session()
+        self.exit()
+
+    async def action_interrupt(self) -> None:
+        """Ctrl-C: quit as ``q`` does (committed steps are safe); ``robocal session`` then says what was kept."""
+        self.ended_by = self.ended_by or "interrupt"
+        await self.action_quit()
+
+    def _hung_up(self) -> None:
+        """SIGHUP (the terminal closed): stop between steps instead of dying in one, then say what was kept."""
+        self.ended_by = "hangup"
         self._stop_session()
         self.exit()
 
