@@ -69,6 +69,7 @@ def run(args) -> int:
     if args.resume and args.te_joints:
         raise RobocalError(f"demo: --te-joints cannot change a resumed session's plan ({db} keeps the one it was "
                            f"recorded with): resume without --te-joints, or start a new --db with it")
+    check_pdf_options(args)
     t0 = time.perf_counter()
     demo = build_demo(db, seed=args.seed, resume=args.resume, setup=base, te_joints=args.te_joints)
     resume = _resume_command(args, db)
@@ -144,10 +145,21 @@ def _summary(res: dict, verbose: bool = False, tolerance_mm: float | None = None
             print(line)
 
 
+def check_pdf_options(args) -> None:
+    """``--pdf`` is the report printed: it needs ``--report`` and a renderer, both checked before any work."""
+    if args.pdf:
+        if not args.report:
+            raise RobocalError("--pdf needs --report DIR (the PDF is the report printed, written beside report.html)")
+        from acq.session.pdf import require_renderer
+        require_renderer()
+
+
 def add_report_options(p) -> None:
     """Options of what the operator sees, shared by ``demo`` and ``reprocess``."""
     from acq.argtypes import positive_float
     p.add_argument("--verbose", action="store_true", help="print every estimate, not only the summary")
     p.add_argument("--tolerance-mm", type=positive_float, default=None,
                    help="position tolerance the calibrated robot must meet (report verdict)")
-    p.add_argument("--pdf", action="store_true", help="with --report, also write report.pdf")
+    p.add_argument("--pdf", action="store_true",
+                   help="with --report, also write report.pdf: the same report printed by headless Chromium (or "
+                        "WeasyPrint); one line, exit 2, when neither is installed")

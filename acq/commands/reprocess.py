@@ -6,7 +6,7 @@ the session's ``result`` table: raw data is never rewritten).
 from __future__ import annotations
 
 from acq.argtypes import int_range, output_dir, output_file
-from acq.commands.demo import add_report_options
+from acq.commands.demo import add_report_options, check_pdf_options
 
 NAME = "reprocess"
 HELP = "rerun the calibration from a saved session (read-only), write JSON estimates and an HTML report"
@@ -43,6 +43,7 @@ def run(args) -> int:
     from acq.session.reprocess import reprocess
     from acq.session.store import save_result
 
+    check_pdf_options(args)
     res = reprocess(args.session, n_mc=args.mc)
     if args.diagnose:
         res["diagnosis"] = session_diagnosis(args.session)
