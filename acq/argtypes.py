@@ -201,3 +201,19 @@ def te_joints(raw: str) -> list[int]:
     if not js or len(set(js)) != len(js) or any(j < 1 for j in js):
         raise _fail("must list distinct joint numbers (1, 2, ...)", raw)
     return js
+
+
+#: what ``--robot`` takes, the same words in every command (what :func:`calib.robot.load_robot` reads)
+ROBOT_HELP = ("robot description: a DH TOML, a URDF (with --base-link/--tip-link to cut its chain) or a calibration "
+              "description (a TOML wrapping a URDF)")
+
+
+def add_robot_argument(p, default: str = "the thesis's Puma 560") -> None:
+    """``--robot FILE``, described as everywhere else (:data:`ROBOT_HELP`), with the command's default."""
+    p.add_argument("--robot", metavar="FILE", help=f"{ROBOT_HELP}; default: {default}")
+
+
+def examples_text(examples: str) -> str:
+    """The epilog of a ``--help``: its examples, one command a line, as typed."""
+    lines = [ln.rstrip() for ln in examples.strip("\n").splitlines()]
+    return "examples:\n" + "\n".join(f"  {ln}" for ln in lines) if lines else ""

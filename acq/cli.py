@@ -31,12 +31,58 @@ from calib import threads
 from calib.errors import RobocalError
 
 from . import commands
+from .argtypes import examples_text
 
 EXIT_OK, EXIT_INPUT, EXIT_INTERNAL, EXIT_INTERRUPTED = 0, 2, 3, 130
+TOP_EXAMPLES = """\
+robocal demo                                  # record an emulated session and calibrate from it
+robocal session --emulate --db cell.db        # the operator's TUI on the emulated cell
+robocal reprocess cell.db --report report/    # calibrate from a recorded session, write the report
+robocal COMMAND --help                        # each command's options, defaults and examples
+"""
+
+
+class _HelpFormatter(argparse.RawDescriptionHelpFormatter):
+    """Every option states its default: where its help does not say it already, ``(default: X)`` is added; the
+    examples (the epilog) keep their lines."""
+
+    def _get_help_string(self, action: argparse.Action) -> str:
+        text = action.help or ""
+        d = action.default
+        unset = d is None or d is False or d is argparse.SUPPRESS or (isinstance(d, list) and not d)
+        if action.option_strings and "default" not in text and not unset and action.nargs != 0:
+            text += " (default: %(default)s)"
+        return text
 
 
 class _Parser(argparse.ArgumentParser):
-    """An argument parser whose errors are one line, ``robocal: error: COMMAND: --opt must be ...`` (exit 2)."""
+    """An argument parser whose errors are one line, ``robocal: error: COMMAND: --opt must be ...`` (exit 2).
+
+    No option is ever abbreviated (``--emulat`` is not ``--emulate``: a typo must be an error naming the option, not
+    a guess), and every parser formats its help with :class:`_HelpFormatter`."""
+
+    def __init__(self, *args, **kwargs):
+        kwargs["allow_abbrev"] = False
+        kwargs.setdefault("formatter_class", _HelpFormatter)
+        super().__init__(*args, **kwargs)
+
+    def parse_known_args(self, args=None, namespace=None):
+        """A command's parser refuses what it does not know itself, so the error names the command and the closest
+        option (argparse leaves the extras to the top-level parser, which knows neither)."""
+        ns, extras = super().parse_known_args(args, namespace)
+        if extras and " " in self.prog:
+            self.error(self._unknown(extras))
+        return ns, extras
+
+    def _unknown(self, extras: list[str]) -> str:
+        import difflib
+        options = [o for o in self._option_string_actions if o.startswith("--")]
+        first = extras[0]
+        if first.startswith("-"):
+            name = first.split("=", 1)[0]
+            close = difflib.get_close_matches(name, options, n=1, cutoff=0.6)
+            return f"unknown option {name}" + (f" (did you mean {close[0]}?)" if close else "")
+        return f"unexpected argument {first!r}"
 
     def error(self, message: str):  # type: ignore[override]
         where = self.prog.split(" ", 1)[1] + ": " if " " in self.prog else ""
@@ -60,7 +106,7 @@ def _constants(path: str) -> dict[str, str]:
     out: dict[str, str] = {}
     for source in ([text[:body.start()]] if body else []) + [text]:
         out = _literal_constants(ast.parse(source, path))
-        if "NAME" in out and "HELP" in out:
+        if "NAME" in out and "HELP" in out and "EXAMPLES" in out:
             break
     return out
 
@@ -69,7 +115,7 @@ def _literal_constants(tree: ast.Module) -> dict[str, str]:
     out = {}
     for node in tree.body:
         if isinstance(node, ast.Assign) and len(node.targets) == 1 and isinstance(node.targets[0], ast.Name) \
-                and node.targets[0].id in ("NAME", "HELP", "DESCRIPTION"):
+                and node.targets[0].id in ("NAME", "HELP", "DESCRIPTION", "EXAMPLES"):
             try:
                 out[node.targets[0].id] = ast.literal_eval(node.value)
             except ValueError:          # not a literal: the module is imported to read it
@@ -77,8 +123,9 @@ def _literal_constants(tree: ast.Module) -> dict[str, str]:
     return out
 
 
-def command_index() -> dict[str, tuple[str, str, str]]:
-    """Every command: NAME -> (module, HELP, DESCRIPTION), by scanning the package (a new command is one new file)."""
+def command_index() -> dict[str, tuple[str, str, str, str]]:
+    """Every command: NAME -> (module, HELP, DESCRIPTION, EXAMPLES), by scanning the package (a new command is one
+    new file)."""
     index = {}
     folder = commands.__path__[0]
     # the folder listed directly (pkgutil costs more to import than the listing takes)
@@ -89,8 +136,9 @@ def command_index() -> dict[str, tuple[str, str, str]]:
             mod = importlib.import_module(module)
             if not (hasattr(mod, "NAME") and hasattr(mod, "run")):
                 continue
-            c = {"NAME": mod.NAME, "HELP": mod.HELP, "DESCRIPTION": getattr(mod, "DESCRIPTION", mod.HELP)}
-        index[c["NAME"]] = (module, c["HELP"], c.get("DESCRIPTION", c["HELP"]))
+            c = {"NAME": mod.NAME, "HELP": mod.HELP, "DESCRIPTION": getattr(mod, "DESCRIPTION", mod.HELP),
+                 "EXAMPLES": getattr(mod, "EXAMPLES", "")}
+        index[c["NAME"]] = (module, c["HELP"], c.get("DESCRIPTION", c["HELP"]), c.get("EXAMPLES", ""))
     return index
 
 
@@ -100,7 +148,8 @@ def build_parser(only: str | None = None) -> argparse.ArgumentParser:
     dependencies; with none (``robocal --help``) or an unknown word, every command is listed and none imported."""
     parser = _Parser(
         prog="robocal",
-        description="Calibrate an industrial robot with two theodolites and a joint-encoder tap.")
+        description="Calibrate an industrial robot with two theodolites and a joint-encoder tap.",
+        epilog=examples_text(TOP_EXAMPLES))
     parser.add_argument("--debug", action="store_true",
                         help="on an internal error (exit 3) show the Python traceback (also ROBOCAL_DEBUG=1)")
     parser.add_argument("--threads", metavar="N", type=int,
@@ -111,8 +160,8 @@ def build_parser(only: str | None = None) -> argparse.ArgumentParser:
     index = command_index()
     if only in index:
         index = {only: index[only]}
-    for name, (module, help_, description) in index.items():
-        p = sub.add_parser(name, help=help_, description=description)
+    for name, (module, help_, description, examples) in index.items():
+        p = sub.add_parser(name, help=help_, description=description, epilog=examples_text(examples))
         if only is None or only == name:
             mod = importlib.import_module(module)
             mod.add_arguments(p)

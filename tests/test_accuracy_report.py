@@ -90,7 +90,7 @@ def test_example_session_accuracy_key(example_result):
 
 def test_report_opens_with_the_answer_and_has_every_section(example_result, tmp_path):
     from acq.session.report import write_report
-    path = write_report(example_result, tmp_path, tolerance_mm=0.5, pdf=True)
+    path = write_report(example_result, tmp_path, tolerance_mm=0.5)
     page = path.read_text(encoding="utf-8")
     assert page.index("id='answer'") < page.index("id='ruler'")
     for sec in ("answer", "ruler", "sweep", "transmission", "compliance", "link_compliance", "coupling", "poses",
@@ -102,8 +102,6 @@ def test_report_opens_with_the_answer_and_has_every_section(example_result, tmp_
     assert len(imgs) >= 9 and any("one colour scale" in a for a in imgs)
     assert "mm or deg" not in page                       # one unit per axis
     assert "<link" not in page and "src='http" not in page     # a single file that can be mailed
-    assert (tmp_path / "report.pdf").stat().st_size > 10_000
-    assert (tmp_path / "report.pdf").read_bytes()[:5] == b"%PDF-"
 
 
 BROWSER = shutil.which("chromium") or shutil.which("chromium-browser") or shutil.which("google-chrome")

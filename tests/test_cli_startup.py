@@ -45,17 +45,17 @@ def _full_parse(path: str) -> dict[str, str]:
     tree = ast.parse(Path(path).read_text(encoding="utf-8"))
     return {n.targets[0].id: ast.literal_eval(n.value) for n in tree.body
             if isinstance(n, ast.Assign) and len(n.targets) == 1 and isinstance(n.targets[0], ast.Name)
-            and n.targets[0].id in ("NAME", "HELP", "DESCRIPTION")}
+            and n.targets[0].id in ("NAME", "HELP", "DESCRIPTION", "EXAMPLES")}
 
 
 def test_the_index_read_from_the_files_heads_is_the_whole_files():
     """``--help`` parses only the head of each command file; it must find what a whole parse finds."""
     folder = commands.__path__[0]
     files = sorted(f for f in os.listdir(folder) if f.endswith(".py") and not f.startswith("_"))
-    whole = {c["NAME"]: (c["HELP"], c.get("DESCRIPTION", c["HELP"]))
+    whole = {c["NAME"]: (c["HELP"], c.get("DESCRIPTION", c["HELP"]), c.get("EXAMPLES", ""))
              for c in (_full_parse(os.path.join(folder, f)) for f in files) if "NAME" in c}
     index = cli.command_index()
-    assert {name: (h, d) for name, (_, h, d) in index.items()} == whole
+    assert {name: (h, d, e) for name, (_, h, d, e) in index.items()} == whole
     assert len(index) >= 15
 
 

@@ -2,7 +2,7 @@
 terminal under tmux."""
 import asyncio
 import os
-import shutil
+import re
 import subprocess
 import sys
 import time
@@ -12,6 +12,7 @@ import pytest
 from acq.commands.session import emulated_builder
 from acq.session.store import SessionStore
 from acq.tui.app import RobocalApp
+from tests.tmux_term import Terminal, needs_tmux
 
 
 def answer_all(app, pilot, until, press_first=2, timeout=90.0):
@@ -69,8 +70,8 @@ def test_ruler_and_one_joint_sweep_end_to_end(tmp_path):
             assert (tmp_path / "s_report" / "report.html").exists()
             step = str(app.query_one("#step").render())
             assert "report.html" in step
-            table = app.query_one("#checks")
-            names = [str(table.get_row_at(i)[0]) for i in range(table.row_count)]
+            assert app.table_columns[:3] == ["estimate", "value", "1 sigma"]
+            names = [str(r[0]) for r in app.table_rows]
             assert any("L_mm" in n for n in names), names
             await pilot.press("q")
 
@@ -129,12 +130,28 @@ def test_operator_input_must_be_a_number(tmp_path):
         async with app.run_test(size=(180, 50)) as pilot:
             await answer_all(app, pilot, lambda a: a.pending is not None and a.pending.request.kind == "setup"
                              and a.pending.request.step.inputs, press_first=0)
-            spec = app.pending.request.step.inputs[0]
+            specs = app.pending.request.step.inputs
+            spec = specs[0]
+            for _ in range(60):                                                 # the first field gets the keys
+                await pilot.pause(0.05)
+                if app.query(f"#in-{spec.name}") and app.focused is app.query_one(f"#in-{spec.name}"):
+                    break
             box = app.query_one(f"#in-{spec.name}")
+            assert box.value == "" and str(spec.suggested) in box.placeholder or f"{spec.suggested:g}" in box.placeholder
             box.value = "ten"
             app.action_answer("continue")
             assert app.pending is not None and not app.pending.future.done()     # refused, still waiting
             box.value = "44.5"
+            app.action_answer("continue")                                       # the lever is not entered yet
+            assert app.pending is not None and not app.pending.future.done()
+            lever = app.query_one(f"#in-{specs[1].name}")
+            for _ in range(40):
+                await pilot.pause(0.05)
+                if app.focused is lever:
+                    break
+            assert app.focused is lever                                         # the missing field has the keys
+            for other in specs[1:]:
+                app.query_one(f"#in-{other.name}").value = f"{other.suggested:g}"
             app.action_answer("continue")
             await answer_all(app, pilot, lambda a: a.finished is not None, press_first=0)
             assert app.data[app.current_key].inputs[spec.name] == 44.5
@@ -180,40 +197,30 @@ def test_snapshot_cannot_start(snap_compare):
     assert snap_compare(RobocalApp(never, clock=False), run_before=run_before, terminal_size=(120, 40))
 
 
-@pytest.mark.skipif(shutil.which("tmux") is None and not os.environ.get("CI"), reason="tmux not installed")
+@needs_tmux
 def test_real_terminal_under_tmux(tmp_path):
-    """The operator's laptop terminal (80x24): every prompt readable and answered by key presses."""
-    assert shutil.which("tmux"), "tmux is needed (the CI script installs it)"
-    name = f"robocal-test-{os.getpid()}"
+    """The operator's laptop terminal (80x24): every prompt readable and answered by key presses; once two steps were
+    timed the header gives the time left with its unit."""
     db = tmp_path / "t.db"
-    cmd = f"{sys.executable} -m acq.cli session --emulate --db {db} --only ruler/p0"
-    # Textual sizes itself from COLUMNS/LINES when set (pytest sets them): let the pane decide
-    env_cmd = f"cd {os.getcwd()} && env -u COLUMNS -u LINES TERM=xterm-256color {cmd}"
-    subprocess.run(["tmux", "new-session", "-d", "-s", name, "-x", "80", "-y", "24", env_cmd], check=True)
-
-    def screen():
-        return subprocess.run(["tmux", "capture-pane", "-p", "-t", name], capture_output=True, text=True).stdout
-
-    try:
+    seen_step = seen_left = False
+    with Terminal(["session", "--emulate", "--db", str(db), "--only", "ruler/p0"], 80, 24) as t:
         t0 = time.monotonic()
-        seen_step = False
         while time.monotonic() - t0 < 60:
             time.sleep(0.5)
-            s = screen()
+            s = t.screen()
             seen_step |= "Ruler placement" in s
+            seen_left |= bool(re.search(r"about \d+ (s|min) left", s.splitlines()[0] if s else ""))
             if "Press q to quit" in s:
                 break
             if "Do what the step says" in s:
-                subprocess.run(["tmux", "send-keys", "-t", name, "c"])
+                t.keys("c", pause_s=0)
             elif "checks passed" in s or "check(s) failed" in s:
-                subprocess.run(["tmux", "send-keys", "-t", name, "a"])
-        s = screen()
+                t.keys("a", pause_s=0)
+        s = t.screen()
         assert seen_step, s
         assert "Press q to quit" in s and "success" in s, s
-        subprocess.run(["tmux", "send-keys", "-t", name, "q"])
-        time.sleep(1.0)
-    finally:
-        subprocess.run(["tmux", "kill-session", "-t", name], capture_output=True)
+        assert seen_left
+        t.keys("q", pause_s=1.0)
     assert db.exists()
 
 

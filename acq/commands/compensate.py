@@ -9,6 +9,10 @@ from calib.errors import RobocalError
 
 NAME = "compensate"
 HELP = "correct joint commands or readings with an identified model and predict the tool point"
+EXAMPLES = """\
+robocal compensate model.json 10 -40 70 30 -20 50            # corrected command, predicted point with sigma
+robocal compensate model.json 10 -40 70 30 -20 50 --reading  # true joint angles for encoder readings
+"""
 
 
 def add_arguments(p):
@@ -16,7 +20,7 @@ def add_arguments(p):
     p.add_argument("q", nargs="+", metavar="Q", help="joint readings in degrees (mm for a prismatic joint), one per reading of the description")
     p.add_argument("--reading", action="store_true",
                    help="the angles are encoder readings: print the true joint angles (eq 6.1 generalised)")
-    p.add_argument("--json", action="store_true")
+    p.add_argument("--json", action="store_true", help="print the result as one JSON object")
 
 
 def run(args) -> int:

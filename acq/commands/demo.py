@@ -11,10 +11,16 @@ from pathlib import Path
 
 from calib.errors import RobocalError
 from calib.fileio import atomic_write_text
-from acq.argtypes import output_dir, output_file, seed_int, te_joints
+from acq.argtypes import add_robot_argument, output_dir, output_file, seed_int, te_joints
+from acq.interrupt import HungUp, command_line, exit_status, hangups_interrupt, kept_text, report_text, say
 
 NAME = "demo"
 HELP = "record an emulated calibration session of every procedure, then reprocess it"
+EXAMPLES = """\
+robocal demo                                    # record an emulated session (robocal-demo.db), reprocess it
+robocal demo --db run.db --report report/ --pdf   # ... and write the report, HTML and PDF
+robocal demo --db run.db --resume               # continue an interrupted one
+"""
 
 
 def add_arguments(p):
@@ -30,9 +36,8 @@ def add_arguments(p):
                         "own stations and robot base")
     p.add_argument("--te-joints", type=te_joints, metavar="J,J,...", default=None,
                    help="joints whose transmission error the session measures (default 4,6; 2 and 3 on request)")
-    p.add_argument("--robot", metavar="FILE",
-                   help="robot description (TOML or URDF) to emulate instead of the thesis's Puma 560: its twin and "
-                        "bench come from the description, and every procedure that applies to it is recorded")
+    add_robot_argument(p, "the thesis's Puma 560; another robot's twin and bench come from its description, and "
+                          "every procedure that applies to it is recorded")
     add_report_options(p)
 
 
@@ -66,6 +71,7 @@ def run(args) -> int:
     if args.resume and args.te_joints:
         raise RobocalError(f"demo: --te-joints cannot change a resumed session's plan ({db} keeps the one it was "
                            f"recorded with): resume without --te-joints, or start a new --db with it")
+    check_pdf_options(args)
     t0 = time.perf_counter()
     if args.te_joints and not args.resume:     # checked against the robot's planned runs before anything is built
         from acq.session.plans import transmission_plan
@@ -77,11 +83,19 @@ def run(args) -> int:
                            f"recorded with): resume without --robot")
     demo = build_demo(db, seed=args.seed, resume=args.resume, setup=base, te_joints=args.te_joints,
                       robot=args.robot)
+    resume = _resume_command(args, db)
+    say(f"recording the session into {db} (Ctrl-C stops it; every step saved is kept)")
+    pp = ProgressPrinter()
     try:
-        with progress_display("recording session", after_s=0.5) as update:
-            pp = ProgressPrinter(lambda done, total, key: update(key, done / max(total, 1)))
+        with hangups_interrupt(), progress_display("recording session", after_s=0.5) as update:
+            pp.update = lambda done, total, key: update(key, done / max(total, 1))
             demo.runner.subscribe(pp)
             state = demo.runner.run()
+    except KeyboardInterrupt as exc:             # Ctrl-C or a closed terminal: say what was kept, and where
+        saved, total = len(demo.store.done_keys()), len(demo.runner.steps)
+        say(f"{'the terminal closed' if isinstance(exc, HungUp) else 'interrupted'}: "
+            f"{kept_text(saved, total, str(db), resume)}")
+        return exit_status(exc)
     finally:
         demo.close()
     t_rec = time.perf_counter() - t0
@@ -94,8 +108,10 @@ def run(args) -> int:
             print(f"pre-flight: {line}", file=sys.stderr)
         raise RobocalError(f"session {db}: the pre-flight failed for {len(pp.preflight_lines)} step(s) (listed "
                            f"above); nothing was recorded")
-    if state != "finished":
-        raise RobocalError(f"session {db} ended {state}; continue it with: robocal demo --resume --db {db}")
+    if state != "finished":                      # paused, aborted, or failed on a device
+        why = f" ({pp.error})" if pp.error else ""
+        say(f"the session ended {state}{why}: {kept_text(pp.saved, pp.total, str(db), resume)}")
+        return 1
     with progress_display("reprocessing", after_s=0.5) as update:
         res = reprocess(str(db), progress=update)
     _summary(res, args.verbose, args.tolerance_mm)
@@ -103,10 +119,23 @@ def run(args) -> int:
         from acq.session.report import write_report
         print(f"report: {write_report(res, args.report, tolerance_mm=args.tolerance_mm, pdf=args.pdf)}",
               file=sys.stderr)
+    else:
+        say(f"session database: {db}; {report_text(str(db))}")
     if args.json:
         _write_json(res, args.json)
     print(f"total {time.perf_counter() - t0:.1f} s", file=sys.stderr)
     return 0
+
+
+def _resume_command(args, db: Path) -> str:
+    """The exact command that continues this demo: its database with --resume and the outputs asked for (the seed,
+    set-up and plan are the database's own)."""
+    words = ["robocal", "demo", "--resume", "--db", str(db)]
+    for flag, value in (("--json", args.json), ("--report", args.report), ("--tolerance-mm", args.tolerance_mm)):
+        if value is not None:
+            words += [flag, str(value)]
+    words += [flag for flag, on in (("--pdf", args.pdf), ("--verbose", args.verbose)) if on]
+    return command_line(words)
 
 
 def _write_json(res: dict, out: str) -> None:
@@ -127,10 +156,21 @@ def _summary(res: dict, verbose: bool = False, tolerance_mm: float | None = None
             print(line)
 
 
+def check_pdf_options(args) -> None:
+    """``--pdf`` is the report printed: it needs ``--report`` and a renderer, both checked before any work."""
+    if args.pdf:
+        if not args.report:
+            raise RobocalError("--pdf needs --report DIR (the PDF is the report printed, written beside report.html)")
+        from acq.session.pdf import require_renderer
+        require_renderer()
+
+
 def add_report_options(p) -> None:
     """Options of what the operator sees, shared by ``demo`` and ``reprocess``."""
     from acq.argtypes import positive_float
     p.add_argument("--verbose", action="store_true", help="print every estimate, not only the summary")
     p.add_argument("--tolerance-mm", type=positive_float, default=None,
                    help="position tolerance the calibrated robot must meet (report verdict)")
-    p.add_argument("--pdf", action="store_true", help="with --report, also write report.pdf")
+    p.add_argument("--pdf", action="store_true",
+                   help="with --report, also write report.pdf: the same report printed by headless Chromium (or "
+                        "WeasyPrint); one line, exit 2, when neither is installed")

@@ -9,12 +9,18 @@ import json
 import sys
 
 from acq.commands._csvargs import add_order_arguments, add_unit_arguments, order_options, units
-from acq.argtypes import add_force_argument, float_range, nonneg_int, output_dir, positive_float, positive_int
+from acq.argtypes import (add_force_argument, add_robot_argument, float_range, nonneg_int, output_dir, positive_float,
+                          positive_int)
 from calib.errors import RobocalError
 from calib.outliers import LOSSES, OUTLIER_MODES
 
 NAME = "diagnose"
 HELP = "diagnose the sim-to-real gap: held-out residual, where it lies, which unmodelled effect, how far it shrinks"
+EXAMPLES = """\
+robocal diagnose poses.csv --report diag/       # where model and measurements disagree, and why
+robocal diagnose examples/demo-session.db --json # a session database works too
+robocal diagnose --validate --seeds 5           # withheld-effect study on the twin
+"""
 
 
 def add_outlier_arguments(p) -> None:
@@ -30,8 +36,7 @@ def add_arguments(p):
     p.add_argument("data", metavar="DATA", nargs="?",
                    help="pose CSV (q1..qn deg, x y z mm, optional dir*, payload, temperature, time, sigma_*_mm), "
                         "or a session database")
-    p.add_argument("--robot", metavar="FILE", help="robot description: TOML, calibration TOML or URDF (default: the thesis's Puma "
-                                                   "560)")
+    add_robot_argument(p)
     add_unit_arguments(p)
     add_order_arguments(p)
     p.add_argument("--noise-mm", type=positive_float, default=None, metavar="S",

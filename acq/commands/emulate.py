@@ -18,6 +18,11 @@ from calib.errors import RobocalError
 
 NAME = "emulate"
 HELP = "run an emulated theodolite (GeoCOM, GSI) or encoder tap; prints where to connect, serves until Ctrl-C"
+EXAMPLES = """\
+robocal emulate geocom --pty                    # prints the pty path a GeoCOM client connects to
+robocal emulate tap --slcan-pty                 # python-can's slcan interface opens the printed path
+robocal emulate geocom --tcp 0 --scenario my_twin.toml
+"""
 
 
 class ServerFailed(RuntimeError):

@@ -8,6 +8,10 @@ from acq.commands._csvargs import add_unit_arguments, model_and_table
 
 NAME = "evaluate"
 HELP = "predict the test rows of a pose CSV with a calibrated model: RMS, max, 95th percentile, per station/group"
+EXAMPLES = """\
+robocal evaluate model.json test.csv            # RMS, max and 95th percentile of the test rows
+robocal evaluate model.json test.csv --locate --json
+"""
 
 
 def add_arguments(p):

@@ -9,6 +9,10 @@ from acq.argtypes import output_file
 
 NAME = "export"
 HELP = "export a session's raw readings (CSV/JSON) or its pose measurements (pose CSV)"
+EXAMPLES = """\
+robocal export cell.db --poses poses.csv --readings readings.csv
+robocal export cell.db --json -                  # the whole session as JSON on stdout
+"""
 
 
 def add_arguments(p):

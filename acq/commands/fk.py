@@ -9,17 +9,21 @@ import numpy as np
 from calib.errors import RobocalError
 from calib.kinematics import Kinematics
 from calib.robot import load_robot, rpy_from_matrix
+from acq.argtypes import add_robot_argument
 
 NAME = "fk"
 HELP = ("tool point (mm, robot base frame) for joint readings in degrees (mm for prismatic joints); every point of a "
         "robot with several (a branched robot's hands)")
+EXAMPLES = """\
+robocal fk 0 -90 90 0 0 0 --json                 # tool point of the Puma 560 at READY
+robocal fk 10 -40 70 30 -20 50 --robot my_robot.urdf --tip-link tool0
+"""
 
 
 def add_arguments(p):
     p.add_argument("q", nargs="+", metavar="Q",
                    help="joint readings in degrees (theta_j of the A-matrices; mm for a prismatic joint)")
-    p.add_argument("--robot", metavar="FILE", help="robot description: TOML, URDF or a calibration description "
-                   "wrapping a URDF (default: the thesis's Puma 560)")
+    add_robot_argument(p)
     p.add_argument("--json", action="store_true", help='print {"x_mm": .., "y_mm": .., "z_mm": ..}')
 
 

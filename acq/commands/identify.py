@@ -5,18 +5,22 @@ import json
 import sys
 
 from calib.errors import RobocalError
-from acq.argtypes import add_force_argument, effect_spec, output_file, positive_float
+from acq.argtypes import add_force_argument, add_robot_argument, effect_spec, output_file, positive_float
 
 from ._csvargs import add_unit_arguments, units
 from .diagnose import add_outlier_arguments
 
 NAME = "identify"
 HELP = "identify geometry (and running errors) from a pose-measurement CSV"
+EXAMPLES = """\
+robocal identify poses.csv --thesis-effects --out model.json --out-robot identified.toml
+robocal identify poses.csv --effect transmission_error:4:0.9 --effect backlash:2
+"""
 
 
 def add_arguments(p):
     p.add_argument("data", metavar="DATA.csv", help="pose CSV: q1..q6 (deg), x, y, z (mm) and optional conditions")
-    p.add_argument("--robot", metavar="FILE", help="robot description TOML (default: the thesis's Puma 560)")
+    add_robot_argument(p)
     p.add_argument("--noise-mm", type=positive_float, default=None,
                    help="1-sigma point noise per coordinate (mm), used when the file has no sigma_*_mm columns; "
                         "without either the noise is estimated from the data (repeats, several targets) or, when "

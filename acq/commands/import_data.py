@@ -10,6 +10,10 @@ from acq.argtypes import output_file
 
 NAME = "import"
 HELP = "import raw readings or pose measurements (CSV) measured with other tools into a new session database"
+EXAMPLES = """\
+robocal import poses.csv --db imported.db        # data measured with other tools becomes a session
+robocal import readings.csv --db copy.db --resume
+"""
 
 
 def add_arguments(p):

@@ -8,6 +8,9 @@ from acq.commands._csvargs import add_unit_arguments, model_and_table
 
 NAME = "locate"
 HELP = "fit only the instrument-to-robot transform (per station) with the calibrated model held fixed"
+EXAMPLES = """\
+robocal locate model.json day2.csv               # re-station the instruments, model held fixed
+"""
 
 
 def add_arguments(p):

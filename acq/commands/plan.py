@@ -13,18 +13,38 @@ from calib.robot import load_robot
 from calib.units import DEG
 
 from ..progress import progress_display
-from acq.argtypes import finite_float, output_file, positive_float, positive_int, seed_int
+from acq.argtypes import add_robot_argument, examples_text, finite_float, output_file, positive_float, positive_int, seed_int
 
 NAME = "plan"
 HELP = "design the experiment: choose identification poses or score a pose set"
+EXAMPLES = """\
+robocal plan poses --count 40 --tool 50 0 100 --out poses.csv
+robocal plan setup all --out setup.json
+robocal plan check setup.json
+"""
+
+POSES_EXAMPLES = """\
+robocal plan poses --count 40 --tool 50 0 100 --out poses.csv   # D-optimal (O1) poses, compared with random ones
+robocal plan poses --count 40 --index O4                        # the noise-amplification index instead
+robocal plan poses --evaluate poses.csv --set chapter6          # rank, condition, weakest combinations
+"""
+SETUP_EXAMPLES = """\
+robocal plan setup all --out setup.json        # ruler, sweep targets and extended tool for this room
+robocal plan setup sweep --room-x -1000 3000 --room-y 3500 --json
+"""
+CHECK_EXAMPLES = """\
+robocal plan check setup.json                  # the standard plan against the set-up (exit 2 if a step fails)
+robocal plan check cell.db --json              # a session's own plan
+"""
 
 
 def add_arguments(p):
     sub = p.add_subparsers(dest="what", metavar="WHAT", required=True)
-    poses = sub.add_parser("poses", help="choose N poses maximising an observability index, or --evaluate a set")
+    poses = sub.add_parser("poses", help="choose N poses maximising an observability index, or --evaluate a set",
+                           epilog=examples_text(POSES_EXAMPLES))
     poses.add_argument("--count", type=positive_int, metavar="N", help="number of poses to choose")
     poses.add_argument("--evaluate", metavar="FILE.csv", help="score this pose set instead (columns q1..q6, deg)")
-    poses.add_argument("--robot", metavar="FILE", help="robot description TOML (default: the thesis's Puma 560)")
+    add_robot_argument(poses)
     poses.add_argument("--out", type=output_file, metavar="FILE.csv", help="write the chosen poses (q1..q6 in degrees)")
     poses.add_argument("--index", choices=INDICES, default="O1", help="observability index (default O1, D-optimal)")
     poses.add_argument("--set", dest="pset", choices=("geometric", "full", "chapter6"), default="geometric",
@@ -32,9 +52,10 @@ def add_arguments(p):
     poses.add_argument("--tool", nargs=3, type=finite_float, metavar=("X", "Y", "Z"),
                        help="tool target in frame 6, mm (default: the robot's tool point)")
     poses.add_argument("--noise-mm", type=positive_float, default=0.05, help="1-sigma point noise per coordinate (mm)")
-    poses.add_argument("--seed", type=seed_int, default=0)
+    poses.add_argument("--seed", type=seed_int, default=0, help="seed of the random candidate poses")
     poses.add_argument("--json", action="store_true", help="print the result as JSON")
-    setup = sub.add_parser("setup", help="set-up geometry of a Chapter 4 procedure for minimum estimation error")
+    setup = sub.add_parser("setup", help="set-up geometry of a Chapter 4 procedure for minimum estimation error",
+                           epilog=examples_text(SETUP_EXAMPLES))
     setup.add_argument("procedure", choices=("ruler", "sweep", "te", "all"),
                        help="ruler pre-calibration, joint sweep (circle point analysis), transmission-error run, or "
                             "all three")
@@ -43,7 +64,7 @@ def add_arguments(p):
     setup.add_argument("--room-y", type=positive_float, default=4000.0, help="room depth in front of the baseline (mm)")
     setup.add_argument("--min-focus-mm", type=positive_float, default=900.0, help="closest sighting distance (mm)")
     setup.add_argument("--sigma-arcsec", type=positive_float, default=3.0, help="1-sigma reading noise (arc seconds)")
-    setup.add_argument("--seed", type=seed_int, default=0)
+    setup.add_argument("--seed", type=seed_int, default=0, help="seed of the design's search")
     setup.add_argument("--json", action="store_true", help="print the result as JSON")
     setup.add_argument("--out", type=output_file, metavar="SETUP.json",
                        help="write the session set-up file with the design in it (read by robocal session --setup "
@@ -51,11 +72,10 @@ def add_arguments(p):
     setup.add_argument("--setup", dest="base_setup", metavar="SETUP.json",
                        help="the set-up file to start from (default: the standard template)")
     check = sub.add_parser("check", help="pre-flight of a session's plan or of a set-up file against the robot "
-                                         "(exit 2 when a step fails)")
+                                         "(exit 2 when a step fails)", epilog=examples_text(CHECK_EXAMPLES))
     check.add_argument("target", metavar="SESSION_OR_SETUP",
                        help="a session database (.db) or a set-up JSON (checked with the standard plan)")
-    check.add_argument("--robot", metavar="FILE", help="robot description TOML (default: the set-up's, or the "
-                                                       "thesis's Puma 560)")
+    add_robot_argument(check, "the set-up's robot, else the thesis's Puma 560")
     check.add_argument("--poses", metavar="POSES.csv", help="with a set-up: add this Chapter 6 pose set")
     check.add_argument("--json", action="store_true", help="print every failing check as JSON")
 

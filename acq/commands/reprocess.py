@@ -8,10 +8,15 @@ from __future__ import annotations
 import sys
 
 from acq.argtypes import int_range, output_dir, output_file
-from acq.commands.demo import add_report_options
+from acq.commands.demo import add_report_options, check_pdf_options
 
 NAME = "reprocess"
 HELP = "rerun the calibration from a saved session (read-only), write JSON estimates and an HTML report"
+EXAMPLES = """\
+robocal reprocess cell.db --report report/ --json results.json
+robocal reprocess cell.db --report report/ --pdf --tolerance-mm 0.5
+robocal reprocess cell.db --mc 200              # Monte Carlo errors as well
+"""
 
 
 def add_arguments(p):
@@ -85,6 +90,7 @@ def run(args) -> int:
     from acq.session.reprocess import reprocess
     from acq.session.store import save_result
 
+    check_pdf_options(args)
     res = reprocess(args.session, n_mc=args.mc)
     if args.diagnose:
         res["diagnosis"] = session_diagnosis(args.session)

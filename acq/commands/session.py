@@ -13,14 +13,22 @@ writes an annotated template to start from.  ``--poses`` adds the Chapter 6 pose
 from __future__ import annotations
 
 import json
+import sys
 from pathlib import Path
 
 from calib.errors import RobocalError
 from calib.fileio import atomic_write_text
-from acq.argtypes import output_file, seed_int, te_joints
+from acq.argtypes import add_robot_argument, output_file, seed_int, te_joints
+from acq.interrupt import EXIT_HUNG_UP, EXIT_INTERRUPTED, command_line, report_text, say
 
 NAME = "session"
 HELP = "guide the operator through a calibration session (Textual TUI)"
+EXAMPLES = """\
+robocal session --emulate --db cell.db           # the emulated cell (resumes when cell.db exists)
+robocal session --emulate --only ruler --only sweep/j2
+robocal session --db cell.db --setup setup.json --tap can:socketcan:can0 \\
+    --theodolite A=geocom:/dev/ttyUSB0 --theodolite B=geocom:/dev/ttyUSB1
+"""
 
 
 def add_arguments(p):
@@ -38,9 +46,8 @@ def add_arguments(p):
                    help="the encoder tap (python-can interface and channel, or a serial URL)")
     p.add_argument("--setup", metavar="SETUP.json", help="bench geometry (see --write-setup)")
     p.add_argument("--poses", metavar="POSES.csv", help="Chapter 6 pose set (q1..q6, deg)")
-    p.add_argument("--robot", metavar="FILE",
-                   help="robot description, TOML or URDF (default: the thesis's Puma 560); with --emulate, the robot "
-                        "the twin emulates")
+    add_robot_argument(p, "the thesis's Puma 560; with --emulate, the robot the twin emulates; a resumed session "
+                          "keeps the one it was recorded with")
     p.add_argument("--te-joints", type=te_joints, metavar="J,J,...", default=None,
                    help="joints whose transmission error a new session measures (default 4,6; 2 and 3 on request), "
                         "plan key transmission.joints")
@@ -233,6 +240,15 @@ def _stored_plan_setup(db: str) -> tuple[dict, dict]:
     return stored_plan_setup(db)
 
 
+def _need_terminal() -> None:
+    """The TUI reads keys from stdin and draws on stderr: without a terminal there it would run unseen, a core busy,
+    until killed -- so it refuses, in one line."""
+    if not (sys.stdin.isatty() and sys.stderr.isatty()):
+        raise RobocalError("session: needs a terminal (the TUI reads the keyboard on stdin and draws on stderr, and "
+                           "one of them is not a terminal here); run it in a terminal, or record unattended with "
+                           "robocal demo")
+
+
 def run(args) -> int:
     if args.write_setup:
         atomic_write_text(args.write_setup, json.dumps(setup_template(), indent=2))
@@ -257,12 +273,40 @@ def run(args) -> int:
     else:
         raise RobocalError("session: give --emulate, or the devices (--theodolite A=KIND:URL --theodolite "
                            "B=KIND:URL [--tap ...]) and --setup")
+    _need_terminal()
     from acq.tui.app import RobocalApp
 
-    app = RobocalApp(builder)
+    app = RobocalApp(builder, resume_command=resume_command(args))
     app.run()
-    if app.finished and app.finished.get("error"):
-        print(f"robocal session: stopped: {app.finished['error']} — the session resumes with the same --db")
-        return 1
-    print(f"robocal session: data in {args.db}")
-    return 0
+    return _after(app, args.db)
+
+
+def _after(app, db: str) -> int:
+    """What the terminal shows once the TUI is gone: the database, and either the command that makes the report
+    (finished) or how many steps are kept and the command that resumes (stopped, quit, Ctrl-C, terminal closed)."""
+    fin = app.finished or {}
+    if fin.get("exit_status") == "success":
+        say(f"robocal session: finished; data in {db}\n{report_text(db)}")
+        return 0
+    if fin.get("exit_status") == "refused" or app.handle is None and not app.progress.steps_total:
+        say(f"robocal session: {fin.get('error') or 'not started'}; nothing recorded in {db}")
+        return 1 if fin else 0
+    why = {"interrupt": "interrupted", "hangup": "the terminal closed"}.get(app.ended_by or "", "")
+    why = why or (f"stopped: {fin['error']}" if fin.get("error") else f"{fin.get('exit_status') or 'quit'}")
+    say(f"robocal session: {why}: {app.kept()}")
+    if app.ended_by:
+        return EXIT_HUNG_UP if app.ended_by == "hangup" else EXIT_INTERRUPTED
+    return 1 if fin.get("error") else 0
+
+
+def resume_command(args) -> str:
+    """The exact command that resumes this session: its database and devices, the same step filter; not what a
+    resumed session keeps from its recording (set-up, poses, robot, transmission joints, seed)."""
+    words = ["robocal", "session", "--db", args.db]
+    words += ["--emulate"] if args.emulate else []
+    for t in args.theodolite:
+        words += ["--theodolite", t]
+    words += ["--tap", args.tap] if args.tap else []
+    for prefix in args.only:
+        words += ["--only", prefix]
+    return command_line(words)

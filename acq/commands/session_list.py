@@ -3,6 +3,9 @@ from __future__ import annotations
 
 NAME = "sessions"
 HELP = "list session databases: status and steps per procedure"
+EXAMPLES = """\
+robocal sessions cell.db robocal-demo.db
+"""
 
 
 def add_arguments(p):

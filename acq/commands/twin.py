@@ -9,6 +9,10 @@ from calib.twin_report import render, summarise
 
 NAME = "twin"
 HELP = "run the simulated Puma 560 (the twin) and summarise its sim-to-real gap"
+EXAMPLES = """\
+robocal twin --poses 500                         # the sim-to-real gap, effect by effect
+robocal twin --scenario my_scenario.toml --json --export poses.csv
+"""
 
 
 def add_arguments(p):

@@ -222,3 +222,37 @@ def instrument_errors(step, readings: list[dict], values: dict, limits: dict) ->
 
 def _circ_mean(a) -> float:
     return float(np.angle(np.mean(np.exp(1j * np.asarray(a, float)))))
+
+
+def missing_inputs(step, values: dict) -> list[Check]:
+    """One failed check per value the step needs and the operator did not enter (a load, a gauge, a tilt): the
+    plan's value is never taken in its place, so the step cannot be acquired until it is entered."""
+    out = []
+    for spec in step.inputs:
+        v = values.get(spec.name)
+        if v is None or not np.isfinite(float(v)):
+            hint = "" if spec.suggested is None else f" (the plan asks for {spec.suggested:g} {spec.unit})"
+            out.append(Check(f"entered {spec.name}", False, None, None, spec.unit,
+                             f"{spec.prompt} ({spec.unit}) was not entered{hint}: enter the value you measured, "
+                             f"then repeat (r)"))
+    return out
+
+
+def inputs_as_planned(step, readings: list[dict], values: dict, limits: dict) -> list[Check]:
+    """Each entered value against the plan's, where the step gives a tolerance: a mass far from the planned one is
+    another mass hung (or a typing slip), which the operator must see before accepting -- the entered value is the
+    one the reduction uses."""
+    out = []
+    for spec in step.inputs:
+        if spec.tolerance is None or spec.suggested is None or values.get(spec.name) is None:
+            continue
+        v = float(values[spec.name])
+        dev = abs(v - spec.suggested)
+        ok = dev <= spec.tolerance
+        both = f"entered {v:g} {spec.unit}, the plan {spec.suggested:g} {spec.unit}"
+        out.append(Check(f"as planned {spec.name}", ok, dev, spec.tolerance, spec.unit,
+                         f"{spec.prompt}: {both}" if ok else
+                         f"{spec.prompt}: {both}, {dev:.3g} {spec.unit} apart — hang what the plan asks and "
+                         f"repeat (r), or accept (a) if {v:g} {spec.unit} is really what is there: the entered value "
+                         f"is the one used"))
+    return out

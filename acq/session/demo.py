@@ -267,8 +267,9 @@ def build_demo(db: str | Path, seed: int = 0, resume: bool = False, script: dict
         steps = [s for s in steps if steps_filter(s)]
 
     def inputs(step: Step) -> dict:
-        """What the scripted operator reads off the bench: dial gauges, the instrument's electronic level."""
-        out = bench.read_gauges(step)               # the step's gauges, if it has any
+        """What the scripted operator reads off the bench: the load it hung, dial gauges, the instrument's
+        electronic level."""
+        out = bench.read_inputs(step)
         drv = drivers.get(step.setup.get("station"))
         if drv is not None and any(i.name == "tilt_cross_arcsec" for i in step.inputs):
             r = drv.angles_with_inclination()

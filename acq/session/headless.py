@@ -10,8 +10,9 @@ procedures an operator would.  The script is a dict (also loadable from JSON):
 * ``"setup"``: step key -> action at the setup prompt (``skip``, ``pause``, ``abort``);
 * ``"pause_after"``: number of decisions after which to answer ``pause`` (tests of resume).
 
-Operator inputs (loads, dial gauges) come from ``inputs(step) -> dict``: by default the step's suggested values; the
-demo passes a reader of its emulated gauges.
+Operator inputs (loads, dial gauges, tilts) come from ``inputs(step) -> dict``, what the operator reads off the
+bench -- the demo passes a reader of its emulated bench (the mass it hung, its gauges, its levels).  The plan's values
+are never entered in their place: without a reader, a step that needs a value is refused by the runner.
 """
 from __future__ import annotations
 
@@ -37,9 +38,7 @@ class ScriptedOperator:
         step = req.step
         if req.kind == "setup":
             act = self.setup_answers.get(step.key, "continue")
-            values = {i.name: i.suggested for i in step.inputs if i.suggested is not None}
-            if self.inputs is not None:
-                values.update(self.inputs(step))
+            values = dict(self.inputs(step)) if self.inputs is not None else {}
             self.log.append((step.key, req.attempt, f"setup:{act}"))
             return Answer(act, values)
         self.decisions += 1
@@ -74,6 +73,7 @@ class ProgressPrinter:
         self.total = 0
         self.failed_checks = 0
         self.preflight_lines: list[str] = []
+        self.error: str | None = None                 # why the session ended, when it failed
 
     def __call__(self, ev: Event) -> None:
         if ev.kind == "session":
@@ -87,3 +87,5 @@ class ProgressPrinter:
             self.preflight_lines = list(ev.data["lines"])
         elif ev.kind == "check" and not ev.data["passed"]:
             self.failed_checks += 1
+        elif ev.kind == "finished":
+            self.error = ev.data.get("error")

@@ -244,10 +244,26 @@ def compliance(plan: dict, setup: dict) -> Iterator[Step]:
 def _load_inputs(j: int, cfg: dict, load_n: float, hung: dict) -> tuple[InputSpec, ...]:
     """What the operator enters at a compliance step: the load (kg when the step hangs a mass), the lever as
     measured and its angle from level (recorded with the step)."""
-    load = (InputSpec("load_kg", "kg", f"Mass now on the lever of joint {j}", hung["loads"][0]["mass_kg"]) if hung
-            else InputSpec("load_n", "N", f"Load now on the lever of joint {j}", load_n))
-    return (load, InputSpec("lever_mm", "mm", "Lever arm from the joint's axis", cfg["lever_mm"]),
-            InputSpec("theta_i_deg", "deg", "Lever angle from the horizontal", cfg.get("theta_i_deg", 0.0)))
+    load = (_load_spec("load_kg", "kg", f"Mass now on the lever of joint {j}", hung["loads"][0]["mass_kg"]) if hung
+            else _load_spec("load_n", "N", f"Load now on the lever of joint {j}", load_n))
+    lever = float(cfg["lever_mm"])
+    return (load, InputSpec("lever_mm", "mm", "Lever arm from the joint's axis", lever,
+                            tolerance=max(LEVER_REL_TOL * lever, LEVER_MIN_TOL_MM)),
+            InputSpec("theta_i_deg", "deg", "Lever angle from the horizontal", cfg.get("theta_i_deg", 0.0),
+                      tolerance=LEVER_ANGLE_TOL_DEG))
+
+
+#: how far an entered load may be from the plan's before the "as planned" check fails: a different mass (the 5 kg
+#: set where 1.02 kg was planned), not the scale's error -- 10 % of the planned load, at least 0.05 kg (0.5 N)
+LOAD_REL_TOL, LOAD_MIN_TOL = 0.10, {"kg": 0.05, "N": 0.5}
+#: a lever measured more than 5 % (at least 5 mm) off the plan's is another hole; its angle more than 5 deg off level
+LEVER_REL_TOL, LEVER_MIN_TOL_MM, LEVER_ANGLE_TOL_DEG = 0.05, 5.0, 5.0
+
+
+def _load_spec(name: str, unit: str, prompt: str, planned: float) -> InputSpec:
+    """A load input with the plan's value as its hint and the tolerance that tells a different mass."""
+    planned = float(planned)
+    return InputSpec(name, unit, prompt, planned, tolerance=max(LOAD_REL_TOL * abs(planned), LOAD_MIN_TOL[unit]))
 
 
 # -- 4.6 link compliance ---------------------------------------------------------------------------------------------
@@ -275,8 +291,8 @@ def _link_load_input(hung: dict, load_n: float) -> InputSpec:
     """The link step's load as the operator enters it: the mass hung (kg, contract C3) when the step hangs one, the
     old force prompt (N) for a set-up without load points."""
     if hung:
-        return InputSpec("load_kg", "kg", "Mass hung", hung["loads"][0]["mass_kg"])
-    return InputSpec("load_n", "N", "Load hung", load_n)
+        return _load_spec("load_kg", "kg", "Mass hung", hung["loads"][0]["mass_kg"])
+    return _load_spec("load_n", "N", "Load hung", load_n)
 
 
 # -- 4.7 wrist coupling ----------------------------------------------------------------------------------------------

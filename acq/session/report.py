@@ -1,5 +1,5 @@
 """The calibration report of a reprocessed session: one HTML file that can be mailed (figures embedded as PNG, a small
-stylesheet that reads on screen and prints to PDF), optionally a PDF beside it.
+stylesheet that reads on screen and prints to PDF), optionally the same page printed to a PDF beside it.
 
 It opens with the answer -- the robot, the session, the instruments and their stated noise, and how accurate the robot
 was before calibration and is after, on poses the fit did not use, against the instrument floor and a tolerance, with
@@ -20,7 +20,7 @@ from typing import Callable
 
 import numpy as np
 
-from calib.fileio import atomic_path, atomic_write_text
+from calib.fileio import atomic_write_text
 from calib.units import DEG
 
 from .sections import DETERMINED, NEGLIGIBLE, SECTIONS, UNDETERMINED, WEAK, Section, beside_the_thesis, bound_text, \
@@ -38,8 +38,14 @@ th { background: #eef2f8; } td.name, th.name { text-align: left; }
 .verdict { font-weight: 600; } .determined { color: #1a7f37; } .weakly { color: #9a6700; }
 .not { color: #cf222e; } .problem { background: #fff4f4; border-left: 4px solid #cf222e; padding: 0.3rem 0.8rem; }
 .muted { color: #666; font-size: 0.85rem; } figure { margin: 0.5rem 0; } img { max-width: 100%; }
-@media print { body { max-width: none; margin: 0; } h2 { page-break-before: auto; } figure, table {
-  page-break-inside: avoid; } }
+.keep { break-inside: avoid; }
+/* print (--pdf is this page printed): a title never ends a page without what it titles, a table or a figure is not
+   cut when it fits a page, a long table repeats its header row */
+@page { size: A4; margin: 14mm 12mm; }
+@media print { body { max-width: none; margin: 0; font-size: 10pt; } .answer { break-inside: avoid; }
+  h1, h2, h3 { break-after: avoid; page-break-after: avoid; }
+  figure, table, tr, .keep, .problem, p.verdict { break-inside: avoid; page-break-inside: avoid; }
+  thead { display: table-header-group; } img { max-height: 120mm; } }
 """
 
 FigureFn = Callable[[dict, dict], "list[tuple[str, object]]"]
@@ -354,14 +360,14 @@ def _estimates_table(ests: list[dict]) -> str:
         rows.append(f"<tr><td class='name'>{html.escape(s.name)}</td><td>{s.value:.6g}</td><td>{err}</td>"
                     f"<td class='name'>{html.escape(unit)}</td>" + ("" if truth is None else f"<td>{truth}</td>")
                     + f"<td class='name {_verdict_class(s.verdict)}'>{s.verdict}</td></tr>")
-    return f"<table>{head}{''.join(rows)}</table>"
+    return f"<table><thead>{head}</thead>{''.join(rows)}</table>"      # thead: repeated on every printed page
 
 
 def _thesis_table(rows: list[dict]) -> str:
     if not rows:
         return ""
-    out = ["<h3>Beside the thesis</h3><table><tr><th class='name'>quantity</th><th>robocal</th><th>1σ</th>"
-           "<th>thesis</th><th>difference</th><th>in σ</th><th class='name'>note</th></tr>"]
+    out = ["<div class='keep'><h3>Beside the thesis</h3><table><tr><th class='name'>quantity</th><th>robocal</th>"
+           "<th>1σ</th><th>thesis</th><th>difference</th><th>in σ</th><th class='name'>note</th></tr>"]
     for r in rows:
         unit = "" if r["unit"] == "1" else f" {r['unit']}"
         sig = "" if r["sigmas"] is None else f"{r['sigmas']:+.1f}"
@@ -371,7 +377,7 @@ def _thesis_table(rows: list[dict]) -> str:
         out.append(f"<tr><td class='name'>{html.escape(r['label'])}</td><td>{r['robocal']:.6g}{unit}</td>"
                    f"<td>{err}</td><td>{r['thesis']:.6g}{th_err}{unit}</td><td>{r['difference']:+.4g}</td><td>{sig}</td>"
                    f"<td class='name'>{html.escape(note)}</td></tr>")
-    out.append("</table>")
+    out.append("</table></div>")
     return "".join(out)
 
 
@@ -513,36 +519,9 @@ def report_html(res: dict, tolerance_mm: float | None = None, record=None) -> st
             f"<style>{STYLE}</style></head><body>" + "".join(body) + "</body></html>")
 
 
-def write_pdf(res: dict, path: str | Path, tolerance_mm: float | None = None) -> Path:
-    """A PDF of the answer and every figure (matplotlib's PDF backend: no browser needed)."""
-    from matplotlib.backends.backend_pdf import PdfPages
-    plt = _plt()
-    path = Path(path)
-    from .summary import summary_lines
-    with atomic_path(path, suffix=".pdf") as tmp, PdfPages(tmp) as pdf:
-        lines = [t for _, t in summary_lines(res)]
-        acc = res.get("accuracy")
-        if acc:
-            lines.insert(1, accuracy_verdict(acc, tolerance_mm))
-        for start in range(0, len(lines), 55):
-            fig = plt.figure(figsize=(8.27, 11.69))
-            fig.text(0.05, 0.97, "robocal calibration report" if start == 0 else "(continued)", fontsize=13,
-                     va="top", weight="bold")
-            fig.text(0.05, 0.94, "\n".join(lines[start:start + 55]), fontsize=7, va="top", family="monospace",
-                     wrap=True)
-            pdf.savefig(fig)
-            plt.close(fig)
-        for key, items in render_figures(res).items():
-            for caption, fig in items:
-                fig.suptitle(caption, fontsize=9)
-                pdf.savefig(fig, bbox_inches="tight")
-                plt.close(fig)
-    return path
-
-
 def write_report(result: dict, out_dir: str | Path, tolerance_mm: float | None = None, pdf: bool = False) -> Path:
     """Write ``report.html``, ``results.json`` and ``robot.json`` (identified description) into ``out_dir``; with
-    ``pdf`` also ``report.pdf``."""
+    ``pdf`` also ``report.pdf``: the same HTML printed (:mod:`acq.session.pdf`), so both are one document."""
     from .records import session_record
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
@@ -559,5 +538,6 @@ def write_report(result: dict, out_dir: str | Path, tolerance_mm: float | None =
     if result.get("robot"):
         atomic_write_text(out / "robot.json", json.dumps(result["robot"], indent=1))
     if pdf:
-        write_pdf(result, out / "report.pdf", tolerance_mm)
+        from .pdf import html_to_pdf
+        html_to_pdf(path, out / "report.pdf")
     return path

@@ -219,6 +219,19 @@ class EmulatedBench(Bench):
         self.world.aim(self._Target(target.name, tool_mm=target.tool_mm, point_mm=target.point_mm,
                                     link=getattr(target, "link", None)))
 
+    def read_inputs(self, step: Step) -> dict:
+        """What an operator reads off this bench for the step's inputs, by name: the mass it hangs (``load_kg``), the
+        force, lever and lever angle of its set-up, its dial gauges.  The bench hangs what the step's set-up says;
+        entering it is the operator's act, so a scripted operator enters this, not the plan's hint (tilts are read
+        from the instruments, :func:`acq.session.demo.build_demo`)."""
+        names = {i.name for i in step.inputs}
+        out = {k: float(v) for k, v in step.setup.items() if k in names and isinstance(v, (int, float))}
+        loads = c3_setup(step.setup, step.pose_deg, {}, self._kin).get("loads") or []
+        if "load_kg" in names and loads:
+            out["load_kg"] = float(loads[0]["mass_kg"])
+        out.update(self.read_gauges(step, out))
+        return out
+
     def read_gauges(self, step: Step, inputs: dict | None = None) -> dict:
         """What the step's dial gauges show (``<name>_mm``), with the step's loads hung at its pose."""
         s = c3_setup(step.setup, step.pose_deg, inputs or {}, self._kin)

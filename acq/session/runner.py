@@ -31,7 +31,8 @@ kind                   data
 ``step_skipped_done``  ``{"key"}``: already committed in an earlier run (resume)
 ``reading``            ``{"key", "station", "target", "face", "repeat", "hz_deg", "v_deg"}``
 ``encoders``           ``{"key", "n_samples", "joint_deg"}``
-``check``              ``{"key", "name", "passed", "value", "limit", "unit", "message"}``
+``check``              ``{"key", "name", "passed", "value", "limit", "unit", "message"}``: every check, a device
+                       fault (``device``), a value not entered and a failing pre-flight of the step included
 ``step_saved``         ``{"key", "status", "attempts"}``: committed to the database (show "saved" only now)
 ``log``                ``{"text"}``
 ``finished``           ``{"exit_status", "error"}``
@@ -42,7 +43,10 @@ returns; a UI implements ``ask`` by posting the request to the app and waiting o
 app completes (``ask`` should return ``Answer("abort")`` if the app closes).  :class:`Request` has ``kind``:
 
 * ``"setup"``: before a step's acquisition -- do what ``instruction`` says and enter ``inputs`` (loads, gauges);
-  answer ``continue`` (with ``values``), ``skip``, ``pause`` or ``abort``;
+  answer ``continue`` (with ``values``), ``skip``, ``pause`` or ``abort``.  Every input must be in ``values``: the
+  plan's value (``InputSpec.suggested``) is a hint, never a stand-in, so an input left out fails the attempt (an
+  ``entered ...`` check, nothing acquired, choices ``repeat``/``skip``/``pause``/``abort``), and an entry further
+  from the plan than ``InputSpec.tolerance`` fails the ``as planned ...`` check, naming both values;
 * ``"decision"``: after the checks (``checks`` lists them) -- answer ``accept``, ``repeat``, ``skip``, ``pause``,
   ``abort``; ``note`` is stored with the step.
 
@@ -79,6 +83,8 @@ log = logging.getLogger(__name__)
 ACTIONS_SETUP = ("continue", "skip", "pause", "abort")
 ACTIONS_DECISION = ("accept", "repeat", "skip", "pause", "abort")
 ACTIONS_FAULT = ("skip", "pause", "abort")
+#: an attempt that acquired nothing (a device fault, a value not entered): nothing to accept
+ACTIONS_RETRY = ("repeat", "skip", "pause", "abort")
 
 
 @dataclass
@@ -103,7 +109,7 @@ class _StepLog:
 
     def add_inputs(self, step: Step, ans: "Answer") -> dict:
         """The operator's values for the step's inputs (stored with the attempt); returns them by name."""
-        values = {i.name: float(ans.values[i.name]) for i in step.inputs if i.name in ans.values}
+        values = {i.name: float(ans.values[i.name]) for i in step.inputs if ans.values.get(i.name) is not None}
         for spec in step.inputs:
             if spec.name in values:
                 self.inputs.append({"attempt": self.attempt, "name": spec.name, "value": values[spec.name],
@@ -283,22 +289,7 @@ class Runner:
             if ans.action == "skip":
                 status, note = "skipped", ans.note
                 break
-            values = rec.add_inputs(step, ans)
-            self.bench.prepare(step, values)
-            try:
-                got, cap = self._acquire(step, rec.attempt)
-            except DeviceError as exc:
-                # an unplugged or silent device fails this attempt, not the session: the operator fixes the cause
-                # and repeats (the drivers reconnect), or skips, or pauses; nothing of this attempt is recorded
-                self.emit("log", text=f"device fault at {step.key}: {exc}")
-                results = [ck.Check("device", False, None, None, "",
-                                    f"{exc} — check the cable and power of that device, then repeat (r)")]
-                choices = ("repeat", "skip", "pause", "abort")
-                self._emit_checks(step, results)
-            else:
-                rec.add_acquisition(got, cap, self.rig.device_ids.get("encoder tap", 0))
-                results = self._check(step, got, cap, values)
-                choices = ACTIONS_DECISION
+            results, choices = self._attempt(step, rec, rec.add_inputs(step, ans))
             action, note = self._decide(step, rec, results, choices)
             if action in ("pause", "abort"):
                 return action
@@ -307,6 +298,28 @@ class Runner:
                 break
         self._commit(step, rec, status, note)
         return status
+
+    def _attempt(self, step: Step, rec: "_StepLog", values: dict) -> tuple[list, tuple[str, ...]]:
+        """One acquisition with the operator's ``values``: (the checks, the choices the operator then has).
+
+        An attempt acquires nothing -- and offers nothing to accept -- when a measured value the step needs was not
+        entered (the plan's value is no stand-in for it) or a device fails; the operator fixes it and repeats."""
+        missing = ck.missing_inputs(step, values)
+        if missing:
+            self._emit_checks(step, missing)
+            return missing, ACTIONS_RETRY
+        self.bench.prepare(step, values)
+        try:
+            got, cap = self._acquire(step, rec.attempt)
+        except DeviceError as exc:
+            # an unplugged or silent device fails this attempt, not the session: the operator fixes the cause
+            # and repeats (the drivers reconnect), or skips, or pauses; nothing of this attempt is recorded
+            results = [ck.Check("device", False, None, None, "",
+                                f"{exc} — check the cable and power of that device, then repeat (r)")]
+            self._emit_checks(step, results)
+            return results, ACTIONS_RETRY
+        rec.add_acquisition(got, cap, self.rig.device_ids.get("encoder tap", 0))
+        return self._check(step, got, cap, values), ACTIONS_DECISION
 
     def _emit_started(self, index: int, step: Step, attempt: int) -> None:
         self.emit("step_started", key=step.key, procedure=step.procedure, title=step.title,
@@ -342,8 +355,6 @@ class Runner:
         self.preflight.stations = self.stations or self.preflight.stations
         out = [ck.Check(f"pre-flight {f.check}", False, f.value, f.limit, f.unit, f.detail)
                for f in self.preflight.check_step(step)]
-        for c in out:
-            self.emit("log", text=f"pre-flight {step.key}: {c.name[11:]}: {c.message}")
         self._emit_checks(step, out)
         return out
 
@@ -409,6 +420,7 @@ class Runner:
                 out += ck.miss_and_plausibility(rows, self.stations, pred, self.limits, fitted=self.stations_fitted)
         if cap is not None:
             out += ck.encoders_settled(cap, step.pose_deg, self.limits)
+        out += ck.inputs_as_planned(step, rows, values or {}, self.limits)
         for extra in procedure_info(step.procedure).checks:
             out += extra(step, rows, values or {}, self.limits)
         self._emit_checks(step, out)

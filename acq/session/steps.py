@@ -12,12 +12,19 @@ from dataclasses import asdict, dataclass, field
 
 @dataclass(frozen=True)
 class InputSpec:
-    """A value the operator enters at a step (e.g. the load hung, a dial-gauge reading)."""
+    """A value the operator measures and enters at a step (the load hung, a dial-gauge reading, a tilt).
+
+    Why the plan's value is only a hint: a field pre-filled with the plan lets the operator continue without entering
+    what was actually hung, and the reduction then uses a mass nobody checked.  So ``suggested`` (what the procedure
+    asks for) is shown beside an empty field, every input must be entered (the runner refuses the step otherwise),
+    and an entry more than ``tolerance`` (same unit) from ``suggested`` is a failed check naming both values.
+    """
 
     name: str                       # e.g. "load_n", "gauge1_mm": the unit is in the name and in ``unit``
     unit: str
     prompt: str
-    suggested: float | None = None  # what the procedure asked for (the scripted operator enters the measured value)
+    suggested: float | None = None  # the plan's value: a hint, never entered for the operator
+    tolerance: float | None = None  # |entered - suggested| beyond this fails the "as planned" check (None: no check)
 
 
 @dataclass(frozen=True)

@@ -29,7 +29,8 @@ class StillRig:
 
 
 class StillRunner:
-    """Emits the first step of ``steps`` with one face-I reading per station, then asks for its set-up forever."""
+    """Emits the first step of ``steps`` with one face-I reading per station, then asks for its set-up until paused or
+    aborted (every answer kept in ``answers``)."""
 
     def __init__(self, operator, steps: list[Step]):
         self.operator = operator
@@ -39,6 +40,7 @@ class StillRunner:
         self._subs = []
         self._abort = threading.Event()
         self._thread = None
+        self.answers = []                  # what the operator answered, in order (entry tests read them)
 
     def subscribe(self, cb):
         self._subs.append(cb)
@@ -60,7 +62,11 @@ class StillRunner:
         for st, hz in (("A", 109.32074), ("B", 259.32700)):
             self._emit("reading", key=s.key, station=st, target=s.targets[0].name if s.targets else "",
                        face=1, repeat=0, hz_deg=hz, v_deg=71.18386)
-        self.operator.ask(Request("setup", s, 1, ("continue", "skip", "pause", "abort")))
+        while not self._abort.is_set():
+            ans = self.operator.ask(Request("setup", s, 1, ("continue", "skip", "pause", "abort")))
+            self.answers.append(ans)
+            if ans.action in ("pause", "abort"):
+                return
 
     def request_abort(self):
         self._abort.set()
