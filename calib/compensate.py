@@ -35,7 +35,7 @@ FORMAT = "robocal-model/1"
 
 
 def unit_of(name: str) -> str:
-    for suffix, unit in (("_mm", "mm"), ("_rad", "rad"), ("_rad_per_nm", "rad/(N m)"), ("_nm", "N m"),
+    for suffix, unit in (("_kgmm", "kg mm"), ("_kg", "kg"), ("_mm", "mm"), ("_rad", "rad"), ("_rad_per_nm", "rad/(N m)"), ("_nm", "N m"),
                          ("_per_degc", "1/degC"), ("_per_nmm2", "1/(N mm^2)")):
         if name.endswith(suffix):
             return unit

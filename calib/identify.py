@@ -283,8 +283,9 @@ def check_drivers(model: MeasurementModel, obs, where: str) -> None:
     geometry absorbs, estimated from noise: one line instead, naming the effect and the condition that does not vary
     (the same words the diagnosis gives under "not tested": :func:`calib.effects.drivers.undriven`)."""
     from calib.effects.drivers import undriven
+    bodies = any(e.adds_bodies for e in model.effects)       # identified masses load what the description lacks
     for e in model.effects:
-        why = undriven(e, obs.q_rad, obs.ctx, model.robot)
+        why = None if bodies and e.driven_by == "load" else undriven(e, obs.q_rad, obs.ctx, model.robot)
         if why:
             raise RobocalError(f"{where}: effect {e.label}: nothing drives it in these data: {why}")
     theta = model.nominal.copy()
@@ -293,6 +294,8 @@ def check_drivers(model: MeasurementModel, obs, where: str) -> None:
             theta[model.index[f"tool.{k}"]] += 100.0
     ev = model.evaluate(obs.q_rad, obs.ctx, theta, jacobian=True)
     for e, s in zip(model.effects, model.effect_slices):
+        if bodies and (e.driven_by == "load" or e.adds_bodies):
+            continue              # seen through each other, from zero: calib.effects.mass_moment.check_scale
         if not np.any(np.abs(ev.jacobian[:, :, s]) > 1e-12):
             raise RobocalError(f"{where}: effect {e.label}: nothing drives it in these data (the condition it "
                                f"follows -- time, temperature, approach direction or load -- does not vary over the "
@@ -437,6 +440,19 @@ def _solve(problem: _Problem, theta_full: np.ndarray, kidx: np.ndarray, loss: st
     return out
 
 
+def _bodies_start(model: MeasurementModel, prob: _Problem, theta: np.ndarray, kidx: np.ndarray,
+                  max_nfev: int) -> np.ndarray:
+    """An identified mass (a load-stage effect) and the compliances that feel it form a product (deflection =
+    compliance x torque): from the start, both near zero, the trust region scales the mass's step by the compliance's
+    zero and the mass runs off along the product's valley.  So the compliances (and everything else) are first
+    fitted with the masses held at their start, from the masses the description gives; the joint fit starts there."""
+    body = [i for e, s in zip(model.effects, model.effect_slices) if e.adds_bodies for i in range(s.start, s.stop)]
+    rest = np.array([i for i in kidx if i not in body], int)
+    if len(rest) == len(kidx) or not len(rest):
+        return theta
+    return _solve(prob, theta, rest, "linear", max_nfev)
+
+
 def pose_chi2(problem: _Problem, theta: np.ndarray, per: int) -> np.ndarray:
     """Whitened residual sum of squares per pose (priors left out)."""
     r, _ = problem.residuals(theta, jac=False)
@@ -465,7 +481,13 @@ def _uncertainty(model: MeasurementModel, prob: _Problem, theta: np.ndarray, kid
     dof = max(1, len(r) - len(kidx))
     red = float(r @ r / dof)
     cov = np.zeros((len(prob.names), len(prob.names)))
-    cov[np.ix_(kidx, kidx)] = np.linalg.pinv(Jk.T @ Jk) * max(1.0, red)
+    # columns scaled to unit norm first: parameters of very different units (a compliance in rad/(N m) beside a
+    # mass moment in kg mm) give normal equations whose singular values span more than pinv's cut-off, which would
+    # drop the small ones' variance instead of inverting it
+    scale = np.linalg.norm(Jk, axis=0)
+    scale[scale == 0] = 1.0
+    Js = Jk / scale
+    cov[np.ix_(kidx, kidx)] = np.linalg.pinv(Js.T @ Js) / np.outer(scale, scale) * max(1.0, red)
     # unweighted residual RMS (mm for points, rad for angles)
     if not prob.angles:
         pred = model.points(prob.obs.q_rad, prob.obs.ctx, theta[: model.P])
@@ -491,6 +513,11 @@ def identify(model: MeasurementModel, obs: PointObservations | AngleObservations
     check_mode(outliers, loss)
     priors = priors or {}
     theta0 = np.array(model.nominal if theta0 is None else theta0, float)
+    # an effect parameter with a prior starts at it (a data-sheet stiffness: a product of compliance and an
+    # identified mass cannot leave zero along both; the geometry's priors are its design values already)
+    for name, (value, _) in priors.items():
+        if model.index.get(name, -1) >= model.n_geometric:
+            theta0[model.index[name]] = value
     prob = _Problem(model, obs, theta0, priors)
     st = _Setup(prob, _free_set(model, prob, obs, free), 3 if not prob.angles else 2 * len(obs.stations))
     if start and not prob.angles:
@@ -499,6 +526,7 @@ def identify(model: MeasurementModel, obs: PointObservations | AngleObservations
     _identifiability(model, st, priors, start)
     kept = st.ident.kept
     kidx = np.array([prob.names.index(n) for n in kept], int)
+    st.theta = _bodies_start(model, prob, st.theta, kidx, max_nfev)
     prob, theta, report = _outlier_step(model, st, kidx, st.theta, outliers if robust else "off", labels, priors,
                                         max_nfev)
     theta = _solve(prob, theta, kidx, loss, max_nfev)

@@ -5,7 +5,7 @@ import json
 import sys
 
 from calib.errors import RobocalError
-from acq.argtypes import add_force_argument, effect_spec, output_file, positive_float
+from acq.argtypes import add_force_argument, effect_spec, output_file, positive_float, positive_int
 
 from ._csvargs import add_unit_arguments, units
 from .diagnose import add_outlier_arguments
@@ -41,12 +41,17 @@ def add_arguments(p):
                         "joint names allowed: 'base.*,tool.*,arm_*_joint.a_mm'); the rest keep their design values")
     p.add_argument("--prior", action="append", default=[], metavar="NAME=VALUE±SIGMA",
                    help="a prior on one parameter (unit of its name; *_deg for angles in degrees); the "
-                        "description's [tolerances] are priors around the design values already")
+                        "description's [tolerances] are priors around the design values already; an effect's "
+                        "parameter starts at its prior")
+    p.add_argument("--starts", type=positive_int, default=1, metavar="N",
+                   help="refit from N-1 further starts around the estimate and say whether they land on the same "
+                        "estimate, or which parameters the data leave open (default 1: no check)")
 
 
 def run(args) -> int:
     from calib.compensate import model_document, save_model, unit_of
     from calib.effects import THESIS_RUNNING_ERRORS, effect_from_text
+    from calib.effects.mass_moment import check_scale
     from calib.evaluation import (context_of, data_rows, fit_rows, point_covariance, split_metrics, station_names,
                                   station_start, with_orientation_points, with_polar_points)
     from calib.polar import PolarNoise
@@ -82,6 +87,7 @@ def run(args) -> int:
     implausible = enforce(check_data(MeasurementModel(robot), table.q_rad, table.points_mm, args.data,
                                      n_free=len(free or default_free(model)), ignored_columns=full.ignored_columns,
                                      prismatic=robot.prismatic), args.force_implausible, "identify")
+    check_scale(model, ctx, priors, args.data)
     check_drivers(model, obs, args.data)
     theta0 = None
     if table.station is not None and len(set(table.station)) > 1:
@@ -93,6 +99,7 @@ def run(args) -> int:
     held_out = split_metrics(model, ident.theta[:model.P], measured) if full.split is not None else {}
     implausible += enforce(check_fit(ident.reduced_chi2, args.data), args.force_implausible, "identify")
     noise = _noise(args, measured, obs, ident, held_out, model.robot.tool_point_frames or None)
+    checks = _checks(args, model, obs, ident, priors)
     prov = provenance(args.robot)
     if args.out:
         save_model(args.out, model, ident, args.out_robot, provenance=prov)
@@ -104,7 +111,8 @@ def run(args) -> int:
     if args.json:
         extra = {"plausibility_warnings": implausible} if implausible else {}
         print(json.dumps({**model_document(model, ident, provenance=prov), **held_out, **extra,
-                          "noise_estimated_mm": noise.estimated_mm, "noise_estimate": noise.as_dict()}, indent=1))
+                          "noise_estimated_mm": noise.estimated_mm, "noise_estimate": noise.as_dict(),
+                          **checks.as_dict()}, indent=1))
         return 0
     print(f"robocal identify {args.data}: {table.n} poses, {len(ident.free)} parameters estimated, "
           f"residual RMS {ident.residual_rms:.4f} mm, reduced chi-square {ident.reduced_chi2:.2f}")
@@ -129,9 +137,34 @@ def run(args) -> int:
     corr = ident.correlations(0.9)
     if corr:
         print("  correlations above 0.9: " + "; ".join(f"{a} ~ {b} ({r:+.3f})" for a, b, r in corr))
+    for line in checks.lines():
+        print("  " + line)
     if args.out:
         print(f"  written: {args.out}" + (f", {args.out_robot}" if args.out_robot else ""))
     return 0
+
+
+class _Checks:
+    """What the estimate itself says about its trust: negative compliances or masses (calib.physical) and, with
+    --starts, whether other starts land on it (calib.starts)."""
+
+    def __init__(self, signs: list[dict], starts=None):
+        self.signs, self.starts = signs, starts
+
+    def lines(self) -> list[str]:
+        from calib.physical import sign_lines
+        return sign_lines(self.signs) + (self.starts.lines() if self.starts is not None else [])
+
+    def as_dict(self) -> dict:
+        out = {"sign_findings": self.signs} if self.signs else {}
+        return {**out, **({"starts": self.starts.as_dict()} if self.starts is not None else {})}
+
+
+def _checks(args, model, obs, ident, priors) -> _Checks:
+    from calib.physical import sign_findings
+    from calib.starts import check_starts
+    starts = check_starts(model, obs, ident, args.starts, priors, args.loss) if args.starts > 1 else None
+    return _Checks(sign_findings(model, ident), starts)
 
 
 def _noise(args, measured, obs, ident, held_out: dict, body: dict | None = None):

@@ -125,6 +125,8 @@ class Effect:
     text_required: ClassVar[int] = 0
     #: the keys of its ``[[effect]]`` table in a scenario file (``calib.tomlspec.Field``), besides type/enabled
     scenario_fields: ClassVar[dict[str, Any]] = {}
+    #: parameters that are positive by physics (a compliance, a mass): a negative estimate absorbs another error
+    positive_params: ClassVar[tuple[str, ...]] = ()
     #: the pose condition whose variation makes it visible (a key of ``calib.effects.drivers.DRIVERS``), None when
     #: the poses' geometry alone does; identify refuses and the diagnosis skips an effect whose driver is constant
     driven_by: ClassVar[str | None] = None

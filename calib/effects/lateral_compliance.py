@@ -33,6 +33,7 @@ class LateralCompliance(Effect):
     needs_loads = True
     moment_driven = True
     param_names = ("cx_rad_per_nm", "cy_rad_per_nm")
+    positive_params = param_names
     options = {"pivot_mm": float}
     scenario_fields = {"joint": Field("int", required=True, min=1),
                        "stiffness_nm_per_rad": Field("number", required=True, positive=True),

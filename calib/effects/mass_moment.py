@@ -21,8 +21,9 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..errors import RobocalError
 from ..tomlspec import Field
-from .base import Effect, register_effect
+from .base import Effect, PoseContext, register_effect
 
 #: the lever of the point masses that carry the first moment (mm)
 _LEVER_MM = 1000.0
@@ -34,6 +35,7 @@ class MassMoment(Effect):
     stage = "load"
     adds_bodies = True
     options = {"with_mass": int}
+    positive_params = ("mass_kg",)
     scenario_fields = {"joint": Field("int", required=True, min=1),
                        "mass_kg": Field("number", default=0.0, min=0),
                        "mc_kgmm": Field("vector", default=[0.0, 0.0, 0.0], length=3)}
@@ -77,3 +79,23 @@ class MassMoment(Effect):
         dmass[0, k:] = -1.0 / _LEVER_MM
         dmass[1:, k:] = np.eye(3) / _LEVER_MM
         return pos, mass, dmass, np.full(4, self.joint)
+
+
+def check_scale(model, ctx: PoseContext, priors: dict, where: str) -> None:
+    """A mass moment is seen only through the compliances that feel its weight (deflection = compliance x torque):
+    something must fix their scale -- the description's masses, a payload or force in the data, or a prior on one of
+    the compliances.  Without, the fit trades one against the other along a valley (a compliance held at zero and a
+    mass of millions of kg fit alike): one line instead."""
+    if not any(e.adds_bodies for e in model.effects):
+        return
+    known = bool(np.any(np.asarray(model.robot.mass_kg) > 0))
+    forces = any(np.any(np.asarray(a) != 0) for a in (ctx.payload_kg, ctx.tool_force_n, ctx.joint_torque_nm,
+                                                       ctx.point_force_n))
+    felt = [q for e in model.effects if e.torque_driven or e.moment_driven for q in e.qualified_names()]
+    if known or forces or any(q in priors for q in felt):
+        return
+    label = next(e.label for e in model.effects if e.adds_bodies)
+    raise RobocalError(f"{where}: effect {label}: a mass is seen only through the compliances that feel its weight, "
+                       f"and nothing fixes their scale (no masses in the robot description, no payload or force in "
+                       f"the data, no --prior on a compliance): give one, e.g. --prior "
+                       f"{felt[0] if felt else 'joint_compliance.jJ.compliance1_rad_per_nm'}=VALUE±SIGMA")
