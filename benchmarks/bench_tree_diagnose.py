@@ -18,18 +18,16 @@ import argparse
 import csv
 import json
 import os
-import statistics
 import subprocess
 import sys
 import tempfile
-import time
 from pathlib import Path
 
 import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
-from benchmarks.bench_tree import PAIRS, POINTS, _time  # noqa: E402
+from benchmarks.bench_tree import PAIRS, POINTS, interleaved, report  # noqa: E402
 from tests.fakes import tree_robot as tr  # noqa: E402
 
 JOINT = {"torso_2_joint": 1.0e-5, "arm_left_2_joint": 4.0e-5, "arm_right_2_joint": 4.0e-5}
@@ -99,19 +97,8 @@ def main() -> None:
         cmds = _files(Path(d), args.poses)
         first = next(iter(cmds.values()))
         print(_findings(first))
-        times: dict[str, list[tuple[float, float]]] = {k: [] for k in cmds}
-        for _ in range(args.repeat):
-            for k, cmd in cmds.items():         # interleaved: the machine's load falls on every row alike
-                times[k].append(_time(cmd))
-    load = os.getloadavg()[0]
-    print(f"{time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}, {os.cpu_count()} cores, load {load:.1f}, "
-          f"{args.repeat} runs each, whole process (s)")
-    print(f"  {'command':<62}{'wall min':>9}{'median':>8}{'max':>7}{'CPU median':>12}")
-    for k, ts in times.items():
-        w = [x for x, _ in ts]
-        c = [y for _, y in ts]
-        print(f"  {k:<62}{min(w):9.2f}{statistics.median(w):8.2f}{max(w):7.2f}{statistics.median(c):12.2f}")
-
+        times = interleaved(cmds, args.repeat)
+    report(times, args.repeat)
 
 if __name__ == "__main__":
     main()
