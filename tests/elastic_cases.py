@@ -100,8 +100,9 @@ def write_data(path: Path, case: Case, readings, n: int, seed: int, test_every: 
         w = csv.writer(fh)
         w.writerow(["pose", "target"] + names + ["x", "y", "z"] + (["split"] if test_every else []))
         for i, v in enumerate(values(real, names, n, 1000 + seed)):
+            poses = tr.link_poses(real, v, case.elastic)
             for t, (link, xyz) in POINTS.items():
-                p = tr.point_mm(real, v, link, xyz, elastic=case.elastic) + rng.normal(0, NOISE_MM, 3)
+                p = tr.point_on(poses, link, xyz) + rng.normal(0, NOISE_MM, 3)
                 split = (["test" if i % test_every == 0 else "fit"]) if test_every else []
                 w.writerow([f"p{i}", t] + [f"{np.degrees(v[k]):.9f}" for k in names] + [f"{x:.6f}" for x in p]
                            + split)

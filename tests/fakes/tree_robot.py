@@ -107,7 +107,12 @@ class Elasticity:
 def point_mm(tree: FakeTree, values: dict[str, float], link: str, xyz_mm, base_in_world=np.eye(4),
              elastic: Elasticity | None = None) -> np.ndarray:
     """A point fixed on ``link`` (its frame, mm) in the measurement frame (mm); ``elastic``: see :func:`link_poses`."""
-    T = base_in_world @ link_poses(tree, values, elastic)[link]
+    return point_on(link_poses(tree, values, elastic), link, xyz_mm, base_in_world)
+
+
+def point_on(poses: dict[str, np.ndarray], link: str, xyz_mm, base_in_world=np.eye(4)) -> np.ndarray:
+    """A point fixed on ``link`` (its frame, mm) of link poses from :func:`link_poses`, in the measurement frame."""
+    T = base_in_world @ poses[link]
     return T[:3, :3] @ np.asarray(xyz_mm, float) + T[:3, 3] * 1000.0
 
 
@@ -121,7 +126,12 @@ def joint_moments(tree: FakeTree, values: dict[str, float], g=(0.0, 0.0, -9.8066
     """(moment (3,) N m about the joint's origin of the weights of every link below it, unit axis (3,)) of every
     revolute joint, in the root frame, by a plain sum over the links of the undeflected robot."""
     poses = link_poses(tree, values)
-    below = {j.name: _subtree(tree, j.child) for j in tree.joints}
+    # each link's mass and first moment (m, m p) in the root frame: the weights below a joint about its origin o
+    # are (sum m p - (sum m) o) x g
+    first = {}
+    for link, (m, com) in tree.masses.items():
+        if link in poses:
+            first[link] = (m, m * (poses[link][:3, :3] @ com + poses[link][:3, 3]))
     out = {}
     for j in tree.joints:
         if j.type != "revolute":
@@ -129,12 +139,10 @@ def joint_moments(tree: FakeTree, values: dict[str, float], g=(0.0, 0.0, -9.8066
         T = poses[j.parent] @ hom(rpy_matrix(j.rpy), j.xyz_m)
         z = T[:3, :3] @ (np.asarray(j.axis, float) / np.linalg.norm(j.axis))
         o = T[:3, 3]
-        M = np.zeros(3)
-        for link in below[j.name]:
-            m, com = tree.masses.get(link, (0.0, np.zeros(3)))
-            p = poses[link][:3, :3] @ com + poses[link][:3, 3]
-            M += np.cross(p - o, m * np.asarray(g))
-        out[j.name] = (M, z)
+        below = [first[link] for link in _subtree(tree, j.child) if link in first]
+        m = sum(b[0] for b in below)
+        mp = sum((b[1] for b in below), np.zeros(3))
+        out[j.name] = (np.cross(mp - m * o, np.asarray(g, float)), z)
     return out
 
 
