@@ -90,9 +90,10 @@ def truth(case: Case, seed: int) -> tr.FakeTree:
         masses[link] = (m0 + m, (m0 * c0 + m * com) / (m0 + m))
     return replace(real, masses=masses)
 
-def write_data(path: Path, case: Case, readings, n: int, seed: int, test_every: int = 4) -> None:
-    """Pose CSV of the elastic 'real' robot: both hands a pose, noise NOISE_MM a coordinate, every
-    ``test_every``-th pose a test row (0: no split column)."""
+def write_data(path: Path, case: Case, readings, n: int, seed: int, test_every: int = 4,
+               noise_mm: float = NOISE_MM) -> None:
+    """Pose CSV of the elastic 'real' robot: both hands a pose, ``noise_mm`` a coordinate, every ``test_every``-th
+    pose a test row (0: no split column)."""
     real = truth(case, seed)
     rng = np.random.default_rng(seed)
     names = list(readings)
@@ -102,7 +103,7 @@ def write_data(path: Path, case: Case, readings, n: int, seed: int, test_every: 
         for i, v in enumerate(values(real, names, n, 1000 + seed)):
             poses = tr.link_poses(real, v, case.elastic)
             for t, (link, xyz) in POINTS.items():
-                p = tr.point_on(poses, link, xyz) + rng.normal(0, NOISE_MM, 3)
+                p = tr.point_on(poses, link, xyz) + rng.normal(0, noise_mm, 3)
                 split = (["test" if i % test_every == 0 else "fit"]) if test_every else []
                 w.writerow([f"p{i}", t] + [f"{np.degrees(v[k]):.9f}" for k in names] + [f"{x:.6f}" for x in p]
                            + split)

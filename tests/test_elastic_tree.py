@@ -23,6 +23,7 @@ from calib.model import MeasurementModel
 from calib.posecsv import read_pose_csv
 from calib.robot import load_robot
 from calib.targets import TargetContext, with_targets
+from calib.threads import limit
 from tests import elastic_cases as ec
 from tests.fakes import tree_robot as tr
 
@@ -97,18 +98,19 @@ def test_jacobian_on_a_tree_matches_central_differences(world):
     assert not small._keeps_torque_term(None, small.evaluate(q, ctx).loads, [e.values for e in small.effects])
 
 
-def _estimates(case, seed, tmp, tree, desc):
+def _estimates(case, seed, tmp, tree, desc, noise_mm=ec.NOISE_MM):
     """Identify the case's data (no split) through the Python API: (value, sigma, truth) of every compliance."""
     data = tmp / f"honest-{seed}.csv"
     robot = load_robot(desc)
-    ec.write_data(data, case, robot.reading_names, 200, seed, test_every=0)
+    ec.write_data(data, case, robot.reading_names, 200, seed, test_every=0, noise_mm=noise_mm)
     args = ec.effect_args(case, robot, tree)
     full = read_pose_csv(str(data), robot.n, robot.prismatic, robot=robot)
     table, robot, offsets = fit_rows(full, robot)
     model = MeasurementModel(robot, [effect_from_text(t, robot.n) for t in args[1::2]] + offsets)
-    obs = PointObservations(table.q_rad, table.points_mm, point_covariance(table), ec.NOISE_MM,
+    obs = PointObservations(table.q_rad, table.points_mm, point_covariance(table), noise_mm,
                             context_of(model, table))
-    ident = identify(model, obs)
+    with limit(1):                        # as the command runs it: one BLAS thread (calib.threads)
+        ident = identify(model, obs)
     truth = {**{("joint_compliance", k): c for k, c in case.elastic.joint.items()},
              **{("lateral_compliance", k): c for k, c in case.elastic.lateral.items()}}
     out = []
@@ -123,14 +125,18 @@ def _estimates(case, seed, tmp, tree, desc):
 def test_compliances_recovered_with_honest_errors(world):
     """Joint elasticity of the torso and both shoulders, lateral elasticity of the torso's yaw joint and both
     shoulders, all from the gravity of the whole tree (URDF masses): over seeded data sets, |estimate - truth| /
-    sigma has the median of a normal error (0.67) and no estimate is far off."""
+    sigma has the median of a normal error (0.67), 85 % or more within 2 sigma, and no estimate is far off.
+
+    Noise 0.2 mm a coordinate (motion capture): at 0.05 mm the compliances' sigma are 0.7 % of their values and the
+    model's first order (its points agree with the generator's exact rotations to 0.008 mm) shows as a bias of up to
+    1.5 sigma (median 0.74, 81 % within 2 sigma over 36 estimates)."""
     tmp, tree, desc, _ = world
     case = next(c for c in ec.CASES if c.name == "joint+lateral")
-    rows = [r for seed in range(4) for r in _estimates(case, seed, tmp, tree, desc)]
+    rows = [r for seed in range(4) for r in _estimates(case, seed, tmp, tree, desc, noise_mm=0.2)]
     z = np.array([abs(v - c) / s for v, s, c in rows])
     assert len(z) >= 30
     assert 0.45 < np.median(z) < 0.95, np.round(z, 2)
-    assert z.max() < 4.0
+    assert np.mean(z < 2.0) >= 0.85 and z.max() < 4.0, np.round(z, 2)
     assert all(v > 0 for v, _, _ in rows)
 
 
@@ -225,3 +231,19 @@ def test_mass_moment_weighs_like_a_point_mass(world):
         carries = model._moved[k, j]
         want = np.einsum("nc,nc->n", np.cross(point - fp.joint_origin[:, k] * 1e-3, m * g), fp.joint_axis[:, k])
         np.testing.assert_allclose(extra[:, k], want if carries else 0.0, atol=1e-9)
+
+
+def test_diagnose_names_the_compliant_joints(world, tmp_path):
+    """diagnose on the joint-elasticity case (no split: 5-fold) names the three compliant joints among every
+    joint and lateral compliance of the tree and reaches the noise floor within 10 %."""
+    _, tree, desc, robot = world
+    case = next(c for c in ec.CASES if c.name == "joint")
+    data = tmp_path / "diag.csv"
+    ec.write_data(data, case, robot.reading_names, 300, 1, test_every=0)
+    out = io.StringIO()
+    with redirect_stdout(out):
+        assert main(["diagnose", str(data), "--robot", str(desc), "--noise-mm", str(ec.NOISE_MM), "--json"]) == 0
+    doc = json.loads(out.getvalue())
+    want = {f"joint_compliance j{robot.joint_names.index(k) + 1}" for k in ec.JOINT}
+    assert {f["label"] for f in doc["findings"]} == want
+    assert doc["final_rms_mm"] < 1.10 * doc["noise_floor_mm"]
