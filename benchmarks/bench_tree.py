@@ -98,21 +98,32 @@ def main() -> None:
     args = ap.parse_args()
     with tempfile.TemporaryDirectory() as d:
         cmds = _files(Path(d), args.poses)
-        times: dict[str, list[tuple[float, float]]] = {k: [] for k in cmds}
         for k, cmd in cmds.items():             # warm the file cache once
             _time(cmd)
-        for _ in range(args.repeat):
-            for k, cmd in cmds.items():         # interleaved: the machine's load falls on every row alike
-                times[k].append(_time(cmd))
+        times = interleaved(cmds, args.repeat)
+    report(times, args.repeat)
+
+
+def interleaved(cmds: dict[str, list[str]], repeat: int) -> dict[str, list[tuple[float, float]]]:
+    """(wall, CPU) of every command ``repeat`` times, interleaved: the machine's load falls on every row alike."""
+    times: dict[str, list[tuple[float, float]]] = {k: [] for k in cmds}
+    for _ in range(repeat):
+        for k, cmd in cmds.items():
+            times[k].append(_time(cmd))
+    return times
+
+
+def report(times: dict[str, list[tuple[float, float]]], repeat: int) -> None:
+    """The table: date, machine, load, then wall min/median/max and the median CPU of every command."""
     load = os.getloadavg()[0]
     print(f"{time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}, {os.cpu_count()} cores, load {load:.1f}, "
-          f"{args.repeat} runs each, whole process (s)")
-    print(f"  {'command':<58}{'wall min':>9}{'median':>8}{'max':>7}{'CPU median':>12}")
+          f"{repeat} runs each, whole process (s)")
+    width = max(58, max(len(k) for k in times) + 2)
+    print(f"  {'command':<{width}}{'wall min':>9}{'median':>8}{'max':>7}{'CPU median':>12}")
     for k, ts in times.items():
         w = [x for x, _ in ts]
         c = [y for _, y in ts]
-        print(f"  {k:<58}{min(w):9.2f}{statistics.median(w):8.2f}{max(w):7.2f}{statistics.median(c):12.2f}")
-
+        print(f"  {k:<{width}}{min(w):9.2f}{statistics.median(w):8.2f}{max(w):7.2f}{statistics.median(c):12.2f}")
 
 if __name__ == "__main__":
     main()

@@ -299,8 +299,9 @@ def check_drivers(model: MeasurementModel, obs, where: str) -> None:
     (the same words the diagnosis gives under "not tested": :func:`calib.effects.drivers.undriven`)."""
     from calib.effects.drivers import undriven
     from .names import effect_label, prose
+    bodies = any(e.adds_bodies for e in model.effects)       # identified masses load what the description lacks
     for e in model.effects:
-        why = undriven(e, obs.q_rad, obs.ctx, model.robot)
+        why = None if bodies and e.driven_by == "load" else undriven(e, obs.q_rad, obs.ctx, model.robot)
         if why:
             raise RobocalError(f"{where}: effect {effect_label(model.robot, e)}: nothing drives it in these data: "
                                f"{prose(why, model.robot)}")
@@ -310,6 +311,8 @@ def check_drivers(model: MeasurementModel, obs, where: str) -> None:
             theta[model.index[f"tool.{k}"]] += 100.0
     ev = model.evaluate(obs.q_rad, obs.ctx, theta, jacobian=True)
     for e, s in zip(model.effects, model.effect_slices):
+        if bodies and (e.driven_by == "load" or e.adds_bodies):
+            continue              # seen through each other, from zero: calib.effects.mass_moment.check_scale
         if not np.any(np.abs(ev.jacobian[:, :, s]) > 1e-12):
             raise RobocalError(f"{where}: effect {effect_label(model.robot, e)}: nothing drives it in these data (the "
                                f"condition it "
@@ -447,6 +450,19 @@ def _solve(problem: _Problem, theta_full: np.ndarray, kidx: np.ndarray, loss: st
     return out
 
 
+def _bodies_start(model: MeasurementModel, prob: _Problem, theta: np.ndarray, kidx: np.ndarray,
+                  max_nfev: int) -> np.ndarray:
+    """An identified mass (a load-stage effect) and the compliances that feel it form a product (deflection =
+    compliance x torque): from the start, both near zero, the trust region scales the mass's step by the compliance's
+    zero and the mass runs off along the product's valley.  So the compliances (and everything else) are first
+    fitted with the masses held at their start, from the masses the description gives; the joint fit starts there."""
+    body = [i for e, s in zip(model.effects, model.effect_slices) if e.adds_bodies for i in range(s.start, s.stop)]
+    rest = np.array([i for i in kidx if i not in body], int)
+    if len(rest) == len(kidx) or not len(rest):
+        return theta
+    return _solve(prob, theta, rest, "linear", max_nfev)
+
+
 def pose_chi2(problem: _Problem, theta: np.ndarray, per: int) -> np.ndarray:
     """Whitened residual sum of squares per pose (priors left out)."""
     r, _ = problem.residuals(theta, jac=False)
@@ -510,6 +526,11 @@ def identify(model: MeasurementModel, obs: PointObservations | AngleObservations
     check_mode(outliers, loss)
     priors = priors or {}
     theta0 = np.array(model.nominal if theta0 is None else theta0, float)
+    # an effect parameter with a prior starts at it (a data-sheet stiffness: a product of compliance and an
+    # identified mass cannot leave zero along both; the geometry's priors are its design values already)
+    for name, (value, _) in priors.items():
+        if model.index.get(name, -1) >= model.n_geometric:
+            theta0[model.index[name]] = value
     prob = _Problem(model, obs, theta0, priors)
     st = _Setup(prob, _free_set(model, prob, obs, free), 3 if not prob.angles else 2 * len(obs.stations))
     if start and not prob.angles:
@@ -518,6 +539,7 @@ def identify(model: MeasurementModel, obs: PointObservations | AngleObservations
     _identifiability(model, st, priors, start)
     kept = st.ident.kept
     kidx = np.array([prob.names.index(n) for n in kept], int)
+    st.theta = _bodies_start(model, prob, st.theta, kidx, max_nfev)
     prob, theta, report = _outlier_step(model, st, kidx, st.theta, outliers if robust else "off", labels, priors,
                                         max_nfev)
     theta = _solve(prob, theta, kidx, loss, max_nfev)

@@ -28,6 +28,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .effects import Effect, Loads, PoseContext
+from .effects.base import ElementMotions
 from .kinematics import ChainPass, Kinematics
 from .robot import Robot
 from .theodolite import Station
@@ -55,6 +56,20 @@ class _State:
     grads: dict
     link: int | None
     load_pass: ChainPass | None       # the chain at the joint readings, where the loads were evaluated
+
+
+@dataclass
+class _ElementTerms:
+    """See :meth:`MeasurementModel._element_terms`."""
+
+    a: np.ndarray              # (N, E, 3) element axes
+    rot: np.ndarray            # (E,) rotation elements
+    level: np.ndarray          # (E,) the frame an element belongs to: base 0, link k, tool n + 1
+    v: np.ndarray              # (N, E, 3) change of the moment of what the element moves
+    proximal: np.ndarray       # (k, E) the element moves joint j's axis with all it carries
+    dist_w: np.ndarray         # (Nc, k, E) 1 where the element moves part of what joint j carries
+    Sj: np.ndarray             # (N, k, 3) sum of the forces joint j carries
+    Pj: np.ndarray             # (N, k, 3, 3) sum of p_b F_b^T over them
 
 
 class MeasurementModel:
@@ -90,12 +105,27 @@ class MeasurementModel:
         self._spread = None if np.array_equal(robot.variable_of, np.arange(robot.n)) else robot.variable_spread()
         # the frame of each tool point (rows of a target context measure the point they name; on a tree the
         # points may sit on different branches)
+        self._pivot_mm = self._moment_pivots()
         frames = [robot.point_frame(k) for k in robot.tool_points_mm]
         self._target_frames = np.array(frames, int) if len(set(frames)) > 1 else None
 
     @property
     def P(self) -> int:
         return len(self.names)
+
+    def _moment_pivots(self) -> np.ndarray | None:
+        """(n,) mm along each joint's axis: where the moment-driven effects take the moment a joint carries (None:
+        every joint at its frame's origin).  Two effects on one joint must agree: the loads have one moment."""
+        pivot = np.zeros(self.robot.n)
+        seen: dict[int, float] = {}
+        for e in self.effects:
+            if e.moment_driven:
+                for j, s in zip(e.moment_joints(), e.moment_pivots_mm()):
+                    if seen.setdefault(j, s) != s:
+                        raise ValueError(f"joint {j + 1}: two moment-driven effects bend it about different pivots "
+                                         f"({seen[j]:g} and {s:g} mm along its axis)")
+                    pivot[j] = s
+        return pivot if np.any(pivot != 0) else None
 
     @property
     def nominal(self) -> np.ndarray:
@@ -113,10 +143,12 @@ class MeasurementModel:
         fp = self.kin.forward(np.zeros((1, self.robot.n)), geo)
         return fp.gravity()[0]
 
-    def _bodies(self, fp: ChainPass, ctx: PoseContext):
+    def _bodies(self, fp: ChainPass, ctx: PoseContext, values: list | None = None):
         """Every force acting on the chain, with the frame it is fixed in: the links' weights at their centres of
-        mass (frame j), the payload and tool force at the tool point (beyond frame n: n + 1), and the point forces of
-        ``ctx`` (frame ``point_force_link``).  Returns positions (N, B, 3) m, forces (N, B, 3) N, frames (B,)."""
+        mass (frame j), the payload and tool force at the tool point (beyond frame n: n + 1), the point forces of
+        ``ctx`` (frame ``point_force_link``), then the bodies of the load-stage effects (identified mass moments,
+        :meth:`calib.effects.Effect.bodies`, at ``values``: each effect's parameters, default its own).  Returns
+        positions (N, B, 3) m, forces (N, B, 3) N, frames (B,)."""
         r = self.robot
         n = r.n
         g_world = fp.gravity()                                                        # (N, 3)
@@ -129,7 +161,32 @@ class MeasurementModel:
             pos.append(self.kin.point_on(fp, ctx.point_force_link, ctx.point_force_mm))
             F.append(ctx.point_force_n)
             link.append(ctx.point_force_link)
+        for p_mm, mass, _, frames in self._effect_bodies(fp, values):
+            pos.append(p_mm)
+            F.append(mass[None, :, None] * g_world[:, None, :])
+            link.append(frames)
         return np.concatenate(pos, axis=1) * 1e-3, np.concatenate(F, axis=1), np.concatenate(link).astype(int)
+
+    def _effect_bodies(self, fp: ChainPass, values: list | None) -> list:
+        """(positions mm, masses kg, d masses / d values, frames) of every load-stage effect, in effect order."""
+        vals = [e.values for e in self.effects] if values is None else values
+        return [e.bodies(fp, v) for e, v in zip(self.effects, vals) if e.adds_bodies]
+
+    def _body_derivative(self, fp: ChainPass, ctx: PoseContext, values: list) -> dict:
+        """d(torque) (N, n, K) and d(moment about the joint origin) (N, n, 3, K) per load-stage effect (keyed by its
+        index) with respect to its own parameters: its bodies' weights enter linearly, where they hang."""
+        g = fp.gravity()                                                              # (N, 3)
+        z, o = fp.joint_axis, self._pivots(fp) * 1e-3
+        out = {}
+        for i, (e, v) in enumerate(zip(self.effects, values)):
+            if not e.adds_bodies:
+                continue
+            p_mm, _, dmass, frames = e.bodies(fp, v)
+            carried = self._carried(fp, np.asarray(frames, int))                      # (Nc, n, K)
+            unit = _cross(p_mm[:, None] * 1e-3 - o[:, :, None], g[:, None, None, :])  # (N, n, K, 3) per kg
+            dM = np.einsum("njkc,njk,kp->njcp", unit, np.broadcast_to(carried, unit.shape[:3]), dmass)
+            out[i] = (np.einsum("njcp,njc->njp", dM, z), dM)
+        return out
 
     def _body_frames(self, fp: ChainPass, link: np.ndarray) -> np.ndarray:
         """(Nc, B) the frame (0..n) each body is fixed in: ``link`` with the tool body (code n + 1) on the tool
@@ -149,17 +206,18 @@ class MeasurementModel:
         frames = self._body_frames(fp, link)
         return self._moved[:, frames].transpose(1, 0, 2).astype(float)
 
-    def loads(self, fp: ChainPass, ctx: PoseContext, derivative: bool = False) -> Loads:
+    def loads(self, fp: ChainPass, ctx: PoseContext, derivative: bool = False, values: list | None = None) -> Loads:
         """Torque about every joint axis (N m) and the force carried at the end of every link (N), per pose.
 
         Joint j carries every force fixed in a frame its variable moves (frame j or beyond on a chain; on a tree,
         every branch below it: ``sum (p_i - o_j) x F_i . z_j``); the end of link j carries those fixed beyond its
         end frame.  With ``derivative``, also d(torque)/d(geometric parameter) (N, n, P_geometric): each elementary
         motion of the chain moves rigidly what lies beyond it (the points where the forces act and the joint axes),
-        while gravity and the external forces keep their direction.
+        while gravity and the external forces keep their direction.  ``values``: the effects' parameters (the
+        identified bodies of load-stage effects), default their own.
         """
         n = self.robot.n
-        parts = self._torque_parts(fp, ctx)
+        parts = self._torque_parts(fp, ctx, values)
         pos, F, link, _, z, o, M, _ = parts
         tau = np.einsum("njc,njc->nj", M, z) + ctx.joint_torque_nm
         frames = self._body_frames(fp, link)                                          # (Nc, B)
@@ -171,18 +229,27 @@ class MeasurementModel:
         tip = np.matmul(beyond, F)                                                    # force beyond link j's end
         # 1 kg hung at the tool point (body n), about every joint that carries it: an unknown end-effector mass
         per_kg = np.einsum("njc,njc->nj", _cross(pos[:, n:n + 1] - o, fp.gravity()[:, None, :]), z) * parts[3][..., n]
-        loads = Loads(joint_torque_nm=tau, tip_force_n=tip, point_force_n=F[:, n + 1:],
-                      point_at_mm=pos[:, n + 1:] * 1e3, point_link=link[n + 1:], joint_moment_nm=M,
-                      tool_torque_per_kg=per_kg)
+        ctx_pts = slice(n + 1, n + 1 + len(ctx.point_force_link))                     # the context's point forces
+        loads = Loads(joint_torque_nm=tau, tip_force_n=tip, point_force_n=F[:, ctx_pts],
+                      point_at_mm=pos[:, ctx_pts] * 1e3, point_link=link[ctx_pts], joint_moment_nm=M,
+                      frames_moved=self._moved, tool_torque_per_kg=per_kg)
         if derivative:
             loads.dtau_dgeo = self._torque_derivative(fp, *parts)
         return loads
 
-    def _torque_parts(self, fp: ChainPass, ctx: PoseContext):
+    def _pivots(self, fp: ChainPass) -> np.ndarray:
+        """(N, n, 3) mm: the point on each joint's axis the carried moment is taken about -- the origin of the frame
+        its link starts from, moved along the axis by the pivot of a moment-driven effect on it (where the joint
+        bends: :meth:`calib.effects.Effect.moment_pivots_mm`).  The torques about the axes do not depend on it."""
+        if self._pivot_mm is None:
+            return fp.joint_origin
+        return fp.joint_origin + self._pivot_mm[None, :, None] * fp.joint_axis
+
+    def _torque_parts(self, fp: ChainPass, ctx: PoseContext, values: list | None = None):
         """The bodies and the moment about every joint of what it carries (see :meth:`loads`)."""
-        pos, F, link = self._bodies(fp, ctx)
+        pos, F, link = self._bodies(fp, ctx, values)
         carried = self._carried(fp, link)                                             # (Nc, n, B)
-        z, o = fp.joint_axis, fp.joint_origin * 1e-3                                  # (N, n, 3)
+        z, o = fp.joint_axis, self._pivots(fp) * 1e-3                                 # (N, n, 3)
         mom = _cross(pos, F)                                                          # (N, B, 3)
         tail_mom = np.matmul(carried, mom)
         tail_F = np.matmul(carried, F)
@@ -207,10 +274,45 @@ class MeasurementModel:
         Both are a vector per joint or per element dotted with another, so the cost is that of the Jacobian's own
         columns, not elements x joints x bodies (this runs in every Jacobian of a torque-driven model that keeps
         the term)."""
+        n = self.robot.n
+        js = np.arange(n) if joints is None else np.asarray(joints, int)
+        t = self._element_terms(fp, pos, F, link, carried, js)
+        zj, oj = z[:, js], o[:, js]
+        # joints: w_j = Q_j z_j - tr(Q_j) z_j, Q_j = P_j - o_j S_j^T over the bodies joint j carries
+        Qz = np.einsum("nkcd,nkd->nkc", t.Pj, zj) - oj * np.einsum("nkd,nkd->nk", t.Sj, zj)[..., None]
+        trQ = np.einsum("nkcc->nk", t.Pj) - np.einsum("nkc,nkc->nk", oj, t.Sj)
+        w = Qz - trQ[..., None] * zj                                                  # (N, k, 3)
+        d_prox = np.matmul(w, t.a.transpose(0, 2, 1)) * t.rot[None, None, :]          # (N, k, E)
+        d_dist = np.matmul(zj, t.v.transpose(0, 2, 1))
+        dtau = np.zeros((len(pos), n, len(t.level)))
+        dtau[:, js] = np.where(t.proximal[None], d_prox, d_dist * t.dist_w)
+        dtau[:, :, t.level == 0] = 0.0      # gravity is given in frame 0: the base carries it along
+        return dtau
+
+    def _moment_derivative(self, fp, pos, F, link, carried, z, o, M, tail_F, joints) -> np.ndarray:
+        """d(moment about joint j's origin of all it carries) / d(geometric element) (N, k, 3, E) for ``joints``
+        (0-based): the vector form of :meth:`_torque_derivative`, for effects driven by the whole moment (lateral
+        compliance).  An element that moves joint j's origin with all it carries (proximal) turns the moment with it
+        and, the forces keeping their direction, adds ``Q_j^T a - tr(Q_j) a`` (a rotation; a translation changes
+        nothing); one that moves part of what j carries adds ``v_e``; the base turns gravity too: ``a x M_j``."""
+        js = np.asarray(joints, int)
+        t = self._element_terms(fp, pos, F, link, carried, js)
+        Mj, oj = M[:, js], o[:, js]
+        QTa = np.einsum("nkcd,nec->nked", t.Pj, t.a) - np.einsum("nkd,nec,nkc->nked", t.Sj, t.a, oj)
+        trQ = np.einsum("nkcc->nk", t.Pj) - np.einsum("nkc,nkc->nk", oj, t.Sj)
+        turn = _cross(t.a[:, None], Mj[:, :, None])                                   # (N, k, E, 3): a x M_j
+        prox = turn + QTa - trQ[:, :, None, None] * t.a[:, None]
+        prox = np.where(t.level[None, None, :, None] == 0, turn, prox) * t.rot[None, None, :, None]
+        dist = t.v[:, None] * t.dist_w[..., None]
+        return np.where(t.proximal[None, :, :, None], prox, dist).transpose(0, 1, 3, 2)
+
+    def _element_terms(self, fp, pos, F, link, carried, js) -> "_ElementTerms":
+        """What the torque and moment derivatives share: per element, the change ``v_e`` of the moment of what it
+        moves (from the tail sums of its own link), which joints it moves proximally or distally, and the tail sums
+        ``S_j``, ``P_j`` of what each joint in ``js`` carries."""
         kin = self.kin
         n = self.robot.n
         N = len(pos)
-        js = np.arange(n) if joints is None else np.asarray(joints, int)
         level = np.minimum(kin.link_of, n + 1)                                        # base 0, link k, tool n + 1
         rot = kin.kinds >= 3
         a, oe = fp.elem_axis, fp.elem_origin * 1e-3                                   # (N, E, 3)
@@ -222,13 +324,8 @@ class MeasurementModel:
         pF = (pos[:, :, :, None] * F[:, :, None, :]).reshape(N, -1, 9)
         S = np.matmul(tail, F)                                                        # (N, M, 3)
         P = np.matmul(tail, pF).reshape(N, -1, 3, 3)
-        # joints: w_j = Q_j z_j - tr(Q_j) z_j, Q_j = P_j - o_j S_j^T over the bodies joint j carries
         cj = carried[..., js, :] if carried.ndim == 3 else carried[None, js]
-        zj, oj = z[:, js], o[:, js]
         Sj, Pj = np.matmul(cj, F), np.matmul(cj, pF).reshape(N, len(js), 3, 3)
-        Qz = np.einsum("nkcd,nkd->nkc", Pj, zj) - oj * np.einsum("nkd,nkd->nk", Sj, zj)[..., None]
-        trQ = np.einsum("nkcc->nk", Pj) - np.einsum("nkc,nkc->nk", oj, Sj)
-        w = Qz - trQ[..., None] * zj                                                  # (N, k, 3)
         # elements: v_e from the tail of the element's own link
         v = np.empty_like(a)                                                          # (N, E, 3)
         trP = np.einsum("nmcc->nm", P)
@@ -248,14 +345,9 @@ class MeasurementModel:
         lev = np.minimum(level, n)
         proximal = self._ancestors[pf][:, lev] & (level <= n)[None, :]              # (k, E)
         distal = self._moved[js][:, lev] & (level <= n)[None, :]
-        d_prox = np.matmul(w, a.transpose(0, 2, 1)) * rot[None, None, :]              # (N, k, E)
-        d_dist = np.matmul(zj, v.transpose(0, 2, 1))
         tool_carried = cj[..., link > n].sum(axis=-1)                                 # (Nc, k): j carries the tool
         dist_w = np.where(level <= n, distal[None].astype(float), tool_carried[..., None])
-        dtau = np.zeros((N, n, len(level)))
-        dtau[:, js] = np.where(proximal[None], d_prox, d_dist * dist_w)
-        dtau[:, :, level == 0] = 0.0        # gravity is given in frame 0: the base carries it along
-        return dtau
+        return _ElementTerms(a, rot, level, v, proximal, dist_w, Sj, Pj)
 
     # -- evaluation ----------------------------------------------------------------------------------------------
     def evaluate(self, q_rad, ctx: PoseContext | None = None, theta: np.ndarray | None = None,
@@ -290,7 +382,7 @@ class MeasurementModel:
         load_pass, loads = None, None
         if any(e.needs_loads for e in self.effects):
             load_pass = self.kin.forward(q, geo_pose, frame)
-            loads = self.loads(load_pass, ctx)
+            loads = self.loads(load_pass, ctx, values=vals)
         dq, g = self._stage("joint", vals, lambda e, v: e.joint_delta(q, ctx, loads, v))
         if self._spread is not None and not np.isscalar(dq):
             dq = dq @ self._spread.T              # a joint's change turns every link that shares its variable
@@ -361,21 +453,74 @@ class MeasurementModel:
         # a joint-stage change of joint k turns every link sharing k's variable (the branches of a tree)
         Jvar = Jq if self._spread is None else np.matmul(Jq, self._spread)
         gain = self.torque_gain(ev)
-        if gain is not None:
+        moment = [i for i, e in enumerate(self.effects) if e.moment_driven] if loads is not None else []
+        if torque_derivative is None and (gain is not None or moment):
+            torque_derivative = self._keeps_torque_term(gain, loads, vals)
+        parts = self._torque_parts(st.load_pass, ctx, vals) if torque_derivative and (gain is not None or moment) \
+            else None
+        if gain is not None and torque_derivative:
             # joint deflections follow the torques, and the torques move with the geometry
-            if torque_derivative is None:
-                torque_derivative = torque_term_matters(gain, loads)
-            if torque_derivative:
-                joints = np.flatnonzero(np.any(gain != 0, axis=0))
-                dtau = self._torque_derivative(st.load_pass, *self._torque_parts(st.load_pass, ctx), joints=joints)
-                J[:, :, :ng] += np.matmul(Jvar[:, :, joints], gain[:, joints, None] * dtau[:, joints])
-        through = {"joint": Jvar, "geometry": Je}
+            joints = np.flatnonzero(np.any(gain != 0, axis=0))
+            dtau = self._torque_derivative(st.load_pass, *parts, joints=joints)
+            J[:, :, :ng] += np.matmul(Jvar[:, :, joints], gain[:, joints, None] * dtau[:, joints])
+        gains = {i: self.effects[i].moment_gain(fp, fp.point, loads, vals[i]) for i in moment}
+        if moment and torque_derivative:
+            self._moment_geometry(J, ev, Je, gains, parts)
+        # a geometry-stage effect changes the geometry: its columns follow the geometric ones, load terms included
+        through = {"joint": Jvar, "geometry": J[:, :, :ng].copy() if torque_derivative else Je}
         for i, (e, s, v) in enumerate(zip(self.effects, self.effect_slices, vals)):
             if e.stage == "geometry":
                 # the effect's change of the geometry depends on the geometry: its own chain rule
                 J[:, :, :ng] = e.geometry_chain(J[:, :, :ng], self.length_idx, ctx, v)
+            if e.stage == "load":
+                continue
             J[:, :, s] = grads[i] if e.stage == "point" else np.matmul(through[e.stage], grads[i])
+        if st.load_pass is not None and any(e.adds_bodies for e in self.effects):
+            self._body_columns(J, ev, Jvar, gain, gains)
         return J, Jq
+
+    def _keeps_torque_term(self, gain, loads: Loads, vals) -> bool:
+        """Whether the geometric columns carry the change of the loads (the rule of :func:`torque_term_matters`,
+        over the joint deflections and the moment-driven displacements alike)."""
+        size = torque_term_size(gain, loads) if gain is not None else 0.0
+        for e, v in zip(self.effects, vals):
+            if e.moment_driven:
+                size = max(size, e.moment_term_size(loads, v))
+        return size > TORQUE_TERM_THRESHOLD
+
+    def _motions(self, fp: ChainPass, Je: np.ndarray) -> ElementMotions:
+        """The elementary motions of ``fp`` for :meth:`calib.effects.Effect.geometry_jacobian`."""
+        n = self.robot.n
+        level = self.kin.link_of
+        moves = np.zeros((n + 1, len(level)), bool)
+        inside = level <= n
+        moves[:, inside] = self._ancestors[:, level[inside]]
+        return ElementMotions(fp.elem_axis, fp.elem_origin, self.kin.kinds >= 3, moves, Je)
+
+    def _moment_geometry(self, J: np.ndarray, ev: Evaluation, Je: np.ndarray, gains: dict, parts) -> None:
+        """Add to the geometric columns the change of every moment-driven displacement: its own frames and lever
+        arms (the effect's :meth:`~calib.effects.Effect.geometry_jacobian`) and the moments it follows."""
+        st, fp, loads = ev.state, ev.chain, ev.loads
+        ng = self.n_geometric
+        joints = sorted({j for i in gains for j in self.effects[i].moment_joints()})
+        dM = self._moment_derivative(st.load_pass, *parts, joints=joints)             # (N, k, 3, E)
+        motions = self._motions(fp, Je)
+        for i, G in gains.items():
+            e = self.effects[i]
+            k = [joints.index(j) for j in e.moment_joints()]
+            J[:, :, :ng] += np.einsum("nckd,nkde->nce", G, dM[:, k])
+            J[:, :, :ng] += e.geometry_jacobian(fp, fp.point, loads, st.vals[i], motions)
+
+    def _body_columns(self, J: np.ndarray, ev: Evaluation, Jvar: np.ndarray, gain, gains: dict) -> None:
+        """The columns of the load-stage effects (identified mass moments): their weight changes the torques the
+        joint deflections follow and the moments the moment-driven displacements follow."""
+        st = ev.state
+        for i, (dtau, dM) in self._body_derivative(st.load_pass, st.ctx, st.vals).items():
+            s = self.effect_slices[i]
+            if gain is not None:
+                J[:, :, s] += np.matmul(Jvar, gain[:, :, None] * dtau)
+            for m, G in gains.items():
+                J[:, :, s] += np.einsum("nckd,nkdp->ncp", G, dM[:, self.effects[m].moment_joints()])
 
     def points(self, q_rad, ctx: PoseContext | None = None, theta=None, tool_mm=None, link=None) -> np.ndarray:
         return self.evaluate(q_rad, ctx, theta, False, tool_mm, link).point_mm

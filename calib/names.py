@@ -21,8 +21,8 @@ from .units import DEG
 _WORD = re.compile(r"[A-Za-z_][A-Za-z0-9_\-]*\Z")
 _JOINT_TOKEN = re.compile(r"j(\d+)((?:@\d+)?)\Z")
 #: internal unit suffix -> unit, longest first (``_rad_per_nm`` before ``_rad``)
-_UNITS = (("_rad_per_nm", "rad/(N m)"), ("_per_nmm2", "1/(N mm^2)"), ("_per_degc", "1/degC"), ("_mm", "mm"),
-          ("_rad", "rad"), ("_nm", "N m"))
+_UNITS = (("_rad_per_nm", "rad/(N m)"), ("_per_nmm2", "1/(N mm^2)"), ("_per_degc", "1/degC"), ("_kgmm", "kg mm"),
+          ("_kg", "kg"), ("_mm", "mm"), ("_rad", "rad"), ("_nm", "N m"))
 #: internal unit -> (edge unit, internal units per edge unit); the rest are shown as they are
 _EDGE = {"rad": ("deg", DEG)}
 

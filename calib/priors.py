@@ -17,7 +17,7 @@ import re
 from . import names as naming
 from .errors import RobocalError
 
-_PRIOR = re.compile(r"^\s*([^=\s]+)\s*=\s*([-+0-9.eE]+)\s*(?:±|\+-|\+/-)\s*([0-9.eE+]+)\s*$")
+_PRIOR = re.compile(r"^\s*([^=\s]+)\s*=\s*([-+0-9.eE]+)\s*(?:±|\+-|\+/-)\s*([0-9.eE+-]+)\s*$")
 
 
 def canonical(name: str, robot, known) -> tuple[str, float]:

@@ -112,7 +112,13 @@ def doc_commands(path: Path) -> list[DocCommand]:
         if raw.strip():
             para.append((i, raw))
     flush_paragraph()
-    return [c for c in out if names_shipped_file(c.command)]
+    return [c for c in out if names_shipped_file(c.command) and not needs_terminal(c.command)]
+
+
+def needs_terminal(command: str) -> bool:
+    """``robocal session`` is the operator's TUI: it refuses to start without a terminal (tests/test_tui_terminal.py
+    drives it in one under tmux)."""
+    return bool(re.match(r"robocal\s+session\b", command))
 
 
 def quoted_figures(quote: str) -> list[str]:

@@ -5,7 +5,7 @@ import json
 import sys
 
 from calib.errors import RobocalError
-from acq.argtypes import add_force_argument, add_robot_argument, effect_spec, output_file, positive_float
+from acq.argtypes import add_force_argument, add_robot_argument, effect_spec, output_file, positive_float, positive_int
 
 from ._csvargs import add_unit_arguments, units
 from .diagnose import add_outlier_arguments
@@ -59,13 +59,18 @@ def add_arguments(p):
                         "joint names allowed: 'base.*,tool.*,arm_*_joint.a_mm'); the rest keep their design values")
     p.add_argument("--prior", action="append", default=[], metavar="NAME=VALUE±SIGMA",
                    help="a prior on one parameter (unit of its name; *_deg for angles in degrees); the "
-                        "description's [tolerances] are priors around the design values already")
+                        "description's [tolerances] are priors around the design values already; an effect's "
+                        "parameter starts at its prior")
+    p.add_argument("--starts", type=positive_int, default=1, metavar="N",
+                   help="refit from N-1 further starts around the estimate and say whether they land on the same "
+                        "estimate, or which parameters the data leave open (default 1: no check)")
 
 
 def run(args) -> int:
     from calib import names as naming
     from calib.compensate import model_document, save_model
     from calib.effects import THESIS_RUNNING_ERRORS, effect_from_text
+    from calib.effects.mass_moment import check_scale
     from calib.evaluation import (context_of, data_rows, fit_rows, point_covariance, split_metrics, station_names,
                                   station_start, with_orientation_points, with_polar_points)
     from calib.polar import PolarNoise
@@ -102,6 +107,7 @@ def run(args) -> int:
     implausible = enforce(check_data(MeasurementModel(robot), table.q_rad, table.points_mm, args.data,
                                      n_free=len(free or default_free(model)), ignored_columns=full.ignored_columns,
                                      prismatic=robot.prismatic), args.force_implausible, "identify")
+    check_scale(model, ctx, priors, args.data)
     check_drivers(model, obs, args.data)
     theta0 = None
     if table.station is not None and len(set(table.station)) > 1:
@@ -120,6 +126,7 @@ def run(args) -> int:
     noise = _noise(args, measured, obs, ident, weights, model.robot.tool_point_frames or None)
     orientation = _orientation(args, model, ident.theta[:model.P], measured)
     n_rows = int(measured.split_mask("fit").sum()) if measured.split is not None else measured.n
+    checks = _checks(args, model, obs, ident, priors)
     prov = provenance(args.robot)
     from calib.heldout import noise_scale
     extra = {"located_nominal": dict(zip(model.names, map(float, sel.located.ident.theta[: model.P]))),
@@ -143,7 +150,8 @@ def run(args) -> int:
                           **heldout.as_dict(), **warn, "n_poses": n_rows,
                           "selection": sel.as_dict(), "noise": weights.as_dict(ident),
                           "reduced_chi2_words": chi2_words(ident, weights.given, noise),
-                          "noise_estimated_mm": noise.estimated_mm, "noise_estimate": noise.as_dict()}, indent=1))
+                          "noise_estimated_mm": noise.estimated_mm, "noise_estimate": noise.as_dict(),
+                          **checks.as_dict()}, indent=1))
         return 0
     from calib.accuracy import before_after_line
     print(f"robocal identify {args.data}: " + before_after_line(heldout.as_dict()))
@@ -176,6 +184,8 @@ def run(args) -> int:
     for line in ident.outlier_report.lines():
         print("  " + line)
     _parameter_table(ident, robot)
+    for line in checks.lines():
+        print("  " + line)
     if args.out:
         print(f"  written: {args.out}" + (f", {args.out_robot}" if args.out_robot else ""))
     for line in exported.get("lines", []):
@@ -285,6 +295,29 @@ def _weights(args, table, obs, fit: _Fit, measured):
     the fit's robust residual scale, and the errors scaled by the residual (``error_scale="residual"``)."""
     from calib.fitreport import Weights
     return Weights.decide(table, obs, args.noise_mm, fit, measured)
+
+
+class _Checks:
+    """What the estimate itself says about its trust: negative compliances or masses (calib.physical) and, with
+    --starts, whether other starts land on it (calib.starts)."""
+
+    def __init__(self, signs: list[dict], starts=None):
+        self.signs, self.starts = signs, starts
+
+    def lines(self) -> list[str]:
+        from calib.physical import sign_lines
+        return sign_lines(self.signs) + (self.starts.lines() if self.starts is not None else [])
+
+    def as_dict(self) -> dict:
+        out = {"sign_findings": self.signs} if self.signs else {}
+        return {**out, **({"starts": self.starts.as_dict()} if self.starts is not None else {})}
+
+
+def _checks(args, model, obs, ident, priors) -> _Checks:
+    from calib.physical import sign_findings
+    from calib.starts import check_starts
+    starts = check_starts(model, obs, ident, args.starts, priors, args.loss) if args.starts > 1 else None
+    return _Checks(sign_findings(model, ident), starts)
 
 
 def _noise(args, measured, obs, ident, weights, body: dict | None = None):

@@ -26,7 +26,7 @@ from .data import DiagnosisData
 #: the effect names the diagnosis reports (the registry keys of calib.effects.EFFECTS)
 EFFECT_NAMES = ("transmission_error", "joint_compliance", "backlash", "backlash_gravity", "cross_coupling",
                 "link_compliance", "thermal_drift", "joint_scale", "axis_tilt", "parallel_axes", "instrument_drift",
-                "tool_flex")
+                "tool_flex", "lateral_compliance")
 #: kinds that exclude each other on one joint: one play per joint, plain or gravity-loaded
 GROUP_OF = {"backlash_gravity": "backlash"}
 #: wobbles per turn tried for axis_tilt
@@ -49,6 +49,7 @@ class Candidate:
     reference_s: float = 0.0          # instrument drift: ramp reference time
     preload_nm: float = 0.0           # gravity-loaded backlash: the torque below which the approach decides
     tool_mass_kg: float = 0.0         # gravity-loaded backlash: lumped end-effector mass at the tool point
+    pivot_mm: float = 0.0             # lateral compliance: where on its axis the joint bends (its frame's origin)
 
     @property
     def group(self) -> tuple:
@@ -66,7 +67,7 @@ class Candidate:
         order = int(self.order) if self.kind == "axis_tilt" else self.order
         given = {"order": order, "harmonics": 1, "source": self.source, "reference_degc": self.reference_c,
                  "step_s": self.step_s, "reference_s": self.reference_s, "preload_nm": self.preload_nm,
-                 "tool_mass_kg": self.tool_mass_kg}
+                 "tool_mass_kg": self.tool_mass_kg, "pivot_mm": self.pivot_mm}
         if not EFFECTS[self.kind].has_joint:
             return make_effect(self.kind, **{k: given[k] for k in EFFECTS[self.kind].options})
         return make_effect(self.kind, self.joint, **{k: given[k] for k in EFFECTS[self.kind].options})
@@ -112,6 +113,11 @@ def build_library(data: DiagnosisData, kinds: tuple[str, ...] = EFFECT_NAMES,
         for o in te_orders:
             offer(Candidate("transmission_error", j, order=float(o), free=("s1_rad", "c1_rad")))
     offer.all([Candidate("joint_compliance", j, free=("compliance1_rad_per_nm",)) for j in rev])
+    if robot.is_tree:
+        # a joint bending under the moment of the branches it carries (a torso under both arms); on a serial arm
+        # the same moment bends the link beyond it, whose link_compliance candidate has nearly the signature, and
+        # the validated diagnosis of arms keeps its library (identify --effect lateral_compliance fits it anywhere)
+        offer.all([Candidate("lateral_compliance", j, free=axes) for j, axes in _bending_axes(data, rev)])
     offer.all([Candidate("backlash", j, free=("width_rad",)) for j in own])
     if "backlash_gravity" in kinds:
         from .play import gravity_backlash_candidates
@@ -158,6 +164,50 @@ class _Offer:
             self.out.skipped.append(f"{failed[0].kind}: {reasons[id(failed[0])]}")
         else:
             self.out.skipped += [f"{c.label}: {reasons[id(c)]}" for c in failed]
+
+
+#: a bending axis whose moment varies less than this share of the joint's largest is not loaded by these poses
+BENDING_SHARE = 1e-3
+#: a bending axis this close to the previous joint's axis (mm, and parallel) is that joint's compliance
+SAME_AXIS_MM = 10.0
+
+
+def _bending_axes(data: DiagnosisData, joints: list[int]) -> list[tuple[int, tuple[str, ...]]]:
+    """The lateral compliances each joint's bending moment can show: the axes (x, y of the frame its link starts
+    from, through its origin) about which the moment it carries varies over the poses, and that are not the axis of
+    the joint before it (then the tilt is that joint's own compliance, offered as such).  Gravity alone never loads
+    a vertical axis (a pitch joint behind a yaw joint): that compliance is not offered rather than a column of
+    zeros."""
+    if not joints:
+        return []
+    from calib.model import MeasurementModel
+    robot = data.robot
+    model = MeasurementModel(robot)
+    fp = model.kin.forward(data.q_rad)
+    M = model.loads(fp, data.ctx).joint_moment_nm                                   # (N, n, 3)
+    out = []
+    for j in joints:
+        f = robot.parent_frame[j - 1]
+        R = fp.frame_R[:, f]
+        spread = np.std(np.einsum("nck,nc->nk", R[:, :, :2], M[:, j - 1]), axis=0)  # about x and y
+        names = ("cx_rad_per_nm", "cy_rad_per_nm")
+        axes = tuple(name for k, name in enumerate(names) if spread[k] > BENDING_SHARE * spread.max()
+                     and not _on_joint_axis(fp, robot, f, R[0, :, k]))
+        out.append((j, axes or names))           # no load at all: the driver check says why
+    return out
+
+
+def _on_joint_axis(fp, robot, f: int, axis: np.ndarray) -> bool:
+    """Whether the line through frame f's origin along ``axis`` is the axis of the joint whose link ends at frame
+    f, within :data:`SAME_AXIS_MM` and 1 degree (first pose: the relation is fixed in that link): a tilt about it
+    differs from that joint's own deflection by the tilt times the distance, microns for a milliradian."""
+    k = f - 1
+    if k < 0 or robot.variable_of[k] < 0 or robot.prismatic[k]:
+        return False
+    z, o = fp.frame_R[0, robot.parent_frame[k], :, 2], fp.frame_t[0, robot.parent_frame[k]]
+    d = fp.frame_t[0, f] - o
+    return bool(np.linalg.norm(np.cross(axis, z)) < np.sin(np.radians(1.0))
+                and np.linalg.norm(d - (d @ z) * z) < SAME_AXIS_MM)
 
 
 def _more_candidates(data: DiagnosisData, moving: list[int], offer: _Offer) -> None:

@@ -78,8 +78,24 @@ class Loads:
     point_force_n: np.ndarray | None = None   # (N, K, 3) N, measurement frame
     point_at_mm: np.ndarray | None = None     # (N, K, 3) where each acts, measurement frame
     point_link: np.ndarray | None = None      # (K,) frame each point is fixed in
-    joint_moment_nm: np.ndarray | None = None  # (N, n, 3) moment about joint j's origin of all it carries
+    joint_moment_nm: np.ndarray | None = None  # (N, n, 3) moment about joint j's origin (or pivot) of all it carries
     tool_torque_per_kg: np.ndarray | None = None  # (N, n) N m about joint j of 1 kg at the tool point (0 if not carried)
+    #: (n, n+1) bool: frame f moves with joint j's variable (below its link, or a branch sharing it): which rows'
+    #: points a joint's deflection moves, on a tree as on a chain (:meth:`calib.robot.Robot.frames_moved`)
+    frames_moved: np.ndarray | None = None
+
+
+@dataclass
+class ElementMotions:
+    """The elementary motions of the chain at one evaluation, for an effect whose displacement is expressed in frames
+    the geometry moves (:meth:`Effect.geometry_jacobian`): each geometric parameter owns one motion (a rotation about
+    ``axis`` through ``origin_mm``, or a translation along it), which moves frame f rigidly when ``moves[f, e]``."""
+
+    axis: np.ndarray           # (N, E, 3)
+    origin_mm: np.ndarray      # (N, E, 3)
+    rotation: np.ndarray       # (E,) bool
+    moves: np.ndarray          # (n+1, E) bool
+    point: np.ndarray          # (N, 3, E) d evaluated point / d element (the point's own element Jacobian)
 
 
 class JointNumber(int):
@@ -97,6 +113,12 @@ class Effect:
     stage: ClassVar[str] = "joint"
     needs_loads: ClassVar[bool] = False        # the model computes :class:`Loads` for it
     torque_driven: ClassVar[bool] = False      # implements :meth:`torque_gain` (deflection follows the torque)
+    #: point stage: the displacement follows the moment vectors some joints carry (:meth:`moment_joints`,
+    #: :meth:`moment_gain`, :meth:`geometry_jacobian`, :meth:`moment_term_size`)
+    moment_driven: ClassVar[bool] = False
+    #: ``load`` stage: adds bodies (forces at points on links) to the loads every torque- or moment-driven effect
+    #: sees (:meth:`bodies`); it moves no point itself
+    adds_bodies: ClassVar[bool] = False
     has_joint: ClassVar[bool] = True           # acts on one joint (``joint`` required in tables, JSON and text)
     #: structural settings beyond the joint, name -> type (int or float), in the order of the ``--effect`` text
     options: ClassVar[dict[str, type]] = {}
@@ -104,6 +126,8 @@ class Effect:
     text_required: ClassVar[int] = 0
     #: the keys of its ``[[effect]]`` table in a scenario file (``calib.tomlspec.Field``), besides type/enabled
     scenario_fields: ClassVar[dict[str, Any]] = {}
+    #: parameters that are positive by physics (a compliance, a mass): a negative estimate absorbs another error
+    positive_params: ClassVar[tuple[str, ...]] = ()
     #: the pose condition whose variation makes it visible (a key of ``calib.effects.drivers.DRIVERS``), None when
     #: the poses' geometry alone does; identify refuses and the diagnosis skips an effect whose driver is constant
     driven_by: ClassVar[str | None] = None
@@ -179,6 +203,38 @@ class Effect:
 
     def point_delta(self, fp, point, loads: Loads | None, values):
         """point stage: (N, 3) displacement of the point and its derivative (N, 3, K)."""
+        raise NotImplementedError
+
+    # -- moment-driven point effects (lateral compliance) -------------------------------------------------------------
+    def moment_joints(self) -> list[int]:
+        """The joints (0-based) whose carried moment (``Loads.joint_moment_nm``) drives the displacement."""
+        return [self.joint - 1]
+
+    def moment_pivots_mm(self) -> list[float]:
+        """Where along each of :meth:`moment_joints`'s axes the moment is taken (mm from the origin of the frame
+        the joint's link starts from): the point the joint bends about (``Loads.joint_moment_nm`` is about it)."""
+        return [0.0] * len(self.moment_joints())
+
+    def moment_gain(self, fp, point, loads: Loads, values):
+        """(N, 3, k, 3) d displacement / d moment of each of :meth:`moment_joints` (mm per N m): the chain rule
+        through the loads (the moments change with the geometry and with identified bodies)."""
+        raise NotImplementedError
+
+    def geometry_jacobian(self, fp, point, loads: Loads, values, motions: ElementMotions):
+        """(N, 3, E) the displacement's change with each geometric element, the moments held: the frames it is
+        expressed in and the lever arms move with the geometry (the moments' own change is added by the model)."""
+        raise NotImplementedError
+
+    def moment_term_size(self, loads: Loads, values) -> float:
+        """The largest rotation (rad) the moments cause: the relative size of :meth:`geometry_jacobian` and of the
+        moments' change in the geometric columns (the rule of :func:`calib.model.torque_term_matters`)."""
+        raise NotImplementedError
+
+    # -- load-stage effects (identified masses) -----------------------------------------------------------------------
+    def bodies(self, fp, values):
+        """Bodies the effect adds to the loads: positions (N, K, 3) mm in the measurement frame, masses (K,) kg (the
+        force is mass x the model's gravity), d masses / d values (K, P_effect), and the frame (0..n) each is fixed
+        in (a force moves with that frame; every joint moving it carries it)."""
         raise NotImplementedError
 
 

@@ -21,6 +21,7 @@ class JointCompliance(Effect):
     needs_loads = True
     torque_driven = True
     param_names = ("compliance1_rad_per_nm", "compliance2_rad_per_nm", "breakpoint_nm", "deadzone_rad")
+    positive_params = ("compliance1_rad_per_nm", "compliance2_rad_per_nm")
     scenario_fields = {"joint": Field("int", required=True, min=1),
                        "stiffness_nm_per_rad": Field("number", required=True, positive=True),
                        "stiffness2_nm_per_rad": Field("number", positive=True),

@@ -30,6 +30,7 @@ class LinkCompliance(Effect):
     stage = "point"
     needs_loads = True
     param_names = ("compliance_per_nmm2",)      # 1 / EI
+    positive_params = param_names
     scenario_fields = {"joint": Field("int", required=True, min=1),
                        "ei_nmm2": Field("number", required=True, positive=True)}
 

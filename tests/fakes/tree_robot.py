@@ -64,8 +64,15 @@ def hom(R=np.eye(3), t=(0.0, 0.0, 0.0)) -> np.ndarray:
     return T
 
 
-def link_poses(tree: FakeTree, values: dict[str, float]) -> dict[str, np.ndarray]:
-    """Every link's frame (4x4, metres) in the root link for joint values by name (mimic joints follow)."""
+def link_poses(tree: FakeTree, values: dict[str, float], elastic: "Elasticity | None" = None,
+               g=(0.0, 0.0, -9.80665)) -> dict[str, np.ndarray]:
+    """Every link's frame (4x4, metres) in the root link for joint values by name (mimic joints follow).
+
+    ``elastic``: the robot gives way to the gravity load of everything beyond each joint, evaluated in the
+    undeflected pose (:func:`joint_moments`): a joint with a joint compliance c turns by ``c tau`` more than its
+    value; one with a lateral compliance tilts about its origin by the rotation vector ``c (M - (M . z) z)``, the
+    bending part of the moment it carries, before it turns."""
+    loads = joint_moments(tree, values, g) if elastic is not None else {}
     out = {tree.joints[0].parent: np.eye(4)}
     for j in tree.joints:                          # listed parents first
         q = values.get(j.name, 0.0)
@@ -73,6 +80,13 @@ def link_poses(tree: FakeTree, values: dict[str, float]) -> dict[str, np.ndarray
             leader, mult, off = j.mimic
             q = mult * values.get(leader, 0.0) + off
         T = out[j.parent] @ hom(rpy_matrix(j.rpy), j.xyz_m)
+        if j.name in loads:
+            M, z = loads[j.name]
+            q += elastic.joint.get(j.name, 0.0) * float(M @ z)
+            tilt = elastic.lateral.get(j.name, 0.0) * (M - (M @ z) * z)          # world frame, rad
+            if np.linalg.norm(tilt) > 0:
+                local = T[:3, :3].T @ tilt
+                T = T @ hom(axis_angle(local, np.linalg.norm(local)))
         if j.type == "revolute":
             T = T @ hom(axis_angle(j.axis, q))
         elif j.type == "prismatic":
@@ -81,17 +95,43 @@ def link_poses(tree: FakeTree, values: dict[str, float]) -> dict[str, np.ndarray
     return out
 
 
-def point_mm(tree: FakeTree, values: dict[str, float], link: str, xyz_mm, base_in_world=np.eye(4)) -> np.ndarray:
-    """A point fixed on ``link`` (its frame, mm) in the measurement frame (mm)."""
-    T = base_in_world @ link_poses(tree, values)[link]
+@dataclass
+class Elasticity:
+    """Compliances (rad per N m) by joint name: about the joint's axis (``joint``) and, the same about both axes
+    perpendicular to it, under the bending moment (``lateral``)."""
+
+    joint: dict[str, float] = field(default_factory=dict)
+    lateral: dict[str, float] = field(default_factory=dict)
+
+
+def point_mm(tree: FakeTree, values: dict[str, float], link: str, xyz_mm, base_in_world=np.eye(4),
+             elastic: Elasticity | None = None) -> np.ndarray:
+    """A point fixed on ``link`` (its frame, mm) in the measurement frame (mm); ``elastic``: see :func:`link_poses`."""
+    return point_on(link_poses(tree, values, elastic), link, xyz_mm, base_in_world)
+
+
+def point_on(poses: dict[str, np.ndarray], link: str, xyz_mm, base_in_world=np.eye(4)) -> np.ndarray:
+    """A point fixed on ``link`` (its frame, mm) of link poses from :func:`link_poses`, in the measurement frame."""
+    T = base_in_world @ poses[link]
     return T[:3, :3] @ np.asarray(xyz_mm, float) + T[:3, 3] * 1000.0
 
 
 def gravity_torques(tree: FakeTree, values: dict[str, float], g=(0.0, 0.0, -9.80665)) -> dict[str, float]:
     """Torque (N m) about every moving joint's axis from the weights of every link below it (the whole subtree:
     the other arm and the head for a torso joint), by a plain sum over the links."""
+    return {name: float(M @ z) for name, (M, z) in joint_moments(tree, values, g).items()}
+
+
+def joint_moments(tree: FakeTree, values: dict[str, float], g=(0.0, 0.0, -9.80665)) -> dict[str, tuple]:
+    """(moment (3,) N m about the joint's origin of the weights of every link below it, unit axis (3,)) of every
+    revolute joint, in the root frame, by a plain sum over the links of the undeflected robot."""
     poses = link_poses(tree, values)
-    below = {j.name: _subtree(tree, j.child) for j in tree.joints}
+    # each link's mass and first moment (m, m p) in the root frame: the weights below a joint about its origin o
+    # are (sum m p - (sum m) o) x g
+    first = {}
+    for link, (m, com) in tree.masses.items():
+        if link in poses:
+            first[link] = (m, m * (poses[link][:3, :3] @ com + poses[link][:3, 3]))
     out = {}
     for j in tree.joints:
         if j.type != "revolute":
@@ -99,12 +139,10 @@ def gravity_torques(tree: FakeTree, values: dict[str, float], g=(0.0, 0.0, -9.80
         T = poses[j.parent] @ hom(rpy_matrix(j.rpy), j.xyz_m)
         z = T[:3, :3] @ (np.asarray(j.axis, float) / np.linalg.norm(j.axis))
         o = T[:3, 3]
-        tau = 0.0
-        for link in below[j.name]:
-            m, com = tree.masses.get(link, (0.0, np.zeros(3)))
-            p = poses[link][:3, :3] @ com + poses[link][:3, 3]
-            tau += float(np.dot(np.cross(p - o, m * np.asarray(g)), z))
-        out[j.name] = tau
+        below = [first[link] for link in _subtree(tree, j.child) if link in first]
+        m = sum(b[0] for b in below)
+        mp = sum((b[1] for b in below), np.zeros(3))
+        out[j.name] = (np.cross(mp - m * o, np.asarray(g, float)), z)
     return out
 
 
