@@ -105,14 +105,19 @@ def breakdown(data: DiagnosisData, res_before_mm: np.ndarray, res_after_mm: np.n
     # signed components too: a shift of part of the poses (the instrument moved) is half absorbed by the fit and
     # leaves residuals of equal length but opposite sign
     tests: Stats = [("residual length", before)] + [(f"residual {c}", res_before_mm[:, i]) for i, c in enumerate("xyz")]
+    # a joint's own link only: a tree's branch link turns with its joint (its motion adds to the joint's) and a fixed
+    # link has no variable
+    own = [j for j in range(r.n) if r.variable_of[j] == j]
     if joint_jacobian is not None:
-        for j in range(r.n):
+        if not r.readings_are_joints or r.is_tree:
+            joint_jacobian = np.matmul(joint_jacobian, r.variable_spread())
+        for j in own:
             Jj = joint_jacobian[:, :, j]
             # a joint whose axis passes near the point moves it little: floor the gain at 10 mm per rad (mm)
             den = np.maximum(np.sum(Jj ** 2, axis=1), 100.0)
             tests.append((f"joint {j + 1} equivalent error", np.sum(Jj * res_before_mm, axis=1) / den))
     out: list[Factor | None] = []
-    for j in range(r.n):
+    for j in own:
         x = data.q_rad[:, j]
         if r.prismatic[j]:
             out.append(_binned(f"joint {j + 1} position", x, 4, "mm", ".0f", before, after, tests))
@@ -129,7 +134,7 @@ def breakdown(data: DiagnosisData, res_before_mm: np.ndarray, res_after_mm: np.n
         out.append(_categorical("payload (kg)", [f"{v:g}" for v in p], before, after, tests) if len(np.unique(p)) <= 6
                    else _binned("payload", p, 4, "kg", ".2f", before, after, tests))
     if data.has.get("direction"):
-        for j in range(r.n):
+        for j in own:
             d = data.ctx.direction[:, j]
             if np.ptp(d) > 0:
                 out.append(_categorical(f"joint {j + 1} approach direction",

@@ -69,7 +69,7 @@ def gravity_backlash_candidates(data: DiagnosisData, theta: np.ndarray | None, s
     ev = model.evaluate(data.q_rad, data.ctx, th)
     tau0, per_kg = ev.loads.joint_torque_nm, ev.loads.tool_torque_per_kg
     out, flat = [], []
-    for j in range(1, robot.n + 1):
+    for j in (k for k in range(1, robot.n + 1) if robot.variable_of[k - 1] == k - 1):     # a joint, not a branch link
         if robot.prismatic[j - 1]:
             continue
         seen = {tuple(-data.ctx.direction[:, j - 1])}         # the plain backlash's sides
