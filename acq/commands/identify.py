@@ -1,6 +1,7 @@
 """``robocal identify``: identify the robot from a pose-measurement CSV (joint readings + measured tool points)."""
 from __future__ import annotations
 
+import copy
 import json
 import sys
 
@@ -283,8 +284,14 @@ def _heldout(fit: _Fit, sel, measured, obs, weights, table):
         out.after_deg = orientation_errors_deg(fit.model, sel.ident.theta, test)
         return out
 
+    # a fold repeats every choice that changes its fit; flagging gross errors (the default) changes none, so the
+    # folds leave out its robust refit (rejecting them, --outliers reject, is a choice each fold makes again)
+    fold = copy.copy(fit)
+    if fit.outliers == "flag":
+        fold.outliers = "off"
+
     def choose(rows):
-        s, _ = fit.select(weights.for_rows(rows), explain=False)
+        s, _ = fold.select(weights.for_rows(rows), explain=False)
         return s.located.ident.theta, s.ident
     return crossval(fit.model, obs, choose, 5, table.pose_id or None)
 
