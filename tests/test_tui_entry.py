@@ -120,3 +120,17 @@ def test_x_asks_before_it_aborts():
         assert [a.action for a in runner.answers] == ["abort"]
 
     _drive((80, 24), scenario)
+
+
+@pytest.mark.parametrize("size", SIZES)
+def test_a_number_typed_with_no_field_focused_starts_the_first_empty_field(size):
+    """An operator typing the moment the step appears, before the first field holds the keys: the digits land in the
+    first empty field, none is lost or taken as a step's key."""
+    async def scenario(app, pilot, runner):
+        app.set_focus(None)
+        await pilot.pause(0.05)
+        await pilot.press("2", "5", "enter")
+        assert app.query_one(f"#in-{LOAD.name}").value == "25"
+        assert app.query_one(f"#in-{GAUGE.name}").value == ""
+        assert not runner.answers                       # nothing continued
+    _drive(size, scenario)

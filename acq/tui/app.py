@@ -556,6 +556,19 @@ class RobocalApp(App):
             self._keys_text = text
             self.panel("#keys").update(text)
 
+    def on_key(self, event) -> None:
+        """A number typed while no field has focus (the operator types the moment the step appears, before the
+        first field has taken focus) starts the first empty field: it is never lost, and never taken as a key."""
+        if self.focused is None and event.character and event.character in "0123456789.-+":
+            empty = [f for f in self.query(ValueField) if not f.value.strip()]
+            if empty:
+                field = empty[0]
+                field.focus()
+                field.value = event.character        # the field is empty, and takes no selection on focus
+                field.cursor_position = len(field.value)
+                event.stop()
+                event.prevent_default()
+
     def on_descendant_focus(self, event) -> None:
         self._refresh_keys()                       # a field's number keys are its own while it has focus
 

@@ -51,8 +51,9 @@ class ValueField(Input):
             self.accepted = accepted
 
     def __init__(self, spec: InputSpec, **kwargs) -> None:
+        # no select-all on focus: a digit that arrived before the focus (App.on_key) is kept, not replaced
         super().__init__(value="", placeholder=hint(spec), type="number", id=f"in-{spec.name}", compact=True,
-                         **kwargs)
+                         select_on_focus=False, **kwargs)
         self.spec = spec
         self._before = ""
 
