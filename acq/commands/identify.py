@@ -102,7 +102,11 @@ def run(args) -> int:
         first.outlier_report.numbered(*data_rows(measured, table))
         ident.outlier_report = first.outlier_report
     held_out = split_metrics(model, ident.theta[:model.P], measured) if full.split is not None else {}
-    heldout = _heldout(fit, sel, measured, obs, weights, table)
+    try:
+        heldout = _heldout(fit, sel, measured, obs, weights, table).as_dict()
+    except RobocalError as exc:          # folds too small to fit what the whole set can: said, not guessed
+        heldout = {"before": None, "after": None, "uncertainty": None,
+                   "heldout_protocol": f"not measured: a 5-fold split leaves too few poses per fold ({exc})"}
     implausible += enforce(check_fit(ident.reduced_chi2, args.data), args.force_implausible, "identify")
     noise = _noise(args, measured, obs, ident, weights)
     prov = provenance(args.robot)
@@ -120,13 +124,14 @@ def run(args) -> int:
     if args.json:
         warn = {"plausibility_warnings": implausible} if implausible else {}
         print(json.dumps({**model_document(model, ident, provenance=prov, extra=extra), **held_out,
-                          **heldout.as_dict(), **warn,
+                          **heldout, **warn,
                           "selection": sel.as_dict(), "noise": weights.as_dict(ident),
                           "reduced_chi2_words": chi2_words(ident, weights.given, noise),
                           "noise_estimated_mm": noise.estimated_mm, "noise_estimate": noise.as_dict()}, indent=1))
         return 0
     from calib.accuracy import before_after_line
-    print(f"robocal identify {args.data}: " + before_after_line(heldout.as_dict()))
+    print(f"robocal identify {args.data}: " + (before_after_line(heldout) if heldout["after"] else
+                                                 f"accuracy on held-out rows {heldout['heldout_protocol']}"))
     print(f"  {table.n} poses, {len(ident.free)} parameters estimated, residual RMS {ident.residual_rms:.4f} mm "
           f"(a fit residual, not the accuracy), reduced chi-square {ident.reduced_chi2:.2f}")
     print("  " + noise_line(weights.as_dict(ident)))
@@ -136,8 +141,8 @@ def run(args) -> int:
     if held_out:
         print(f"  data's own split: {held_out['n_fit']} fit rows (RMS {held_out['fit_rms_mm']:.4f} mm), "
               f"{held_out['n_test']} test rows: RMS {held_out['test_rms_mm']:.4f} mm, max {held_out['test_max_mm']:.4f} mm")
-    u = heldout.as_dict()["uncertainty"]
-    if u["median_abs_z"] is not None:
+    u = heldout["uncertainty"] or {}
+    if u.get("median_abs_z") is not None:
         print(f"  predicted sigma of the held-out points: median |error|/sigma {u['median_abs_z']:.2f} (0.67 when "
               f"honest), {100 * u['within_2sigma']:.0f} % within 2 sigma (95 % when honest)")
     if noise.estimated_mm is not None and weights.given:
