@@ -68,7 +68,6 @@ def add_arguments(p):
 
 
 def run(args) -> int:
-    from calib import names as naming
     from calib.compensate import model_document, save_model
     from calib.effects import THESIS_RUNNING_ERRORS, effect_from_text
     from calib.effects.mass_moment import check_scale

@@ -95,31 +95,6 @@ def demo_plan(twin: Twin, seed: int, n_poses: int = DEMO_POSES, quick: bool = Tr
 FLOOR_BELOW_BASE_MM = 585.0
 
 
-#: the floor below the robot's frame 0 (mm): the thesis cell's is 400 mm below the instruments' horizon, the Puma's
-#: frame 0 185 mm above it
-FLOOR_BELOW_BASE_MM = 585.0
-
-
-def _runs_in_sight(plan: dict, setup: dict, preflight: Preflight, rounds: int = 4) -> None:
-    """Each transmission-error run narrowed to the widest window about the reference pose whose every step passes
-    the pre-flight (a joint turned far enough puts the arm between a station and a target on some robots): the
-    profile's range is what the joint's limits allow, the window what the cell can see."""
-    from .procedures import transmission
-    te = plan["transmission"]
-    for _ in range(rounds):
-        failed = {f.key for f in preflight.check(list(transmission(plan, setup)))}
-        if not failed:
-            return
-        for j in te["joints"]:
-            lo, hi = te["range_deg"][str(j)]
-            offsets = np.linspace(lo, hi, te["points"])
-            bad = [a for i, a in enumerate(offsets) if f"te/j{j}/{i:02d}" in failed]
-            if bad:
-                below, above = [a for a in bad if a < 0], [a for a in bad if a >= 0]
-                te["range_deg"][str(j)] = [float(max(below) + 5.0) if below else lo,
-                                           float(min(above) - 5.0) if above else hi]
-
-
 def _visible(twin: Twin, q_rad: np.ndarray, setup: dict) -> np.ndarray:
     """Poses whose tool target is in front of both stations, above the floor (:data:`FLOOR_BELOW_BASE_MM` below
     the robot's base), not too close, and that pass the pre-flight (sight lines clear of the arm, inside the limits)

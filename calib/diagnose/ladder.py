@@ -87,8 +87,8 @@ class Ladder:
                        f"{_f(row['test_rms_mm'])}{_f(row['test_max_mm'])}  {row['significance']}"
                        + ("" if row["accepted"] else " (not in the final model)"))
         if self.logo:
-            out.append(f"   leave one group out (the final model without it, refitted): held-out RMS and what the "
-                       f"group is worth")
+            out.append("   leave one group out (the final model without it, refitted): held-out RMS and what the "
+                       "group is worth")
             for row in self.logo_json():
                 out.append(f"     without {row['without'][:40]:<41}{_f(row['test_rms_mm'])} mm RMS, "
                            f"{_f(row['test_mean_mm'])} mm mean: loss {row['loss_rms_mm']:+.4f} mm RMS")
