@@ -277,6 +277,11 @@ def read_pose_csv(path: str | Path, n_joints: int = 6, prismatic=None, *, robot=
         table = _expand_targets(table, R, wide, robot, lscale, header_line)
     _check_poses(table)
     if robot is not None and robot.is_tree:
+        frames = {robot.point_frame(k) for k in robot.tool_points_mm}
+        if table.points_mm is not None and table.target is None and len(frames) > 1:
+            raise RobocalError(f"{src}: line {header_line}: {robot.source} has points on several links "
+                               f"({', '.join(robot.tool_points_mm)}): a target column must say which one each row "
+                               "measures")
         _check_shared_joints(table, robot, qcols, pris, ascale, lscale)
     if table.ignored_columns:
         warnings.warn(f"{src}: ignoring unknown column(s) {', '.join(table.ignored_columns)}", stacklevel=2)

@@ -261,3 +261,18 @@ def test_contradictory_shared_joint_in_one_pose_is_one_line(tmp_path):
                          capture_output=True, text=True)
     assert out.returncode == 2
     assert out.stderr.count("\n") == 1 and "line 5" in out.stderr and "torso_1_joint" in out.stderr
+
+
+def test_rows_without_a_target_on_a_tree_are_one_line(tmp_path):
+    """Points on two arms and rows that do not say which they measure: refused, not fitted to the first point."""
+    tree = tr.two_arm_torso(0)
+    desc = _description(tmp_path, tree)
+    robot = load_robot(desc)
+    data = tmp_path / "poses.csv"
+    _write_data(data, tree, robot, 6, 1)
+    rows = list(csv.reader(open(data)))
+    k = rows[0].index("target")
+    data.write_text("\n".join(",".join(r[:k] + r[k + 1:]) for r in rows) + "\n")
+    out = subprocess.run([sys.executable, "-m", "acq.cli", "identify", str(data), "--robot", desc],
+                         capture_output=True, text=True)
+    assert out.returncode == 2 and out.stderr.count("\n") == 1 and "a target column" in out.stderr
