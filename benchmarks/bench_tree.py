@@ -35,14 +35,20 @@ POINTS = {"L": ("hand_left_link", [0.0, 0.0, 30.0]), "R": ("hand_right_link", [1
           "H": ("head_2_link", [60.0, 0.0, 40.0])}
 
 
-def _files(tmp: Path, poses: int) -> dict[str, list[str]]:
+def write_tree(tmp: Path):
+    """The generator's two-arm torso as ``robot.urdf`` and its calibration description ``tree.toml`` (the three
+    points, the coupled torso joint); returns the nominal tree and the 'real' one the data come from."""
     nominal = tr.two_arm_torso(0)
-    real = tr.perturbed(nominal, 1)
     (tmp / "robot.urdf").write_text(tr.to_urdf(nominal))
     pts = "\n".join(f'{k} = {{ link = "{link}", xyz_mm = [{", ".join(map(str, xyz))}] }}'
                     for k, (link, xyz) in POINTS.items())
     coupled = "[joints.coupled]\ntorso_3_joint = { torso_1_joint = -1.0, torso_2_joint = -1.0 }\n"
     (tmp / "tree.toml").write_text(f'urdf = "robot.urdf"\nbase_link = "base_link"\n[tool.points]\n{pts}\n{coupled}')
+    return nominal, tr.perturbed(nominal, 1)
+
+
+def _files(tmp: Path, poses: int) -> dict[str, list[str]]:
+    nominal, real = write_tree(tmp)
     (tmp / "arm.toml").write_text('urdf = "robot.urdf"\nbase_link = "base_link"\ntip_link = "hand_left_link"\n'
                                   '[tool.points]\nL = [0.0, 0.0, 30.0]\n')
     readings = ["torso_1_joint", "torso_2_joint"] + [f"arm_{s}_{k}_joint" for s in ("left", "right")

@@ -27,7 +27,7 @@ import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
-from benchmarks.bench_tree import PAIRS, POINTS, interleaved, report  # noqa: E402
+from benchmarks.bench_tree import PAIRS, POINTS, interleaved, report, write_tree  # noqa: E402
 from tests.fakes import tree_robot as tr  # noqa: E402
 
 JOINT = {"torso_2_joint": 1.0e-5, "arm_left_2_joint": 4.0e-5, "arm_right_2_joint": 4.0e-5}
@@ -37,13 +37,7 @@ READINGS = ["torso_1_joint", "torso_2_joint"] + [f"arm_{s}_{k}_joint" for s in (
 
 
 def _files(tmp: Path, poses: int) -> dict[str, list[str]]:
-    nominal = tr.two_arm_torso(0)
-    real = tr.perturbed(nominal, 1)
-    (tmp / "robot.urdf").write_text(tr.to_urdf(nominal))
-    pts = "\n".join(f'{k} = {{ link = "{link}", xyz_mm = [{", ".join(map(str, xyz))}] }}'
-                    for k, (link, xyz) in POINTS.items())
-    coupled = "[joints.coupled]\ntorso_3_joint = { torso_1_joint = -1.0, torso_2_joint = -1.0 }\n"
-    (tmp / "tree.toml").write_text(f'urdf = "robot.urdf"\nbase_link = "base_link"\n[tool.points]\n{pts}\n{coupled}')
+    nominal, real = write_tree(tmp)
     elastic = tr.Elasticity(joint=JOINT, lateral=LATERAL)
     rng = np.random.default_rng(2)
     vals = tr.random_values(nominal, poses, 3, names=READINGS)
