@@ -45,13 +45,18 @@ def _spread(p: np.ndarray) -> float:
     return float(np.sqrt(np.mean(np.sum((p - p.mean(axis=0)) ** 2, axis=1))))
 
 
-def distinct_poses(q: np.ndarray, tol: float = 1e-6) -> int:
-    """Number of distinct rows of joint readings (to ``tol``)."""
-    return len(np.unique(np.round(np.asarray(q) / tol).astype(np.int64), axis=0))
+def distinct_poses(q: np.ndarray, tol: float = 1e-6, target=None) -> int:
+    """Number of distinct rows of joint readings (to ``tol``); with ``target`` (the point each row measures),
+    of distinct (readings, point) pairs: each gives three equations."""
+    key = np.round(np.asarray(q) / tol).astype(np.int64)
+    if target is not None:
+        ids = {t: i for i, t in enumerate(dict.fromkeys(target))}
+        key = np.column_stack([key, [ids[t] for t in target]])
+    return len(np.unique(key, axis=0))
 
 
 def check_data(model, q: np.ndarray, points_mm: np.ndarray, source: str, *, n_free: int | None = None,
-               ignored_columns=(), prismatic=None) -> list[Finding]:
+               ignored_columns=(), prismatic=None, target=None) -> list[Finding]:
     """Findings on the data before a fit (see the module docstring); ``model`` is the nominal MeasurementModel."""
     out: list[Finding] = []
     n = model.robot.n
@@ -61,8 +66,10 @@ def check_data(model, q: np.ndarray, points_mm: np.ndarray, source: str, *, n_fr
                                           f"description {model.robot.source} has {n} joints"))
     q = np.asarray(q, float)
     k = distinct_poses(q)
-    if n_free is not None and 3 * k <= n_free:
-        out.append(Finding("distinct_poses", f"{source}: {k} distinct pose(s) give {3 * k} equations for {n_free} "
+    m = distinct_poses(q, target=target) if target is not None else k      # several points a pose: more equations
+    if n_free is not None and 3 * m <= n_free:
+        what = f"{k} distinct pose(s)" if m == k else f"{k} distinct pose(s) ({m} measured points)"
+        out.append(Finding("distinct_poses", f"{source}: {what} give {3 * m} equations for {n_free} "
                                              f"parameters: measure more, different poses"))
     with np.errstate(all="ignore"):
         predicted = _spread(model.points(q))

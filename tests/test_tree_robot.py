@@ -276,3 +276,16 @@ def test_rows_without_a_target_on_a_tree_are_one_line(tmp_path):
     out = subprocess.run([sys.executable, "-m", "acq.cli", "identify", str(data), "--robot", desc],
                          capture_output=True, text=True)
     assert out.returncode == 2 and out.stderr.count("\n") == 1 and "a target column" in out.stderr
+
+
+def test_two_points_a_pose_count_as_equations(tmp_path):
+    """25 poses with two hands each give 150 equations: enough for the tree's ~84 parameters (the data check counted
+    poses, three equations each, and refused)."""
+    tree = tr.two_arm_torso(0)
+    desc = _description(tmp_path, tree)
+    robot = load_robot(desc)
+    data = tmp_path / "poses.csv"
+    _write_data(data, tr.perturbed(tree, 2), robot, 25, 3)
+    out = subprocess.run([sys.executable, "-m", "acq.cli", "identify", str(data), "--robot", desc, "--noise-mm",
+                          "0.05", "--select", "all"], capture_output=True, text=True)
+    assert out.returncode == 0, out.stderr

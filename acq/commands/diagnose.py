@@ -131,7 +131,7 @@ def _plausible(data, args) -> list[dict]:
     nominal = MeasurementModel(data.robot)
     return enforce(check_data(nominal, data.q_rad, data.points_mm, data.source,
                               n_free=len(default_free(nominal, effects=False)), prismatic=data.robot.prismatic,
-                              ignored_columns=data.ignored_columns),
+                              ignored_columns=data.ignored_columns, target=data.labels.get("target")),
                    args.force_implausible, "diagnose")
 
 

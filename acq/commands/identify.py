@@ -106,7 +106,8 @@ def run(args) -> int:
     from calib.plausibility import check_data, check_fit, enforce
     implausible = enforce(check_data(MeasurementModel(robot), table.q_rad, table.points_mm, args.data,
                                      n_free=len(free or default_free(model)), ignored_columns=full.ignored_columns,
-                                     prismatic=robot.prismatic), args.force_implausible, "identify")
+                                     prismatic=robot.prismatic, target=table.target), args.force_implausible,
+                                     "identify")
     check_scale(model, ctx, priors, args.data)
     check_drivers(model, obs, args.data)
     theta0 = None
