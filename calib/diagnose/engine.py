@@ -49,6 +49,7 @@ class Diagnosis:
     confirmation: object | None = None         # calib.diagnose.confirm.Confirmation, after --confirm
     ladder: object | None = None               # calib.diagnose.ladder.Ladder: the model step by step, held out
     n_test: int = 0                            # the split's test rows (0: k-fold on every row)
+    n_poses: int | None = None                 # distinct poses (rows of one pose measure several points), fit + test
 
     @property
     def baseline_rms_mm(self) -> float:
@@ -112,7 +113,8 @@ class Diagnosis:
         inner = "leave-one-out" if self.n_folds == d.n else f"{self.n_folds}-fold"
         lad = self.ladder
         return {
-            "source": d.source, "robot": d.robot.name, "poses": d.n + self.n_test, "folds": self.n_folds,
+            "source": d.source, "robot": d.robot.name, "poses": self.n_poses or d.n + self.n_test,
+            "rows": d.n + self.n_test, "folds": self.n_folds,
             "heldout": (f"the data's own split: every choice on the {d.n} fit rows ({inner} inside them), the "
                         f"{self.n_test} test rows scored once at the end" if self.n_test else inner),
             "n_fit": d.n, "n_test": self.n_test,
@@ -246,7 +248,15 @@ def _diagnose(data, level, n_folds, alpha, max_effects, kinds, te_orders, flag_o
     return Diagnosis(data, level, len(folds), noise_floor_mm(data), hfloor, geo, sel,
                      _breakdown(data, model, geo, sel), lib.skipped, out_rep.flagged, note, out_rep,
                      noise.estimate(data, sel.final.rms_mm, free_noise), judged, ladder=lad,
-                     n_test=test.n if test is not None else 0)
+                     n_test=test.n if test is not None else 0, n_poses=_n_poses(data, test))
+
+
+def _n_poses(data: DiagnosisData, test: DiagnosisData | None) -> int:
+    """Distinct poses of the fit and test rows: the pose ids where the file gives them, else one a row."""
+    parts = [data] + ([test] if test is not None else [])
+    if not all(p.pose_id for p in parts):
+        return sum(p.n for p in parts)
+    return len({pid for p in parts for pid in p.pose_id})
 
 
 def _split(data: DiagnosisData) -> tuple[DiagnosisData, DiagnosisData | None]:

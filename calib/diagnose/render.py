@@ -16,7 +16,8 @@ def render(d: Diagnosis, max_factor_rows: int = 40) -> str:
     if "before" in j:
         from calib.accuracy import before_after_line
         first += before_after_line(j)
-    out = [first, f"{j['poses']} poses, robot {j['robot']}; held-out test: {j['heldout']}; geometric parameter set: "
+    rows = f" ({j['rows']} measured points)" if j.get("rows", j["poses"]) != j["poses"] else ""
+    out = [first, f"{j['poses']} poses{rows}, robot {j['robot']}; held-out test: {j['heldout']}; geometric parameter set: "
                   f"{j['geometry_level']}; point noise from {j['noise_from']}", ""]
     out += ["1. The gap (geometric model, poses it was not fitted to)",
             f"   held-out RMS {j['baseline_rms_mm']:.4f} mm, max {j['baseline_max_mm']:.4f} mm",
