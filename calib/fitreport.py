@@ -32,6 +32,7 @@ class Weights:
     sigma_mm: float                   # per-coordinate 1-sigma in use (RMS over the points)
     table: object = None              # the fit rows (calib.posecsv.PoseTable): a fold re-decides on its own rows
     fit: object = None
+    raw: object = None                # the observations with their relative weights, before the decision
 
     @property
     def error_scale(self) -> str:
@@ -58,16 +59,32 @@ class Weights:
                 scale = _robust_scale(obs, fit)
                 w = cls(_rescaled(obs, scale), False, "unknown", given_sigma_mm(obs.cov_mm2) * scale, table, fit)
         fit.error_scale = w.error_scale
+        w.raw = obs
         return w
 
     def for_rows(self, rows) -> object:
-        """The observations of ``rows`` weighted as this decision would weigh them on those rows alone (a
-        cross-validation fold makes the noise choice again)."""
-        rows = np.asarray(rows)
-        sub = self.obs.subset(rows)
-        if self.given or self.how != "unknown" or self.fit is None:
-            return sub
-        return _rescaled(sub, _robust_scale(sub, self.fit))
+        """The observations of ``rows`` weighted as this decision would weigh them on those rows alone."""
+        return self.fold(rows, rows[:0])[0]
+
+    def fold(self, train, test) -> tuple[object, object]:
+        """A cross-validation fold's observations (train rows, test rows), both weighted by the decision made again
+        on the train rows alone: a model-free estimate (repeats, targets) from the train rows, else the robust scale of
+        a fit to them.  No held-out row's value enters its own predicted sigma, and the test rows carry the scale
+        the fold's reduced chi-square is relative to (the all-row scale times the fold's reduced chi-square mixed
+        two decisions: 88 % of the 34-row TIAGo set's held-out coordinates within 2 sigma, 90 % with the fold's)."""
+        train, test = np.asarray(train, int), np.asarray(test, int)
+        if self.given or self.fit is None or self.raw is None:
+            return self.obs.subset(train), self.obs.subset(test)
+        raw_tr, raw_te = self.raw.subset(train), self.raw.subset(test)
+        if self.how != "unknown":
+            t = self.table.subset(train)
+            found = model_free(t.q_rad, t.points_mm, raw_tr.cov_mm2, pose_id=t.pose_id or None, target=t.target,
+                               body=self.fit.model.robot.tool_point_frames or None)
+            if found:
+                f = combine(given_sigma_mm(raw_tr.cov_mm2), found).estimated_mm / given_sigma_mm(raw_tr.cov_mm2)
+                return _rescaled(raw_tr, f), _rescaled(raw_te, f)
+        f = _robust_scale(raw_tr, self.fit)
+        return _rescaled(raw_tr, f), _rescaled(raw_te, f)
 
     def as_dict(self, ident=None) -> dict:
         out = {"given": self.given, "from": self.how, "sigma_mm": self.sigma_mm,

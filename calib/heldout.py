@@ -104,7 +104,9 @@ def predict_heldout(model, before_theta: np.ndarray, after, q_rad: np.ndarray, c
 def crossval(model, obs, choose, k: int = 5, pose_id: list | None = None) -> HeldOut:
     """k-fold cross-validated predictions in which every choice is made again in each fold: ``choose(train_idx)``
     returns ``(before_theta, after_identification)`` fitted on those rows only (the model selection, the outlier
-    decision and the noise scale included); each row is predicted once, by the fold that did not see it.  Rows of
+    decision and the noise scale included); ``choose(train_idx, test_idx)`` may also return the test rows'
+    observations weighted by the fold's own noise decision; each row is predicted once, by the fold that did not
+    see it.  Rows of
     one pose (several targets: ``pose_id``) are held out together."""
     from .accuracy import grouped_folds, make_folds
 
@@ -114,8 +116,9 @@ def crossval(model, obs, choose, k: int = 5, pose_id: list | None = None) -> Hel
     parts = []
     order = []
     for tr, te in folds:
-        before, after = choose(tr)
-        o = obs.subset(te)
+        got = choose(tr, te) if _takes_test(choose) else choose(tr)
+        before, after = got[:2]
+        o = got[2] if len(got) > 2 else obs.subset(te)      # the test rows as the fold weighs them, when it says
         parts.append(predict_heldout(model, before, after, o.q_rad, o.ctx, o.points_mm, o.cov_mm2, ""))
         order.append(te)
     out = HeldOut.pooled(parts, f"{k}-fold cross-validation, every choice made again in each fold")
@@ -123,6 +126,14 @@ def crossval(model, obs, choose, k: int = 5, pose_id: list | None = None) -> Hel
     out.before_res_mm, out.after_res_mm, out.after_cov_mm2 = (out.before_res_mm[inv], out.after_res_mm[inv],
                                                               out.after_cov_mm2[inv])
     return out
+
+
+def _takes_test(choose) -> bool:
+    import inspect
+    try:
+        return len(inspect.signature(choose).parameters) >= 2
+    except (TypeError, ValueError):
+        return False
 
 
 def orientation_errors_deg(model, theta: np.ndarray, table) -> np.ndarray | None:

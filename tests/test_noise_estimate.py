@@ -254,3 +254,42 @@ def test_the_diagnosis_reads_several_targets_per_pose_from_a_pose_csv(tmp_path):
     e = dnoise.estimate(data, heldout_rms_mm=1.0)
     assert not e.upper_bound and "target distances (40 poses" in e.how
     assert abs(e.estimated_mm / sigma - 1) < 0.3 and e.given_too_large
+
+
+def _weights_of(csv: str, desc: str):
+    """identify's noise decision on a wide CSV (no --noise-mm): the fit rows' table and its Weights."""
+    from acq.commands.identify import _Fit
+    from calib.evaluation import context_of, fit_rows, point_covariance
+    from calib.fitreport import Weights
+    from calib.identify import PointObservations, default_free
+    from calib.model import MeasurementModel
+    from calib.posecsv import read_pose_csv
+    from calib.robot import load_robot
+    robot = load_robot(desc)
+    table, robot, offsets = fit_rows(read_pose_csv(csv, robot.n, robot.prismatic, robot=robot), robot)
+    model = MeasurementModel(robot, offsets)
+    obs = PointObservations(table.q_rad, table.points_mm, point_covariance(table), sigma_mm=1.0,
+                            ctx=context_of(model, table))
+    fit = _Fit(model, default_free(model), [], None, True, "flag", "linear", "auto")
+    return Weights.decide(table, obs, None, fit)
+
+
+def test_a_folds_noise_comes_from_its_own_rows(tmp_path):
+    """The model-free noise (target distances) a cross-validation fold weighs its rows by is estimated on its fit
+    rows alone: making the test rows four times noisier changes the all-row estimate, not the fold's weights of its
+    fit rows or of its test rows."""
+    desc = _description(tmp_path)
+    q, P = _measured(3, 40, 2, 0.03)
+    noisy = P.copy()
+    test = np.arange(0, 40, 5)
+    noisy[test] += np.random.default_rng(4).normal(0.0, 0.12, noisy[test].shape)
+    train = np.setdiff1d(np.arange(40), test)
+    w_clean = _weights_of(_wide_csv(tmp_path / "clean.csv", q, P), desc)
+    w_noisy = _weights_of(_wide_csv(tmp_path / "noisy.csv", q, noisy), desc)
+    assert w_clean.how.startswith("target distances") and w_noisy.how.startswith("target distances")
+    assert w_noisy.sigma_mm > 1.1 * w_clean.sigma_mm          # the all-row estimate sees the noisy rows
+    rows = lambda idx: np.concatenate([2 * idx, 2 * idx + 1])   # two targets a pose: rows 2i, 2i+1
+    for a, b in zip(w_clean.fold(rows(train), rows(test)), w_noisy.fold(rows(train), rows(test))):
+        np.testing.assert_allclose(a.cov_mm2, b.cov_mm2, rtol=1e-9)
+    sigma = np.sqrt(w_clean.fold(rows(train), rows(test))[0].cov_mm2[0, 0, 0])
+    assert abs(sigma / 0.03 - 1) < 0.35

@@ -68,6 +68,23 @@ def test_other_days_predicted_with_honest_sigmas(trained, capsys, name):
     _honest(doc, name)
 
 
+#: every shipped TIAGo set: the superseded 34-row calibration file (16 rows sampled while the arm moved) and the four
+#: static-posture sessions
+EVERY = [SHARED / "data" / "figaroh-tiago-mocap" / "qualysis_base_hand_calibration.csv"] + \
+    sorted(DATA.glob("qualisys_*_static_postures.csv"))
+
+
+@pytest.mark.parametrize("path", EVERY, ids=[p.name for p in EVERY])
+def test_every_shipped_set_cross_validated_with_honest_sigmas(capsys, tmp_path, path):
+    """identify on each set alone: its 5-fold held-out predictions (every choice, the noise scale too, made again
+    on each fold's rows) carry honest sigmas."""
+    assert len(EVERY) == 5
+    doc = _json(capsys, ["identify", str(path), "--robot", str(DESC), *UNITS, "--out", str(tmp_path / "m.json"),
+                         "--json"])
+    assert doc["heldout_protocol"].startswith("5-fold cross-validation, every choice made again")
+    _honest(doc, path.name)
+
+
 def test_selection_predicts_other_days_better_than_the_full_set(trained, capsys, tmp_path):
     """The issue's real case: the full geometric set on one session predicts the others worse than the model the
     data support (FIGAROH's study found the same for its pruned model)."""

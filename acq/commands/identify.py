@@ -295,9 +295,10 @@ def _heldout(fit: _Fit, sel, measured, obs, weights, table):
     if fit.outliers == "flag":
         fold.outliers = "off"
 
-    def choose(rows):
-        s, _ = fold.select(weights.for_rows(rows), explain=False)
-        return s.located.ident.theta, s.ident
+    def choose(rows, test):
+        train_obs, test_obs = weights.fold(rows, test)      # the noise decided again on the fold's rows
+        s, _ = fold.select(train_obs, explain=False)
+        return s.located.ident.theta, s.ident, test_obs
     return crossval(fit.model, obs, choose, 5, table.pose_id or None)
 
 
