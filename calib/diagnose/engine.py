@@ -194,9 +194,11 @@ def _geometric(data: DiagnosisData, model: MeasurementModel, level: str, folds,
 def diagnose(data: DiagnosisData, level: str = "auto", n_folds: int | None = None, alpha: float = 0.01,
              max_effects: int = 6, kinds: tuple[str, ...] = EFFECT_NAMES, te_orders=TE_ORDERS,
              flag_outliers: bool = True, progress: Callable[[str, float], None] | None = None,
-             outliers: str = "flag", loss: str = "linear") -> Diagnosis:
+             outliers: str = "flag", loss: str = "linear", nested: bool = True) -> Diagnosis:
     """Run the whole diagnosis on ``data`` (see the package docstring).  ``outliers``/``loss`` as identify's
-    (``flag_outliers=False`` is ``outliers="off"``).
+    (``flag_outliers=False`` is ``outliers="off"``).  ``nested``: without a split, the held-out before/after come
+    from nested cross-validation up to :data:`calib.diagnose.nested.NESTED_MAX_POSES` poses (False: the plain
+    k-fold figure, said in the protocol -- for the validation suites, which judge the findings only).
 
     BLAS runs on one thread meanwhile: the matrices are a few thousand rows by tens of columns, where threads cost
     more than they give (on a loaded 2-core machine, 3 s of CPU instead of 28 for 400 poses).  The limit covers only
@@ -209,20 +211,30 @@ def diagnose(data: DiagnosisData, level: str = "auto", n_folds: int | None = Non
     from calib.threads import limit
     with limit(1):
         return _diagnose(data, level, n_folds, alpha, max_effects, kinds, te_orders, flag_outliers, progress,
-                         outliers, loss)
+                         outliers, loss, nested)
 
 
-def _diagnose(data, level, n_folds, alpha, max_effects, kinds, te_orders, flag_outliers, progress, outliers,
-              loss) -> Diagnosis:
-    if level not in ("auto", "full", "offsets"):
-        raise RobocalError(f"--geometry must be full, offsets or auto, got {level!r}")
-    check_mode(outliers, loss)
-    prog = progress or (lambda s, f: None)
-    rows = np.flatnonzero(np.asarray(data.split) == "fit") + 1 if data.split else None    # the file's numbering
-    data, test = _split(data)           # the test rows are seen once, at the end (calib.diagnose.ladder)
-    model = data.model()                # the chain and the data's own geometry (a tool point per target)
-    prog("geometric fit", 0.0)
-    data, out_rep = _outlier_step(data, model, level, outliers if flag_outliers else "off", loss, rows)
+@dataclass
+class _Choices:
+    """Every choice of a diagnosis made on one set of rows (all of them, or an outer fold's fit rows)."""
+    data: DiagnosisData             # the rows kept (gross errors rejected)
+    out_rep: OutlierReport
+    folds: list
+    level: str
+    geo: CVResult
+    note: str
+    unused_full: CVResult | None
+    lib: object
+    hfloor: float
+    free_noise: list
+    judged: float
+    sel: Selection
+
+
+def _choices(data: DiagnosisData, model: MeasurementModel, level, n_folds, alpha, max_effects, kinds, te_orders,
+             outlier_mode, loss, rows=None, prog=lambda s, f: None) -> _Choices:
+    """Gross errors, folds, the geometric set, the library, the floor, the effects: every choice, on ``data``."""
+    data, out_rep = _outlier_step(data, model, level, outlier_mode, loss, rows)
     folds = data_folds(data, n_folds)
     level, geo, note, unused_full = _geometric(data, model, level, folds, loss)
     geo_free = geometric_free(model, level)
@@ -236,18 +248,43 @@ def _diagnose(data, level, n_folds, alpha, max_effects, kinds, te_orders, flag_o
     resolve_standins(data, sel, lib.candidates, judged, geo.rms_mm, loss)     # scale/harmonic imitating play
     leftover_structure(data, sel.final, sel.findings, alpha,
                        material_mm=MATERIAL_SHARE * max(0.0, geo.rms_mm - judged))
+    return _Choices(data, out_rep, folds, level, geo, note, unused_full, lib, hfloor, free_noise, judged, sel)
+
+
+def _diagnose(data, level, n_folds, alpha, max_effects, kinds, te_orders, flag_outliers, progress, outliers,
+              loss, nest=True) -> Diagnosis:
+    if level not in ("auto", "full", "offsets"):
+        raise RobocalError(f"--geometry must be full, offsets or auto, got {level!r}")
+    check_mode(outliers, loss)
+    prog = progress or (lambda s, f: None)
+    rows = np.flatnonzero(np.asarray(data.split) == "fit") + 1 if data.split else None    # the file's numbering
+    data, test = _split(data)           # the test rows are seen once, at the end (calib.diagnose.ladder)
+    model = data.model()                # the chain and the data's own geometry (a tool point per target)
+    prog("geometric fit", 0.0)
+    mode = outliers if flag_outliers else "off"
+    every = data                        # before gross errors are rejected: an outer fold decides them again
+    ch = _choices(data, model, level, n_folds, alpha, max_effects, kinds, te_orders, mode, loss, rows, prog)
+    data, folds, level, geo, sel, judged = ch.data, ch.folds, ch.level, ch.geo, ch.sel, ch.judged
     prog("ladder", 0.95)
     from .ladder import build
+    from .nested import NESTED_MAX_POSES, nested_heldout, n_poses
     inner = "leave-one-out" if len(folds) == data.n else f"{len(folds)}-fold"
+    nested = nest and test is None and n_poses(every) <= NESTED_MAX_POSES
     protocol = (f"the data's own split: test rows scored once at the end, every choice on the fit rows ({inner} "
                 f"inside them)" if test is not None else
-                f"{inner} cross-validation (the effects were chosen on these folds: a split column gives a figure "
-                f"no choice has seen)")
-    lad = build(data, test, folds, level, geo, sel, loss, protocol, unused_full)
+                f"{inner} cross-validation of the model chosen on every row (the before/after figures are nested: "
+                f"see heldout_protocol)" if nested else
+                f"{inner} cross-validation (the effects were chosen on these folds, not nested"
+                + (f" above {NESTED_MAX_POSES} poses" if nest else "") + ": a split column gives a figure no choice "
+                "has seen)")
+    lad = build(data, test, folds, level, geo, sel, loss, protocol, ch.unused_full)
+    if nested:
+        lad.heldout = nested_heldout(every, lambda d: _choices(d, model, level, n_folds, alpha, max_effects, kinds,
+                                                                 te_orders, mode, loss).sel.final)
     prog("done", 1.0)
-    return Diagnosis(data, level, len(folds), noise_floor_mm(data), hfloor, geo, sel,
-                     _breakdown(data, model, geo, sel), lib.skipped, out_rep.flagged, note, out_rep,
-                     noise.estimate(data, sel.final.rms_mm, free_noise), judged, ladder=lad,
+    return Diagnosis(data, level, len(folds), noise_floor_mm(data), ch.hfloor, geo, sel,
+                     _breakdown(data, model, geo, sel), ch.lib.skipped, ch.out_rep.flagged, ch.note, ch.out_rep,
+                     noise.estimate(data, sel.final.rms_mm, ch.free_noise), judged, ladder=lad,
                      n_test=test.n if test is not None else 0, n_poses=_n_poses(data, test))
 
 

@@ -137,7 +137,7 @@ def run_family_case(case: FamilyCase) -> FamilyResult:
     data = from_arrays(robot, c.q, pts, noise_mm=SIGMA_MM * opt.get("noise_factor", 1.0), direction=c.direction,
                        payload_kg=c.payload_kg, temperature_c=c.temperature_c, time_s=c.time_s,
                        source=f"independent:{case.label}:seed{case.seed}")
-    diag = diagnose(data, level="auto", outliers="reject")
+    diag = diagnose(data, level="auto", outliers="reject", nested=False)
     found = [(_key(f.candidate), f.doubtful) for f in diag.selection.findings]
     named = [f.candidate.label + (" (doubtful)" if f.doubtful else "") for f in diag.selection.findings]
     return FamilyResult(case, judge(expected, found), named, time.perf_counter() - t)

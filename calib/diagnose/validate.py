@@ -160,7 +160,7 @@ def run_case(case: Case) -> CaseResult:
 
     t = time.perf_counter()
     data, desc = make_case_data(case)
-    diag = diagnose(data, level="full", flag_outliers=False)
+    diag = diagnose(data, level="full", flag_outliers=False, nested=False)
     f = diag.selection.findings
     first = f[0].candidate if f else None
     return CaseResult(case, first.kind if first else None, first.joint if first else None,
