@@ -233,17 +233,42 @@ def test_mass_moment_weighs_like_a_point_mass(world):
         np.testing.assert_allclose(extra[:, k], want if carries else 0.0, atol=1e-9)
 
 
-def test_diagnose_names_the_compliant_joints(world, tmp_path):
-    """diagnose on the joint-elasticity case (no split: 5-fold) names the three compliant joints among every
-    joint and lateral compliance of the tree and reaches the noise floor within 10 %."""
-    _, tree, desc, robot = world
-    case = next(c for c in ec.CASES if c.name == "joint")
+def _diagnose_case(world, tmp_path, name: str) -> dict:
+    """``robocal diagnose --json`` of the named case (300 poses, both hands, no split)."""
+    _, _, desc, robot = world
+    case = next(c for c in ec.CASES if c.name == name)
     data = tmp_path / "diag.csv"
     ec.write_data(data, case, robot.reading_names, 300, 1, test_every=0)
     out = io.StringIO()
     with redirect_stdout(out):
         assert main(["diagnose", str(data), "--robot", str(desc), "--noise-mm", str(ec.NOISE_MM), "--json"]) == 0
-    doc = json.loads(out.getvalue())
+    return json.loads(out.getvalue())
+
+
+def test_diagnose_names_the_compliant_joints(world, tmp_path):
+    """diagnose on the joint-elasticity case (no split: 5-fold) names the three compliant joints among every
+    joint and lateral compliance of the tree and reaches the noise floor within 10 %."""
+    robot = world[3]
+    doc = _diagnose_case(world, tmp_path, "joint")
     want = {f"joint_compliance j{robot.joint_names.index(k) + 1}" for k in ec.JOINT}
     assert {f["label"] for f in doc["findings"]} == want
     assert doc["final_rms_mm"] < 1.10 * doc["noise_floor_mm"]
+
+
+def test_diagnose_names_lateral_elasticity_beside_joint_elasticity(world, tmp_path):
+    """diagnose on the joint+lateral case (no split): the three joint compliances and the three lateral ones are all
+    named -- the lateral ones are each under 10 % of the baseline gap once the joint ones are in, and were dropped
+    (found, then eliminated as immaterial) before the backward step asked for significance too.
+
+    Not yet within 10 % of the floor (1.16x): the diagnosis's lateral candidates bend at robocal's frame origin,
+    the generator's at the URDF joint origin (313-600 mm along the axis), and lateral stand-ins on the pitch joints
+    take up the difference; with the URDF's pivot per joint (a hook in calib/robot.py) the lateral case alone
+    reaches 1.05x the floor with its three lateral compliances."""
+    robot = world[3]
+    doc = _diagnose_case(world, tmp_path, "joint+lateral")
+    labels = {f["label"] for f in doc["findings"]}
+    want = {f"{kind} j{robot.joint_names.index(k) + 1}" for kind, names in
+            (("joint_compliance", ec.JOINT), ("lateral_compliance", ec.LATERAL)) for k in names}
+    assert want <= labels, sorted(labels)
+    assert all(f["effect"] in ("joint_compliance", "lateral_compliance") for f in doc["findings"]), sorted(labels)
+    assert doc["final_rms_mm"] < 1.25 * doc["noise_floor_mm"]

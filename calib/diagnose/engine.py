@@ -116,7 +116,9 @@ class Diagnosis:
             "source": d.source, "robot": d.robot.name, "poses": self.n_poses or d.n + self.n_test,
             "rows": d.n + self.n_test, "folds": self.n_folds,
             "heldout": (f"the data's own split: every choice on the {d.n} fit rows ({inner} inside them), the "
-                        f"{self.n_test} test rows scored once at the end" if self.n_test else inner),
+                        f"{self.n_test} test rows scored once at the end" if self.n_test else
+                        inner + ("; before/after " + lad.heldout.protocol if lad is not None and lad.heldout is not None
+                                 and lad.heldout.protocol.startswith("nested") else "")),
             "n_fit": d.n, "n_test": self.n_test,
             **(lad.heldout.as_dict() if lad is not None and lad.heldout is not None else {}),
             **({"ladder": lad.as_json(), "leave_one_group_out": lad.logo_json()} if lad is not None else {}),

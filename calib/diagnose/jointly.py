@@ -4,12 +4,9 @@ Why: a real arm bends at every joint at once.  One by one, each joint's complian
 gap and falls under the acceptance rule's material share, so the greedy selection stops with all of them left out
 (DLR's ladder on Agile Justin: joint elasticity was the largest single group, as a group).  So when no single
 candidate is accepted in a round, the candidates of one kind on different joints that each improve the linearised
-held-out score are tried **together**: one nested F-test for the group on the rows the diagnosis fits (Bonferroni
-over the kinds tried), one full refit in every fold that must lower the held-out chi-square, the rule identify holds
-parameters by for each member (its value 2 sigma or more from zero, else it leaves the group and the group is
-refitted once), and a material gain measured against the gap still open (a tenth of the current held-out RMS above
-the floor), not against the baseline's: after the large effects are in, a group of small ones is what is left (the
-elastic tree's lateral elasticity: 0.1 mm of a 1.2 mm baseline gap, no member above 10 % of it).
+held-out score are tried **together**: one nested F-test for the group (Bonferroni over the kinds tried), one full
+refit in every fold, the material-share rule on the group's gain, and the rule identify holds parameters by for
+each member (its value 2 sigma or more from zero, else it leaves the group and the group is refitted once).
 Each member becomes a finding that names the others it was found with.
 """
 from __future__ import annotations
@@ -45,8 +42,7 @@ def joint_group(cx, cur, lin, ok, tests, chi2, n_tested: int):
             cands = keep
         gain = cur.rms_mm - new.rms_mm
         label = " + ".join(c.label for c in cands)
-        left = max(0.0, cur.rms_mm - cx.floor_mm)        # the gap still open, not the baseline's
-        if len(keep) < 2 or len(keep) != len(cands) or new.chi2 >= cur.chi2 or gain < MATERIAL_SHARE * left:
+        if len(keep) < 2 or len(keep) != len(cands) or new.chi2 >= cur.chi2 or gain < MATERIAL_SHARE * cx.excess_mm:
             cx.near.append(NearMiss(label, new.rms_mm, p, f"together (a joint group) they shrink the held-out RMS by "
                                     f"{1000 * gain:.1f} um, or a member is not significant", cands[0].group))
             continue

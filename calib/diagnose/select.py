@@ -598,7 +598,8 @@ def _backward(cx: _Context, cur: CVResult, findings: list[Finding]) -> CVResult:
     """A finding accepted early can be superseded by later ones (a joint-2 compliance standing in for a joint-3
     compliance and a joint-2 transmission error that are both there): each earlier finding is refitted out of the
     final model, and dropped when the held-out RMS without it is less than the material share of the baseline's
-    excess gap worse *and* its removal is not significant (:func:`_significant_loss`).  Greedy forward selection
+    excess gap worse *and* its removal is not significant (:func:`_significant_loss`) or it is doubtful (its
+    amplitude within 4 sigma of zero, or an alias).  Greedy forward selection
     then backward elimination.
 
     Why the significance: on a tree many small elasticities together close a large gap, each less than a tenth of
@@ -613,7 +614,8 @@ def _backward(cx: _Context, cur: CVResult, findings: list[Finding]) -> CVResult:
             if keep_cost[first + i] >= 2 * MATERIAL_SHARE * cx.excess_mm:
                 continue            # clearly needed: its linearised removal costs twice the material share
             new = _without(cx, cur, first + i)
-            if new.rms_mm - cur.rms_mm < MATERIAL_SHARE * cx.excess_mm and not _significant_loss(cx, cur, new):
+            if new.rms_mm - cur.rms_mm < MATERIAL_SHARE * cx.excess_mm and (findings[i].doubtful or
+                                                                            not _significant_loss(cx, cur, new, len(findings))):
                 f = findings.pop(i)
                 cx.near.append(NearMiss(f.candidate.label, new.rms_mm, f.p_value,
                                         f"superseded by the later findings: without it the held-out RMS is "
@@ -625,9 +627,9 @@ def _backward(cx: _Context, cur: CVResult, findings: list[Finding]) -> CVResult:
     return cur
 
 
-def _significant_loss(cx: _Context, cur: CVResult, without: CVResult) -> bool:
+def _significant_loss(cx: _Context, cur: CVResult, without: CVResult, n_tests: int = 1) -> bool:
     """Whether removing an effect both raises the held-out chi-square and is significant on the fit rows (nested
-    F-test of the whitened residual sums of squares at ``alpha``)."""
+    F-test of the whitened residual sums of squares at ``alpha``, Bonferroni over the ``n_tests`` findings)."""
     if not without.chi2 > cur.chi2:
         return False
     a, b = cur.all_fit, without.all_fit
@@ -640,7 +642,7 @@ def _significant_loss(cx: _Context, cur: CVResult, without: CVResult) -> bool:
     if not rss1 > 0:
         return False
     F = max(0.0, (rss0 - rss1) / q) / (rss1 / dof)
-    return float(f_sf(F, q, dof)) < cx.alpha
+    return float(f_sf(F, q, dof)) * max(1, n_tests) < cx.alpha
 
 
 def leftover_structure(data: DiagnosisData, final: CVResult, findings: list[Finding], alpha: float = 0.01,
