@@ -20,7 +20,7 @@ from .errors import RobocalError
 from .model import MeasurementModel
 from .effects.target_offset import TargetOffset
 from .posecsv import PoseTable
-from .robot import rpy_from_matrix
+from .angles import rpy_from_matrix
 from .units import DEG
 from .targets import TargetContext, reference_name, station_effects, station_index, target_index, with_targets
 
@@ -295,7 +295,7 @@ def station_start(model: MeasurementModel, table: PoseTable) -> np.ndarray:
     """Start parameters for several stations: each station's base by a rigid fit of the nominal chain to its rows;
     the first station's is the chain's base, the others' offsets are their differences from it."""
     from .effects.station_offset import StationOffset
-    from .robot import rpy_from_matrix
+    from .angles import rpy_from_matrix
 
     th = model.nominal.copy()
     th[:6] = 0.0

@@ -29,7 +29,7 @@ from .errors import RobocalError
 from .identifiability import Identifiability, analyse
 from .model import MeasurementModel
 from .outliers import OutlierReport, check_mode, decide, pose_conditions
-from .robot import rpy_from_matrix
+from .angles import rpy_from_matrix
 from .theodolite import Station
 
 

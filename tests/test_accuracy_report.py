@@ -15,7 +15,7 @@ import pytest
 from calib.accuracy import before_after, holdout
 from calib.identify import PointObservations, default_free
 from calib.model import MeasurementModel
-from calib.robot import load_robot
+from calib.loading import load_robot
 from tests.fakes import thesis_puma as fake
 from tests.test_identify_independent import TOOL_MM, perturbed_arm
 

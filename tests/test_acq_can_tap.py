@@ -17,7 +17,7 @@ from acq.encoders.can_codec import TapCanCodec, load_dbc
 from acq.encoders.can_tap import CanTap, open_can_tap
 from acq.encoders.sample import JointConverter, Unwrapper
 from acq.errors import DeviceTimeout
-from calib.robot import load_robot
+from calib.loading import load_robot
 from tests.fakes.faults import BusFaults, FaultyBus, LossySendBus
 from tests.fakes.worlds import channel, quiet_world
 

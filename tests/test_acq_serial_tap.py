@@ -14,7 +14,7 @@ from acq.emulate.tap_device import RawSample, SerialTapDevice, serial_frame
 from acq.encoders.cobs_codec import (FrameError, TapFrame, cobs_decode, cobs_encode, crc16_ccitt_false,
                                      decode_frame, encode_frame)
 from acq.encoders.serial_tap import open_serial_tap
-from calib.robot import load_robot
+from calib.loading import load_robot
 from tests.fakes.faults import FaultyDevice
 from tests.fakes.serial_tap_codec import (cobs_encode_simple, crc16_ccitt_false_bitwise, legacy_cobs_decode,
                                           legacy_crc16_ccitt_false, serial_frame_simple)

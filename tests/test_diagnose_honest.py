@@ -5,7 +5,7 @@ import numpy as np
 from calib.diagnose import diagnose, noise
 from calib.diagnose.data import from_arrays
 from calib.diagnose.validate import Case, make_case_data
-from calib.robot import load_robot
+from calib.loading import load_robot
 
 
 def _repeats(sigma_true, sigma_given, seed=0):

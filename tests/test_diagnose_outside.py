@@ -6,7 +6,7 @@ from calib.diagnose.engine import diagnose
 from calib.diagnose.families import SIGMA_MM
 from calib.diagnose.independent import Spec, generate
 from calib.diagnose.render import render
-from calib.robot import load_robot
+from calib.loading import load_robot
 
 
 def test_a_quadratic_joint_error_is_a_doubtful_stand_in_and_its_cause_unexplained():

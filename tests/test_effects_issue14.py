@@ -8,7 +8,7 @@ import pytest
 from calib.effects import EFFECTS, effect_from_text, make_effect
 from calib.errors import RobocalError
 from calib.model import MeasurementModel
-from calib.robot import load_robot
+from calib.loading import load_robot
 from calib.units import DEG
 from tests.fakes import issue14_effects as fake
 from tests.fakes.thesis_puma import ThesisPuma, base_matrix

@@ -21,7 +21,7 @@ from calib.evaluation import context_of, fit_rows, point_covariance
 from calib.identify import PointObservations, identify
 from calib.model import MeasurementModel
 from calib.posecsv import read_pose_csv
-from calib.robot import load_robot
+from calib.loading import load_robot
 from calib.targets import TargetContext, with_targets
 from calib.threads import limit
 from tests import elastic_cases as ec

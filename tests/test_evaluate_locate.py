@@ -126,7 +126,7 @@ def test_weak_data_with_priors_does_not_make_the_robot_worse(world, capsys):
     from calib.evaluation import predict_rows
     from calib.model import MeasurementModel
     from calib.posecsv import read_pose_csv
-    from calib.robot import load_robot
+    from calib.loading import load_robot
     robot = load_robot(desc)
     table = read_pose_csv(weak, robot=robot)
     m = MeasurementModel(robot)

@@ -4,7 +4,7 @@ import pytest
 from hypothesis import given, settings, strategies as st
 
 from calib.kinematics import Kinematics
-from calib.robot import load_robot
+from calib.loading import load_robot
 from calib.units import DEG
 
 from pathlib import Path

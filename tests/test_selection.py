@@ -10,7 +10,7 @@ from acq.cli import main
 from calib.heldout import crossval
 from calib.identify import PointObservations, default_free, identify
 from calib.model import MeasurementModel
-from calib.robot import load_robot
+from calib.loading import load_robot
 from calib.selection import loo_residuals_mm, select
 from calib.units import DEG
 from tests.fakes import thesis_puma as fake

@@ -71,7 +71,7 @@ def test_registry_knows_every_procedure():
 
 
 def test_loads_and_gauges_in_the_step_vocabulary():
-    from calib.robot import load_robot
+    from calib.loading import load_robot
     from acq.session.setup import session_setup
     setup = session_setup(standard_setup(), load_robot())
     steps = all_steps({"procedures": ["compliance", "link_compliance"], "compliance": {"joints": [4]}}, setup)
@@ -90,7 +90,7 @@ def test_loads_and_gauges_in_the_step_vocabulary():
 
 def test_steps_as_commands():
     """Every step reads as the command vocabulary; the runner and the bench act on these, not on names."""
-    from calib.robot import load_robot
+    from calib.loading import load_robot
     from acq.session.setup import session_setup
     from acq.session.steps import Ask, Hang, Sight
     setup = session_setup(standard_setup(), load_robot())
@@ -118,7 +118,7 @@ def test_link_steps_ask_the_mass_and_reprocess_reads_both():
     """Contract C3: a link step that hangs a mass asks ``load_kg``; the reduction reads the mass entered (as a point
     force with the description's gravity), and an older step's ``load_n`` as that force's mass."""
     from calib.kinematics import Kinematics
-    from calib.robot import load_robot
+    from calib.loading import load_robot
     from acq.session.rig import c3_setup
     from acq.session.setup import session_setup
     robot = load_robot()

@@ -34,7 +34,7 @@ def test_joint_2_and_3_runs_pass_the_preflight_and_a_limit_is_caught():
     from acq.session.preflight import Preflight
     from acq.session.procedures import transmission
     from acq.session.setup import session_setup, standard_setup
-    from calib.robot import load_robot
+    from calib.loading import load_robot
     robot = load_robot(None)
     setup = session_setup(standard_setup(), robot)
     pf = Preflight(robot, setup)

@@ -83,7 +83,7 @@ def test_a_scale_standing_in_for_the_play_becomes_its_alias():
     from calib.diagnose.candidates import EFFECT_NAMES, build_library
     from calib.diagnose.data import load_data
     from calib.diagnose.standins import resolve
-    from calib.robot import load_robot
+    from calib.loading import load_robot
 
     d = load_data(TRAINING, load_robot(ROOT / "examples" / "tiago" / "tiago_mocap.toml"), 0.2, angle_unit="rad",
                   length_unit="m", order="auto")

@@ -15,7 +15,8 @@ from calib.errors import RobocalError
 from calib.effects.joint_compliance import JointCompliance
 from calib.kinematics import Kinematics
 from calib.model import MeasurementModel
-from calib.robot import load_robot, parse_robot, robot_to_toml
+from calib.robot import parse_robot, robot_to_toml
+from calib.loading import load_robot
 from calib.targets import TargetContext, with_targets
 from tests.fakes import tree_robot as tr
 

@@ -270,7 +270,7 @@ def test_devices_by_url_through_the_same_drivers(tmp_path):
     from acq.emulate.can_node import CanTapNode
     from acq.emulate.tap_device import TapModel
     from acq.emulate.world import demo_world
-    from calib.robot import load_robot
+    from calib.loading import load_robot
     import json as _json
 
     setup = tmp_path / "setup.json"

@@ -6,7 +6,8 @@ from tests.dev_extra import require
 
 from calib.errors import RobocalError
 from calib.kinematics import Kinematics
-from calib.robot import load_robot, robot_from_urdf
+from calib.urdf import robot_from_urdf
+from calib.loading import load_robot
 from calib.units import DEG
 
 URDFS = str(__import__("pathlib").Path(__file__).resolve().parents[1] / "examples" / "urdf")
@@ -30,7 +31,7 @@ def _pin_tip(path, base, tip, names, q_by_name):
 
 def _tip_in_base(robot, readings):
     """Tip point (mm) in the URDF base link: the chain with the base pose set to frame 0 in the base link."""
-    from calib.robot import rpy_from_matrix
+    from calib.angles import rpy_from_matrix
     kin = Kinematics(robot)
     p = kin.nominal.copy()
     F0 = robot.frame0_in_base

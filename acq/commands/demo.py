@@ -76,7 +76,7 @@ def run(args) -> int:
     if args.te_joints and not args.resume:     # checked against the robot's planned runs before anything is built
         from acq.session.plans import transmission_plan
         from calib.profile import profile_of
-        from calib.robot import load_robot
+        from calib.loading import load_robot
         transmission_plan(args.te_joints, profile=profile_of(load_robot(args.robot)))
     if args.resume and args.robot:
         raise RobocalError(f"demo: --robot cannot change a resumed session's robot ({db} keeps the one it was "

@@ -148,7 +148,7 @@ def run(args) -> int:
         raise RobocalError(f"diagnose: --alpha must be between 0 and 1, got {args.alpha}")
     from calib.diagnose import diagnose
     from calib.diagnose.render import render
-    from calib.robot import load_robot
+    from calib.loading import load_robot
 
     from ..progress import progress_display
 

@@ -79,7 +79,7 @@ def run(args) -> int:
     from calib.model import MeasurementModel
     from calib.posecsv import read_pose_csv
     from calib.provenance import provenance
-    from calib.robot import load_robot
+    from calib.loading import load_robot
     from calib.units import DEG
 
     robot = load_robot(args.robot)

@@ -9,7 +9,7 @@ from calib.errors import RobocalError
 from calib.model import MeasurementModel
 from calib.plan import INDICES, Design, observability, parameter_set, select_poses
 from calib.posecsv import read_pose_csv, write_pose_csv
-from calib.robot import load_robot
+from calib.loading import load_robot
 from calib.units import DEG
 
 from ..progress import progress_display

@@ -106,7 +106,7 @@ def default_plan(poses_deg=None, te_joints=None, setup: dict | None = None, robo
     ``robot`` and ``setup`` default to the thesis's Puma on its standard bench."""
     from acq.session.plans import CELL, session_plan
     from acq.session.setup import session_setup, standard_setup
-    from calib.robot import load_robot
+    from calib.loading import load_robot
     robot = load_robot(None) if robot is None else robot
     setup = session_setup(standard_setup() if setup is None else setup, robot)
     return session_plan(robot, setup, CELL, te_joints, poses_deg)

@@ -28,7 +28,8 @@ from acq.emulate.scenario import STATIONS, scenario_text
 from acq.errors import DeviceTimeout
 from calib.model import MeasurementModel
 from calib.profile import profile_of
-from calib.robot import RobotPath, load_robot
+from calib.loading import RobotPath
+from calib.loading import load_robot
 from calib.twin import Twin, load_scenario, parse_scenario
 from calib.units import ARCSEC, DEG
 
@@ -118,7 +119,7 @@ def _visible(twin: Twin, q_rad: np.ndarray, setup: dict) -> np.ndarray:
 
 
 def robot_twin(robot_path, seed: int) -> tuple[Twin, str, dict]:
-    """A twin of the robot at ``robot_path`` (a :class:`calib.robot.RobotPath` may carry a URDF's chain cut): its
+    """A twin of the robot at ``robot_path`` (a :class:`calib.loading.RobotPath` may carry a URDF's chain cut): its
     generated scenario (:func:`acq.emulate.scenario.scenario_text`) and the set-up its bench starts from
     (:func:`acq.session.bench.robot_setup`, the scenario's stations)."""
     path = RobotPath(str(Path(str(robot_path)).resolve()), getattr(robot_path, "base_link", None),
@@ -158,7 +159,7 @@ def build_demo(db: str | Path, seed: int = 0, resume: bool = False, script: dict
     replaced by the emulated cell's (:func:`demo_setup`).  ``scenario``: a twin scenario TOML (default: the default
     scenario); a resumed session keeps its own.  ``te_joints``: the transmission-error joints of the default plan
     (``--te-joints``; default the robot profile's).  ``robot``: a robot description (``--robot``; a
-    :class:`calib.robot.RobotPath` carries a URDF's chain cut) for a new session: its twin's scenario is generated
+    :class:`calib.loading.RobotPath` carries a URDF's chain cut) for a new session: its twin's scenario is generated
     (:func:`robot_twin`) and kept in the session.  ``clock``: the emulated devices' and the rig's time; by
     default a :class:`~acq.clock.SimClock` (the encoder windows take no wall time), a
     :class:`~acq.clock.RealClock` where a human watches the session (the TUI's ``--emulate``)."""

@@ -13,7 +13,8 @@ import numpy as np
 
 from calib.errors import RobocalError
 from calib.profile import RobotProfile, profile_of
-from calib.robot import Robot, load_robot
+from calib.robot import Robot
+from calib.loading import load_robot
 
 from .preflight import Preflight
 from .procedures import transmission

@@ -70,7 +70,7 @@ def standard_setup() -> dict:
 
 def record_robot(setup: dict, robot_path) -> dict:
     """The set-up naming the robot a session is recorded with: ``robot_path`` (``--robot``: a path, or a
-    :class:`calib.robot.RobotPath` carrying ``--base-link`` / ``--tip-link``) as ``robot``, its chain cut as
+    :class:`calib.loading.RobotPath` carrying ``--base-link`` / ``--tip-link``) as ``robot``, its chain cut as
     ``base_link`` / ``tip_link``; the set-up itself when no ``--robot`` was given.  Why: the session keeps its
     set-up, and reprocessing loads the robot from it (:func:`setup_robot`), so the cut must travel with the name."""
     if not robot_path:
@@ -87,7 +87,7 @@ def setup_robot(setup: dict):
     """The robot a session's set-up names: ``robot`` (a description file; empty: the shipped Puma) cut at
     ``base_link`` / ``tip_link`` when the set-up records a URDF chain cut, so a reprocess loads the same chain the
     session was recorded with."""
-    from calib.robot import load_robot
+    from calib.loading import load_robot
     return load_robot(setup.get("robot") or None, setup.get("base_link") or None, setup.get("tip_link") or None)
 
 
