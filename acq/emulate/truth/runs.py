@@ -78,7 +78,7 @@ def compliance_truth(sc: Scoring, trace: dict) -> None:
 @truth_of("link")
 def link_truth(sc: Scoring, trace: dict) -> None:
     """The scenario's link compliance of the tested link; a rigid link (no truth, said) when it has none."""
-    joint = (sc.setup.get("link") or {}).get("joint")
+    joint = sc.setup.link.joint if sc.setup.link is not None else None
     ei = [1.0 / float(e.values[0]) for e in sc.twin.scenario.effects
           if isinstance(e, LinkCompliance) and e.joint == joint]
     prefix = f"link.j{joint}."
