@@ -65,7 +65,8 @@ def runs_in_sight(plan: dict, setup: BenchSetup, preflight: Preflight, rounds: i
                                            float(min(above) - SIGHT_MARGIN_DEG) if above else hi]
 
 
-def session_plan(robot: Robot, setup: BenchSetup | dict, preset: dict, te_joints=None, poses_deg=None, seed: int = 0) -> dict:
+def session_plan(robot: Robot, setup: BenchSetup | dict, preset: dict, te_joints=None, poses_deg=None,
+                 seed: int = 0) -> dict:
     """The plan (see the module docstring) for ``robot`` on the bench ``setup`` (a session set-up, its old keys
     mapped: :func:`acq.session.setup.session_setup`) with the ``preset``'s parameters and the pose set
     ``poses_deg`` when given."""

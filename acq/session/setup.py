@@ -263,7 +263,8 @@ def lever_point(fp, joint: int, lever_mm: float, theta_deg: float, up: np.ndarra
     return o + lever_mm * (np.cos(t) * h + np.sin(t) * up)
 
 
-def design_sweep_targets(model: MeasurementModel, setup: BenchSetup, robot, radius_mm: float | dict | None = None) -> dict:
+def design_sweep_targets(model: MeasurementModel, setup: BenchSetup, robot,
+                         radius_mm: float | dict | None = None) -> dict:
     """Per-joint sweep targets at ``radius_mm`` (default the set-up's ``sweep_radius_mm`` or 600 mm) about each
     joint's axis at the reference pose (the set-up's ``reference_pose_deg``, else the robot profile's), on the side
     facing the theodolites (see :func:`calib.setup_plan.sweep_targets`)."""

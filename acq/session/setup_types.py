@@ -7,6 +7,10 @@ frozen dataclasses once, at the edge (a file read, a stored session opened, a co
 view is taken; a field the old or new vocabulary may leave out is ``None`` here, and nothing downstream supplies a
 default of its own: the defaults stand in the schema, and the few derived ones in the properties below.
 
+A default the schema gives (station names, reading noise, base orientation, sweep radius) is read from it
+(:func:`acq.session.setup_file.default_of`), never repeated here; the dataclass defaults below are those the schema
+has none for (a placement's direction, point P's link, a level lever).
+
 The ruler's mark vocabulary (C, D, E or E1, E2 ...) lives here with the ruler it names: the set-up checks a
 placement's marks with it, the procedures and the exchange import read it.
 
@@ -15,6 +19,7 @@ Units: lengths in mm, angles in degrees (the file's), loads in N and kg.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from types import MappingProxyType
 from typing import Any, Mapping
 
 from .setup_file import check_setup, default_of
@@ -55,8 +60,8 @@ class Stations:
     L_mm: float
     gamma1_deg: float
     gamma2_deg: float
-    names: tuple[str, str] = ("A", "B")
-    sigma_arcsec: float = 3.0
+    names: tuple[str, str]                          # default: the schema's (A, B)
+    sigma_arcsec: float                             # default: the schema's
 
     @classmethod
     def of(cls, d: Mapping) -> Stations:
@@ -191,22 +196,22 @@ class LinkLoad:
 
 @dataclass(frozen=True)
 class BenchSetup:
-    """The whole set-up file, typed.  ``doc`` is the JSON form it was read from (what a session stores and a writer
-    edits); it takes no part in equality."""
+    """The whole set-up file, typed.  ``doc`` is the JSON form it was read from (what a session stores; a writer
+    edits a copy of it); it takes no part in equality.  The mappings are read-only views."""
 
     stations: Stations
     base_xyz_mm: Vec3
     ruler: Ruler
+    base_rpy_deg: Vec3                               # default: the schema's
+    sweep_radius_mm: float | Mapping[str, float]     # default: the schema's
     tool_target_mm: Vec3 | None = None              # required in a full set-up; a partial one may leave it out
-    robot: str = ""
-    base_link: str = ""
+    robot: str = ""                                  # "": the shipped description
+    base_link: str = ""                              # "": no chain cut
     tip_link: str = ""
     scenario: str = ""
-    base_rpy_deg: Vec3 = (0.0, 0.0, 0.0)
     min_focus_mm: float | None = None
     floor_z_mm: float | None = None
     preflight: Mapping[str, Any] = field(default_factory=dict)
-    sweep_radius_mm: float | Mapping[str, float] = 600.0
     sweep_targets: Mapping[int, SweepTarget] | None = None
     reference_pose_deg: tuple[float, ...] | None = None
     point_p: PointP | None = None
@@ -228,18 +233,18 @@ class BenchSetup:
             base_link=d.get("base_link") or "", tip_link=d.get("tip_link") or "", scenario=d.get("scenario") or "",
             base_rpy_deg=_vec(d.get("base_rpy_deg", default_of("base_rpy_deg"))),
             min_focus_mm=_opt(d.get("min_focus_mm")), floor_z_mm=_opt(d.get("floor_z_mm")),
-            preflight=dict(d.get("preflight") or {}),
+            preflight=MappingProxyType(dict(d.get("preflight") or {})),
             sweep_radius_mm=d.get("sweep_radius_mm", default_of("sweep_radius_mm")),
-            sweep_targets=None if d.get("sweep_targets") is None else {
+            sweep_targets=None if d.get("sweep_targets") is None else MappingProxyType({
                 int(k): SweepTarget(_vec(v["point_mm"]), _opt(v.get("link"), int), _opt(v.get("radius_mm")))
-                for k, v in d["sweep_targets"].items()},
+                for k, v in d["sweep_targets"].items()}),
             reference_pose_deg=_vec(d.get("reference_pose_deg")) or None, point_p=PointP.of(d.get("point_p")),
             extended_tool=None if et is None else ExtendedTool(_vec(et["A1_mm"]), _vec(et["A2_mm"])),
             far_target_mm=_vec(d.get("far_target_mm")),
-            compliance={int(k): ComplianceLoad.of(v) for k, v in (d.get("compliance") or {}).items()},
+            compliance=MappingProxyType({int(k): ComplianceLoad.of(v) for k, v in (d.get("compliance") or {}).items()}),
             link=LinkLoad.of(d.get("link")),
             running_errors=None if d.get("running_errors") is None else tuple(str(t) for t in d["running_errors"]),
-            plan=d.get("plan"), doc=d)
+            plan=d.get("plan"), doc=MappingProxyType(d))
 
 
 def setup_of(setup: BenchSetup | Mapping, where: str = "set-up") -> BenchSetup:
