@@ -99,7 +99,7 @@ def stored_plan_setup(db: str) -> tuple[dict, dict]:
 def session_robot(db: str):
     """The robot a session database was recorded with: its set-up's ``robot`` and chain cut."""
     from .setup import setup_robot
-    return setup_robot(stored_plan_setup(db)[1])
+    return setup_robot(BenchSetup.of(stored_plan_setup(db)[1]))        # checked as it was read
 
 
 def pose_arrays(db: str) -> dict:

@@ -2,7 +2,8 @@
 
 Read a procedure top to bottom to know what the operator will be asked, in order.  Procedures take the session
 ``plan`` (their parameters: :class:`~acq.session.plan_doc.SessionPlan`, or its JSON form, checked on entry) and
-``setup`` (the geometry of the bench) and never touch a device: the runner does the
+``setup`` (the geometry of the bench: :class:`~acq.session.setup_types.BenchSetup`, typed once by
+:func:`all_steps`) and never touch a device: the runner does the
 I/O, checks and storage.  Step keys are stable (``sweep/j2/03``), so a resumed session skips what is committed.
 
 Units: poses in degrees (what the operator types into the teach pendant), lengths in mm, loads as masses in kg (old set-ups: forces in N).
