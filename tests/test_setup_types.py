@@ -99,3 +99,14 @@ def test_the_broken_import_circles_stay_broken(path, forbidden):
     """setup <-> procedures (the mark vocabulary now lives with the ruler in setup_types) and world <-> factories
     (world.py, the protocol every device imports, imports nothing of its package)."""
     assert not [m for m in _imports(ROOT / path) if m.startswith(forbidden)]
+
+
+def test_the_whole_file_has_one_schema(doc):
+    """A plan carried in the set-up and the design record are checked with the file, not when first used."""
+    with_plan = {**doc, "plan": {"procedures": ["sweeps"], "sweeps": {"points": 1}}}
+    with pytest.raises(RobocalError, match=r"bench.json: plan.sweeps.points"):
+        setup_of(with_plan, "bench.json")
+    good = setup_of({**doc, "plan": {"procedures": ["sweeps"], "sweeps": {"points": 3}}})
+    assert good.plan.sweeps.points == 3 and good.plan.procedures == ("sweeps",)
+    with pytest.raises(RobocalError, match=r"bench.json: design.ruler"):
+        setup_of({**doc, "design": {"ruler": {"variables": {"L_mm": "far"}}}}, "bench.json")

@@ -22,6 +22,7 @@ from dataclasses import dataclass, field
 from types import MappingProxyType
 from typing import Any, Mapping
 
+from .plan_doc import SessionPlan, plan_of
 from .setup_file import check_setup, default_of
 
 MARKS = ("C", "D", "E")
@@ -220,7 +221,7 @@ class BenchSetup:
     compliance: Mapping[int, ComplianceLoad] = field(default_factory=dict)
     link: LinkLoad | None = None
     running_errors: tuple[str, ...] | None = None
-    plan: Mapping[str, Any] | None = None
+    plan: SessionPlan | None = None                 # a plan carried in the set-up
     doc: Mapping[str, Any] = field(default_factory=dict, compare=False, repr=False)
 
     @classmethod
@@ -244,7 +245,8 @@ class BenchSetup:
             compliance=MappingProxyType({int(k): ComplianceLoad.of(v) for k, v in (d.get("compliance") or {}).items()}),
             link=LinkLoad.of(d.get("link")),
             running_errors=None if d.get("running_errors") is None else tuple(str(t) for t in d["running_errors"]),
-            plan=d.get("plan"), doc=MappingProxyType(d))
+            plan=None if d.get("plan") is None else plan_of(d["plan"], "set-up: plan"),
+            doc=MappingProxyType(d))
 
 
 def setup_of(setup: BenchSetup | Mapping, where: str = "set-up") -> BenchSetup:
