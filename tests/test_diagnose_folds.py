@@ -7,7 +7,7 @@ import numpy as np
 
 from calib.diagnose.data import from_arrays
 from calib.diagnose.gap import DIAGNOSE_FOLDS, data_folds
-from calib.robot import load_robot
+from calib.loading import load_robot
 
 
 def _data(n: int):

@@ -102,7 +102,7 @@ def _ruler_readings(path, names, setup):
     from tests.fakes.thesis_puma import leica_readings
     st = setup["stations"]
     lines = ["step,procedure,station,target,face,hz_deg,v_deg"]
-    from acq.session.procedures import mark_index, mark_names
+    from acq.session.setup_types import mark_index, mark_names
     marks_mm = setup["ruler"]["marks_mm"]
     for k, pl in enumerate(setup["ruler"]["placements"]):
         d = np.asarray(pl["dir"], float) / np.linalg.norm(pl["dir"])

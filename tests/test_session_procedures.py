@@ -6,7 +6,8 @@ import numpy as np
 import pytest
 
 from acq.session import checks as ck
-from acq.session.procedures import PROCEDURES, all_steps, mark_index, mark_names, procedure_info
+from acq.session.procedures import PROCEDURES, all_steps, procedure_info
+from acq.session.setup_types import mark_index, mark_names
 from acq.session.setup import standard_setup
 from acq.session.steps import Step
 from calib.setup_plan import into_setup, SetupPlan
@@ -177,12 +178,11 @@ def test_resolution_truth_is_the_twins_slope_over_the_run():
     tilted by the transmission error (a little, not more than its amplitude allows) when it has."""
     import dataclasses
     from acq.emulate.truth.runs import resolution_in_estimator_terms
-    from calib.estimators.resolution import design_resolution_rad
     from calib.twin import Twin, load_scenario
     from calib.units import DEG
     sc = load_scenario(None)
     r = sc.robot
-    design = design_resolution_rad(r.counts_per_rev[5], r.gear_ratio[5])
+    design = 2 * np.pi / abs(r.counts_per_rev[5] * r.gear_ratio[5])       # written out: not the code under test
     q = np.zeros((7, 6))
     q[:, 5] = np.linspace(0.0, 150.0, 7) * DEG
     counts = np.rint(r.counts_from_joint(q))

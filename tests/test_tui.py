@@ -269,7 +269,7 @@ def test_devices_by_url_through_the_same_drivers(tmp_path):
     from acq.commands.session import real_builder, setup_template
     from acq.emulate.can_node import CanTapNode
     from acq.emulate.tap_device import TapModel
-    from acq.emulate.world import demo_world
+    from acq.emulate.factories import demo_world
     from calib.loading import load_robot
     import json as _json
 

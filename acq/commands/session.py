@@ -99,16 +99,19 @@ def parse_tap(text: str) -> tuple[str, dict]:
     raise RobocalError(f"session: --tap {text!r}: expected can:INTERFACE:CHANNEL or serial:URL")
 
 
-def default_plan(poses_deg=None, te_joints=None, setup: dict | None = None, robot=None) -> dict:
+def default_plan(poses_deg=None, te_joints=None, setup=None, robot=None) -> dict:
     """The standard plan for a real cell (:func:`acq.session.plans.session_plan` with the :data:`CELL
     <acq.session.plans.CELL>` preset), with the operator's pose set when given; ``te_joints``: the
     transmission-error joints (``--te-joints``, plan key ``transmission.joints``; default the robot profile's).
-    ``robot`` and ``setup`` default to the thesis's Puma on its standard bench."""
+    ``robot`` and ``setup`` default to the thesis's Puma on its standard bench; a set-up document has its old keys
+    mapped here, a typed one (:class:`acq.session.setup_types.BenchSetup`) was mapped where it was read."""
     from acq.session.plans import CELL, session_plan
     from acq.session.setup import session_setup, standard_setup
+    from acq.session.setup_types import BenchSetup
     from calib.loading import load_robot
     robot = load_robot(None) if robot is None else robot
-    setup = session_setup(standard_setup() if setup is None else setup, robot)
+    if not isinstance(setup, BenchSetup):
+        setup = session_setup(standard_setup() if setup is None else setup, robot)
     return session_plan(robot, setup, CELL, te_joints, poses_deg)
 
 
@@ -137,6 +140,7 @@ def real_builder(db: str, theodolites: list[str], tap: str | None, setup_path: s
                                    station_names)
     from acq.session.stations import stations_from_store
     from acq.session.procedures import all_steps
+    from acq.session.setup_types import setup_of
     from acq.session.rig import ManualBench, Rig
     from acq.session.runner import Runner
     from acq.session.store import SessionStore
@@ -159,17 +163,19 @@ def real_builder(db: str, theodolites: list[str], tap: str | None, setup_path: s
         setup = record_robot(setup, robot_path)
     elif setup_path:
         _same_setup(db, setup, setup_path, robot_path)
+    recorded = setup_of(setup)
     if resume and record_robot(setup, robot_path) != setup:
-        raise RobocalError(f"session: {db} was recorded with the robot {setup.get('robot') or 'puma560 (default)'} "
-                           f"(chain cut {setup.get('base_link') or '-'} -> {setup.get('tip_link') or '-'}): resume "
+        raise RobocalError(f"session: {db} was recorded with the robot {recorded.robot or 'puma560 (default)'} "
+                           f"(chain cut {recorded.base_link or '-'} -> {recorded.tip_link or '-'}): resume "
                            "it with the same --robot, or without --robot")
-    robot = setup_robot(setup)
+    robot = setup_robot(recorded)
     if not resume:
         q = read_pose_csv(poses, robot.n).q_rad / DEG if poses else None
     setup = session_setup(setup, robot)
     if not resume:
         plan = default_plan(q, te_joints, setup, robot)
-    want = sorted(station_names(setup))
+    bench = setup_of(setup)
+    want = sorted(station_names(bench))
     if sorted(s[0] for s in specs) != want:
         raise RobocalError(f"session: give two theodolites, stations {' and '.join(want)} as the set-up names them "
                            f"(--theodolite {want[0]}=... --theodolite {want[1]}=...)")
@@ -198,14 +204,14 @@ def real_builder(db: str, theodolites: list[str], tap: str | None, setup_path: s
         identities = rig.identities()
         for role, driver, url, ident in identities:
             rig.device_ids[role] = store.add_device(role, driver, url, ident, {})
-        steps = all_steps(plan_d, setup_d)
+        steps = all_steps(plan_d, bench)
         if keep is not None:
             steps = [s for s in steps if keep(s)]
         # the same wiring as the demo's: stations refitted from the session's own ruler steps, the pre-flight
-        runner = Runner(store, rig, steps, operator, bench=ManualBench(), stations=setup_stations(setup_d),
-                        predict=predictor(robot, setup_d),
-                        refit_stations=lambda st: stations_from_store(st, setup_d),
-                        preflight=Preflight(robot, setup_d))
+        runner = Runner(store, rig, steps, operator, bench=ManualBench(), stations=setup_stations(bench),
+                        predict=predictor(robot, bench),
+                        refit_stations=lambda st: stations_from_store(st, bench),
+                        preflight=Preflight(robot, bench))
 
         def close():
             rig.close()

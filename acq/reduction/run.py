@@ -92,7 +92,7 @@ def reduce_session(session: str | SessionData, n_mc: int = 0, progress=None) -> 
         "session": {"guid": data.session["guid"], "title": data.session["title"], "path": path,
                     "exit_status": data.session["exit_status"], "steps_accepted": len(data.steps),
                     "procedures": {name: len(sts) for name, sts in by_proc.items()}},
-        "provenance": {**provenance(data.setup.get("robot") or None, None), "code_version": code_version(),
+        "provenance": {**provenance(data.setup.robot or None, None), "code_version": code_version(),
                        "reprocessed_unix_s": time.time(), "input_session": data.session["guid"], "n_mc": n_mc,
                        "elapsed_s": time.perf_counter() - t0},
         "estimates": ctx.est.items,

@@ -11,6 +11,7 @@ import numpy as np
 from calib.errors import RobocalError
 
 from acq.session.setup_file import setup_from_text
+from acq.session.setup_types import BenchSetup
 from acq.session.store import StoreError, connect_readonly, from_npy, json_column
 
 
@@ -19,7 +20,7 @@ class SessionData:
     path: str
     session: dict
     plan: dict
-    setup: dict
+    setup: BenchSetup
     steps: list[dict]                               # accepted steps, each with readings, chunks, inputs
     devices: list[dict] = field(default_factory=list)
 
@@ -74,7 +75,7 @@ def _load(conn, path: str) -> SessionData:
         st["counts"] = _counts(ch, f"{path}: step {st['key']!r}: encoder counts")
     devices = _rows(conn, "SELECT role, driver, url, identity_json FROM device")
     return SessionData(path, s, json_column(s["plan_json"], f"{path}: session plan_json"),
-                       setup_from_text(s["setup_json"], f"{path}: session setup_json"), steps, devices)
+                       BenchSetup.of(setup_from_text(s["setup_json"], f"{path}: session setup_json")), steps, devices)
 
 
 def _counts(chunks: list[dict], where: str) -> np.ndarray | None:

@@ -41,6 +41,7 @@ from .setup import GAUGE_SIGMA_MM, predictor, record_robot, session_setup, setup
 from .procedures import all_steps, tool_target
 from .rig import EmulatedBench, Rig
 from .runner import Runner
+from .setup_types import BenchSetup, setup_of
 from .steps import Step
 from .store import SessionStore
 
@@ -73,11 +74,11 @@ def demo_setup(twin: Twin, base: dict | None = None) -> dict:
 
 
 def demo_plan(twin: Twin, seed: int, n_poses: int = DEMO_POSES, quick: bool = True, te_joints=None,
-              setup: dict | None = None) -> dict:
+              setup: BenchSetup | dict | None = None) -> dict:
     """Which procedures with which parameters: :func:`acq.session.plans.session_plan` with the :data:`DEMO
     <acq.session.plans.DEMO>` preset and a pose set chosen now (so a resume replays the same poses)."""
     from calib.plan import select_poses
-    setup = session_setup(demo_setup(twin), twin.robot) if setup is None else setup
+    setup = setup_of(session_setup(demo_setup(twin), twin.robot) if setup is None else setup)
     model = MeasurementModel(twin.robot)
     lim = twin.robot.limits_rad
     try:
@@ -96,7 +97,7 @@ def demo_plan(twin: Twin, seed: int, n_poses: int = DEMO_POSES, quick: bool = Tr
 FLOOR_BELOW_BASE_MM = 585.0
 
 
-def _visible(twin: Twin, q_rad: np.ndarray, setup: dict) -> np.ndarray:
+def _visible(twin: Twin, q_rad: np.ndarray, setup: BenchSetup) -> np.ndarray:
     """Poses whose tool target is in front of both stations, above the floor (:data:`FLOOR_BELOW_BASE_MM` below
     the robot's base), not too close, and that pass the pre-flight (sight lines clear of the arm, inside the limits)
     with the set-up."""
@@ -105,7 +106,7 @@ def _visible(twin: Twin, q_rad: np.ndarray, setup: dict) -> np.ndarray:
     tp = twin.true_parameters()
     for k in ("x_mm", "y_mm", "z_mm"):
         th[m.index[f"base.{k}"]] = tp[f"base.{k}"]
-    th[: m.n_geometric] = m.kin.params_with_tool(np.asarray(setup["tool_target_mm"], float), th[: m.n_geometric])
+    th[: m.n_geometric] = m.kin.params_with_tool(np.asarray(tool_target(setup).tool_mm, float), th[: m.n_geometric])
     pts = m.points(q_rad, theta=th)
     ok = (pts[:, 1] > 1200) & (pts[:, 2] > tp["base.z_mm"] - FLOOR_BELOW_BASE_MM)
     pf = Preflight(twin.robot, setup)
@@ -128,7 +129,7 @@ def robot_twin(robot_path, seed: int) -> tuple[Twin, str, dict]:
     base = record_robot(standard_setup(), path)
     base["stations"] = {**base["stations"], **{k: v for k, v in STATIONS.items() if k in base["stations"]}}
     setup = robot_setup(robot, base)
-    text = scenario_text(robot, str(path), setup, seed)
+    text = scenario_text(robot, str(path), setup_of(setup), seed)
     return Twin(parse_scenario(text, f"scenario of {robot.name}"), seed=seed), text, setup
 
 
@@ -206,8 +207,9 @@ def build_demo(db: str | Path, seed: int = 0, resume: bool = False, script: dict
                                               "scenario_path": str(Path(scenario).resolve()) if scenario else None,
                                               "seed": seed},
                                     durable=not clock.simulated)       # a simulated session can be recorded again
+    setup = setup_of(session_setup(setup, twin.robot))     # a resumed session's set-up may use the old keys
     world = TwinWorld(twin, seed=seed * 1000 + seed_offset,       # the gauges read with the set-up's noise
-                      gauge_sigma_mm=(setup.get("link") or {}).get("gauge_sigma_mm") or GAUGE_SIGMA_MM)
+                      gauge_sigma_mm=(setup.link and setup.link.gauge_sigma_mm) or GAUGE_SIGMA_MM)
     tag = uuid.uuid4().hex[:8]
     names = []
     drivers = {}
@@ -237,7 +239,6 @@ def build_demo(db: str | Path, seed: int = 0, resume: bool = False, script: dict
                                                     {"emulated": True, "channel": channel} if role == "encoder tap"
                                                     else {"emulated": True})
     bench = EmulatedBench(world)
-    setup = session_setup(setup, twin.robot)           # a resumed session's set-up may use the old keys
     steps = all_steps(plan_d, setup)
     if steps_filter is not None:
         steps = [s for s in steps if steps_filter(s)]

@@ -18,6 +18,7 @@ from calib.loading import load_robot
 
 from .preflight import Preflight
 from .procedures import transmission
+from .setup_types import BenchSetup, setup_of
 
 #: a real cell's parameters (per procedure; ``None``: the procedure is not in the default plan)
 CELL = {"ruler": {"repeats": 2}, "sweeps": {"points": 8, "span_deg": 90.0},
@@ -46,7 +47,7 @@ def transmission_plan(joints=None, points: int = 25, repeats: int = 2, profile: 
             "range_deg": {str(j): list(profile.te_range_deg[j]) for j in js}}
 
 
-def runs_in_sight(plan: dict, setup: dict, preflight: Preflight, rounds: int = 4) -> None:
+def runs_in_sight(plan: dict, setup: BenchSetup, preflight: Preflight, rounds: int = 4) -> None:
     """Each transmission-error run narrowed to the widest window about the reference pose whose every step passes
     the pre-flight (a joint turned far enough puts the arm between a station and a target on some robots): the
     profile's range is what the joint's limits allow, the window what the cell can see."""
@@ -65,10 +66,12 @@ def runs_in_sight(plan: dict, setup: dict, preflight: Preflight, rounds: int = 4
                                            float(min(above) - SIGHT_MARGIN_DEG) if above else hi]
 
 
-def session_plan(robot: Robot, setup: dict, preset: dict, te_joints=None, poses_deg=None, seed: int = 0) -> dict:
+def session_plan(robot: Robot, setup: BenchSetup | dict, preset: dict, te_joints=None, poses_deg=None,
+                 seed: int = 0) -> dict:
     """The plan (see the module docstring) for ``robot`` on the bench ``setup`` (a session set-up, its old keys
     mapped: :func:`acq.session.setup.session_setup`) with the ``preset``'s parameters and the pose set
     ``poses_deg`` when given."""
+    setup = setup_of(setup)
     profile = profile_of(robot)
     plan: dict = {"procedures": ["levelling", "instrument_check", "ruler", "sweeps"], "ruler": dict(preset["ruler"]),
                   "sweeps": {**preset["sweeps"], "joints": list(profile.sweep_joints)}, "seed": seed}
@@ -79,10 +82,10 @@ def session_plan(robot: Robot, setup: dict, preset: dict, te_joints=None, poses_
         plan["procedures"].append("transmission")
         plan["transmission"] = transmission_plan(te_joints, profile=profile, **preset["transmission"])
         runs_in_sight(plan, setup, Preflight(robot, setup))
-    if setup.get("compliance"):
+    if setup.compliance:
         plan["procedures"].append("compliance")
-        plan["compliance"] = {**preset["compliance"], "joints": sorted(int(k) for k in setup["compliance"])}
-    if setup.get("link"):
+        plan["compliance"] = {**preset["compliance"], "joints": sorted(setup.compliance)}
+    if setup.link is not None:
         plan["procedures"].append("link_compliance")
     if profile.tapped and profile.coupled_pairs:
         plan["procedures"].append("coupling")
