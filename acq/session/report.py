@@ -379,8 +379,9 @@ def _thesis_table(rows: list[dict]) -> str:
         th_err = "" if r["thesis_error"] is None else f" ± {r['thesis_error']:g}"
         note = r["note"] + (f" (lb in/rad: {r['lbin'][0]:.4g} vs {r['lbin'][1]:.4g})" if r.get("lbin") else "")
         ours = value_pm(r["robocal"], r["error"])
+        diff = "" if r["error"] is None else f"{r['difference']:+.2g}"
         out.append(f"<tr><td class='name'>{html.escape(r['label'])}</td><td>{html.escape(ours)}{unit}</td>"
-                   f"<td>{r['thesis']:.6g}{th_err}{unit}</td><td>{r['difference']:+.2g}</td><td>{sig}</td>"
+                   f"<td>{r['thesis']:.6g}{th_err}{unit}</td><td>{diff}</td><td>{sig}</td>"
                    f"<td class='name'>{html.escape(note)}</td></tr>")
     out.append("</table></div>")
     return "".join(out)
@@ -495,14 +496,17 @@ def _provenance_html(res: dict) -> str:
 
 
 def provenance_rows(prov: dict) -> list[tuple[str, str]]:
-    """The provenance as people read it: a time (a ``..._unix_s`` key) as ISO 8601 with its zone, under its name
-    without the unit; every other entry as it is."""
+    """The provenance as people read it: a name in words without its unit suffix, a time (``..._unix_s``) as ISO
+    8601 with its zone, a duration (``..._s``) in seconds to three digits; every other entry as it is."""
     out = []
     for k, v in prov.items():
-        if str(k).endswith("_unix_s") and isinstance(v, (int, float)):
-            out.append((str(k)[: -len("_unix_s")], when(v)))
+        key, number = str(k), isinstance(v, (int, float)) and not isinstance(v, bool)
+        if key.endswith("_unix_s") and number:
+            out.append((key[: -len("_unix_s")].replace("_", " "), when(v)))
+        elif key.endswith("_s") and number:
+            out.append((key[: -len("_s")].replace("_", " "), f"{v:.3g} s"))
         else:
-            out.append((str(k), str(v)))
+            out.append((key.replace("_", " "), str(v)))
     return out
 
 

@@ -323,7 +323,8 @@ def thesis_rows(sec: Section, estimates: list[dict], thesis: bool = True, labels
                     "thesis_error": row.thesis_error, "unit": s.unit, "difference": diff, "sigmas": z,
                     "note": "; ".join(filter(None, [
                         row.note, "robocal: one slope over every load (the breakpoint is not determined)"
-                        if e.get("single_slope") else "", thesis_difference_words(s, z)])),
+                        if e.get("single_slope") else "", thesis_difference_words(s, z),
+                        f"{HELD}: nothing to compare" if e.get("held") else ""])),
                     "lbin": (s.value * LB, row.thesis * LB) if row.unit == "N m/rad" else None})
     return out
 
