@@ -94,7 +94,7 @@ KINDS: list[Kind] = [
     *[Kind(rf"comp\.{suffix}", name, "mm", 1.0, meaning) for suffix, (name, meaning) in _COMP.items()],
     # transmission error (section 4.4)
     Kind(rf"te\.{_J}\.omega", "{j} transmission-error frequency", "cycles/rev", 1.0,
-         "cycles of the transmission error per revolution of the joint (the 0.9 of the thesis's sin(0.9 θ4))",
+         "cycles of the transmission error per revolution of the joint (ω in the error's sin(ω θ))",
          magnitude=True),
     Kind(rf"te\.{_J}\.amplitude1_rad", "{j} transmission-error amplitude", "deg", DEG,
          "amplitude of the first harmonic of the measured angle less the encoder's", magnitude=True),

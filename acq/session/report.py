@@ -20,6 +20,7 @@ from typing import Callable
 import numpy as np
 
 from calib.fileio import atomic_write_text
+from calib.kinds import describe
 from calib.units import DEG
 
 from .numbers import LEGEND, below_floor_sentence, same_floor, value_pm, when
@@ -123,7 +124,7 @@ def _sweeps_fig(f: dict, res: dict):
     return [("Joint sweeps: the circles the targets describe and the joint axes", fig)]
 
 
-def _dh_fig(f: dict, lengths: bool):
+def _dh_fig(f: dict, lengths: bool, labels=None):
     rows = [d for d in f.get("dh", []) if d["nominal"] == d["nominal"] and d["name"].endswith("_mm") == lengths]
     if not rows:
         return []
@@ -138,7 +139,7 @@ def _dh_fig(f: dict, lengths: bool):
         ax.plot(x, [((d["truth"] if d["truth"] is not None else d["nominal"]) - d["nominal"]) * scale for d in rows],
                 "x", label="truth − nominal (emulated)")
     ax.axhline(0, color="k", lw=0.5)
-    ax.set_xticks(x, [d["name"].rsplit("_", 1)[0] for d in rows], rotation=90, fontsize=7)
+    ax.set_xticks(x, [describe(f"dh.{d['name']}", labels).name for d in rows], rotation=90, fontsize=7)
     ax.set_ylabel(f"deviation ({unit})")
     ax.legend(fontsize=7)
     what = "lengths a, d" if lengths else "angles θ offset, α, β"
@@ -147,12 +148,12 @@ def _dh_fig(f: dict, lengths: bool):
 
 @figure("dh_lengths")
 def _dh_lengths(f: dict, res: dict):
-    return _dh_fig(f, True)
+    return _dh_fig(f, True, res.get("joint_labels"))
 
 
 @figure("dh_angles")
 def _dh_angles(f: dict, res: dict):
-    return _dh_fig(f, False)
+    return _dh_fig(f, False, res.get("joint_labels"))
 
 
 @figure("transmission")
@@ -473,7 +474,7 @@ def _diagnosis_html(diag: dict | None, acc: dict | None = None) -> str:
             "or whose own driver still orders the residual beyond the noise.</p></section>")
 
 
-def _estimation_errors(est: list[dict]):
+def _estimation_errors(est: list[dict], labels=None):
     rows = [e for e in est if e.get("truth") is not None and e["error"] > 0 and not e.get("held")]
     if not rows:
         return None
@@ -482,7 +483,7 @@ def _estimation_errors(est: list[dict]):
     fig, ax = plt.subplots(figsize=(8, 3))
     ax.bar(range(len(z)), np.clip(z, -10, 10))
     ax.axhline(2, color="r", lw=0.6), ax.axhline(-2, color="r", lw=0.6)
-    ax.set_xticks(range(len(z)), [e["name"] for e in rows], rotation=90, fontsize=6)
+    ax.set_xticks(range(len(z)), [describe(e["name"], labels).name for e in rows], rotation=90, fontsize=6)
     ax.set_ylabel("(estimate − truth) / error (1)")
     med = float(np.median(np.abs(z)))
     return (f"Estimation errors against the emulated truth (clipped at 10): median |z| {med:.2f}, 0.67 is honest", fig)
@@ -496,17 +497,17 @@ def _provenance_html(res: dict) -> str:
 
 
 def provenance_rows(prov: dict) -> list[tuple[str, str]]:
-    """The provenance as people read it: a name in words without its unit suffix, a time (``..._unix_s``) as ISO
-    8601 with its zone, a duration (``..._s``) in seconds to three digits; every other entry as it is."""
+    """The provenance as people read it: a time (``..._unix_s``) as ISO 8601 with its zone and a duration
+    (``..._s``) in seconds to three digits, under their names without the unit; every other entry as it is."""
     out = []
     for k, v in prov.items():
         key, number = str(k), isinstance(v, (int, float)) and not isinstance(v, bool)
         if key.endswith("_unix_s") and number:
-            out.append((key[: -len("_unix_s")].replace("_", " "), when(v)))
+            out.append((key[: -len("_unix_s")], when(v)))
         elif key.endswith("_s") and number:
-            out.append((key[: -len("_s")].replace("_", " "), f"{v:.3g} s"))
+            out.append((key[: -len("_s")], f"{v:.3g} s"))
         else:
-            out.append((key.replace("_", " "), str(v)))
+            out.append((key, str(v)))
     return out
 
 
@@ -535,7 +536,7 @@ def report_html(res: dict, tolerance_mm: float | None = None, record=None) -> st
     if others:
         body.append("<section id='notes'><h2>Notes</h2><ul>" + "".join(f"<li>{html.escape(p)}</li>" for p in others)
                     + "</ul></section>")
-    ee = _estimation_errors(res.get("estimates", []))
+    ee = _estimation_errors(res.get("estimates", []), res.get("joint_labels"))
     if ee is not None:
         body.append(f"<section id='honesty'><h2>Are the stated errors honest?</h2><figure><img alt='estimation "
                     f"errors' src='{_png(ee[1])}'/><figcaption>{html.escape(ee[0])}</figcaption></figure></section>")

@@ -143,17 +143,29 @@ def summary_lines(res: dict) -> list[tuple[str, str]]:
     return out
 
 
-def estimates_table(res: dict) -> Table:
-    """Every estimate in one table (``--verbose``): its name, value ± 1σ, unit, truth, verdict and meaning."""
+#: the verbose table carries each estimate's meaning when the terminal is at least this wide (the summary and the
+#: report always do); on a narrow one it would fold every row into a column of single words
+MEANING_COLUMNS = 140
+
+
+def estimates_table(res: dict, width: int = MEANING_COLUMNS) -> Table:
+    """Every estimate in one table (``--verbose``): its name, value ± 1σ, unit, truth, verdict and, on a terminal
+    ``width`` wide enough, its meaning."""
     labels = res.get("joint_labels")
+    meaning = width >= MEANING_COLUMNS
     t = Table(title=f"estimates from {res['session']['title']}")
-    for c in ("estimate", "value ± 1σ", "unit", "truth", "verdict", "meaning"):
-        t.add_column(c, overflow="fold")
+    t.add_column("estimate", overflow="fold")
+    for c in ("value ± 1σ", "unit", "truth"):
+        t.add_column(c, no_wrap=True)
+    t.add_column("verdict", overflow="fold")
+    if meaning:
+        t.add_column("meaning", overflow="fold")
     for e in res["estimates"]:
         s = shown(e, labels)
         value = f"{s.value:.6g}" if s.error is None else value_pm(s.value, s.error)
-        t.add_row(s.name, value, s.unit_text, "" if s.truth is None or s.error is None else s.beside(s.truth),
-                  s.verdict, s.meaning)
+        row = [s.name, value, s.unit_text, "" if s.truth is None or s.error is None else s.beside(s.truth),
+               s.verdict] + ([s.meaning] if meaning else [])
+        t.add_row(*row)
     return t
 
 
@@ -161,6 +173,6 @@ def print_summary(res: dict, verbose: bool = False, console: Console | None = No
     """The compact summary (default), after every estimate in one table (``verbose``)."""
     console = console or Console(stderr=False)
     if verbose:
-        console.print(estimates_table(res))
+        console.print(estimates_table(res, console.width))
     for style, text in summary_lines(res):
         console.print(text, style=style or None, highlight=False, markup=False, soft_wrap=True)
