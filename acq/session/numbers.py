@@ -10,10 +10,13 @@ from __future__ import annotations
 import datetime as dt
 import math
 
-#: what ± and the deviation in σ mean, said once at the top of the summary and of the report
-LEGEND = ("Legend: value ± error is the estimate and its standard deviation (1σ); (+1.4σ) is how far the estimate "
-          "lies from the number beside it (the emulated truth, or the thesis's), in units of that σ; values are "
-          "rounded to two significant digits of their error.")
+def legend(thesis: bool = False) -> str:
+    """What ± and the deviation in σ mean, said once at the top of the summary and of the report (the thesis's
+    numbers are named only for a robot set beside the thesis)."""
+    beside = "the emulated truth, or the thesis's" if thesis else "the emulated truth"
+    return ("Legend: value ± error is the estimate and its standard deviation (1σ); (+1.4σ) is how far the estimate "
+            f"lies from the number beside it ({beside}), in units of that σ; values are rounded to two significant "
+            "digits of their error.")
 
 
 def _place(error: float) -> int:

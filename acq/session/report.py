@@ -23,7 +23,7 @@ from calib.fileio import atomic_write_text
 from calib.kinds import describe
 from calib.units import DEG
 
-from .numbers import LEGEND, below_floor_sentence, same_floor, value_pm, when
+from .numbers import legend, below_floor_sentence, same_floor, value_pm, when
 from .sections import DETERMINED, HELD, NEGLIGIBLE, SECTIONS, UNDETERMINED, WEAK, Section, beside_the_thesis, \
     bound_text, needs_action, section_bounds, section_estimates, section_problems, section_verdict, shown, shows, \
     thesis_rows
@@ -526,7 +526,7 @@ def report_html(res: dict, tolerance_mm: float | None = None, record=None) -> st
     """The whole report as one HTML document (figures embedded)."""
     figs = {k: [(c, _png(fig)) for c, fig in v] for k, v in render_figures(res).items()}
     body = [f"<h1>Calibration report</h1><p class='muted'>robocal — {html.escape(res['session']['title'])}</p>",
-            f"<p class='muted' id='legend'>{html.escape(LEGEND)}</p>",
+            f"<p class='muted' id='legend'>{html.escape(legend(beside_the_thesis(res)))}</p>",
             _answer(res, record, tolerance_mm, figs)]
     present = [sec for sec in SECTIONS if shows(sec, res)]
     body += [_section_html(sec, res, record, figs) for sec in present]

@@ -6,7 +6,7 @@ from __future__ import annotations
 from rich.console import Console
 from rich.table import Table
 
-from .numbers import LEGEND, below_floor_sentence, same_floor, value_pm
+from .numbers import legend, below_floor_sentence, same_floor, value_pm
 from .sections import DETERMINED, HELD, NEGLIGIBLE, SECTIONS, UNDETERMINED, WEAK, beside_the_thesis, bound_text, \
     needs_action, section_bounds, section_estimates, section_problems, section_verdict, shown, shows, verdict_of
 
@@ -131,7 +131,7 @@ def _section_lines(sec, res: dict) -> list[tuple[str, str]]:
 def summary_lines(res: dict) -> list[tuple[str, str]]:
     """(style, text) lines of the compact summary: the title, the legend, the accuracy, one block per section, the
     diagnosis and the notes no section took."""
-    out: list[tuple[str, str]] = [("bold", f"{res['session']['title']}"), ("dim", LEGEND)]
+    out: list[tuple[str, str]] = [("bold", f"{res['session']['title']}"), ("dim", legend(beside_the_thesis(res)))]
     out += [("bold", line) for line in accuracy_lines(res.get("accuracy"))]
     shown_sections = [sec for sec in SECTIONS if shows(sec, res)]
     for sec in shown_sections:
