@@ -57,11 +57,16 @@ def accuracy_lines(acc: dict | None, tolerance_mm: float | None = None) -> list[
     why = below_floor_sentence(acc)
     if why:
         lines.append(why)
-    if tolerance_mm is not None:
-        ok = acc["after_max_mm"] <= tolerance_mm
-        lines.append(f"tolerance {tolerance_mm:g} mm: {'met' if ok else 'NOT met'} on every held-out pose"
-                     if ok else f"tolerance {tolerance_mm:g} mm: NOT met (max {acc['after_max_mm']:.3f} mm)")
-    return lines
+    return lines + tolerance_lines(acc, tolerance_mm)
+
+
+def tolerance_lines(acc: dict | None, tolerance_mm: float | None) -> list[str]:
+    """Whether the held-out poses meet a position tolerance (none without a tolerance or an accuracy)."""
+    if not acc or tolerance_mm is None:
+        return []
+    if acc["after_max_mm"] <= tolerance_mm:
+        return [f"tolerance {tolerance_mm:g} mm: met on every held-out pose"]
+    return [f"tolerance {tolerance_mm:g} mm: NOT met (max {acc['after_max_mm']:.3f} mm)"]
 
 
 def finding_flags(f: dict) -> str:
