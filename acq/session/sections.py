@@ -301,7 +301,7 @@ def section_verdict(sec: Section, estimates: list[dict], problems: list[str],
     # the reason is the estimate's error against its value (a note on an estimate may be about its truth, which is
     # no reason for a verdict; the notes are shown beside the estimates)
     sw = shown(worst, labels)
-    return v, f"{sw.name}: {sw.value_text}, an error large against the value"
+    return v, f"{sw.name}: {sw.value_text}"
 
 
 def thesis_rows(sec: Section, estimates: list[dict], thesis: bool = True, labels=None) -> list[dict]:
