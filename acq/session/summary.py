@@ -6,6 +6,8 @@ from __future__ import annotations
 from rich.console import Console
 from rich.table import Table
 
+from calib.kinds import describe
+
 from .numbers import legend, below_floor_sentence, same_floor, value_pm
 from .sections import DETERMINED, HELD, NEGLIGIBLE, SECTIONS, UNDETERMINED, WEAK, beside_the_thesis, bound_text, \
     needs_action, section_bounds, section_estimates, section_problems, section_verdict, shown, shows, verdict_of
@@ -156,7 +158,6 @@ MEANING_COLUMNS = 140
 def estimates_table(res: dict, width: int = MEANING_COLUMNS) -> Table:
     """Every estimate in one table (``--verbose``): its name, value ± 1σ, unit, truth, verdict and, on a terminal
     ``width`` wide enough, its meaning."""
-    labels = res.get("joint_labels")
     meaning = width >= MEANING_COLUMNS
     t = Table(title=f"estimates from {res['session']['title']}")
     t.add_column("estimate", overflow="fold")
@@ -165,13 +166,28 @@ def estimates_table(res: dict, width: int = MEANING_COLUMNS) -> Table:
     t.add_column("verdict", overflow="fold")
     if meaning:
         t.add_column("meaning", overflow="fold")
-    for e in res["estimates"]:
+    for row in estimate_rows(res):
+        t.add_row(*(row if meaning else row[:-1]))
+    return t
+
+
+def estimate_rows(res: dict) -> list[tuple[str, str, str, str, str, str]]:
+    """(name, value ± 1σ, unit, truth, verdict, meaning) of every estimate, then every one-sided bound, as people
+    read them: the rows of the verbose table and of the operator's results table."""
+    labels = res.get("joint_labels")
+    rows = []
+    for e in res.get("estimates", []):
         s = shown(e, labels)
         value = f"{s.value:.6g}" if s.error is None else value_pm(s.value, s.error)
-        row = [s.name, value, s.unit_text, "" if s.truth is None or s.error is None else s.beside(s.truth),
-               s.verdict] + ([s.meaning] if meaning else [])
-        t.add_row(*row)
-    return t
+        rows.append((s.name, value, s.unit_text, "" if s.truth is None or s.error is None else s.beside(s.truth),
+                     s.verdict, s.meaning))
+    for b in res.get("bounds", []):                  # no effect measurable: a one-sided bound
+        d = describe(b["name"], labels)
+        sign = "≥" if b.get("side", "lower") == "lower" else "≤"
+        rows.append((d.name, f"{sign} {b['value'] / d.scale:.3g} ({100 * b['confidence']:g} %, one-sided)",
+                     d.unit_text, "" if b.get("truth") is None else f"{b['truth'] / d.scale:.3g}", NEGLIGIBLE,
+                     d.meaning))
+    return rows
 
 
 def print_summary(res: dict, verbose: bool = False, console: Console | None = None) -> None:
