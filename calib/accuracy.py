@@ -8,7 +8,9 @@ Analyzer, RoboDK) and FIGAROH open with exactly these numbers.
   fit poses -- the accuracy the robot had with its maker's description;
 * **after**: the calibrated model (every parameter the identification estimated) fitted on the same fit poses;
 * **floor**: what the instruments alone contribute to a position error (RMS of the 3-D point error from the points'
-  covariances): an error near the floor means the model explains everything the instruments can see.
+  covariances): an error near the floor means the model explains everything the instruments can see.  One floor per
+  pose set: taken over every pose of the set (not the held-out few), so that the accuracy and the diagnosis of the same
+  poses state the same floor (:func:`calib.diagnose.gap.noise_floor_mm` is the same formula over the same points).
 
 One convention everywhere (:data:`CONVENTION`): the error of a point is its 3-D Euclidean distance from where the
 model puts it, and RMS, mean, 95th percentile and maximum are taken over those distances.  (The other convention in
@@ -76,7 +78,7 @@ def before_after_line(doc: dict) -> str:
 class Accuracy:
     before_err_mm: np.ndarray          # (n_test,) position error of every test pose, nominal description
     after_err_mm: np.ndarray           # (n_test,) position error of every test pose, calibrated model
-    floor_mm: float                    # RMS 3-D error the instruments alone explain
+    floor_mm: float                    # RMS 3-D error the instruments alone explain, over every pose of the set
     test_index: np.ndarray             # which poses were held out
     protocol: str = "every 4th pose held out"     # how (for the JSON and the terminal)
 
@@ -167,6 +169,6 @@ def before_after(model, obs, free: list[str], theta0: np.ndarray | None = None, 
         pred = model.points(o_test.q_rad, ctx=o_test.ctx, theta=np.asarray(theta)[: model.P])
         return np.linalg.norm(o_test.points_mm - pred, axis=1)
 
-    cov = o_test.cov_mm2 if getattr(o_test, "cov_mm2", None) is not None else np.zeros((o_test.n, 3, 3))
+    cov = obs.cov_mm2 if getattr(obs, "cov_mm2", None) is not None else np.zeros((obs.n, 3, 3))
     return Accuracy(errors(located.theta), errors(calibrated.theta), floor_mm(cov), test,
                     "the given split" if split is not None else "every 4th pose held out")

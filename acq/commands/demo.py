@@ -149,11 +149,10 @@ def _write_json(res: dict, out: str) -> None:
 
 def _summary(res: dict, verbose: bool = False, tolerance_mm: float | None = None) -> None:
     """The compact summary per procedure and the accuracy before/after (every estimate with ``verbose``)."""
-    from acq.session.summary import accuracy_lines, print_summary
+    from acq.session.summary import print_summary, tolerance_lines
     print_summary(res, verbose=verbose)
-    if tolerance_mm is not None:
-        for line in accuracy_lines(res.get("accuracy"), tolerance_mm)[1:]:
-            print(line)
+    for line in tolerance_lines(res.get("accuracy"), tolerance_mm):
+        print(line)
 
 
 def check_pdf_options(args) -> None:
