@@ -187,7 +187,7 @@ def test_the_accuracy_floor_is_over_every_pose_of_the_set():
     from calib.accuracy import before_after, floor_mm
     from calib.identify import PointObservations, default_free
     from calib.model import MeasurementModel
-    from calib.robot import load_robot
+    from calib.loading import load_robot
     from tests.test_accuracy_report import generated_poses
     q, pts = generated_poses(40, 3, 0.02)
     cov = np.tile(np.eye(3), (40, 1, 1)) * (0.02 ** 2)
