@@ -17,6 +17,7 @@ from calib.kinematics import Kinematics
 from calib.model import MeasurementModel
 from calib.robot import load_robot, parse_robot, robot_to_toml
 from calib.targets import TargetContext, with_targets
+from tests.dev_extra import require
 from tests.fakes import tree_robot as tr
 
 POINTS = {"L": ("hand_left_link", [0.0, 0.0, 30.0]), "R": ("hand_right_link", [10.0, 0.0, 30.0])}
@@ -58,7 +59,7 @@ def test_two_arms_on_one_torso_match_plain_products(tmp_path):
 
 
 def test_tree_matches_pinocchio(tmp_path):
-    pin = pytest.importorskip("pinocchio")
+    pin = require("pinocchio", "pin")
     tree = tr.two_arm_torso(3)
     robot = load_robot(_description(tmp_path, tree))
     model = pin.buildModelFromUrdf(str(tmp_path / "robot.urdf"))
@@ -173,7 +174,7 @@ def test_one_fit_of_both_arms_and_the_shared_torso(tmp_path):
     meas = np.array([[float(r[c]) for c in "xyz"] for r in rows])
     assert np.sqrt(np.mean(np.sum((p_nom - meas) ** 2, axis=1))) > 5 * doc["test_rms_mm"]
     # the calibrated URDF, read by Pinocchio and placed by the side file's base, predicts the test rows as well
-    pin = pytest.importorskip("pinocchio")
+    pin = require("pinocchio", "pin")
     side = json.loads((tmp_path / "calibrated.side.json").read_text())
     base = side["base_link_in_measurement_frame"]
     from tests.fakes.tree_robot import hom, rpy_matrix

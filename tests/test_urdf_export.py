@@ -8,15 +8,15 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-import pinocchio as pin                  # the dev extra installs it: a missing Pinocchio fails, it does not skip
-
 from acq.cli import main
 from calib.compensate import load_model
 from calib.kinematics import Kinematics
+from tests.dev_extra import require
 from tests.fakes import thesis_puma as tp
 from tests.fakes.urdf_chain import UrdfChain, instrument, perturbed, rpy_matrix
 
 EX = Path(__file__).resolve().parents[1] / "examples"
+pin = require("pinocchio", "pin")      # in the dev extra: missing there fails, it does not skip
 UR10 = EX / "urdf" / "ur10_robot.urdf"
 UR10_JOINTS = ["shoulder_pan_joint", "shoulder_lift_joint", "elbow_joint", "wrist_1_joint", "wrist_2_joint",
                "wrist_3_joint"]
