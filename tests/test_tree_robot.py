@@ -178,7 +178,7 @@ def test_one_fit_of_both_arms_and_the_shared_torso(tmp_path):
     side = json.loads((tmp_path / "calibrated.side.json").read_text())
     base = side["base_link_in_measurement_frame"]
     from tests.fakes.tree_robot import hom, rpy_matrix
-    B = hom(rpy_matrix(np.radians(base["rpy_deg"])), np.array(base["xyz_mm"]))
+    B = hom(rpy_matrix(*np.radians(base["rpy_deg"])), np.array(base["xyz_mm"]))
     pm = pin.buildModelFromUrdf(str(tmp_path / "calibrated.urdf"))
     pd = pm.createData()
     err = []

@@ -23,14 +23,10 @@ UR10_JOINTS = ["shoulder_pan_joint", "shoulder_lift_joint", "elbow_joint", "wris
 MARKER_MM = np.array([40.0, -25.0, 90.0])        # a reflector on wrist_3_link, off every axis
 
 
-def _rpy_matrix(rpy):
-    return rpy_matrix(*rpy)
-
-
 def _side_base(side: dict) -> np.ndarray:
     b = side["base_link_in_measurement_frame"]
     T = np.eye(4)
-    T[:3, :3], T[:3, 3] = _rpy_matrix(np.radians(b["rpy_deg"])), b["xyz_mm"]
+    T[:3, :3], T[:3, 3] = rpy_matrix(*np.radians(b["rpy_deg"])), b["xyz_mm"]
     return T
 
 
@@ -120,7 +116,7 @@ def ur10_world(tmp_path_factory):
     rng = np.random.default_rng(17)
     q = rng.uniform(-2.8, 2.8, (70, 6))
     T = np.eye(4)
-    T[:3, :3], T[:3, 3] = _rpy_matrix([0.01, -0.02, 0.7]), [1800.0, -400.0, 150.0]
+    T[:3, :3], T[:3, 3] = rpy_matrix(0.01, -0.02, 0.7), [1800.0, -400.0, 150.0]
     pts = instrument(truth.points(q, MARKER_MM)[:, 0], T, 0.01, seed=2)
     data = tmp / "ur10.csv"
     with data.open("w", newline="") as f:
