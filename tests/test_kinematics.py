@@ -6,7 +6,7 @@ from hypothesis import given, settings, strategies as st
 from calib.kinematics import Kinematics
 from calib.robot import load_robot
 from calib.units import DEG
-from tests.fakes.oracle.chain import rot_z
+from tests.fakes.oracle.chain import numeric_jacobian, rot_z
 from tests.fakes.thesis_puma import ThesisPuma, six_e
 
 from pathlib import Path
@@ -70,12 +70,7 @@ def test_robotics_toolbox_published_pose():
 
 
 def _fd_jacobian(kin, q, params, h=1e-6):
-    J = np.empty((len(q), 3, kin.P))
-    for i in range(kin.P):
-        d = np.zeros(kin.P)
-        d[i] = h
-        J[:, :, i] = (kin.points(q, params + d) - kin.points(q, params - d)) / (2 * h)
-    return J
+    return numeric_jacobian(lambda th: kin.points(q, th), params, h)
 
 
 def test_parameter_jacobian_matches_finite_differences(puma, rng):

@@ -19,6 +19,7 @@ from calib.robot import load_robot, parse_robot, robot_to_toml
 from calib.targets import TargetContext, with_targets
 from tests.dev_extra import require
 from tests.fakes import tree_robot as tr
+from tests.fakes.oracle.chain import numeric_jacobian
 
 POINTS = {"L": ("hand_left_link", [0.0, 0.0, 30.0]), "R": ("hand_right_link", [10.0, 0.0, 30.0])}
 COUPLED = "[joints.coupled]\ntorso_3_joint = { torso_1_joint = -1.0, torso_2_joint = -1.0 }\n"
@@ -121,13 +122,8 @@ def test_tree_jacobian_matches_finite_differences(tmp_path):
     ctx = TargetContext(len(q), robot.n, target=np.tile([0, 1], 4))
     theta = model.nominal
     ev = model.evaluate(q, ctx, theta, jacobian=True, torque_derivative=True)
-    num = np.empty_like(ev.jacobian)
-    for i in range(model.P):
-        h = 1e-6 if model.names[i].endswith("_mm") else 1e-7
-        tp, tm = theta.copy(), theta.copy()
-        tp[i] += h
-        tm[i] -= h
-        num[:, :, i] = (model.points(q, ctx, tp) - model.points(q, ctx, tm)) / (2 * h)
+    steps = np.array([1e-6 if name.endswith("_mm") else 1e-7 for name in model.names])
+    num = numeric_jacobian(lambda th: model.points(q, ctx, th), theta, steps)
     np.testing.assert_allclose(ev.jacobian, num, atol=2e-5 * np.abs(num).max())
 
 
