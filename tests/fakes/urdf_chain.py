@@ -4,7 +4,8 @@ matrices, sharing no code with robocal (it imports nothing from ``calib``).
 Why: a test of the URDF import or export whose truth comes from robocal's own chain can only show that robocal agrees
 with itself.  Here the URDF's own conventions are written again, as plainly as possible: a joint's child frame is
 ``parent @ Trans(xyz) @ Rz(yaw) @ Ry(pitch) @ Rx(roll) @ motion(q)``, a revolute joint turns about its ``axis``
-(Rodrigues), a prismatic one slides along it, metres and radians in the file.
+(Rodrigues), a prismatic one slides along it, metres and radians in the file.  The rotations are the oracle's
+(tests/fakes/oracle/chain.py).
 
 :func:`perturbed` makes a "real robot" from a description: every moving joint's origin moved by a few mm and turned
 by a few tenths of a degree (seeded), the way a built robot differs from its drawing.
