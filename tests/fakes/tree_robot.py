@@ -1,5 +1,6 @@
 """An independent branched robot: a torso of three joints (the third coupled to the first two), two 7-joint arms and
-a two-joint head, written as a URDF and moved by plain 4x4 products of its own joint table.
+a two-joint head, written as a URDF and moved by plain 4x4 products of its own joint table (the oracle's rotations,
+tests/fakes/oracle/chain.py).
 
 Nothing here imports robocal: the truth a test compares robocal's tree kinematics, identification, gravity torques
 and URDF export with is made from the joint table directly (origin xyz/rpy, axis, joint value), the way a URDF
