@@ -20,8 +20,8 @@ from ``calib``), so that a misunderstanding in the model cannot hide in the test
 
 The formulas themselves are written once in tests/fakes/oracle (chain, stations, effects); this module is the thesis
 Puma built from them.  Everything is a loop over poses and links of 4x4 products: slow, obvious, and the point.
-Units mm, rad, N, kg.  Approximation shared with robocal's model on purpose (it is the thesis's small-deflection view): the torques that
-deflect the joints are those of the configuration given by the readings.
+Units mm, rad, N, kg.  Approximation shared with robocal's model on purpose (it is the thesis's small-deflection
+view): the torques that deflect the joints are those of the configuration given by the readings.
 """
 from __future__ import annotations
 
