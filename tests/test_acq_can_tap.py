@@ -195,10 +195,18 @@ def test_python_can_slcan_reads_the_emulated_tap():
 
 
 def test_our_reader_over_slcan_pty():
+    """The stream over a pty, on a simulated clock: 0.25 s after the first sample exactly 64 more have arrived at
+    256/s (steps of 1/64 s, each read before the next), none lost."""
     w = quiet_world()
-    with PtyHost(SlcanTapDevice(w, ROBOT, rate_hz=200)) as host:
+    clock = SimClock()
+    dev = SlcanTapDevice(w, ROBOT, rate_hz=256, clock=clock)
+    with PtyHost(dev) as host:
         with open_can_tap("slcan", host.path, robot=ROBOT, bitrate=1_000_000, sleep_after_open=0) as tap:
             s = tap.read(2.0)
-            time.sleep(0.2)
+            assert until(lambda: tap.stats.samples == dev.model.seq)       # the reader has what was sent so far
+            first = tap.stats.samples
+            for k in range(1, 17):
+                clock.sleep(1 / 64)
+                assert until(lambda: tap.stats.samples >= first + 4 * k), (k, tap.stats.samples - first)
     assert np.allclose(s.joint_rad, w.joint_angles_rad(), atol=1e-3)
-    assert tap.stats.lost_samples == 0
+    assert tap.stats.samples - first == 64 and tap.stats.lost_samples == 0
