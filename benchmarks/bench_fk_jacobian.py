@@ -30,7 +30,7 @@ from calib.effects import thesis_effects  # noqa: E402
 from calib.kinematics import Kinematics  # noqa: E402
 from calib.model import MeasurementModel  # noqa: E402
 from calib.robot import load_robot  # noqa: E402
-from tests.fakes.oracle.chain import a_matrix, base_matrix, rot_y  # noqa: E402
+from tests.fakes.oracle.chain import base_matrix, hayati_matrix  # noqa: E402
 
 TARGET = 0.7
 
@@ -49,7 +49,7 @@ class PlainChain:
     def link_matrices(self, q_j, j) -> np.ndarray:
         """(N, 4, 4) DH A-matrix of link j times the Hayati Ry(beta)."""
         r = self.r
-        return a_matrix(q_j + r.theta_offset_rad[j], r.d_mm[j], r.a_mm[j], r.alpha_rad[j]) @ rot_y(r.beta_rad[j])
+        return hayati_matrix(q_j + r.theta_offset_rad[j], r.d_mm[j], r.a_mm[j], r.alpha_rad[j], r.beta_rad[j])
 
     def frames(self, q) -> list[np.ndarray]:
         T = np.broadcast_to(self.base, (len(q), 4, 4))

@@ -10,8 +10,8 @@ from scipy.spatial.transform import Rotation
 from calib.diagnose.independent import TOOL_MM, Arm
 from calib.robot import load_robot
 from tests.fakes.oracle.beam import cantilever_deflection
-from tests.fakes.oracle.chain import (a_matrix, axis_angle, axis_torques, base_matrix, dh_frames, numeric_jacobian,
-                                      point_in, rot_x, rot_z, rpy_matrix, trans)
+from tests.fakes.oracle.chain import (a_matrix, axis_angle, axis_torques, base_matrix, dh_frames, hayati_matrix,
+                                      numeric_jacobian, point_in, rot_x, rot_y, rot_z, rpy_matrix, trans)
 from tests.fakes.oracle.effects import two_slope
 from tests.fakes.oracle.stations import point_from_angles, thesis_angles
 
@@ -33,6 +33,8 @@ def test_a_matrix_is_its_four_factors():
     for th, d, a, al in np.random.default_rng(1).uniform(-3, 3, (10, 4)) * [1, 100, 100, 1]:
         np.testing.assert_allclose(a_matrix(th, d, a, al), rot_z(th) @ trans(0, 0, d) @ trans(a, 0, 0) @ rot_x(al),
                                    atol=1e-12)
+        b = al / 7
+        np.testing.assert_allclose(hayati_matrix(th, d, a, al, b), a_matrix(th, d, a, al) @ rot_y(b), atol=1e-12)
 
 
 def test_stations_invert_through_eq_4_3_1():

@@ -74,12 +74,19 @@ def rotate_points(P, c, n, theta) -> np.ndarray:
 def a_matrix(theta, d: float, a: float, alpha: float) -> np.ndarray:
     """(..., 4, 4) the A_j matrix of section 3.4 element by element as printed:
     ``Rot(z, theta) Trans(z, d) Trans(x, a) Rot(x, alpha)``."""
+    return hayati_matrix(theta, d, a, alpha, 0.0)
+
+
+def hayati_matrix(theta, d: float, a: float, alpha: float, beta: float) -> np.ndarray:
+    """(..., 4, 4) ``A_j Rot(y, beta)``, Hayati's link for nearly parallel axes, multiplied out element by element
+    (``beta = 0`` is section 3.4's A_j as printed; tests/test_oracle.py holds it to the product of its factors)."""
     theta = np.asarray(theta, float)
-    ct, st, ca, sa = np.cos(theta), np.sin(theta), np.cos(alpha), np.sin(alpha)
+    ct, st, ca, sa, cb, sb = np.cos(theta), np.sin(theta), np.cos(alpha), np.sin(alpha), np.cos(beta), np.sin(beta)
     A = np.zeros(theta.shape + (4, 4))
-    A[..., 0, :] = np.stack(np.broadcast_arrays(ct, -st * ca, st * sa, a * ct), -1)
-    A[..., 1, :] = np.stack(np.broadcast_arrays(st, ct * ca, -ct * sa, a * st), -1)
-    A[..., 2, 1], A[..., 2, 2], A[..., 2, 3], A[..., 3, 3] = sa, ca, d, 1.0
+    A[..., 0, 0], A[..., 0, 1], A[..., 0, 2] = ct * cb - st * sa * sb, -st * ca, ct * sb + st * sa * cb
+    A[..., 1, 0], A[..., 1, 1], A[..., 1, 2] = st * cb + ct * sa * sb, ct * ca, st * sb - ct * sa * cb
+    A[..., 2, 0], A[..., 2, 1], A[..., 2, 2] = -ca * sb, sa, ca * cb
+    A[..., 0, 3], A[..., 1, 3], A[..., 2, 3], A[..., 3, 3] = a * ct, a * st, d, 1.0
     return A
 
 
@@ -97,7 +104,7 @@ def dh_frames(base: np.ndarray, theta, d, a, alpha, beta=None) -> list[np.ndarra
     T = np.broadcast_to(base, theta.shape[:-1] + (4, 4))
     out = [T]
     for j in range(n):
-        T = T @ a_matrix(theta[..., j], d[j], a[j], alpha[j]) @ rot_y(beta[j])
+        T = T @ hayati_matrix(theta[..., j], d[j], a[j], alpha[j], beta[j])
         out.append(T)
     return out
 
