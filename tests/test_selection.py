@@ -57,7 +57,9 @@ def test_only_what_the_data_determine_is_estimated(offsets_only):
     model, obs, theta0, sel, full = offsets_only
     arm = _arm(3)
     chosen = sel.ident
-    assert sel.steps[sel.chosen].name in ("joint offsets", "significant"), sel.as_dict()
+    # the truth is the offsets of joints 2-6 (all five off zero, the smallest 0.13 deg): the step that frees exactly
+    # them is the right model; the significant set drops the joint 6 offset and predicts worse
+    assert sel.steps[sel.chosen].name == "joint offsets", sel.as_dict()
     assert len(chosen.free) < len(full.free) - 10
     held = {h.name: h for h in sel.held}
     assert {"j2.a_mm", "j3.a_mm", "j4.d_mm"} <= set(held)
