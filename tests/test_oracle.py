@@ -8,7 +8,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from calib.diagnose.independent import TOOL_MM, Arm
-from calib.robot import load_robot
+from calib.loading import load_robot
 from tests.fakes.oracle.beam import cantilever_deflection
 from tests.fakes.oracle.chain import (a_matrix, axis_angle, axis_torques, base_matrix, dh_frames, hayati_matrix,
                                       numeric_jacobian, point_in, rot_x, rot_y, rot_z, rpy_matrix, trans)
