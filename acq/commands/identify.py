@@ -265,10 +265,10 @@ class _Fit:
         self.start, self.outliers, self.loss, self.rule = start, outliers, loss, rule
         self.error_scale = "inflate"
 
-    def select(self, obs, explain: bool = True):
+    def select(self, obs, explain: bool = True, warm=None):
         from calib.selection import select
         return select(self.model, obs, self.free, self.priors, self.theta0, self.start, self.outliers, self.loss,
-                      rule=self.rule, error_scale=self.error_scale, explain=explain)
+                      rule=self.rule, error_scale=self.error_scale, explain=explain, warm=warm)
 
 
 def _heldout(fit: _Fit, sel, measured, obs, weights, table):
@@ -290,13 +290,14 @@ def _heldout(fit: _Fit, sel, measured, obs, weights, table):
         return out
 
     # a fold repeats every choice that changes its fit; flagging gross errors (the default) changes none, so the
-    # folds leave out its robust refit (rejecting them, --outliers reject, is a choice each fold makes again)
+    # folds leave out its robust refit (rejecting them, --outliers reject, is a choice each fold makes again); each
+    # fold's fits start from the whole set's (a start point, not a choice: calib.selection.select's ``warm``)
     fold = copy.copy(fit)
     if fit.outliers == "flag":
         fold.outliers = "off"
 
     def choose(rows):
-        s, _ = fold.select(weights.for_rows(rows), explain=False)
+        s, _ = fold.select(weights.for_rows(rows), explain=False, warm=sel)
         return s.located.ident.theta, s.ident
     return crossval(fit.model, obs, choose, 5, table.pose_id or None)
 
