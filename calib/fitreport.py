@@ -17,6 +17,7 @@ import numpy as np
 
 from .distributions import chi2_median, chi2_sf
 from .noise import combine, given_sigma_mm, model_free
+from .rows import point_covariance
 
 #: a reduced chi-square outside this range (and improbable at the fit's degrees of freedom) is said in words
 CHI2_FAR = (0.5, 2.0)
@@ -43,7 +44,6 @@ class Weights:
         """Given, estimated without a model, or unknown (see the module docstring); ``fit`` (with ``free``,
         ``priors``, ``theta0``, ``start``, ``model``) is told the error scale.  ``measured``: the rows as the file
         gave them (the fitted ``table`` may carry covariances robocal made: orientation rows' extra points)."""
-        from .evaluation import point_covariance
         own = point_covariance(measured if measured is not None else table) is not None
         if own or noise_mm is not None:
             how = "the data's own uncertainty columns" if own else "--noise-mm"

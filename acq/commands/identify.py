@@ -71,8 +71,9 @@ def run(args) -> int:
     from calib.compensate import model_document, save_model
     from calib.effects import THESIS_RUNNING_ERRORS, effect_from_text
     from calib.effects.mass_moment import check_scale
-    from calib.evaluation import (context_of, data_rows, fit_rows, point_covariance, split_metrics, station_names,
-                                  station_start, with_orientation_points, with_polar_points)
+    from calib.evaluation import data_rows, fit_rows, split_metrics, station_names, station_start, with_polar_points
+    from calib.orientation import with_orientation_points
+    from calib.rows import context_of, point_covariance
     from calib.polar import PolarNoise
     from calib.identify import PointObservations, check_drivers, default_free
     from calib.priors import free_from_patterns, priors_for
@@ -275,8 +276,9 @@ def _heldout(fit: _Fit, sel, measured, obs, weights, table):
     """Before/after on held-out rows: the data's test rows (the fit saw none of them), else k-fold predictions in
     which every fold repeats the whole choice on its own rows."""
     import numpy as np
-    from calib.evaluation import context_of, point_covariance
-    from calib.heldout import crossval, orientation_errors_deg, predict_heldout
+    from calib.heldout import crossval, predict_heldout
+    from calib.orientation import orientation_errors_deg
+    from calib.rows import context_of, point_covariance
 
     if measured.split is not None:
         test = measured.subset(measured.split_mask("test"))
