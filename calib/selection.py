@@ -340,6 +340,8 @@ def _held(fitter: _Fitter, sel: Selection, full: Identification, insignificant: 
     determine it."""
     model, chosen = fitter.model, sel.ident
     out = []
+    if all(name in chosen.free or name not in model.index for name in full.free):
+        return out                      # nothing held: no joint to spread for (19 Jacobians on a 19-joint tree)
     gain = _spread_gain(fitter, full)
     n = fitter.obs.n
     best = sel.steps[sel.chosen]
