@@ -150,20 +150,24 @@ def locate_free(model) -> list[str]:
 
 
 def before_after(model, obs, free: list[str], theta0: np.ndarray | None = None, priors: dict | None = None,
-                 split: tuple[np.ndarray, np.ndarray] | None = None, identify_fn=None) -> Accuracy:
+                 split: tuple[np.ndarray, np.ndarray] | None = None, identify_fn=None,
+                 warm: np.ndarray | None = None) -> Accuracy:
     """Fit the located nominal model and the calibrated model on the fit poses; errors on the test poses.
 
     ``model`` and ``obs`` (:class:`calib.identify.PointObservations`) as for :func:`calib.identify.identify`;
-    ``free`` the calibrated model's free parameters, ``theta0``/``priors`` its start and priors.
+    ``free`` the calibrated model's free parameters, ``theta0``/``priors`` its start and priors; ``warm``: the
+    calibrated model fitted on every pose, where the fit on the fit poses starts (a start point only: it converges
+    to the fit poses' own minimum).  Neither fit flags gross errors: flagging reports them and changes no fit.
     """
     from .identify import identify
     identify_fn = identify_fn or identify
     fit, test = split if split is not None else holdout(obs.n)
     o_fit, o_test = obs.subset(fit), obs.subset(test)
     nominal = model.nominal.copy()
-    located = identify_fn(model, o_fit, free=locate_free(model), theta0=nominal)
+    located = identify_fn(model, o_fit, free=locate_free(model), theta0=nominal, outliers="off")
+    more = {"warm": warm} if warm is not None else {}
     calibrated = identify_fn(model, o_fit, free=free, theta0=theta0 if theta0 is not None else nominal,
-                             priors=priors or {})
+                             priors=priors or {}, outliers="off", **more)
 
     def errors(theta):
         pred = model.points(o_test.q_rad, ctx=o_test.ctx, theta=np.asarray(theta)[: model.P])

@@ -17,7 +17,8 @@ from calib.effects import effect_from_text
 from calib.effects.joint_compliance import JointCompliance
 from calib.effects.lateral_compliance import LateralCompliance
 from calib.effects.mass_moment import MassMoment
-from calib.evaluation import context_of, fit_rows, point_covariance
+from calib.evaluation import fit_rows
+from calib.rows import context_of, point_covariance
 from calib.identify import PointObservations, identify
 from calib.model import MeasurementModel
 from calib.posecsv import read_pose_csv

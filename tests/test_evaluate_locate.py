@@ -119,7 +119,7 @@ def test_weak_data_with_priors_does_not_make_the_robot_worse(world, capsys):
                                    "--free", "j*,tool.*", "--prior", "base.x_mm=0±0.01"]))
     # nominal: the URDF itself, evaluated on the same held-out rows (measurement frame = base link here)
     nominal_doc = {}
-    from calib.evaluation import predict_rows
+    from calib.rows import predict_rows
     from calib.model import MeasurementModel
     from calib.posecsv import read_pose_csv
     from calib.loading import load_robot
