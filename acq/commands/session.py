@@ -136,6 +136,7 @@ def real_builder(db: str, theodolites: list[str], tap: str | None, setup_path: s
     from acq.session.setup import (predictor, record_robot, session_setup, setup_robot, setup_stations,
                                    station_names)
     from acq.session.stations import stations_from_store
+    from acq.session.iso_commands import CompensatedCommands
     from acq.session.procedures import all_steps
     from acq.session.rig import ManualBench, Rig
     from acq.session.runner import Runner
@@ -205,7 +206,7 @@ def real_builder(db: str, theodolites: list[str], tap: str | None, setup_path: s
         runner = Runner(store, rig, steps, operator, bench=ManualBench(), stations=setup_stations(setup_d),
                         predict=predictor(robot, setup_d),
                         refit_stations=lambda st: stations_from_store(st, setup_d),
-                        preflight=Preflight(robot, setup_d))
+                        preflight=Preflight(robot, setup_d), command=CompensatedCommands(store))
 
         def close():
             rig.close()

@@ -21,12 +21,15 @@ from .procedures import transmission
 #: a real cell's parameters (per procedure; ``None``: the procedure is not in the default plan)
 CELL = {"ruler": {"repeats": 2}, "sweeps": {"points": 8, "span_deg": 90.0},
         "transmission": {"points": 25, "repeats": 2}, "compliance": {}, "coupling": {"angle_deg": 10.0},
-        "encoder_resolution": None}
+        "encoder_resolution": None, "iso9283": {"cycles": 30}}
+#: ISO 9283 cycles per pose in the demo: fewer than the standard's 30 (the demo stays quick), said in its output
+DEMO_ISO_CYCLES = 10
 #: the demo's: fewer positions and repeats than a real session, but every procedure
 DEMO = {"ruler": {"repeats": 2}, "sweeps": {"points": 5, "span_deg": 60.0},
         "transmission": {"points": 25, "repeats": 2}, "compliance": {"repeats": 3},
         "coupling": {"angle_deg": 10.0, "repeats": 4},
-        "encoder_resolution": {"points": 6, "span_deg": 150.0, "repeats": 1}}
+        "encoder_resolution": {"points": 6, "span_deg": 150.0, "repeats": 1},
+        "iso9283": {"cycles": DEMO_ISO_CYCLES}}
 #: a run narrowed to the cell's sight keeps this far from the first offset that failed (deg)
 SIGHT_MARGIN_DEG = 5.0
 
@@ -89,4 +92,22 @@ def session_plan(robot: Robot, setup: dict, preset: dict, te_joints=None, poses_
     if profile.tapped and preset["encoder_resolution"] is not None:
         plan["procedures"].append("encoder_resolution")
         plan["encoder_resolution"] = {**preset["encoder_resolution"], "joints": list(profile.sweep_joints[-1:])}
+    add_iso9283(plan, robot, setup, preset, seed)
     return plan
+
+
+def add_iso9283(plan: dict, robot: Robot, setup: dict, preset: dict, seed: int = 0) -> None:
+    """ISO 9283 at the end of the plan (:mod:`acq.session.iso_cube`): both runs when the plan has a pose set (the
+    compensated commands come from the model it identifies), the uncompensated one alone otherwise.  A robot with
+    no cube in sight of the stations gets none, unless the set-up asks for it (then the reason is the error)."""
+    from .iso_cube import iso_plan
+    if preset.get("iso9283") is None and not setup.get("iso9283"):
+        return
+    runs = ("off", "on") if "poses" in plan["procedures"] else ("off",)
+    try:
+        plan["iso9283"] = iso_plan(robot, setup, (preset.get("iso9283") or {}).get("cycles", 30), runs, seed)
+    except RobocalError:
+        if setup.get("iso9283"):
+            raise
+        return
+    plan["procedures"].append("iso9283")
