@@ -23,7 +23,7 @@ CELL = {"ruler": {"repeats": 2}, "sweeps": {"points": 8, "span_deg": 90.0},
         "transmission": {"points": 25, "repeats": 2}, "compliance": {}, "coupling": {"angle_deg": 10.0},
         "encoder_resolution": None, "iso9283": {"cycles": 30}}
 #: ISO 9283 cycles per pose in the demo: fewer than the standard's 30 (the demo stays quick), said in its output
-DEMO_ISO_CYCLES = 10
+DEMO_ISO_CYCLES = 5
 #: the demo's: fewer positions and repeats than a real session, but every procedure
 DEMO = {"ruler": {"repeats": 2}, "sweeps": {"points": 5, "span_deg": 60.0},
         "transmission": {"points": 25, "repeats": 2}, "compliance": {"repeats": 3},

@@ -8,6 +8,7 @@ import math
 from rich.console import Console
 from rich.table import Table
 
+from .iso_report import iso_lines
 from .sections import DETERMINED, NEGLIGIBLE, SECTIONS, UNDETERMINED, WEAK, beside_the_thesis, bound_text, \
     needs_action, section_bounds, section_estimates, section_problems, section_verdict, shown, shows, verdict_of
 
@@ -102,6 +103,7 @@ def summary_lines(res: dict) -> list[tuple[str, str]]:
     """(style, text) lines of the compact summary."""
     out: list[tuple[str, str]] = [("bold", f"{res['session']['title']}")]
     out += [("bold", line) for line in accuracy_lines(res.get("accuracy"))]
+    out += [("bold", line) for line in iso_lines(res)]              # ISO 9283 AP and RP, off and on
     est, probs, bounds = res.get("estimates", []), res.get("problems", []), res.get("bounds", [])
     shown_sections = [sec for sec in SECTIONS if shows(sec, res)]
     for sec in shown_sections:
