@@ -7,7 +7,7 @@ the session starts; the plan keeps the points and the commands, so a resumed ses
 Where the cube goes, for any robot (no robot is special here): candidate centres are the tool target at the reference
 pose and at seeded poses in the middle of the joints' ranges, best conditioned first (the smallest singular value of
 the point's Jacobian in the readings: far from a singularity, where a compensated command stays close to the nominal
-one); for the best few, the largest side (a fraction of the arm's reach) whose five points the nominal model reaches
+one) among those whose target both stations see; for the best few, the largest side (a fraction of the arm's reach) whose five points the nominal model reaches
 (:func:`calib.compensate.reach`, the one inverse of the forward model) inside the joint limits with room for the
 approach move and a compensation, and whose steps pass the pre-flight (in sight of both stations).  The largest cube
 wins, as the standard asks (maximum volume in the working space).  A set-up's ``iso9283`` entry may fix the centre
@@ -71,10 +71,11 @@ class _Cube:
         room = (margin + COMPENSATION_ROOM_DEG) * robot.edge_scale
         self.lo, self.hi = robot.limits_rad[:, 0] + room, robot.limits_rad[:, 1] - room
         self.approach = approach * robot.reading_edge_scale
+        self.preflight = Preflight(robot, setup)
 
     def _start_poses(self, seed: int) -> np.ndarray:
         """Readings (internal units) of the candidate centres: the reference pose and seeded ones in the middle 60 %
-        of each reading's range, best conditioned first."""
+        of each reading's range whose target is in sight, best conditioned first."""
         lim = self.robot.limits_rad
         ref = np.asarray(reference_pose_deg(self.setup), float) * self.robot.reading_edge_scale
         rng = np.random.default_rng(seed)
@@ -83,7 +84,9 @@ class _Cube:
         f, xyz = self.points[0]
         ev = self.model.evaluate(r @ self.M.T + self.off, None, self.theta, jacobian=True, tool_mm=xyz, link=f)
         smallest = np.linalg.svd(np.matmul(ev.joint_jacobian, self.M), compute_uv=False)[:, -1]
-        return r[np.argsort(-smallest, kind="stable")][:TRIED]
+        order = np.argsort(-smallest, kind="stable")
+        seen = [i for i in order if self._in_sight(r[i:i + 1])]              # the target in sight at the centre
+        return r[seen[:TRIED]]
 
     def largest(self, sides: list[float], centres, seed: int):
         """(side, points, readings (5, m)) of the largest cube that fits, or None."""
@@ -128,4 +131,4 @@ class _Cube:
         target = tool_target(self.setup)
         steps = [Step(f"iso9283/P{i + 1}", "iso9283", "", "", pose_deg=tuple(ri / self.robot.reading_edge_scale),
                       targets=(target,)) for i, ri in enumerate(r)]
-        return not Preflight(self.robot, self.setup).check(steps)
+        return not self.preflight.check(steps)
