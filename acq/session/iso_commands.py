@@ -100,15 +100,17 @@ def iso_after_compensated_run(res: dict, db: str) -> None:
     (:func:`acq.reduction.run.reduce_for`), nothing else -- the other stages' steps did not change."""
     from acq.reduction.run import reduce_for
     from acq.reduction.session import load_session
-    data = load_session(db)
+    data = load_session(db, ("ruler", "iso9283"))
     ctx = reduce_for(data, "iso9283")
     res["iso9283"] = ctx.outputs.get("iso9283")
     if "iso9283" in ctx.figs:
         res.setdefault("figures", {})["iso9283"] = ctx.figs["iso9283"]
     res["problems"] = [p for p in res.get("problems", []) if not p.startswith("ISO 9283")] + \
         [p for p in ctx.problems if p.startswith("ISO 9283")]
-    res["session"].update(exit_status=data.session["exit_status"], steps_accepted=len(data.steps),
-                          procedures={name: len(sts) for name, sts in data.by_procedure().items()})
+    done = data.by_procedure()
+    procedures = {**res["session"].get("procedures", {}), "iso9283": len(done.get("iso9283", []))}
+    res["session"].update(exit_status=data.session["exit_status"], procedures=procedures,
+                          steps_accepted=sum(procedures.values()))
 
 
 def _points(im: IdentifiedModel) -> list[tuple[int, np.ndarray]]:
