@@ -154,3 +154,14 @@ def test_a_compensated_step_without_a_model_is_blocked(tmp_path):
     finally:
         d.close()
     assert seen and seen[0]["name"] == "command" and "no calibrated model" in seen[0]["message"]
+
+
+def test_a_cube_the_working_volume_cannot_hold_is_one_line_exit_2(tmp_path):
+    from acq.session.setup import standard_setup
+    bad = standard_setup()
+    bad["iso9283"] = {"side_mm": 5000.0}
+    (tmp_path / "setup.json").write_text(json.dumps(bad))
+    r = _cli("demo", "--db", str(tmp_path / "x.db"), "--setup", str(tmp_path / "setup.json"), cwd=tmp_path)
+    assert r.returncode == 2
+    lines = r.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("robocal: error: set-up iso9283: no ISO 9283 test cube"), r.stderr
