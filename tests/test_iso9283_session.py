@@ -165,3 +165,35 @@ def test_a_cube_the_working_volume_cannot_hold_is_one_line_exit_2(tmp_path):
     assert r.returncode == 2
     lines = r.stderr.strip().splitlines()
     assert len(lines) == 1 and lines[0].startswith("robocal: error: set-up iso9283: no ISO 9283 test cube"), r.stderr
+
+
+def test_a_model_file_commands_the_compensated_run(demo, tmp_path):
+    """``robocal session --model``: no pose set in the session, the compensated commands from a model identified
+    before (here the demo's own, written as the model JSON a calibration leaves)."""
+    from acq.session.demo import build_demo, demo_plan
+    from acq.session.reprocess import reprocess
+    _, res, _ = demo
+    model = tmp_path / "model.json"
+    model.write_text(json.dumps(res["robot"]))
+    plan = demo_plan(Twin(load_scenario(None), seed=0), seed=0)
+    plan["procedures"] = ["ruler", "iso9283"]
+    plan["iso9283"].update(cycles=2, runs=["off", "on"], model=str(model))
+    d = build_demo(tmp_path / "m.db", plan=plan)
+    try:
+        assert d.runner.run() == "finished"
+    finally:
+        d.close()
+    iso = reprocess(str(tmp_path / "m.db"))["iso9283"]
+    assert len(iso["compensated"]) == 5
+    for off, on in zip(iso["uncompensated"], iso["compensated"]):
+        assert on["ap_mm"] < off["ap_mm"] / 10
+
+
+def test_session_model_option_bad_file_is_one_line(tmp_path):
+    assert _cli("session", "--write-setup", "setup.json", cwd=tmp_path).returncode == 0
+    (tmp_path / "bad.json").write_text("{}")
+    r = _cli("session", "--db", "s.db", "--theodolite", "A=geocom:loop://", "--theodolite", "B=geocom:loop://",
+             "--setup", "setup.json", "--model", "bad.json", cwd=tmp_path)
+    assert r.returncode == 2 and r.stderr.strip().splitlines() == [
+        "robocal: error: bad.json: not a robocal model file (format 'robocal-model/1' expected)"]
+    assert not (tmp_path / "s.db").exists()

@@ -260,7 +260,8 @@ def build_demo(db: str | Path, seed: int = 0, resume: bool = False, script: dict
     runner = Runner(store, rig, steps, op, bench=bench, stations=setup_stations(setup),
                     predict=predictor(twin.robot, setup), settle_s=0.0 if clock.simulated else DEMO_SETTLE_S,
                     refit_stations=lambda st: stations_from_store(st, setup),
-                    preflight=Preflight(twin.robot, setup), command=CompensatedCommands(store))
+                    preflight=Preflight(twin.robot, setup),
+                    command=CompensatedCommands(store, (plan_d.get("iso9283") or {}).get("model") or None))
     d = DemoRig(runner, world, twin, store, names)
     d._nodes = [node] if node is not None else []
     return d

@@ -95,6 +95,7 @@ class IsoPlan:
     approach_deg: float = 2.0
     side_mm: float = 0.0
     runs: tuple[str, ...] = ("off", "on")
+    model: str = ""                  # a calibrated model JSON for the "on" run ("": the session's pose set's)
 
 
 #: plan key -> its parameters' type
@@ -133,7 +134,8 @@ PLAN_SCHEMA: dict[str, Any] = {
                                             "q_deg": {"type": "array", "items": FINITE, "minItems": 1}}}},
                          "cycles": {**_COUNT, "minimum": 2}, "approach_deg": {**FINITE, "exclusiveMinimum": 0},
                          "side_mm": {**FINITE, "minimum": 0},
-                         "runs": {"type": "array", "items": {"enum": ["off", "on"]}, "uniqueItems": True}}),
+                         "runs": {"type": "array", "items": {"enum": ["off", "on"]}, "uniqueItems": True},
+                         "model": {"type": "string"}}),
     },
 }
 

@@ -9,6 +9,8 @@ robot.  Each transmission-error run is narrowed to what the cell can see (:func:
 """
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 
 from calib.errors import RobocalError
@@ -67,7 +69,8 @@ def runs_in_sight(plan: dict, setup: dict, preflight: Preflight, rounds: int = 4
                                            float(min(above) - SIGHT_MARGIN_DEG) if above else hi]
 
 
-def session_plan(robot: Robot, setup: dict, preset: dict, te_joints=None, poses_deg=None, seed: int = 0) -> dict:
+def session_plan(robot: Robot, setup: dict, preset: dict, te_joints=None, poses_deg=None, seed: int = 0,
+                 model_path: str | None = None) -> dict:
     """The plan (see the module docstring) for ``robot`` on the bench ``setup`` (a session set-up, its old keys
     mapped: :func:`acq.session.setup.session_setup`) with the ``preset``'s parameters and the pose set
     ``poses_deg`` when given."""
@@ -92,20 +95,24 @@ def session_plan(robot: Robot, setup: dict, preset: dict, te_joints=None, poses_
     if profile.tapped and preset["encoder_resolution"] is not None:
         plan["procedures"].append("encoder_resolution")
         plan["encoder_resolution"] = {**preset["encoder_resolution"], "joints": list(profile.sweep_joints[-1:])}
-    add_iso9283(plan, robot, setup, preset, seed)
+    add_iso9283(plan, robot, setup, preset, seed, model_path)
     return plan
 
 
-def add_iso9283(plan: dict, robot: Robot, setup: dict, preset: dict, seed: int = 0) -> None:
+def add_iso9283(plan: dict, robot: Robot, setup: dict, preset: dict, seed: int = 0,
+                model_path: str | None = None) -> None:
     """ISO 9283 at the end of the plan (:mod:`acq.session.iso_cube`): both runs when the plan has a pose set (the
-    compensated commands come from the model it identifies), the uncompensated one alone otherwise.  A robot with
+    compensated commands come from the model it identifies) or a calibrated model file (``model_path``), the
+    uncompensated one alone otherwise.  A robot with
     no cube in sight of the stations gets none, unless the set-up asks for it (then the reason is the error)."""
     from .iso_cube import iso_plan
     if preset.get("iso9283") is None and not setup.get("iso9283"):
         return
-    runs = ("off", "on") if "poses" in plan["procedures"] else ("off",)
+    runs = ("off", "on") if "poses" in plan["procedures"] or model_path else ("off",)
     try:
         plan["iso9283"] = iso_plan(robot, setup, (preset.get("iso9283") or {}).get("cycles", 30), runs, seed)
+        if model_path:
+            plan["iso9283"]["model"] = str(Path(model_path).resolve())
     except RobocalError:
         if setup.get("iso9283"):
             raise
