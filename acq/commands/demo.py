@@ -145,8 +145,9 @@ def _compensated_run(demo, every: list, db: str) -> tuple[dict, str]:
     from acq.session.reprocess import reprocess
     with progress_display("reprocessing", after_s=0.5) as update:
         res = reprocess(db, progress=update)
-    if res.get("robot") is None:
-        return res, "finished"                  # no model: the problems say why; the compensated run is not recorded
+    if res.get("robot") is None:                # no model: the problems say why
+        say("ISO 9283: the compensated run was not recorded: the session's pose set gave no calibrated model")
+        return res, "finished"
     demo.runner.command.use(res["robot"])
     demo.runner.steps = every
     state = demo.runner.run()
