@@ -3,8 +3,6 @@ runner uses live (:mod:`acq.session.stations`).  Gives the stations every later 
 their fit's covariance carried into every point (:class:`calib.estimators.points.StationFit`)."""
 from __future__ import annotations
 
-import json
-
 import numpy as np
 
 from calib.estimators.points import StationFit
@@ -19,22 +17,11 @@ from ..registry import Stage
 NAMES = ("L_mm", "gamma1_rad", "gamma2_rad", "hB_mm")
 
 
-#: the last fit, by its inputs: the demo reduces its session, records ISO 9283's compensated run and reduces that
-#: stage again with the same ruler readings (a pure function of them; callers only read the result)
-_LAST: dict[bytes, tuple] = {}
-
-
 def fitted_stations(steps: list[dict], setup: dict):
     """The ruler fit of ``steps`` (:class:`calib.uncertainty.EstimateSet`) and the stations it gives with the fit's
     covariance (:class:`calib.estimators.points.StationFit`)."""
-    rows = ruler_rows(steps, station_names(setup))
-    key = rows.tobytes() + json.dumps([setup["ruler"]["marks_mm"], setup["stations"],
-                                       station_names(setup)]).encode()
-    if key not in _LAST:
-        res, stations = fit_ruler(rows, setup)
-        _LAST.clear()
-        _LAST[key] = (res, ruler_station_fit(res, stations))
-    return _LAST[key]
+    res, stations = fit_ruler(ruler_rows(steps, station_names(setup)), setup)
+    return res, ruler_station_fit(res, stations)
 
 
 def reduce_ruler(ctx: Reduction, steps: list[dict]) -> StationFit | None:
