@@ -54,9 +54,12 @@ def _honest(res: dict) -> np.ndarray:
 
 def test_ur10_demo_runs_every_procedure_that_applies(tmp_path, capsys):
     res, text = _demo(tmp_path, capsys, "--robot", UR10, report=True)
-    # no coupling in the UR10's description: no coupling run; the rest of Chapter 4 and the pose set
+    # no coupling in the UR10's description: no coupling run; the rest of Chapter 4, the pose set and ISO 9283
     assert _procedures(tmp_path / "s.db") == {"levelling", "instrument_check", "ruler", "sweep", "poses",
-                                               "transmission", "compliance", "link_compliance", "encoder_resolution"}
+                                               "transmission", "compliance", "link_compliance", "encoder_resolution",
+                                               "iso9283"}
+    for off, on in zip(res["iso9283"]["uncompensated"], res["iso9283"]["compensated"], strict=True):
+        assert on["ap_mm"] < off["ap_mm"], (off, on)                 # the calibrated model's command is closer
     assert res["problems"] == [] and res["profile"]["reference_robot"] is False
     names = [e["name"] for e in res["estimates"]]
     for prefix in ("ruler.", "dh.", "misalign.", "te.j4.", "te.j6.", "compliance.j2.", "compliance.j3.",
@@ -87,7 +90,9 @@ def test_seven_joint_arm_demo(tmp_path, capsys):
     res, text = _demo(tmp_path, capsys, "--robot", TIAGO, "--base-link", "torso_lift_link", "--tip-link", "arm_7_link")
     # seven joints: the encoder tap carries six, so no run that needs its counts (coupling, encoder resolution)
     assert _procedures(tmp_path / "s.db") == {"levelling", "instrument_check", "ruler", "sweep", "poses",
-                                               "transmission", "compliance"}
+                                               "transmission", "compliance", "iso9283"}
+    for off, on in zip(res["iso9283"]["uncompensated"], res["iso9283"]["compensated"], strict=True):
+        assert on["ap_mm"] < off["ap_mm"], (off, on)
     assert res["problems"] == []
     names = [e["name"] for e in res["estimates"]]
     assert "dh.j6.alpha_rad" in names and "misalign.j7.dtheta_x_rad" in names      # the last link: from the pose set

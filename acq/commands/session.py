@@ -51,6 +51,9 @@ def add_arguments(p):
     p.add_argument("--te-joints", type=te_joints, metavar="J,J,...", default=None,
                    help="joints whose transmission error a new session measures (default 4,6; 2 and 3 on request), "
                         "plan key transmission.joints")
+    p.add_argument("--model", metavar="MODEL.json",
+                   help="a calibrated model (robocal identify's model JSON) that commands ISO 9283's compensated run "
+                        "of a new session; default: the model the session's own pose set (--poses) identifies")
     p.add_argument("--write-setup", type=output_file, metavar="FILE", help="write a set-up template (JSON) and exit")
 
 
@@ -99,7 +102,7 @@ def parse_tap(text: str) -> tuple[str, dict]:
     raise RobocalError(f"session: --tap {text!r}: expected can:INTERFACE:CHANNEL or serial:URL")
 
 
-def default_plan(poses_deg=None, te_joints=None, setup=None, robot=None) -> dict:
+def default_plan(poses_deg=None, te_joints=None, setup=None, robot=None, model_path: str | None = None) -> dict:
     """The standard plan for a real cell (:func:`acq.session.plans.session_plan` with the :data:`CELL
     <acq.session.plans.CELL>` preset), with the operator's pose set when given; ``te_joints``: the
     transmission-error joints (``--te-joints``, plan key ``transmission.joints``; default the robot profile's).
@@ -112,7 +115,7 @@ def default_plan(poses_deg=None, te_joints=None, setup=None, robot=None) -> dict
     robot = load_robot(None) if robot is None else robot
     if not isinstance(setup, BenchSetup):
         setup = session_setup(standard_setup() if setup is None else setup, robot)
-    return session_plan(robot, setup, CELL, te_joints, poses_deg)
+    return session_plan(robot, setup, CELL, te_joints, poses_deg, model_path=model_path)
 
 
 def setup_template() -> dict:
@@ -131,7 +134,7 @@ def setup_template() -> dict:
 
 
 def real_builder(db: str, theodolites: list[str], tap: str | None, setup_path: str | None, poses: str | None,
-                 robot_path: str | None, only: list[str] | tuple = (), te_joints=None):
+                 robot_path: str | None, only: list[str] | tuple = (), te_joints=None, model_path: str | None = None):
     """A TUI builder on real devices (or any device URL): opens them, creates or resumes the session."""
     from acq.drivers import open_theodolite
     from acq.encoders import open_tap
@@ -139,6 +142,7 @@ def real_builder(db: str, theodolites: list[str], tap: str | None, setup_path: s
     from acq.session.setup import (predictor, record_robot, session_setup, setup_robot, setup_stations,
                                    station_names)
     from acq.session.stations import stations_from_store
+    from acq.session.iso_commands import CompensatedCommands
     from acq.session.procedures import all_steps
     from acq.session.setup_types import setup_of
     from acq.session.rig import ManualBench, Rig
@@ -173,7 +177,10 @@ def real_builder(db: str, theodolites: list[str], tap: str | None, setup_path: s
         q = read_pose_csv(poses, robot.n).q_rad / DEG if poses else None
     setup = session_setup(setup, robot)
     if not resume:
-        plan = default_plan(q, te_joints, setup, robot)
+        if model_path:
+            from calib.compensate import load_model
+            load_model(model_path)                  # a bad model file is one line before anything is opened
+        plan = default_plan(q, te_joints, setup, robot, model_path)
     bench = setup_of(setup)
     want = sorted(station_names(bench))
     if sorted(s[0] for s in specs) != want:
@@ -211,7 +218,8 @@ def real_builder(db: str, theodolites: list[str], tap: str | None, setup_path: s
         runner = Runner(store, rig, steps, operator, bench=ManualBench(), stations=setup_stations(bench),
                         predict=predictor(robot, bench),
                         refit_stations=lambda st: stations_from_store(st, bench),
-                        preflight=Preflight(robot, bench))
+                        preflight=Preflight(robot, bench),
+                        command=CompensatedCommands(store, (plan_d.get("iso9283") or {}).get("model") or None))
 
         def close():
             rig.close()
@@ -263,6 +271,10 @@ def run(args) -> int:
     if args.te_joints and Path(args.db).exists() and Path(args.db).stat().st_size > 0:
         raise RobocalError(f"session: --te-joints cannot change a resumed session's plan ({args.db} keeps the one it "
                            f"was recorded with): resume without --te-joints, or start a new --db with it")
+    if args.model and (args.emulate or Path(args.db).exists() and Path(args.db).stat().st_size > 0):
+        raise RobocalError("session: --model applies to a new session on devices (an emulated session, or one "
+                           "resumed, commands ISO 9283's compensated run with the model its plan already names or its "
+                           "own pose set identifies)")
     if args.emulate:
         if args.robot and Path(args.db).exists() and Path(args.db).stat().st_size > 0:
             raise RobocalError(f"session: --robot cannot change a resumed session's robot ({args.db} keeps the one it "
@@ -275,7 +287,7 @@ def run(args) -> int:
         builder = emulated_builder(args.db, args.seed, args.only, args.te_joints, args.robot)
     elif args.theodolite:
         builder = real_builder(args.db, args.theodolite, args.tap, args.setup, args.poses, args.robot, args.only,
-                               args.te_joints)
+                               args.te_joints, args.model)
     else:
         raise RobocalError("session: give --emulate, or the devices (--theodolite A=KIND:URL --theodolite "
                            "B=KIND:URL [--tap ...]) and --setup")

@@ -54,6 +54,7 @@ class Reduction:
     profile: RobotProfile
     setup: BenchSetup
     n_mc: int = 0
+    held_out: bool = True          # the pose set's held-out accuracy (False: the model alone, for compensation)
     est: Estimates = field(default_factory=Estimates)
     figs: dict = field(default_factory=dict)
     problems: list[str] = field(default_factory=list)

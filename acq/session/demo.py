@@ -34,6 +34,7 @@ from calib.twin import Twin, load_scenario, parse_scenario
 from calib.units import ARCSEC, DEG
 
 from .headless import ScriptedOperator
+from .iso_commands import CompensatedCommands
 from .plans import DEMO, session_plan, transmission_plan  # noqa: F401 (transmission_plan: for callers)
 from .preflight import Preflight
 from .bench import robot_setup
@@ -261,7 +262,8 @@ def build_demo(db: str | Path, seed: int = 0, resume: bool = False, script: dict
     runner = Runner(store, rig, steps, op, bench=bench, stations=setup_stations(setup),
                     predict=predictor(twin.robot, setup), settle_s=0.0 if clock.simulated else DEMO_SETTLE_S,
                     refit_stations=lambda st: stations_from_store(st, setup),
-                    preflight=Preflight(twin.robot, setup))
+                    preflight=Preflight(twin.robot, setup),
+                    command=CompensatedCommands(store, (plan_d.get("iso9283") or {}).get("model") or None))
     d = DemoRig(runner, world, twin, store, names)
     d._nodes = [node] if node is not None else []
     return d

@@ -9,6 +9,8 @@ robot.  Each transmission-error run is narrowed to what the cell can see (:func:
 """
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 
 from calib.errors import RobocalError
@@ -23,12 +25,15 @@ from .setup_types import BenchSetup, setup_of
 #: a real cell's parameters (per procedure; ``None``: the procedure is not in the default plan)
 CELL = {"ruler": {"repeats": 2}, "sweeps": {"points": 8, "span_deg": 90.0},
         "transmission": {"points": 25, "repeats": 2}, "compliance": {}, "coupling": {"angle_deg": 10.0},
-        "encoder_resolution": None}
+        "encoder_resolution": None, "iso9283": {"cycles": 30}}
+#: ISO 9283 cycles per pose in the demo: fewer than the standard's 30 (the demo stays quick), said in its output
+DEMO_ISO_CYCLES = 5
 #: the demo's: fewer positions and repeats than a real session, but every procedure
 DEMO = {"ruler": {"repeats": 2}, "sweeps": {"points": 5, "span_deg": 60.0},
         "transmission": {"points": 25, "repeats": 2}, "compliance": {"repeats": 3},
         "coupling": {"angle_deg": 10.0, "repeats": 4},
-        "encoder_resolution": {"points": 6, "span_deg": 150.0, "repeats": 1}}
+        "encoder_resolution": {"points": 6, "span_deg": 150.0, "repeats": 1},
+        "iso9283": {"cycles": DEMO_ISO_CYCLES}}
 #: a run narrowed to the cell's sight keeps this far from the first offset that failed (deg)
 SIGHT_MARGIN_DEG = 5.0
 
@@ -67,7 +72,7 @@ def runs_in_sight(plan: dict, setup: BenchSetup, preflight: Preflight, rounds: i
 
 
 def session_plan(robot: Robot, setup: BenchSetup | dict, preset: dict, te_joints=None, poses_deg=None,
-                 seed: int = 0) -> dict:
+                 seed: int = 0, model_path: str | None = None) -> dict:
     """The plan (see the module docstring) for ``robot`` on the bench ``setup`` (a session set-up, its old keys
     mapped: :func:`acq.session.setup.session_setup`) with the ``preset``'s parameters and the pose set
     ``poses_deg`` when given."""
@@ -93,4 +98,26 @@ def session_plan(robot: Robot, setup: BenchSetup | dict, preset: dict, te_joints
     if profile.tapped and preset["encoder_resolution"] is not None:
         plan["procedures"].append("encoder_resolution")
         plan["encoder_resolution"] = {**preset["encoder_resolution"], "joints": list(profile.sweep_joints[-1:])}
+    add_iso9283(plan, robot, setup, preset, seed, model_path)
     return plan
+
+
+def add_iso9283(plan: dict, robot: Robot, setup: BenchSetup, preset: dict, seed: int = 0,
+                model_path: str | None = None) -> None:
+    """ISO 9283 at the end of the plan (:mod:`acq.session.iso_cube`): both runs when the plan has a pose set (the
+    compensated commands come from the model it identifies) or a calibrated model file (``model_path``), the
+    uncompensated one alone otherwise.  A robot with
+    no cube in sight of the stations gets none, unless the set-up asks for it (then the reason is the error)."""
+    from .iso_cube import iso_plan
+    if preset.get("iso9283") is None and setup.iso9283 is None:
+        return
+    runs = ("off", "on") if "poses" in plan["procedures"] or model_path else ("off",)
+    try:
+        plan["iso9283"] = iso_plan(robot, setup, (preset.get("iso9283") or {}).get("cycles", 30), runs, seed)
+        if model_path:
+            plan["iso9283"]["model"] = str(Path(model_path).resolve())
+    except RobocalError:
+        if setup.iso9283 is not None:
+            raise
+        return
+    plan["procedures"].append("iso9283")

@@ -335,6 +335,37 @@ def encoder_resolution(plan: SessionPlan, setup: BenchSetup) -> Iterator[Step]:
                 pose_deg=q, targets=(a1, a2), repeats=p.repeats, meta={"joint": j, "index": i})
 
 
+# -- ISO 9283 pose accuracy and repeatability ------------------------------------------------------------------------
+def iso9283(plan: dict, setup: dict) -> Iterator[Step]:
+    """The five poses of the ISO 9283 cube (:mod:`acq.session.iso_cube`), ``cycles`` times each, every measurement
+    after the same approach move (every joint arriving in the positive direction), target P sighted like a pose of
+    the pose set.  Run ``off`` commands the nominal joint command; run ``on`` the calibrated model's command for the
+    same point, which the runner's ``command`` hook supplies when the step is reached
+    (:class:`acq.session.iso_commands.CompensatedCommands`): the step carries the nominal one until then."""
+    p = plan_of(plan).iso9283
+    target = tool_target(setup)
+    for run in p.runs:
+        for c in range(p.cycles):
+            for pose in p.poses:
+                yield iso_step(run, c, p.cycles, pose, p.approach_deg, target, setup)
+
+
+def iso_step(run: str, cycle: int, cycles: int, pose, approach_deg: float, target: TargetSpec, setup: dict) -> Step:
+    """One ISO 9283 measurement: pose ``pose`` (:class:`~acq.session.plan_doc.IsoPose`) in cycle ``cycle``."""
+    q = tuple(pose.q_deg)
+    approach = tuple(v - approach_deg for v in q)
+    on = run == "on"
+    command = "the calibrated model's command for the same point" if on else _fmt(q)
+    return Step(
+        key=f"iso9283/{run}/c{cycle:02d}/{pose.pose}", procedure="iso9283",
+        title=f"ISO 9283, compensation {run}: pose {pose.pose}, cycle {cycle + 1}/{cycles}",
+        instruction=(f"Move the robot to the approach pose {_fmt(approach)}, then to {command} (every joint arriving "
+                     f"in the positive direction), sight target P with {_both(setup)}."),
+        pose_deg=q, targets=(target,), encoders=False,
+        setup={"approach_deg": list(approach), **({"command": "compensated"} if on else {})},
+        meta={"run": run, "pose": pose.pose, "cycle": cycle, "point_mm": list(pose.point_mm), "nominal_deg": list(q)})
+
+
 @dataclass(frozen=True)
 class ProcedureInfo:
     """What the rest of the session needs to know about a procedure, found by name instead of name branches:
@@ -378,6 +409,7 @@ register_procedure("compliance", compliance)
 register_procedure("link_compliance", link_compliance)
 register_procedure("coupling", coupling)
 register_procedure("encoder_resolution", encoder_resolution)
+register_procedure("iso9283", iso9283)
 
 
 def all_steps(plan: dict | SessionPlan, setup: dict | BenchSetup) -> list[Step]:

@@ -23,6 +23,7 @@ from calib.fileio import atomic_write_text
 from calib.kinds import describe
 from calib.units import DEG
 
+from .iso_report import iso_html
 from .numbers import legend, below_floor_sentence, same_floor, value_pm, when
 from .sections import DETERMINED, HELD, NEGLIGIBLE, SECTIONS, UNDETERMINED, WEAK, Section, beside_the_thesis, \
     bound_text, needs_action, section_bounds, section_estimates, section_problems, section_verdict, shown, shows, \
@@ -530,6 +531,7 @@ def report_html(res: dict, tolerance_mm: float | None = None, record=None) -> st
             _answer(res, record, tolerance_mm, figs)]
     present = [sec for sec in SECTIONS if shows(sec, res)]
     body += [_section_html(sec, res, record, figs) for sec in present]
+    body.append(iso_html(res))                              # ISO 9283 AP and RP per pose, off and on
     body.append(_diagnosis_html(res.get("diagnosis"), res.get("accuracy")))
     known = {p for sec in present for p in section_problems(sec, res.get("problems", []))}
     others = [p for p in res.get("problems", []) if p not in known]

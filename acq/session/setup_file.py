@@ -88,6 +88,10 @@ SETUP_SCHEMA: dict[str, Any] = _obj({
                    "additionalProperties": _COMPLIANCE_ENTRY},
     "link": _LINK,
     "running_errors": {"type": "array", "items": {"type": "string"}},
+    # ISO 9283 pose accuracy and repeatability (acq.session.iso_cube): cycles per pose (the standard's 30; at least
+    # two for a repeatability), the cube's side and centre when the cell dictates them, the approach move
+    "iso9283": _obj({"cycles": {"type": "integer", "minimum": 2, "maximum": 10000}, "side_mm": _POSITIVE,
+                     "centre_mm": _VEC3, "approach_deg": {"type": "number", "exclusiveMinimum": 0, "maximum": 30}}),
     "plan": PLAN_SCHEMA,                              # a plan carried in the set-up: the session plan's schema
     "design": {"type": "object", "additionalProperties": _obj(   # robocal plan setup's record (informative)
         {"variables": {"type": "object", "additionalProperties": FINITE},

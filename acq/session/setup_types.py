@@ -196,6 +196,23 @@ class LinkLoad:
 
 
 @dataclass(frozen=True)
+class IsoSetup:
+    """``iso9283``: ISO 9283's test as the cell dictates it (:mod:`acq.session.iso_cube`); a field left out is the
+    plan's default (the standard's 30 cycles, the cube the search finds, a 2 deg approach)."""
+    cycles: int | None = None
+    side_mm: float | None = None
+    centre_mm: Vec3 | None = None
+    approach_deg: float | None = None
+
+    @classmethod
+    def of(cls, d: Mapping | None) -> IsoSetup | None:
+        if d is None:
+            return None
+        return cls(_opt(d.get("cycles"), int), _opt(d.get("side_mm")), _vec(d.get("centre_mm")),
+                   _opt(d.get("approach_deg")))
+
+
+@dataclass(frozen=True)
 class BenchSetup:
     """The whole set-up file, typed.  ``doc`` is the JSON form it was read from (what a session stores; a writer
     edits a copy of it); it takes no part in equality.  The mappings are read-only views."""
@@ -222,6 +239,7 @@ class BenchSetup:
     link: LinkLoad | None = None
     running_errors: tuple[str, ...] | None = None
     plan: SessionPlan | None = None                 # a plan carried in the set-up
+    iso9283: IsoSetup | None = None
     doc: Mapping[str, Any] = field(default_factory=dict, compare=False, repr=False)
 
     @classmethod
@@ -246,6 +264,7 @@ class BenchSetup:
             link=LinkLoad.of(d.get("link")),
             running_errors=None if d.get("running_errors") is None else tuple(str(t) for t in d["running_errors"]),
             plan=None if d.get("plan") is None else plan_of(d["plan"], "set-up: plan"),
+            iso9283=IsoSetup.of(d.get("iso9283")),
             doc=MappingProxyType(d))
 
 

@@ -8,6 +8,7 @@ from rich.table import Table
 
 from calib.kinds import describe
 
+from .iso_report import iso_lines
 from .numbers import legend, below_floor_sentence, same_floor, value_pm
 from .sections import DETERMINED, HELD, NEGLIGIBLE, SECTIONS, UNDETERMINED, WEAK, beside_the_thesis, bound_text, \
     needs_action, section_bounds, section_estimates, section_problems, section_verdict, shown, shows, verdict_of
@@ -140,6 +141,7 @@ def summary_lines(res: dict) -> list[tuple[str, str]]:
     diagnosis and the notes no section took."""
     out: list[tuple[str, str]] = [("bold", f"{res['session']['title']}"), ("dim", legend(beside_the_thesis(res)))]
     out += [("bold", line) for line in accuracy_lines(res.get("accuracy"))]
+    out += [("bold", line) for line in iso_lines(res)]              # ISO 9283 AP and RP, off and on
     shown_sections = [sec for sec in SECTIONS if shows(sec, res)]
     for sec in shown_sections:
         out += _section_lines(sec, res)

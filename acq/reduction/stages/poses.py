@@ -82,7 +82,8 @@ def reduce_poses(ctx: Reduction, steps: list[dict]) -> dict | None:
                          "rms_mm": float(ident.residual_rms), "held": [n for n in wanted if n not in ident.free],
                          "points_mm": P.tolist(), "running_errors": list(specs)}
     ctx.trace["poses"] = {"q_rad": q}
-    accuracy(ctx, model, obs, ident.free, theta0, priors, ident.theta)
+    if ctx.held_out:
+        accuracy(ctx, model, obs, ident.free, theta0, priors, ident.theta)
     return model_document(model, ident)
 
 
