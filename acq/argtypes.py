@@ -203,7 +203,7 @@ def te_joints(raw: str) -> list[int]:
     return js
 
 
-#: what ``--robot`` takes, the same words in every command (what :func:`calib.robot.load_robot` reads)
+#: what ``--robot`` takes, the same words in every command (what :func:`calib.loading.load_robot` reads)
 ROBOT_HELP = ("robot description: a DH TOML, a URDF (with --base-link/--tip-link to cut its chain) or a calibration "
               "description (a TOML wrapping a URDF)")
 

@@ -189,7 +189,7 @@ def _add_chain_cut(p: argparse.ArgumentParser) -> None:
 
 
 def _apply_chain_cut(args: argparse.Namespace) -> None:
-    from calib.robot import RobotPath
+    from calib.loading import RobotPath
     base, tip = getattr(args, "base_link", None), getattr(args, "tip_link", None)
     if base or tip:
         if not getattr(args, "robot", None):

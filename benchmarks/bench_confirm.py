@@ -6,10 +6,11 @@ the three other sessions (62, 63 and 59 poses) of shared/data/figaroh-tiago-extr
 10 s whole process on the 2-core machine.  Baseline, measured in the same run: the same ``diagnose`` without
 ``--confirm`` (what confirming adds is the difference).  Each command runs in a fresh process (``python -m
 acq.cli``), so the figure includes interpreter start-up and imports; wall and CPU time (user + system of the child)
-are printed: on the shared, loaded machine the CPU time is the fairer figure.  Two held-out settings: ``--folds 5``
-and the default (leave-one-out up to 40 poses, 37 fits per candidate refit).
+are printed: on the shared, loaded machine the CPU time is the fairer figure.  Two held-out settings: the default
+(5-fold whatever the number of poses, :data:`calib.diagnose.gap.DIAGNOSE_FOLDS`) and leave-one-out (``--folds 37``,
+37 fits per candidate refit: the default up to 40 poses before 2026-11-26).
 
-Run: ``python benchmarks/bench_confirm.py [--folds-only 5|loo]``.
+Run: ``python benchmarks/bench_confirm.py [--folds-only default|loo]``.
 """
 from __future__ import annotations
 
@@ -48,14 +49,14 @@ def run(argv: list[str]) -> tuple[float, float, dict]:
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--folds-only", choices=("5", "loo"))
+    ap.add_argument("--folds-only", choices=("default", "loo"))
     a = ap.parse_args()
     print(f"load average {os.getloadavg()[0]:.1f} on {os.cpu_count()} CPUs")
-    for folds in ("5", "loo"):
+    for folds in ("default", "loo"):
         if a.folds_only and folds != a.folds_only:
             continue
-        extra = ["--folds", "5"] if folds == "5" else []
-        title = "5-fold" if folds == "5" else "leave-one-out (default)"
+        extra = [] if folds == "default" else ["--folds", "37"]
+        title = "default (5-fold)" if folds == "default" else "leave-one-out (--folds 37)"
         b_wall, b_cpu, _ = run(["diagnose", str(TRAINING), *OPTIONS, *extra])
         confirm = [x for o in OTHERS for x in ("--confirm", str(o))]
         wall, cpu, j = run(["diagnose", str(TRAINING), *OPTIONS, *extra, *confirm])

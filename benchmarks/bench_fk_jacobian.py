@@ -1,9 +1,10 @@
 """Benchmark: robocal's forward kinematics and identification Jacobian against a plain vectorised numpy chain.
 
-Same poses, same run, one BLAS thread.  The plain implementation below is written for this benchmark only (it imports
-nothing from ``calib`` but the robot description): the same chain -- base ``Tx Ty Tz Rz Ry Rx``, per link the DH
-A-matrix ``Rz(theta) Tz(d) Tx(a) Rx(alpha)`` times the Hayati ``Ry(beta)``, tool point in frame n -- as (N, 4, 4)
-homogeneous matrices multiplied link by link, and its Jacobian as the textbook geometric columns (``z x (p - o)`` for
+Same poses, same run, one BLAS thread.  The plain implementation below imports nothing from ``calib`` but the robot
+description; its matrices are the tests' oracle (tests/fakes/oracle/chain.py, which broadcasts over poses): the same
+chain -- base ``Tx Ty Tz Rz Ry Rx``, per link the DH A-matrix ``Rz(theta) Tz(d) Tx(a) Rx(alpha)`` as printed times
+the Hayati ``Ry(beta)``, tool point in frame n -- as (N, 4, 4) homogeneous matrices multiplied link by link, and its
+Jacobian as the textbook geometric columns (``z x (p - o)`` for
 a rotation, the axis for a translation), vectorised over poses.  The benchmark first checks that both give the same
 points and Jacobian (to 1e-9 mm), then prints poses/s side by side with the ratio robocal / plain and the target
 (>= 0.7, issue 18).  The last lines are the full measurement model (thesis effects and their Jacobian), which has
@@ -29,59 +30,26 @@ from calib.effects import thesis_effects  # noqa: E402
 from calib.kinematics import Kinematics  # noqa: E402
 from calib.model import MeasurementModel  # noqa: E402
 from calib.robot import load_robot  # noqa: E402
+from tests.fakes.oracle.chain import base_matrix, hayati_matrix  # noqa: E402
 
 TARGET = 0.7
 
 
-# -- the plain implementation ---------------------------------------------------------------------------------------
-def _homogeneous(R: np.ndarray, t) -> np.ndarray:
-    T = np.zeros(R.shape[:-2] + (4, 4))
-    T[..., :3, :3] = R
-    T[..., :3, 3] = t
-    T[..., 3, 3] = 1.0
-    return T
-
-
-def _rz(a):
-    c, s, o, z = np.cos(a), np.sin(a), np.ones_like(a), np.zeros_like(a)
-    return np.stack([np.stack([c, -s, z], -1), np.stack([s, c, z], -1), np.stack([z, z, o], -1)], -2)
-
-
-def _ry(a):
-    c, s, o, z = np.cos(a), np.sin(a), np.ones_like(a), np.zeros_like(a)
-    return np.stack([np.stack([c, z, s], -1), np.stack([z, o, z], -1), np.stack([-s, z, c], -1)], -2)
-
-
-def _rx(a):
-    c, s, o, z = np.cos(a), np.sin(a), np.ones_like(a), np.zeros_like(a)
-    return np.stack([np.stack([o, z, z], -1), np.stack([z, c, -s], -1), np.stack([z, s, c], -1)], -2)
-
-
+# -- the plain implementation: the tests' oracle chain (tests/fakes/oracle/chain.py), vectorised over poses ------
 class PlainChain:
     """The chain of a robot description as plain numpy 4x4 products (revolute joints)."""
 
     def __init__(self, robot):
         self.r = robot
-        x, y, z = robot.base_xyz_mm
         roll, pitch, yaw = robot.base_rpy_rad
-        self.base = _homogeneous(_rz(np.float64(yaw)) @ _ry(np.float64(pitch)) @ _rx(np.float64(roll)), [x, y, z])
+        self.base = base_matrix(robot.base_xyz_mm, yaw, pitch, roll)
         self.yaw = yaw
         self.tool = np.asarray(robot.tool_point(), float)
 
     def link_matrices(self, q_j, j) -> np.ndarray:
-        """(N, 4, 4) DH A-matrix of link j with the Hayati beta, written out."""
+        """(N, 4, 4) DH A-matrix of link j times the Hayati Ry(beta)."""
         r = self.r
-        th = q_j + r.theta_offset_rad[j]
-        ct, st = np.cos(th), np.sin(th)
-        ca, sa = np.cos(r.alpha_rad[j]), np.sin(r.alpha_rad[j])
-        cb, sb = np.cos(r.beta_rad[j]), np.sin(r.beta_rad[j])
-        A = np.zeros((len(q_j), 4, 4))
-        A[:, 0, 0], A[:, 0, 1], A[:, 0, 2] = ct * cb - st * sa * sb, -st * ca, ct * sb + st * sa * cb
-        A[:, 1, 0], A[:, 1, 1], A[:, 1, 2] = st * cb + ct * sa * sb, ct * ca, st * sb - ct * sa * cb
-        A[:, 2, 0], A[:, 2, 1], A[:, 2, 2] = -ca * sb, sa, ca * cb
-        A[:, 0, 3], A[:, 1, 3], A[:, 2, 3] = r.a_mm[j] * ct, r.a_mm[j] * st, r.d_mm[j]
-        A[:, 3, 3] = 1.0
-        return A
+        return hayati_matrix(q_j + r.theta_offset_rad[j], r.d_mm[j], r.a_mm[j], r.alpha_rad[j], r.beta_rad[j])
 
     def frames(self, q) -> list[np.ndarray]:
         T = np.broadcast_to(self.base, (len(q), 4, 4))

@@ -22,7 +22,7 @@ from acq.drivers.geocom import GeoComTheodolite  # noqa: E402
 from acq.emulate.geocom_device import GeoComDevice  # noqa: E402
 from acq.emulate.pty_host import PtyHost  # noqa: E402
 from acq.emulate import registry  # noqa: E402
-from acq.emulate.world import demo_world  # noqa: E402
+from acq.emulate.factories import demo_world  # noqa: E402
 
 
 def main(argv=None) -> int:

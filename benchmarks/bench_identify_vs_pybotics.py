@@ -1,10 +1,11 @@
 """Benchmark: robocal's geometric identification against pybotics', geometric against geometric, on data robocal did
 not generate.
 
-Data: an independent generator written here (plain numpy 4x4 products of the thesis's link matrix
-``A_j = Rz(q_j + theta_j) Tz(d_j) Tx(a_j) Rx(alpha_j) Ry(beta_j)``, a base pose and a tool point), for a Puma 560
-whose geometry is the description's plus random errors (a, d: 0.5 mm; alpha, theta: 0.1 degree; base and tool away
-from nominal), random poses inside the joint limits, isotropic measurement noise on every point.  Two data sets:
+Data: an independent generator, the tests' oracle (tests/fakes/oracle/chain.py: plain numpy 4x4 products of the
+thesis's link matrix ``A_j Ry(beta_j)``, ``A_j = Rz(q_j + theta_j) Tz(d_j) Tx(a_j) Rx(alpha_j)``, a base pose and a
+tool point), for a Puma 560 whose geometry is the description's plus random errors (a, d: 0.5 mm; alpha, theta: 0.1
+degree; base and tool away from nominal), random poses inside the joint limits, isotropic measurement noise on every
+point.  Two data sets:
 
 * ``hayati-free``: axes 2 and 3 exactly parallel in the truth (beta = 0): both models can represent the truth;
 * ``hayati``: a Hayati tilt beta_2 (0.1 degree) between the parallel axes 2-3: robocal's model has it, pybotics'
@@ -51,6 +52,7 @@ from calib.effects import PoseContext, effect_from_text  # noqa: E402
 from calib.identify import PointObservations, identify, initial_base, linear_translations  # noqa: E402
 from calib.model import MeasurementModel  # noqa: E402
 from calib.robot import load_robot  # noqa: E402
+from tests.fakes.oracle.chain import base_matrix, dh_frames, point_in, rot_x, trans  # noqa: E402
 
 EFFECTS = ("transmission_error:2:1.0:2", "transmission_error:3:1.0:2", "transmission_error:4:0.9:2",
            "transmission_error:6:1.8:2", "joint_compliance:2", "joint_compliance:3", "joint_compliance:4",
@@ -59,22 +61,7 @@ INSTALL = "pip install --no-deps pybotics==3.1.2 attrs"
 DEG = np.pi / 180.0
 
 
-# -- the independent generator: plain 4x4 products -------------------------------------------------------------------
-def _rot(axis: int, ang: np.ndarray) -> np.ndarray:
-    """(N, 4, 4) rotations about x (0), y (1) or z (2)."""
-    c, s = np.cos(ang), np.sin(ang)
-    T = np.broadcast_to(np.eye(4), ang.shape + (4, 4)).copy()
-    i, k = [(1, 2), (2, 0), (0, 1)][axis]
-    T[..., i, i], T[..., i, k], T[..., k, i], T[..., k, k] = c, -s, s, c
-    return T
-
-
-def _trans(v) -> np.ndarray:
-    T = np.eye(4)
-    T[:3, 3] = v
-    return T
-
-
+# -- the independent generator: the tests' oracle chain (tests/fakes/oracle/chain.py) --------------------------------
 @dataclass
 class Geometry:
     """A serial chain in the thesis's convention, with the base pose and the tool point: the truth of a data set."""
@@ -89,14 +76,9 @@ class Geometry:
     tool: np.ndarray
 
     def points(self, q: np.ndarray) -> np.ndarray:
-        n = len(q)
-        yaw, pitch, roll = self.base_zyx
-        T = (_trans(self.base_xyz) @ _rot(2, np.array(yaw)) @ _rot(1, np.array(pitch)) @ _rot(0, np.array(roll)))
-        T = np.broadcast_to(T, (n, 4, 4))
-        for j in range(len(self.a)):
-            T = (T @ _rot(2, q[:, j] + self.theta[j]) @ _trans([0, 0, self.d[j]]) @ _trans([self.a[j], 0, 0])
-                 @ _rot(0, np.full(n, self.alpha[j])) @ _rot(1, np.full(n, self.beta[j])))
-        return (T @ np.append(self.tool, 1.0))[:, :3]
+        T = dh_frames(base_matrix(self.base_xyz, *self.base_zyx), q + self.theta, self.d, self.a, self.alpha,
+                      self.beta)[-1]
+        return point_in(T, self.tool)
 
 
 def true_geometry(robot, rng, hayati: bool) -> Geometry:
@@ -127,10 +109,10 @@ def pybotics_start(robot, th: np.ndarray, names: list[str]):
     rows = [[v[f"j{j}.alpha_rad"] if j else 0.0, v[f"j{j}.a_mm"] if j else 0.0,
              v[f"j{j + 1}.theta_offset_rad"], v[f"j{j + 1}.d_mm"]] for j in range(n)]
     pr = PRobot.from_parameters(np.array(rows))
-    pr.tool.matrix = (_trans([v[f"j{n}.a_mm"], 0, 0]) @ _rot(0, np.array(v[f"j{n}.alpha_rad"]))
-                      @ _trans([v["tool.x_mm"], v["tool.y_mm"], v["tool.z_mm"]]))
-    pr.world_frame = (_trans([v["base.x_mm"], v["base.y_mm"], v["base.z_mm"]]) @ _rot(2, np.array(v["base.yaw_rad"]))
-                      @ _rot(1, np.array(v["base.pitch_rad"])) @ _rot(0, np.array(v["base.roll_rad"])))
+    pr.tool.matrix = (trans(v[f"j{n}.a_mm"], 0, 0) @ rot_x(v[f"j{n}.alpha_rad"])
+                      @ trans(v["tool.x_mm"], v["tool.y_mm"], v["tool.z_mm"]))
+    pr.world_frame = base_matrix([v["base.x_mm"], v["base.y_mm"], v["base.z_mm"]], v["base.yaw_rad"],
+                                 v["base.pitch_rad"], v["base.roll_rad"])
     return pr
 
 
@@ -211,8 +193,8 @@ def robocal_fit(model: MeasurementModel, ds: DataSet):
 def robocal_start(geo: MeasurementModel, ds: DataSet, free: list[str]) -> np.ndarray:
     """robocal's start: rigid base fit, then Chapter 6's linear solve of the translations it estimates."""
     th = initial_base(geo, ds.obs.q_rad, ds.obs.points_mm, ds.obs.ctx)
-    trans = [n for n in free if n.endswith("_mm") and n in geo.kin.index]
-    return linear_translations(geo, ds.obs, th, trans)
+    lengths = [n for n in free if n.endswith("_mm") and n in geo.kin.index]
+    return linear_translations(geo, ds.obs, th, lengths)
 
 
 def spread(ts: list[float]) -> str:

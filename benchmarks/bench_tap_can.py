@@ -32,7 +32,7 @@ import can  # noqa: E402
 
 from acq.emulate.can_node import CanTapNode  # noqa: E402
 from acq.emulate.tap_device import TapModel, can_frames  # noqa: E402
-from acq.emulate.world import demo_world  # noqa: E402
+from acq.emulate.factories import demo_world  # noqa: E402
 from acq.encoders.can_bits import frame_bits, worst_case_frame_bits  # noqa: E402
 from acq.encoders.can_tap import open_can_tap  # noqa: E402
 

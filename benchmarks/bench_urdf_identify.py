@@ -62,7 +62,7 @@ def tip_points(urdf_path: str, names: list[str], q: np.ndarray, tip: str) -> np.
         import pinocchio as pin
     except ImportError:
         from calib.kinematics import Kinematics
-        from calib.robot import robot_from_urdf
+        from calib.urdf import robot_from_urdf
         robot = robot_from_urdf(urdf_path)
         return Kinematics(robot).points(q)
     model = pin.buildModelFromUrdf(urdf_path)

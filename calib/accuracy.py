@@ -8,7 +8,9 @@ Analyzer, RoboDK) and FIGAROH open with exactly these numbers.
   fit poses -- the accuracy the robot had with its maker's description;
 * **after**: the calibrated model (every parameter the identification estimated) fitted on the same fit poses;
 * **floor**: what the instruments alone contribute to a position error (RMS of the 3-D point error from the points'
-  covariances): an error near the floor means the model explains everything the instruments can see.
+  covariances): an error near the floor means the model explains everything the instruments can see.  One floor per
+  pose set: taken over every pose of the set (not the held-out few), so that the accuracy and the diagnosis of the same
+  poses state the same floor (:func:`calib.diagnose.gap.noise_floor_mm` is the same formula over the same points).
 
 One convention everywhere (:data:`CONVENTION`): the error of a point is its 3-D Euclidean distance from where the
 model puts it, and RMS, mean, 95th percentile and maximum are taken over those distances.  (The other convention in
@@ -76,7 +78,7 @@ def before_after_line(doc: dict) -> str:
 class Accuracy:
     before_err_mm: np.ndarray          # (n_test,) position error of every test pose, nominal description
     after_err_mm: np.ndarray           # (n_test,) position error of every test pose, calibrated model
-    floor_mm: float                    # RMS 3-D error the instruments alone explain
+    floor_mm: float                    # RMS 3-D error the instruments alone explain, over every pose of the set
     test_index: np.ndarray             # which poses were held out
     protocol: str = "every 4th pose held out"     # how (for the JSON and the terminal)
 
@@ -148,25 +150,29 @@ def locate_free(model) -> list[str]:
 
 
 def before_after(model, obs, free: list[str], theta0: np.ndarray | None = None, priors: dict | None = None,
-                 split: tuple[np.ndarray, np.ndarray] | None = None, identify_fn=None) -> Accuracy:
+                 split: tuple[np.ndarray, np.ndarray] | None = None, identify_fn=None,
+                 warm: np.ndarray | None = None) -> Accuracy:
     """Fit the located nominal model and the calibrated model on the fit poses; errors on the test poses.
 
     ``model`` and ``obs`` (:class:`calib.identify.PointObservations`) as for :func:`calib.identify.identify`;
-    ``free`` the calibrated model's free parameters, ``theta0``/``priors`` its start and priors.
+    ``free`` the calibrated model's free parameters, ``theta0``/``priors`` its start and priors; ``warm``: the
+    calibrated model fitted on every pose, where the fit on the fit poses starts (a start point only: it converges
+    to the fit poses' own minimum).  Neither fit flags gross errors: flagging reports them and changes no fit.
     """
     from .identify import identify
     identify_fn = identify_fn or identify
     fit, test = split if split is not None else holdout(obs.n)
     o_fit, o_test = obs.subset(fit), obs.subset(test)
     nominal = model.nominal.copy()
-    located = identify_fn(model, o_fit, free=locate_free(model), theta0=nominal)
+    located = identify_fn(model, o_fit, free=locate_free(model), theta0=nominal, outliers="off")
+    more = {"warm": warm} if warm is not None else {}
     calibrated = identify_fn(model, o_fit, free=free, theta0=theta0 if theta0 is not None else nominal,
-                             priors=priors or {})
+                             priors=priors or {}, outliers="off", **more)
 
     def errors(theta):
         pred = model.points(o_test.q_rad, ctx=o_test.ctx, theta=np.asarray(theta)[: model.P])
         return np.linalg.norm(o_test.points_mm - pred, axis=1)
 
-    cov = o_test.cov_mm2 if getattr(o_test, "cov_mm2", None) is not None else np.zeros((o_test.n, 3, 3))
+    cov = obs.cov_mm2 if getattr(obs, "cov_mm2", None) is not None else np.zeros((obs.n, 3, 3))
     return Accuracy(errors(located.theta), errors(calibrated.theta), floor_mm(cov), test,
                     "the given split" if split is not None else "every 4th pose held out")

@@ -278,7 +278,7 @@ def compensate_readings(im: IdentifiedModel, nominal: MeasurementModel, r_desire
     M = robot.reading_matrix if reading_matrix is None else reading_matrix
     off = robot.reading_offset if reading_offset is None else reading_offset
     r_des = np.atleast_2d(np.asarray(r_desired, float))
-    points = _points_to_compensate(im)
+    points = points_to_compensate(im)
     q_des = r_des @ M.T + off
     target = np.stack([nominal.evaluate(q_des, None, None, tool_mm=xyz, link=f).point_mm for f, xyz in points], 1)
     r, err = reach(im.model, im.theta, points, target, r_des, M, off, ctx, iterations, tol_mm)
@@ -313,7 +313,7 @@ def reach(model: MeasurementModel, theta: np.ndarray, points: list[tuple[int, np
     return r, err
 
 
-def _points_to_compensate(im: IdentifiedModel) -> list[tuple[int, np.ndarray]]:
+def points_to_compensate(im: IdentifiedModel) -> list[tuple[int, np.ndarray]]:
     """(frame, identified position in that frame) of every tool point: the reference alone for a robot with one."""
     robot = im.model.robot
     pts = identified_tool_points(im.model, im.theta)
@@ -335,4 +335,4 @@ def nominal_in_same_frame(im: IdentifiedModel) -> MeasurementModel:
 
 __all__ = ["save_model", "load_model", "model_from_document", "model_document",
            "robot_from_theta", "corrected_readings", "predict",
-           "compensate_command", "compensate_readings", "reach", "nominal_in_same_frame", "IdentifiedModel", "unit_of", "DEG"]
+           "compensate_command", "compensate_readings", "reach", "points_to_compensate", "nominal_in_same_frame", "IdentifiedModel", "unit_of", "DEG"]

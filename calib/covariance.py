@@ -32,14 +32,16 @@ class Covariance:
 
 def from_jacobian(J: np.ndarray, names: list[str], rtol: float = UNDETERMINED_RTOL) -> Covariance:
     """``(J^T J)^-1`` of a whitened Jacobian ``J (m, p)`` over the determined directions (see the module docstring)."""
-    from .identifiability import Combination
+    from .identifiability import Combination, small_factor
 
     p = J.shape[1]
     if p == 0:
         return Covariance(np.zeros((0, 0)))
     norms = np.linalg.norm(J, axis=0)
     d = np.where(norms > 0, norms, 1.0)
-    _, s, Vt = np.linalg.svd(J / d, full_matrices=False)
+    # the singular values and right vectors of a tall J are those of its R factor (J = QR, Q orthonormal): one QR and
+    # a p x p SVD cost a third of the SVD of J (the left vectors, which are not needed, are most of that)
+    _, s, Vt = np.linalg.svd(small_factor(J / d), full_matrices=False)
     top = s[0] if s.size and s[0] > 0 else 1.0
     keep = s > rtol * top
     V = Vt[keep].T / s[keep]

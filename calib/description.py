@@ -50,8 +50,13 @@ from pathlib import Path
 
 import numpy as np
 
+from .angles import rpy_matrix
+from .errors import RobocalError
+from .kinematics import Kinematics
+from .priors import canonical
 from .tomlspec import Checker, Field
 from .units import DEG
+from .urdf import analyse_tree, check_link, cut_chain, read_urdf, robot_from_analysis
 
 TOP_SPEC = {
     "urdf": Field("str", required=True),
@@ -79,8 +84,6 @@ DRIVE_SPEC = {"gear_ratio": Field("number", required=True),
 def build_description(chk: Checker, data: dict, path: Path, base_link: str | None = None,
                       tip_link: str | None = None):
     """The :class:`calib.robot.Robot` a calibration description defines (command-line cut wins over the file's)."""
-    from .robot import _rpy_matrix, robot_from_analysis
-    from .urdf import check_link, analyse_tree, cut_chain, read_urdf
 
     top = chk.table(data, TOP_SPEC, "")
     urdf_path = (path.parent / top["urdf"]) if not Path(top["urdf"]).is_absolute() else Path(top["urdf"])
@@ -108,7 +111,7 @@ def build_description(chk: Checker, data: dict, path: Path, base_link: str | Non
 
     place = chk.table(top["base"], BASE_SPEC, "base")
     B = np.eye(4)
-    B[:3, :3] = _rpy_matrix(np.asarray(place["rpy_deg"], float) * DEG)
+    B[:3, :3] = rpy_matrix(np.asarray(place["rpy_deg"], float) * DEG)
     B[:3, 3] = place["xyz_mm"]
 
     gear, counts = np.ones(n), np.full(n, 2.0 ** 20)
@@ -285,9 +288,6 @@ def _readings(chk: Checker, t: dict, ch) -> tuple[list[str], np.ndarray, np.ndar
 def _tolerances(chk: Checker, t: dict, robot) -> dict[str, float]:
     """Priors by kinematic parameter name (``j2.a_mm``, ``base.z_mm``) or by joint name (``arm_1_joint.a_mm``);
     ``*_deg`` keys are converted to the ``*_rad`` parameter (names as :func:`calib.priors.canonical` reads them)."""
-    from .errors import RobocalError
-    from .kinematics import Kinematics
-    from .priors import canonical
 
     known = set(Kinematics(robot).names)
     out = {}

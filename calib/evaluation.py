@@ -1,7 +1,7 @@
 """Held-out evaluation and re-stationing of a calibrated model against a pose CSV (``robocal evaluate`` / ``locate``).
 
-* **Prediction** of every row through the one forward model (:class:`calib.model.MeasurementModel`), each row with
-  the tool point its ``target`` names.
+* **Prediction** of every row through the one forward model (:mod:`calib.rows`), each row with the tool point its
+  ``target`` names.
 * **Locate** (re-stationing): per ``station`` group, the rigid transform from the model's measurement frame to that
   instrument set-up, fitted by least squares to the rows with the calibrated model held fixed (Kabsch, via scipy's
   ``Rotation.align_vectors``).  A located station absorbs 6 degrees of freedom, so its residual is computed from rows
@@ -15,14 +15,17 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from . import orientation as ori
+from .accuracy import error_stats
 from .angles import rigid_fit, wrap_angle
 from .errors import RobocalError
+from .heldout import HeldOut
 from .model import MeasurementModel
-from .effects.target_offset import TargetOffset
 from .posecsv import PoseTable
-from .robot import rpy_from_matrix
+from .angles import rpy_from_matrix
+from .rows import context_of, point_covariance, predict_rows
 from .units import DEG
-from .targets import TargetContext, reference_name, station_effects, station_index, target_index, with_targets
+from .targets import station_effects, station_index, with_targets
 
 
 def with_polar_points(table: PoseTable, noise=None) -> PoseTable:
@@ -32,72 +35,6 @@ def with_polar_points(table: PoseTable, noise=None) -> PoseTable:
     if table.points_mm is None and table.polar is not None:
         table.points_mm, table.cov_mm2 = polar_points(table.polar, noise or PolarNoise())
     return table
-
-
-def point_covariance(table: PoseTable) -> np.ndarray | None:
-    """(N, 3, 3) covariance of the measured points: polar noise, else the sigma_*_mm columns, else None."""
-    if table.cov_mm2 is not None:
-        return table.cov_mm2
-    if table.sigma_mm is not None:
-        return np.einsum("ni,ij->nij", table.sigma_mm ** 2, np.eye(3))
-    return None
-
-
-def tool_per_row(robot, table: PoseTable) -> np.ndarray | None:
-    """(N, 3) tool point in frame n for each row's ``target``; None when the file names no targets."""
-    if table.target is None:
-        return None
-    out = np.empty((table.n, 3))
-    for i, t in enumerate(table.target):
-        if t not in robot.tool_points_mm:
-            known = ", ".join(robot.tool_points_mm) or "none"
-            raise RobocalError(f"{table.source}: line {table.line[i] if table.line else i + 1}: target {t!r} names "
-                               f"no tool point of the model (tool points: {known})")
-        out[i] = robot.tool_points_mm[t]
-    return out
-
-
-def context_of(model: MeasurementModel, table: PoseTable, new_stations: bool = False) -> TargetContext:
-    """The pose conditions of every row, with the index of the tool point it measures and of the model's station
-    it was measured from (by name).  A station the model does not know is an error naming it, or, with
-    ``new_stations`` (the rows are re-stationed afterwards: locate, evaluate --locate), the reference set-up."""
-    tool_per_row(model.robot, table)                          # names every target, or fails naming the line
-    return TargetContext(table.n, model.robot.n, direction=table.direction, payload_kg=table.payload_kg,
-                         temperature_c=table.temperature_c, time_s=table.time_s,
-                         target=target_index(model.robot, table.target, table.n),
-                         station=_model_stations(model, table, new_stations))
-
-
-def _model_stations(model: MeasurementModel, table: PoseTable, new_stations: bool) -> np.ndarray:
-    idx, names = station_index(table.station, table.n, model.stations)
-    unknown = np.flatnonzero(idx < 0)
-    if unknown.size and not new_stations:
-        i = unknown[0]
-        known = (f"its stations: {', '.join(names)}" if names else
-                 "it was identified from one set-up without a station column")
-        raise RobocalError(f"{table.source}: line {table.line[i] if table.line else i + 1}: column station: "
-                           f"{table.station[i]!r} is not a station of the model ({known}); --locate re-stations it")
-    idx[unknown] = 0
-    return idx
-
-
-def predict_rows(model: MeasurementModel, theta: np.ndarray, table: PoseTable, new_stations: bool = False) -> np.ndarray:
-    """Predicted positions (N, 3) of every row's target in the frame of the model's station of that row (see
-    :func:`context_of` for ``new_stations``).
-
-    The reference target and those with an offset effect come from ``theta``; any other named target from the
-    model's tool points."""
-    ctx = context_of(model, table, new_stations)
-    tool = None
-    if table.target is not None:
-        names = list(model.robot.tool_points_mm)
-        ref = names.index(reference_name(names))
-        in_theta = {ref} | {e.target for e in model.effects if isinstance(e, TargetOffset)}
-        if not set(ctx.target) <= in_theta:
-            i = model.kin.index["tool.x_mm"]
-            own = np.asarray(theta[i:i + 3], float)
-            tool = np.array([own if k in in_theta else model.robot.tool_points_mm[names[k]] for k in ctx.target])
-    return model.points(table.q_rad, ctx, theta, tool)
 
 
 @dataclass
@@ -148,7 +85,6 @@ def locate(pred: np.ndarray, table: PoseTable, rows: np.ndarray | None = None) -
 
 def summary(res: np.ndarray) -> dict:
     """Mean, RMS, max and 95th percentile of residual lengths (mm): :func:`calib.accuracy.error_stats`."""
-    from .accuracy import error_stats
     return error_stats(np.linalg.norm(np.asarray(res, float).reshape(-1, 3), axis=1))
 
 
@@ -176,7 +112,6 @@ def evaluate_table(model: MeasurementModel, theta: np.ndarray, table: PoseTable,
     error_stats`), and the honesty of the predicted sigmas (``uncertainty``, :mod:`calib.heldout`)."""
     if table.points_mm is None:
         raise RobocalError(f"{table.source}: columns x, y, z (measured points) are needed to evaluate")
-    from . import orientation as ori
     pred = predict_rows(model, theta, table, new_stations=with_locate)
     axes = ori.axis_points(model, theta, table, new_stations=with_locate)
     test = table.split_mask("test")
@@ -223,7 +158,6 @@ def _restation(pred: np.ndarray, table: PoseTable, locs: dict[str, Location]) ->
 def _before_after(im, table: PoseTable, test: np.ndarray, res: np.ndarray, locs: dict, with_locate: bool) -> dict:
     """``before``/``after`` on the rows evaluated (the located nominal model re-stationed the same way when
     ``with_locate``), and the predicted sigmas' honesty (parameter covariance plus the fit's noise)."""
-    from .heldout import HeldOut
     model = im.model
     before = predict_rows(model, im.before_theta(), table, new_stations=with_locate)
     if with_locate:
@@ -243,10 +177,9 @@ def _before_after(im, table: PoseTable, test: np.ndarray, res: np.ndarray, locs:
             cov[m] = loc.R @ cov[m] @ loc.R.T
     protocol = ("the file's test rows" if table.split is not None else
                 "every row of the file (held out when the model was not fitted to them)")
-    from .heldout import orientation_errors_deg
     return HeldOut(table.points_mm[test] - before[test], res, cov, protocol,
-                   orientation_errors_deg(model, im.before_theta(), sub),
-                   orientation_errors_deg(model, im.theta, sub)).as_dict()
+                   ori.orientation_errors_deg(model, im.before_theta(), sub),
+                   ori.orientation_errors_deg(model, im.theta, sub)).as_dict()
 
 
 def split_metrics(model: MeasurementModel, theta: np.ndarray, table: PoseTable) -> dict:
@@ -295,7 +228,7 @@ def station_start(model: MeasurementModel, table: PoseTable) -> np.ndarray:
     """Start parameters for several stations: each station's base by a rigid fit of the nominal chain to its rows;
     the first station's is the chain's base, the others' offsets are their differences from it."""
     from .effects.station_offset import StationOffset
-    from .robot import rpy_from_matrix
+    from .angles import rpy_from_matrix
 
     th = model.nominal.copy()
     th[:6] = 0.0
@@ -320,6 +253,3 @@ def station_start(model: MeasurementModel, table: PoseTable) -> np.ndarray:
     trans = [n for n in model.kin.names if n.endswith("_mm") and not n.startswith("base.")]
     th[: model.n_geometric] = linear_translations(model, obs, th[: model.P], trans)[: model.n_geometric]
     return th
-
-
-from .orientation import with_orientation_points  # noqa: E402,F401  (6-D rows: calib.orientation)

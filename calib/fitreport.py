@@ -17,6 +17,7 @@ import numpy as np
 
 from .distributions import chi2_median, chi2_sf
 from .noise import combine, given_sigma_mm, model_free
+from .rows import point_covariance
 
 #: a reduced chi-square outside this range (and improbable at the fit's degrees of freedom) is said in words
 CHI2_FAR = (0.5, 2.0)
@@ -33,6 +34,7 @@ class Weights:
     table: object = None              # the fit rows (calib.posecsv.PoseTable): a fold re-decides on its own rows
     fit: object = None
     raw: object = None                # the observations with their relative weights, before the decision
+    warm: np.ndarray | None = None    # the whole set's plain fit (unknown noise): where a fold's own fit starts
 
     @property
     def error_scale(self) -> str:
@@ -43,7 +45,6 @@ class Weights:
         """Given, estimated without a model, or unknown (see the module docstring); ``fit`` (with ``free``,
         ``priors``, ``theta0``, ``start``, ``model``) is told the error scale.  ``measured``: the rows as the file
         gave them (the fitted ``table`` may carry covariances robocal made: orientation rows' extra points)."""
-        from .evaluation import point_covariance
         own = point_covariance(measured if measured is not None else table) is not None
         if own or noise_mm is not None:
             how = "the data's own uncertainty columns" if own else "--noise-mm"
@@ -56,8 +57,9 @@ class Weights:
                 w = cls(_rescaled(obs, est.estimated_mm / given_sigma_mm(obs.cov_mm2)), False, est.how,
                         est.estimated_mm, table, fit)
             else:
-                scale = _robust_scale(obs, fit)
-                w = cls(_rescaled(obs, scale), False, "unknown", given_sigma_mm(obs.cov_mm2) * scale, table, fit)
+                scale, theta = _robust_scale(obs, fit)
+                w = cls(_rescaled(obs, scale), False, "unknown", given_sigma_mm(obs.cov_mm2) * scale, table, fit,
+                        warm=theta)
         fit.error_scale = w.error_scale
         w.raw = obs
         return w
@@ -83,7 +85,7 @@ class Weights:
             if found:
                 f = combine(given_sigma_mm(raw_tr.cov_mm2), found).estimated_mm / given_sigma_mm(raw_tr.cov_mm2)
                 return _rescaled(raw_tr, f), _rescaled(raw_te, f)
-        f = _robust_scale(raw_tr, self.fit)
+        f = _robust_scale(raw_tr, self.fit, self.warm)[0]
         return _rescaled(raw_tr, f), _rescaled(raw_te, f)
 
     def as_dict(self, ident=None) -> dict:
@@ -99,16 +101,16 @@ def _rescaled(obs, factor: float):
     return PointObservations(obs.q_rad, obs.points_mm, obs.cov_mm2 * factor ** 2, obs.sigma_mm * factor, obs.ctx)
 
 
-def _robust_scale(obs, fit) -> float:
+def _robust_scale(obs, fit, warm: np.ndarray | None = None) -> tuple[float, np.ndarray]:
     """The factor taking the points' relative weights to the scatter a plain fit of the full free set shows, on a
     robust scale (the median pose's chi-square: a few gross errors do not inflate it, so the outlier test that follows
-    still sees them)."""
-    from .identify import identify, pose_chi2, _Problem
+    still sees them), and that fit's parameters.  ``warm``: where the fit starts (a fold: the whole set's fit)."""
+    from .identify import identify, pose_chi2
     idn = identify(fit.model, obs, free=fit.free, priors=fit.priors, theta0=fit.theta0, start=fit.start,
-                   outliers="off", error_scale="residual")
-    chi = pose_chi2(_Problem(fit.model, obs, idn.theta[: fit.model.P], {}), idn.theta, 3)
+                   outliers="off", error_scale="residual", warm=warm)
+    chi = pose_chi2(idn.problem, idn.theta, 3)          # the fit's last evaluation: its rows, priors apart
     med = float(np.median(chi)) / float(chi2_median(3))
-    return float(np.sqrt(med)) if med > 0 else 1.0
+    return (float(np.sqrt(med)) if med > 0 else 1.0), idn.theta
 
 
 def noise_line(doc: dict) -> str:

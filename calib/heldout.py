@@ -20,7 +20,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .accuracy import before_after_dict, point_errors_mm
+from .accuracy import before_after_dict, grouped_folds, make_folds, point_errors_mm
 
 #: the per-coordinate convention of :func:`honesty`
 HONESTY_CONVENTION = ("each coordinate's held-out error over its predicted sigma (parameter covariance plus the "
@@ -108,8 +108,6 @@ def crossval(model, obs, choose, k: int = 5, pose_id: list | None = None) -> Hel
     observations weighted by the fold's own noise decision; each row is predicted once, by the fold that did not
     see it.  Rows of
     one pose (several targets: ``pose_id``) are held out together."""
-    from .accuracy import grouped_folds, make_folds
-
     groups = len(set(pose_id)) if pose_id else obs.n
     k = int(min(k, groups))
     folds = grouped_folds(list(pose_id), k) if pose_id and groups < obs.n else make_folds(obs.n, k)
@@ -135,33 +133,3 @@ def _takes_test(choose) -> bool:
     except (TypeError, ValueError):
         return False
 
-
-def orientation_errors_deg(model, theta: np.ndarray, table) -> np.ndarray | None:
-    """(N,) geodesic angle (deg) between each row's measured orientation (``rx_deg..rz_deg``: R = Rz Ry Rx) and the
-    frame the model predicts from its three points of that target (the point, ``@x`` and ``@y``, as
-    :func:`calib.evaluation.with_orientation_points` identifies them); None for rows without orientation or a model
-    without those points."""
-    if getattr(table, "orientation_rad", None) is None:
-        return None
-    from scipy.spatial.transform import Rotation
-
-    from .evaluation import predict_rows
-    from .targets import reference_name
-    tools = list(model.robot.tool_points_mm)
-    names = table.target or [reference_name(tools or ["P"])] * table.n
-    if not all(n + "@x" in tools and n + "@y" in tools for n in set(names)):
-        return None
-    pts = []
-    for suffix in ("", "@x", "@y"):
-        t = table.subset(np.arange(table.n))
-        t.target = [n + suffix for n in names]
-        pts.append(predict_rows(model, theta, t))
-    x = pts[1] - pts[0]
-    x /= np.linalg.norm(x, axis=1, keepdims=True)
-    y = pts[2] - pts[0]
-    y -= np.einsum("ni,ni->n", y, x)[:, None] * x
-    y /= np.linalg.norm(y, axis=1, keepdims=True)
-    R_pred = np.stack([x, y, np.cross(x, y)], axis=2)
-    R_meas = Rotation.from_euler("xyz", table.orientation_rad).as_matrix()
-    cos = (np.einsum("nij,nij->n", R_meas, R_pred) - 1.0) / 2.0
-    return np.degrees(np.arccos(np.clip(cos, -1.0, 1.0)))

@@ -145,13 +145,13 @@ def analyse(J: np.ndarray, names: list[str],
     makes determinable is explained as "joint k barely moves".  ``prefer_fix(name)`` ranks which parameter of a
     combination to hold (lower first); ties go to the one with the largest coefficient (:func:`_to_hold`).
 
-    One QR of J, then every decomposition on its small R factor (:func:`_small_factor`): the cost of about one SVD
+    One QR of J, then every decomposition on its small R factor (:func:`small_factor`): the cost of about one SVD
     of J however many parameters are held.
     """
     m, p = J.shape
     norms = np.linalg.norm(J, axis=0)
     safe = np.where(norms > 0, norms, 1.0)
-    R = _small_factor(J / safe)                 # the column-scaled Jacobian's singular values and right vectors
+    R = small_factor(J / safe)                 # the column-scaled Jacobian's singular values and right vectors
     s, Vt = _svd(R)
     smax = s[0] if s.size and s[0] > 0 else 1.0
     ratio = np.concatenate([s / smax, np.zeros(max(0, p - s.size))])
@@ -225,7 +225,7 @@ def _to_hold(ratio: np.ndarray, Vt: np.ndarray, names: list[str], prefer_fix: Ca
     return min(k for k in cand if weight[k] >= top * (1.0 - 1e-6))
 
 
-def _small_factor(A: np.ndarray) -> np.ndarray:
+def small_factor(A: np.ndarray) -> np.ndarray:
     """A matrix with the singular values and right singular vectors of ``A`` (and of any subset of its columns),
     at most as many rows as columns: the R of ``A = QR`` for a tall ``A``.
 

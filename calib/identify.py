@@ -29,7 +29,7 @@ from .errors import RobocalError
 from .identifiability import Identifiability, analyse
 from .model import MeasurementModel
 from .outliers import OutlierReport, check_mode, decide, pose_conditions
-from .robot import rpy_from_matrix
+from .angles import rpy_from_matrix
 from .theodolite import Station
 
 
@@ -124,6 +124,9 @@ class Identification:
     #: how the covariance is scaled: "inflate" (by the reduced chi-square when above 1) or "residual" (by it always:
     #: no noise was given, the errors come from the fit's own scatter)
     error_scale: str = "inflate"
+    #: the final fit's problem, its last evaluation (residual and Jacobian at ``theta``) kept: what scores the fit
+    #: afterwards on the same rows and priors (the selection's leave-one-out, its linearisation) reuses it
+    problem: object = field(default=None, repr=False, compare=False)
 
     @property
     def sigma(self) -> np.ndarray:
@@ -394,11 +397,15 @@ def _check_enough_poses(model: MeasurementModel, st: _Setup, priors: dict) -> No
                            f"parameters; measure at least {int(np.ceil(len(k) / st.per))} poses")
 
 
-def _identifiability(model: MeasurementModel, st: _Setup, priors: dict, start: bool) -> None:
-    """Step 2 (and Chapter 6's linear step for the start): which free parameters the data determine."""
+def _identifiability(model: MeasurementModel, st: _Setup, priors: dict, start: bool,
+                     warm: np.ndarray | None = None) -> None:
+    """Step 2 (and Chapter 6's linear step for the start): which free parameters the data determine.  ``warm``: the
+    free parameters start there (the analysis too); a parameter the analysis holds goes back to its start value."""
     prob, obs = st.prob, st.prob.obs
     theta = prob.theta0.copy()
     free_idx = [prob.names.index(n) for n in st.free]
+    if warm is not None:
+        theta[free_idx] = np.asarray(warm, float)[free_idx]
     ranges = np.ptp(obs.q_rad, axis=0)
 
     def rejac(k):
@@ -421,8 +428,8 @@ def _identifiability(model: MeasurementModel, st: _Setup, priors: dict, start: b
             ident = run()
             if all(n in trans for n in ident.kept if n.endswith("_mm") and n in model.kin.index):
                 break
-        held = [prob.names.index(n) for n in ident.fixed]
-        theta[held] = prob.theta0[held]
+    held = [prob.names.index(n) for n in ident.fixed]
+    theta[held] = prob.theta0[held]
     if len(ident.kept) > st.m_obs + len(priors):
         raise RobocalError(f"identification: {st.m_obs} observations for {len(ident.kept)} identifiable parameters; "
                            f"measure at least {int(np.ceil(len(ident.kept) / st.per))} poses")
@@ -513,7 +520,8 @@ def identify(model: MeasurementModel, obs: PointObservations | AngleObservations
              theta0: np.ndarray | None = None, robust: bool = True,
              priors: dict[str, tuple[float, float]] | None = None, start: bool = True,
              max_nfev: int = 200, outliers: str = "flag", loss: str = "linear",
-             labels: dict[str, list] | None = None, error_scale: str = "inflate") -> Identification:
+             labels: dict[str, list] | None = None, error_scale: str = "inflate",
+             warm: np.ndarray | None = None) -> Identification:
     """Identify the free parameters from the observations (see the module docstring for the pipeline).
 
     ``outliers``: ``flag`` (report, keep), ``reject`` (leave out flagged poses that do not cluster) or ``off``
@@ -521,7 +529,9 @@ def identify(model: MeasurementModel, obs: PointObservations | AngleObservations
     the final fit; ``labels``: per-pose groups (station, target) the outlier cluster test also looks at;
     ``error_scale``: ``inflate`` (the covariance from the given noise, inflated by the reduced chi-square when that
     exceeds 1) or ``residual`` (scaled by the reduced chi-square either way: the noise was not given, the weights only
-    say the relative precision of the points).
+    say the relative precision of the points); ``warm``: where the solver starts (all parameters, e.g. a fit of the
+    same model on more rows: a cross-validation fold), instead of the rigid-fit and linear start -- ``theta0`` stays
+    what a held parameter is held at, so the converged fit is the one this start would reach, sooner.
     """
     check_mode(outliers, loss)
     priors = priors or {}
@@ -533,10 +543,12 @@ def identify(model: MeasurementModel, obs: PointObservations | AngleObservations
             theta0[model.index[name]] = value
     prob = _Problem(model, obs, theta0, priors)
     st = _Setup(prob, _free_set(model, prob, obs, free), 3 if not prob.angles else 2 * len(obs.stations))
+    if warm is not None:
+        start = False
     if start and not prob.angles:
         prob.theta0[: model.P] = initial_base(model, obs.q_rad, obs.points_mm, obs.ctx, theta0)
     _check_enough_poses(model, st, priors)
-    _identifiability(model, st, priors, start)
+    _identifiability(model, st, priors, start, warm)
     kept = st.ident.kept
     kidx = np.array([prob.names.index(n) for n in kept], int)
     st.theta = _bodies_start(model, prob, st.theta, kidx, max_nfev)
@@ -546,4 +558,4 @@ def identify(model: MeasurementModel, obs: PointObservations | AngleObservations
     cov, red, rms, n_obs, undetermined = _uncertainty(model, prob, theta, kidx, error_scale)
     fixed = [n for n in prob.names if n not in kept]
     return Identification(prob.names, theta, kept, fixed, cov, st.ident, rms, red, report.flagged, n_obs,
-                          prob.stations(theta), report, undetermined, error_scale)
+                          prob.stations(theta), report, undetermined, error_scale, prob)

@@ -25,7 +25,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from .robot import Robot, rot_zyx
+from .angles import rot_zyx
+from .robot import Robot
 
 TX, TY, TZ, RX, RY, RZ = range(6)
 _AXIS = {TX: 0, TY: 1, TZ: 2, RX: 0, RY: 1, RZ: 2}

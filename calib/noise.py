@@ -41,6 +41,7 @@ import numpy as np
 from .angles import wrap_angle
 from .distributions import chi2_isf
 from .errors import GeometryError, RobocalError
+from .rows import point_covariance
 from .units import ARCSEC
 
 #: ratio between given and estimated noise above which identify and diagnose warn
@@ -360,8 +361,6 @@ def for_rows(table, noise_mm: float, bound_mm: float | None = None,
     """The estimate for the rows of a pose table (:class:`calib.posecsv.PoseTable`, as identify reads it): the points'
     covariances (sigma columns, polar noise) or ``noise_mm`` are the given noise; pose ids and targets group the
     rows."""
-    from .evaluation import point_covariance
-
     cov = point_covariance(table)
     if cov is None:
         cov = np.broadcast_to(np.eye(3) * noise_mm ** 2, (table.n, 3, 3))

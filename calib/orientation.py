@@ -21,6 +21,8 @@ from __future__ import annotations
 import numpy as np
 
 from .errors import RobocalError
+from .rows import point_covariance, predict_rows
+from .targets import reference_name
 
 LEVER_MM = 100.0
 DEFAULT_NOISE_DEG = 0.01
@@ -87,8 +89,6 @@ def with_orientation_points(table, robot, noise_mm: float, sigma_angle_rad: floa
         return table, robot
     if table.points_mm is None:
         raise RobocalError(f"{table.source}: rx_deg, ry_deg, rz_deg need x, y, z (the point of the measured frame)")
-    from .evaluation import point_covariance
-    from .targets import reference_name
     names = table.target or [reference_name(list(robot.tool_points_mm) or ["P"])] * table.n
     if not robot.tool_points_mm:
         robot = robot.with_tool({"P": robot.tool_point()})
@@ -115,8 +115,6 @@ def axis_points(model, theta: np.ndarray, table, new_stations: bool = False) -> 
     for the row spans them); None when the table has no orientations or the model was fitted to none."""
     if table.orientation_rad is None:
         return None
-    from .evaluation import predict_rows
-    from .targets import reference_name
     names = table.target or [reference_name(list(model.robot.tool_points_mm) or ["P"])] * table.n
     tool = model.robot.tool_points_mm
     if not all(n + s in tool for n in set(names) for s, _ in AXES):

@@ -30,12 +30,14 @@ fixed link (a branch leaving the base before any joint).
 """
 from __future__ import annotations
 
+import re
 from dataclasses import dataclass, field, replace
-from importlib import resources
-from pathlib import Path
 
 import numpy as np
 
+from .angles import rpy_from_matrix, rpy_matrix
+from .errors import RobocalError
+from .names import joint_label
 from .tomlspec import Checker, Field, check_each
 from .units import DEG, G0_M_S2
 
@@ -277,7 +279,6 @@ class Robot:
             return self.tool_points_mm[name].copy()
         except KeyError:
             known = ", ".join(self.tool_points_mm) or "none"
-            from .errors import RobocalError
             raise RobocalError(f"{self.source}: tool point {name!r} is not defined (defined: {known})") from None
 
     def with_tool(self, points_mm: dict[str, np.ndarray]) -> "Robot":
@@ -313,7 +314,6 @@ class Robot:
         A revolute reading beyond two turns, or a prismatic one further outside its limits than the stroke, is a
         typing or unit mistake (``fk 1e308 ...``, radians for degrees) rather than a pose: one line naming the joint.
         """
-        from .errors import RobocalError
         q = np.atleast_2d(np.asarray(q_edge, float))
         lim = self.limits_rad / self.edge_scale[:, None]
         span = lim[:, 1] - lim[:, 0]
@@ -324,7 +324,6 @@ class Robot:
             row, j = map(int, np.argwhere(bad)[0])
             unit = "mm" if self.prismatic[j] else "deg"
             pose = f"pose {row + 1}: " if q.shape[0] > 1 else ""
-            from .names import joint_label
             raise RobocalError(f"{where}: {pose}{joint_label(self, j + 1)} reading {q[row, j]:g} {unit} is outside "
                                f"{lo[j]:g}..{hi[j]:g} {unit} (a typing or unit mistake?)")
 
@@ -352,96 +351,11 @@ def _coupling_matrix(chk: Checker, c: dict, n: int) -> np.ndarray:
 def parse_robot(text: str, source: str = "<string>") -> Robot:
     """Parse and check a robot description given as TOML text."""
     chk, data = Checker.parse(text, source)
-    return _build(chk, data)
+    return robot_from_table(chk, data)
 
 
-class RobotPath(str):
-    """A ``--robot`` argument with the chain cut of ``--base-link`` / ``--tip-link`` (used by URDF descriptions).
-
-    A ``str`` so that every command passing ``args.robot`` to :func:`load_robot` gets the cut without knowing of it.
-    """
-
-    def __new__(cls, path: str, base_link: str | None = None, tip_link: str | None = None):
-        obj = super().__new__(cls, path)
-        obj.base_link, obj.tip_link = base_link, tip_link
-        return obj
-
-
-def load_robot(path: str | Path | None = None, base_link: str | None = None, tip_link: str | None = None) -> Robot:
-    """Load a robot description: ``None`` gives the shipped Puma 560 of the thesis; a ``.urdf`` file is imported
-    (:func:`robot_from_urdf`); a TOML file with ``urdf = ...`` is a calibration description wrapping a URDF
-    (:mod:`calib.description`); any other TOML is a DH description (this module's format)."""
-    if path is None:
-        ref = resources.files("calib") / "data" / "puma560.toml"
-        return parse_robot(ref.read_text(encoding="utf-8"), "puma560.toml (default)")
-    base_link = base_link or getattr(path, "base_link", None)
-    tip_link = tip_link or getattr(path, "tip_link", None)
-    if str(path).lower().endswith(".urdf"):
-        return robot_from_urdf(path, base_link, tip_link)
-    chk, data = Checker.load(path)
-    if "urdf" in data:
-        from .description import build_description
-        return build_description(chk, data, Path(path), base_link, tip_link)
-    if base_link or tip_link:
-        chk.fail(None, "--base-link and --tip-link apply to URDF descriptions only")
-    return _build(chk, data)
-
-
-def rpy_from_matrix(R: np.ndarray) -> np.ndarray:
-    """(roll, pitch, yaw) with R = Rz(yaw) Ry(pitch) Rx(roll), the base convention of :mod:`calib.kinematics`."""
-    pitch = -np.arcsin(np.clip(R[2, 0], -1.0, 1.0))
-    return np.array([np.arctan2(R[2, 1], R[2, 2]), pitch, np.arctan2(R[1, 0], R[0, 0])])
-
-
-def robot_from_urdf(path: str | Path, base_link: str | None = None, tip_link: str | None = None,
-                    tool_points_mm: dict[str, np.ndarray] | None = None) -> Robot:
-    """Import one chain of a URDF (see :mod:`calib.urdf`); tool points are given in the tip link's frame (mm)."""
-    from .urdf import analyse_chain, read_urdf
-
-    ch = analyse_chain(read_urdf(path), base_link, tip_link)
-    pts = tool_points_mm if tool_points_mm else {ch.tip_link: np.zeros(3)}
-    return robot_from_analysis(ch, {k: (ch.tip_link, v) for k, v in pts.items()}, source=str(path))
-
-
-def robot_from_analysis(ch, points: dict[str, tuple[str, np.ndarray]], source: str, name: str = "",
-                        base_in_world: np.ndarray | None = None, **fields) -> Robot:
-    """The Robot of an analysed URDF chain or tree (:class:`calib.urdf.UrdfChain`): ``points`` name -> (link, xyz
-    in that link's frame, mm); ``base_in_world`` the base link in the measurement frame (default identity);
-    ``fields`` any other Robot field (drives, readings)."""
-    from .urdf import parameter_meaning
-
-    n = len(ch.links)
-    tool, frames = {}, {}
-    for key, (link, xyz) in points.items():
-        f, T = ch.point_frames[link]
-        tool[key] = T[:3, :3] @ np.asarray(xyz, float) + T[:3, 3]
-        frames[key] = int(f)
-    F0 = ch.frame0_in_base
-    B = np.eye(4) if base_in_world is None else base_in_world
-    W0 = B @ F0                                                       # frame 0 in the measurement frame
-
-    def col(attr):
-        return np.array([getattr(L, attr) for L in ch.links], float)
-
-    ends = sorted({link for link, _ in points.values()})
-    cut = ch.tip_link if len(ends) == 1 else "{" + ", ".join(ends) + "}"
-    kw = dict(
-        name=name or f"{ch.tree.name} ({ch.base_link} -> {cut})",
-        a_mm=col("a"), d_mm=col("d"), alpha_rad=col("alpha"), theta_offset_rad=col("theta"), beta_rad=col("beta"),
-        hayati=np.array([L.hayati for L in ch.links], bool), limits_rad=ch.limits,
-        gear_ratio=np.ones(n), counts_per_rev=np.full(n, 2.0 ** 20), mass_kg=ch.mass_kg, com_mm=ch.com_mm,
-        coupling=np.eye(n), gravity_m_s2=W0[:3, :3].T @ (B[:3, :3] @ np.array([0.0, 0.0, -G0_M_S2])),
-        base_xyz_mm=W0[:3, 3].copy(), base_rpy_rad=rpy_from_matrix(W0[:3, :3]),
-        tool_points_mm=tool, tool_point_frames=frames, joint_names=tuple(ch.link_names), source=source,
-        prismatic=ch.prismatic, frame0_in_base=F0, reading_names=tuple(ch.readings),
-        reading_matrix=ch.reading_matrix, reading_offset=ch.reading_offset, param_meaning=parameter_meaning(ch),
-        parent_frame=ch.parent_frame, variable_of=ch.variable_of,
-    )
-    kw.update(fields)
-    return Robot(**kw)
-
-
-def _build(chk: Checker, data: dict) -> Robot:
+def robot_from_table(chk: Checker, data: dict) -> Robot:
+    """The Robot of a checked DH description table (the TOML of this module, already parsed)."""
     top = chk.table(data, TOP_SPEC, "")
     rob = chk.table(top["robot"], ROBOT_SPEC, "robot")
     joints = check_each(chk, top["joint"], JOINT_SPEC, "joint", lambda j, key: (j, key))
@@ -489,7 +403,7 @@ def _build(chk: Checker, data: dict) -> Robot:
     pris = np.array([j["type"] == "prismatic" for j in js], bool)
     readings = _readings_table(chk, top["readings"], n, pris)
     F0 = np.eye(4)
-    F0[:3, :3] = _rpy_matrix(np.asarray(base["frame0_rpy_deg"], float) * DEG)
+    F0[:3, :3] = rpy_matrix(np.asarray(base["frame0_rpy_deg"], float) * DEG)
     F0[:3, 3] = base["frame0_xyz_mm"]
     return Robot(
         name=rob["name"],
@@ -526,24 +440,6 @@ def _tree_fields(chk: Checker, joints: list, names: list[str]) -> tuple[np.ndarr
         if j["fixed"]:
             variable[k] = -1
     return parent, variable
-
-
-def _rpy_matrix(rpy) -> np.ndarray:
-    """Rz(yaw) Ry(pitch) Rx(roll) from (roll, pitch, yaw): the inverse of :func:`rpy_from_matrix` (plain numpy: a
-    description loads without importing scipy, which costs a command half a second of start-up)."""
-    roll, pitch, yaw = (float(v) for v in rpy)
-    return rot_zyx(yaw, pitch, roll)
-
-
-def rot_zyx(yaw, pitch, roll) -> np.ndarray:
-    """Rz(yaw) Ry(pitch) Rx(roll) (..., 3, 3) for scalar or per-pose angles (the base's and the description's
-    roll-pitch-yaw; the kinematics' base transform uses it too)."""
-    cy, sy, cp, sp, cr, sr = np.cos(yaw), np.sin(yaw), np.cos(pitch), np.sin(pitch), np.cos(roll), np.sin(roll)
-    R = np.empty(np.shape(yaw) + (3, 3))
-    R[..., 0, 0], R[..., 0, 1], R[..., 0, 2] = cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr
-    R[..., 1, 0], R[..., 1, 1], R[..., 1, 2] = sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr
-    R[..., 2, 0], R[..., 2, 1], R[..., 2, 2] = -sp, cp * sr, cp * cr
-    return R
 
 
 def _readings_table(chk: Checker, t: dict, n: int, pris: np.ndarray) -> dict:
@@ -623,5 +519,4 @@ def robot_to_toml(robot: Robot) -> str:
 
 def _toml_key(key: str) -> str:
     """A TOML key: bare when it can be (letters, digits, ``_``, ``-``), else quoted (a target named ``marker@x``)."""
-    import re
     return key if re.fullmatch(r"[A-Za-z0-9_-]+", key) else '"' + key.replace("\\", "\\\\").replace('"', '\\"') + '"'

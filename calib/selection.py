@@ -141,7 +141,7 @@ def loo_residuals_mm(model: MeasurementModel, obs: PointObservations, ident: Ide
     ``H_ii`` the pose's 3x3 block of the hat matrix of the whitened problem (prior rows included in the normal
     matrix, so a prior keeps a parameter determined when the pose that sees it is left out); back to mm through the
     pose's whitening.  A pose whose block has an eigenvalue of one (it alone determines a direction): infinite."""
-    prob = _Problem(model, obs, ident.theta[: model.P], {n: v for n, v in (priors or {}).items() if n in ident.free})
+    prob = problem_at(model, obs, ident, priors)
     r, J = prob.residuals(ident.theta)
     kidx = [prob.names.index(n) for n in ident.free]
     Jk = J[:, kidx]
@@ -159,6 +159,18 @@ def loo_residuals_mm(model: MeasurementModel, obs: PointObservations, ident: Ide
         rw = np.linalg.solve(A[ok], ri[ok][..., None])[..., 0]
         out[ok] = np.linalg.solve(obs._white[ok], rw[..., None])[..., 0]
     return out
+
+
+def problem_at(model: MeasurementModel, obs: PointObservations, ident: Identification,
+               priors: dict | None = None) -> _Problem:
+    """The fit's problem on the rows ``obs`` with the priors on its estimated parameters, at ``ident.theta``: the
+    fit's own (its last residual and Jacobian are that point's) when it ran on these rows and priors, else a new one
+    (same numbers, one more evaluation of the model)."""
+    pri = {n: v for n, v in (priors or {}).items() if n in ident.free}
+    own = ident.problem
+    if own is not None and own.obs is obs and own.priors == pri:
+        return own
+    return _Problem(model, obs, ident.theta[: model.P], pri)
 
 
 def press_rms_mm(model, obs, ident, priors=None) -> float:
@@ -195,10 +207,14 @@ class _Fitter:
     error_scale: str
     fit: Callable = identify
 
-    def __call__(self, free: list[str], theta0: np.ndarray, start: bool = False) -> Identification:
+    def __call__(self, free: list[str], theta0: np.ndarray, start: bool = False,
+                 warm: Identification | None = None) -> Identification:
+        """The fit of ``free`` from ``theta0`` (held parameters stay there); ``warm``: a fit of the same free set on
+        other rows (the whole set, for a cross-validation fold) where the solver starts instead."""
         pri = {n: v for n, v in self.priors.items() if n in free}
+        more = {"warm": warm.theta} if warm is not None else {}
         return self.fit(self.model, self.obs, free=free, theta0=theta0, priors=pri, start=start, outliers="off",
-                        loss=self.loss, error_scale=self.error_scale)
+                        loss=self.loss, error_scale=self.error_scale, **more)
 
     def step(self, name: str, ident: Identification, free: list[str]) -> Step:
         return Step(name, free, ident, press_rms_mm(self.model, self.obs, ident, self.priors))
@@ -207,31 +223,40 @@ class _Fitter:
 def select(model: MeasurementModel, obs: PointObservations, free: list[str], priors: dict | None = None,
            theta0: np.ndarray | None = None, start: bool = True, outliers: str = "flag", loss: str = "linear",
            labels: dict | None = None, rule: str = "auto", error_scale: str = "inflate",
-           fit: Callable = identify, explain: bool = True) -> tuple[Selection, Identification]:
+           fit: Callable = identify, explain: bool = True,
+           warm: Selection | None = None) -> tuple[Selection, Identification]:
     """Select the model the rows ``obs`` support (see the module docstring).  Returns the selection and the first
     full fit (its outlier report names the flagged and rejected poses).  ``rule="all"``: the full set is the answer
     (the located nominal model is fitted too: it is the "before" of the accuracy).  ``explain=False`` leaves out what
-    would determine each held parameter (a cross-validation fold needs only the choice)."""
+    would determine each held parameter (a cross-validation fold needs only the choice).
+
+    ``warm``: the selection on the whole set, for a cross-validation fold: each candidate's fit starts from that
+    candidate's fit on the whole set (a start point only: every choice -- the identifiability guard, the outlier
+    decision, the elimination, the winner -- is made again on ``obs``, and a held parameter is held at its design
+    value or prior, never at a value the whole set gave it)."""
     if rule not in ("auto", "all"):
         raise RobocalError(f"--select must be auto or all, got {rule!r}")
     priors = priors or {}
     theta0 = np.array(model.nominal if theta0 is None else theta0, float)
+    start_at = {s.name: s.ident for s in warm.steps} if warm is not None else {}
+    more = {"warm": start_at["full set"].theta} if "full set" in start_at else {}
     full = fit(model, obs, free=free, theta0=theta0, priors=priors, start=start, outliers=outliers, loss=loss,
-               labels=labels, error_scale=error_scale)
+               labels=labels, error_scale=error_scale, **more)
     rep = full.outlier_report
     kept_obs = obs
     if rep is not None and rep.rejected:
         kept_obs = obs.subset(np.setdiff1d(np.arange(obs.n), rep.rejected))
     fitter = _Fitter(model, kept_obs, priors, loss, error_scale, fit)
     loc = [n for n in locate_free(model) if n in free] or [n for n in free if n.startswith(("base.", "tool."))]
-    located = fitter(loc, theta0, start=start)
+    located = fitter(loc, theta0, start=start, warm=start_at.get("located nominal"))
     steps = [fitter.step("located nominal", located, loc)]
     if rule == "all":
         steps.append(fitter.step("full set", full, list(free)))
         return Selection(rule, steps, 1, [], kept_obs.n), full
     offs = [n for n in free if n in set(loc) | set(offsets_free(model))]
     if len(offs) > len(loc):
-        steps.append(fitter.step("joint offsets", fitter(offs, located.theta), offs))
+        steps.append(fitter.step("joint offsets", fitter(offs, located.theta, warm=start_at.get("joint offsets")),
+                                 offs))
     sig, held, press = _significant(fitter, full, set(loc), reference_values(model, priors))
     if sig is not None and sig.free != full.free:
         steps.append(Step("significant", list(sig.free), sig, press))
@@ -260,8 +285,8 @@ def _significant(fitter: _Fitter, full: Identification, location: set[str],
 
     model, obs = fitter.model, fitter.obs
     pri = {n: v for n, v in fitter.priors.items() if n in full.free}
-    prob = _Problem(model, obs, full.theta[: model.P], pri)
-    lin = linearise(prob, full, [ref[model.index[n]] if n in model.index else full.value(n) for n in full.free],
+    lin = linearise(problem_at(model, obs, full, pri), full,
+                    [ref[model.index[n]] if n in model.index else full.value(n) for n in full.free],
                     [_movable(n, location, fitter) for n in full.free], 3, obs._white)
     press = lin.cv_rms_mm(make_folds(obs.n, obs.n if obs.n <= LOO_POSES else 10))
     free_mask, held_lin = lin.eliminate(np.arange(obs.n))
@@ -315,6 +340,8 @@ def _held(fitter: _Fitter, sel: Selection, full: Identification, insignificant: 
     determine it."""
     model, chosen = fitter.model, sel.ident
     out = []
+    if all(name in chosen.free or name not in model.index for name in full.free):
+        return out                      # nothing held: no joint to spread for (19 Jacobians on a 19-joint tree)
     gain = _spread_gain(fitter, full)
     n = fitter.obs.n
     best = sel.steps[sel.chosen]

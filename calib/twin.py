@@ -22,7 +22,8 @@ import numpy as np
 
 from .effects import EFFECTS, Effect, PoseContext, effect_from_table
 from .model import MeasurementModel
-from .robot import Robot, load_robot
+from .robot import Robot
+from .loading import load_robot
 from .theodolite import Station, thesis_stations
 from .tomlspec import Checker, Field
 from .units import ARCSEC, DEG

@@ -28,8 +28,10 @@ from pathlib import Path
 
 import numpy as np
 
+from .angles import rot_zyx, rpy_from_matrix
 from .errors import RobocalError
-from .units import DEG
+from .robot import Robot
+from .units import DEG, G0_M_S2
 
 PARALLEL_DEG = 1.0            # consecutive axes closer to parallel than this use the Hayati beta
 MOVING = ("revolute", "continuous", "prismatic")
@@ -97,7 +99,6 @@ def _numbers(el, attr: str, count: int, default, where: str) -> np.ndarray:
 
 def _origin(el, where: str) -> np.ndarray:
     """A URDF ``<origin xyz rpy>`` as a 4x4 (metres): fixed-axis roll, pitch, yaw, i.e. Rz(yaw) Ry(pitch) Rx(roll)."""
-    from .robot import rot_zyx
 
     o = None if el is None else el.find("origin")
     xyz = _numbers(o, "xyz", 3, [0.0, 0.0, 0.0], where)
@@ -329,7 +330,7 @@ def _next_frame(F: np.ndarray, u: np.ndarray, p: np.ndarray) -> DHLink:
 @dataclass
 class UrdfChain:
     """The cut robot in numbers -- one chain, or the tree from the base to every link that carries a point: what
-    :func:`calib.robot.robot_from_urdf` turns into a Robot.
+    :func:`calib.urdf.robot_from_urdf` turns into a Robot.
 
     One entry per *internal link* of the Robot: a moving joint's own link (its DH/Hayati parameters to its first
     moving child's axis), a *branch* link for each further child (the same joint variable, its own common normal to
@@ -572,3 +573,47 @@ def parameter_meaning(chain: UrdfChain) -> dict[str, str]:
     for q in ("x_mm", "y_mm", "z_mm"):
         out[f"tool.{q}"] = f"tool point on {chain.tip_link} (origins of the fixed joints after {ax[-1].name})"
     return out
+
+
+def robot_from_urdf(path: str | Path, base_link: str | None = None, tip_link: str | None = None,
+                    tool_points_mm: dict[str, np.ndarray] | None = None) -> Robot:
+    """Import one chain of a URDF (see :mod:`calib.urdf`); tool points are given in the tip link's frame (mm)."""
+    ch = analyse_chain(read_urdf(path), base_link, tip_link)
+    pts = tool_points_mm if tool_points_mm else {ch.tip_link: np.zeros(3)}
+    return robot_from_analysis(ch, {k: (ch.tip_link, v) for k, v in pts.items()}, source=str(path))
+
+
+def robot_from_analysis(ch, points: dict[str, tuple[str, np.ndarray]], source: str, name: str = "",
+                        base_in_world: np.ndarray | None = None, **fields) -> Robot:
+    """The Robot of an analysed URDF chain or tree (:class:`calib.urdf.UrdfChain`): ``points`` name -> (link, xyz
+    in that link's frame, mm); ``base_in_world`` the base link in the measurement frame (default identity);
+    ``fields`` any other Robot field (drives, readings)."""
+    n = len(ch.links)
+    tool, frames = {}, {}
+    for key, (link, xyz) in points.items():
+        f, T = ch.point_frames[link]
+        tool[key] = T[:3, :3] @ np.asarray(xyz, float) + T[:3, 3]
+        frames[key] = int(f)
+    F0 = ch.frame0_in_base
+    B = np.eye(4) if base_in_world is None else base_in_world
+    W0 = B @ F0                                                       # frame 0 in the measurement frame
+
+    def col(attr):
+        return np.array([getattr(L, attr) for L in ch.links], float)
+
+    ends = sorted({link for link, _ in points.values()})
+    cut = ch.tip_link if len(ends) == 1 else "{" + ", ".join(ends) + "}"
+    kw = dict(
+        name=name or f"{ch.tree.name} ({ch.base_link} -> {cut})",
+        a_mm=col("a"), d_mm=col("d"), alpha_rad=col("alpha"), theta_offset_rad=col("theta"), beta_rad=col("beta"),
+        hayati=np.array([L.hayati for L in ch.links], bool), limits_rad=ch.limits,
+        gear_ratio=np.ones(n), counts_per_rev=np.full(n, 2.0 ** 20), mass_kg=ch.mass_kg, com_mm=ch.com_mm,
+        coupling=np.eye(n), gravity_m_s2=W0[:3, :3].T @ (B[:3, :3] @ np.array([0.0, 0.0, -G0_M_S2])),
+        base_xyz_mm=W0[:3, 3].copy(), base_rpy_rad=rpy_from_matrix(W0[:3, :3]),
+        tool_points_mm=tool, tool_point_frames=frames, joint_names=tuple(ch.link_names), source=source,
+        prismatic=ch.prismatic, frame0_in_base=F0, reading_names=tuple(ch.readings),
+        reading_matrix=ch.reading_matrix, reading_offset=ch.reading_offset, param_meaning=parameter_meaning(ch),
+        parent_frame=ch.parent_frame, variable_of=ch.variable_of,
+    )
+    kw.update(fields)
+    return Robot(**kw)

@@ -1,7 +1,7 @@
 import numpy as np
 import pytest
 
-from calib.robot import load_robot
+from calib.loading import load_robot
 
 
 @pytest.fixture(scope="session")

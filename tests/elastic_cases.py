@@ -116,7 +116,7 @@ def pivot_mm(robot, tree: tr.FakeTree, joint: str) -> float:
     j = robot.joint_names.index(joint)
     fp = Kinematics(robot).forward(np.zeros((1, robot.n)))
     uj = tree.joint(joint)
-    T = tr.link_poses(tree, {})[uj.parent] @ tr.hom(tr.rpy_matrix(uj.rpy), uj.xyz_m)
+    T = tr.link_poses(tree, {})[uj.parent] @ tr.hom(tr.rpy_matrix(*uj.rpy), uj.xyz_m)
     return float((T[:3, 3] * 1000.0 - fp.joint_origin[0, j]) @ fp.joint_axis[0, j])
 
 

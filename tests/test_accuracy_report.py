@@ -15,7 +15,7 @@ import pytest
 from calib.accuracy import before_after, holdout
 from calib.identify import PointObservations, default_free
 from calib.model import MeasurementModel
-from calib.robot import load_robot
+from calib.loading import load_robot
 from tests.fakes import thesis_puma as fake
 from tests.test_identify_independent import TOOL_MM, perturbed_arm
 
@@ -68,7 +68,7 @@ def test_summary_is_compact_with_full_names_and_degrees():
                {"name": "compliance.j4.K1_Nm_per_rad", "value": 25000.0, "error": 20000.0, "unit": "N m/rad",
                 "truth": None}]}
     text = "\n".join(t for _, t in summary_lines(res))
-    assert "gamma1       -1.489 ± 0.010 deg" in text
+    assert re.search(r"station A orientation γ1 +-1\.489 ± 0\.010 deg\n", text)
     assert "lb in/rad" in text and "not determined" in text
     assert "the order is not determined" in text and "what to do" in text
     assert "accuracy: not measured" in text

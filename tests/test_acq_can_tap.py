@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 from hypothesis import given, settings, strategies as st
 
+from acq.clock import SimClock
 from acq.emulate.can_node import CanTapNode
 from acq.emulate.pty_host import PtyHost
 from acq.emulate.slcan_device import SlcanTapDevice
@@ -17,9 +18,9 @@ from acq.encoders.can_codec import TapCanCodec, load_dbc
 from acq.encoders.can_tap import CanTap, open_can_tap
 from acq.encoders.sample import JointConverter, Unwrapper
 from acq.errors import DeviceTimeout
-from calib.robot import load_robot
+from calib.loading import load_robot
 from tests.fakes.faults import BusFaults, FaultyBus, LossySendBus
-from tests.fakes.worlds import channel, quiet_world
+from tests.fakes.worlds import channel, quiet_world, until
 
 ROBOT = load_robot()
 i32 = st.integers(-2 ** 31, 2 ** 31 - 1)
@@ -90,25 +91,28 @@ def test_assembler_counts_every_kind_of_loss():
 
 
 def test_virtual_bus_samples_match_the_world():
+    """On a simulated clock: 0.1 s after the move the node has sent exactly 50 more samples at 500/s, each of the
+    new pose, stamped 2 ms apart, and the reader delivers them all in order."""
     w = quiet_world()
     ch = channel()
+    clock = SimClock()
     tap = open_can_tap("virtual", ch, robot=ROBOT)
-    node = CanTapNode(can.Bus(interface="virtual", channel=ch), TapModel(w, ROBOT, rate_hz=500), own_bus=True)
+    node = CanTapNode(can.Bus(interface="virtual", channel=ch), TapModel(w, ROBOT, rate_hz=500, clock=clock),
+                      own_bus=True)
     with tap, node:
         first = tap.read(1.0)
         w.command(np.radians([-20, -45, 100, 10, -30, 45]))
-        deadline = time.monotonic() + 2
-        while True:
-            s = tap.read(1.0)
-            if s.counts != first.counts or time.monotonic() > deadline:
-                break
-        time.sleep(0.1)
+        clock.sleep(0.1)
+        after = [tap.read(2.0) for _ in range(50)]
+    s = after[-1]
     expect = np.rint(ROBOT.counts_from_joint(w.joint_angles_rad())).astype(int)
-    assert s.counts == tuple(expect) == s.counts_wire
+    assert all(a.counts == tuple(expect) == a.counts_wire for a in after)
+    assert first.counts != s.counts
     quantum = 2 * np.pi / (ROBOT.counts_per_rev * np.abs(ROBOT.gear_ratio))
     assert np.all(np.abs(s.joint_rad - w.joint_angles_rad()) < 2 * quantum.max())
-    assert tap.stats.lost_samples == 0 and tap.stats.incomplete_samples == 0 and tap.stats.samples >= 50
-    assert s.t_device_us > first.t_device_us and s.seq > first.seq
+    assert tap.stats.lost_samples == 0 and tap.stats.incomplete_samples == 0 and tap.stats.samples == 51
+    assert s.t_device_us - first.t_device_us == 100_000 and s.seq == first.seq + 50
+    assert np.all(np.abs(np.diff([a.t_device_us for a in after]) - 2000) <= 1)        # whole microseconds
 
 
 def test_int32_wrap_is_unwrapped_and_raw_kept():
@@ -135,13 +139,16 @@ def test_lost_frames_on_the_bus_are_counted_never_emitted():
     ch = channel()
     tap = open_can_tap("virtual", ch, robot=ROBOT)
     sender = LossySendBus(can.Bus(interface="virtual", channel=ch), lambda i, m: i % 37 == 5)
-    with tap, CanTapNode(sender, TapModel(w, ROBOT, rate_hz=500)):
-        time.sleep(0.6)
-    sender.shutdown()
+    clock = SimClock()
     st_ = tap.stats
-    assert sender.lost > 5
-    assert st_.incomplete_samples + st_.orphan_frames + st_.lost_samples >= sender.lost - 1
-    assert st_.samples + st_.incomplete_samples + st_.lost_samples >= 250
+    with tap, CanTapNode(sender, TapModel(w, ROBOT, rate_hz=512, clock=clock)):
+        for _ in range(40):                # simulated, in steps of 1/64 s (exact in binary; the node keeps at most
+            clock.sleep(1 / 64)            # 0.25 s of backlog): 0.625 s, 321 samples, 1284 frames
+        assert until(lambda: st_.samples + st_.incomplete_samples + st_.lost_samples >= 321)
+    sender.shutdown()
+    lost = len(range(5, 1284, 37))         # frames 5, 42, ...: 35 frames, each in another sample
+    assert sender.lost == lost == 35 and sender.index == 1284
+    assert st_.samples == 321 - lost and st_.incomplete_samples + st_.lost_samples == lost
 
 
 def test_bus_off_and_error_frames_then_recovery():
@@ -153,8 +160,8 @@ def test_bus_off_and_error_frames_then_recovery():
     with tap, CanTapNode(can.Bus(interface="virtual", channel=ch), TapModel(w, ROBOT, rate_hz=200), own_bus=True):
         tap.read(1.0)
         faults.bus_off = True
-        time.sleep(0.3)
-        assert tap.stats.bus_errors >= 1 and "bus-off" in tap.stats.last_error
+        assert until(lambda: tap.stats.bus_errors >= 1)
+        assert "bus-off" in tap.stats.last_error
         while not tap._queue.empty():
             tap._queue.get_nowait()
         with pytest.raises(DeviceTimeout, match="encoder tap \\(test\\): read sample: .*bus-off"):
@@ -188,10 +195,18 @@ def test_python_can_slcan_reads_the_emulated_tap():
 
 
 def test_our_reader_over_slcan_pty():
+    """The stream over a pty, on a simulated clock: 0.25 s after the first sample exactly 64 more have arrived at
+    256/s (steps of 1/64 s, each read before the next), none lost."""
     w = quiet_world()
-    with PtyHost(SlcanTapDevice(w, ROBOT, rate_hz=200)) as host:
+    clock = SimClock()
+    dev = SlcanTapDevice(w, ROBOT, rate_hz=256, clock=clock)
+    with PtyHost(dev) as host:
         with open_can_tap("slcan", host.path, robot=ROBOT, bitrate=1_000_000, sleep_after_open=0) as tap:
             s = tap.read(2.0)
-            time.sleep(0.2)
+            assert until(lambda: tap.stats.samples == dev.model.seq)       # the reader has what was sent so far
+            first = tap.stats.samples
+            for k in range(1, 17):
+                clock.sleep(1 / 64)
+                assert until(lambda: tap.stats.samples >= first + 4 * k), (k, tap.stats.samples - first)
     assert np.allclose(s.joint_rad, w.joint_angles_rad(), atol=1e-3)
-    assert tap.stats.lost_samples == 0
+    assert tap.stats.samples - first == 64 and tap.stats.lost_samples == 0

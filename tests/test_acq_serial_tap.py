@@ -1,24 +1,24 @@
 """The serial (COBS + CRC-16) encoder tap: reference vectors, independent writer vs reader, faults."""
 from __future__ import annotations
 
-import time
 import uuid
 
 import numpy as np
 import pytest
 from hypothesis import given, settings, strategies as st
 
+from acq.clock import SimClock
 from acq.emulate import registry
 from acq.emulate.pty_host import PtyHost
 from acq.emulate.tap_device import RawSample, SerialTapDevice, serial_frame
 from acq.encoders.cobs_codec import (FrameError, TapFrame, cobs_decode, cobs_encode, crc16_ccitt_false,
                                      decode_frame, encode_frame)
 from acq.encoders.serial_tap import open_serial_tap
-from calib.robot import load_robot
+from calib.loading import load_robot
 from tests.fakes.faults import FaultyDevice
 from tests.fakes.serial_tap_codec import (cobs_encode_simple, crc16_ccitt_false_bitwise, legacy_cobs_decode,
                                           legacy_crc16_ccitt_false, serial_frame_simple)
-from tests.fakes.worlds import quiet_world
+from tests.fakes.worlds import quiet_world, until
 
 ROBOT = load_robot()
 WIRE = bytes.fromhex("07 01 02 01 40 e2 01 03 10 27 01 05 3c f6 ff ff 01 01 01 03 07 43 01 02 01 01 01 07 ff ff ff ff"
@@ -93,19 +93,24 @@ def _tap(url):
 def test_serial_tap_over_url_matches_world():
     w = quiet_world()
     name = f"st-{uuid.uuid4().hex[:8]}"
-    url = registry.publish(name, SerialTapDevice(w, ROBOT, rate_hz=500))
+    clock = SimClock()
+    url = registry.publish(name, SerialTapDevice(w, ROBOT, rate_hz=512, clock=clock))
     with _tap(url) as tap:
         s = tap.read(1.0)
-        time.sleep(0.3)
+        for k in range(1, 21):               # 20 steps of 1/64 s (exact in binary) of simulated time: 8 samples each
+            clock.sleep(1 / 64)
+            assert until(lambda: tap.stats.samples >= 1 + 8 * k)
     registry.withdraw(name)
     assert s.counts == tuple(np.rint(ROBOT.counts_from_joint(w.joint_angles_rad())).astype(int))
     assert np.allclose(s.joint_rad, w.joint_angles_rad(), atol=2e-4)
-    assert tap.stats.samples > 100 and tap.stats.lost_samples == 0 and tap.stats.bad_frames == 0
+    assert tap.stats.samples == 161 and tap.stats.lost_samples == 0 and tap.stats.bad_frames == 0
 
 
 def test_serial_tap_over_pty_with_garbled_and_dropped_bytes():
     w = quiet_world()
-    dev = FaultyDevice(SerialTapDevice(w, ROBOT, rate_hz=400), seed=3)
+    clock = SimClock()
+    inner = SerialTapDevice(w, ROBOT, rate_hz=512, clock=clock)
+    dev = FaultyDevice(inner, seed=3)
     dev.garble_byte_prob = 0.002
     dev.drop_byte_prob = 0.001
     expect = tuple(np.rint(ROBOT.counts_from_joint(w.joint_angles_rad())).astype(int))
@@ -114,7 +119,11 @@ def test_serial_tap_over_pty_with_garbled_and_dropped_bytes():
         got = []
         tap.start(got.append)
         try:
-            time.sleep(1.0)
+            assert until(lambda: inner.model.seq >= 1)                       # the tap streams from t = 0
+            for k in range(1, 65):           # 1 s of simulated time in steps of 1/64 s: 512 more samples
+                clock.sleep(1 / 64)
+                assert until(lambda: inner.model.seq >= 1 + 8 * k)          # the device has sent them
+            assert until(lambda: tap.stats.samples + tap.stats.lost_samples >= 450 and tap.stats.bad_frames > 0)
         finally:
             tap.stop()
     st_ = tap.stats
@@ -131,10 +140,10 @@ def test_serial_tap_reconnects_after_unplug():
     with tap:
         tap.read(1.0)
         registry.unplug(name)
-        time.sleep(0.2)
-        assert tap.stats.bus_errors >= 1 and "unplugged" in tap.stats.last_error
+        assert until(lambda: tap.stats.bus_errors >= 1)
+        assert "unplugged" in tap.stats.last_error
         registry.replug(name)
-        time.sleep(0.3)
+        assert until(lambda: tap.stats.reconnects >= 1)
         while not tap._queue.empty():
             tap._queue.get_nowait()
         s = tap.read(1.0)

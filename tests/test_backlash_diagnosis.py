@@ -110,7 +110,7 @@ def test_the_stated_width_error_is_honest_over_seeds(tmp_path):
     from calib.diagnose.data import load_data
     from calib.effects import make_effect
     from calib.identify import default_free, identify
-    from calib.robot import load_robot
+    from calib.loading import load_robot
 
     z = []
     for seed in range(12):

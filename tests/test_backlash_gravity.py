@@ -7,7 +7,7 @@ import pytest
 
 from calib.effects import PoseContext, effect_from_spec, effect_from_text, effect_spec, make_effect
 from calib.model import MeasurementModel
-from calib.robot import load_robot
+from calib.loading import load_robot
 from calib.units import DEG
 
 from .fakes.backlash_sessions import Arm, Play, approach_of, program

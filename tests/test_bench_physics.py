@@ -11,6 +11,7 @@ from acq.session.rig import EmulatedBench
 from acq.session.steps import Step, TargetSpec
 from calib.twin import Twin, parse_scenario
 from calib.units import DEG
+from tests.fakes.oracle.beam import cantilever_deflection
 from tests.fakes.point_loads import frames, point_force_torques
 
 K3, K4, EI2 = 13000.0, 25000.0, 2.0e11
@@ -107,7 +108,7 @@ def test_gauges_read_the_cantilever_deflection_of_their_points(bench):
     got = bench.read_gauges(step)
     P = mass * 9.80665
     for i, x in enumerate(xs):
-        want = P * x * x * (3 * a - x) / (6 * EI2)
+        want = cantilever_deflection(x, a, P, EI2)                          # the oracle's integrated beam
         assert got[f"g{i}_mm"] == pytest.approx(want, abs=1.5e-4), (x, got)
     assert got["g2_mm"] > 0.01
     # the old link-compliance step reads the same gauges through the same translation

@@ -119,7 +119,8 @@ def test_top_level_help_loads_no_command_module():
 def test_base_rotation_matches_an_independent_library():
     from scipy.spatial.transform import Rotation
 
-    from calib.robot import _rpy_matrix, rpy_from_matrix
+    from calib.angles import rpy_matrix as _rpy_matrix
+    from calib.angles import rpy_from_matrix
     rng = np.random.default_rng(3)
     for rpy in rng.uniform([-3.0, -1.5, -3.0], [3.0, 1.5, 3.0], (50, 3)):
         np.testing.assert_allclose(_rpy_matrix(rpy), Rotation.from_euler("xyz", rpy).as_matrix(), atol=1e-12)

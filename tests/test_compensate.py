@@ -12,7 +12,7 @@ from calib.effects import effect_from_text
 from calib.errors import RobocalError
 from calib.identify import PointObservations, identify
 from calib.model import MeasurementModel
-from calib.robot import load_robot
+from calib.loading import load_robot
 from calib.theodolite import intersect
 from calib.twin import Twin
 

@@ -14,7 +14,7 @@ from calib.diagnose.independent import Spec, generate
 from calib.effects import EFFECTS, make_effect
 from calib.identify import PointObservations, default_free, identify
 from calib.model import MeasurementModel
-from calib.robot import load_robot
+from calib.loading import load_robot
 from calib.targets import TargetContext, with_targets
 
 #: the structure each kind needs beyond a joint (order, source, reference)

@@ -5,7 +5,8 @@ import numpy as np
 import pytest
 
 from calib.errors import RobocalError
-from calib.robot import load_robot, robot_from_urdf
+from calib.urdf import robot_from_urdf
+from calib.loading import load_robot
 from calib.units import DEG
 
 EX = Path(__file__).resolve().parents[1] / "examples"

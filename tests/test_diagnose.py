@@ -141,7 +141,7 @@ def test_bad_pose_row_names_file_line_and_column(tmp_path):
 
 @pytest.mark.skipif(not TIAGO.exists(), reason="TIAGo mocap data set not present")
 def test_tiago_mocap_through_the_generic_csv_path_and_geometric_gap():
-    from calib.robot import load_robot
+    from calib.loading import load_robot
     d = load_data(TIAGO, load_robot(TIAGO_ROBOT), noise_mm=0.2, angle_unit="rad", length_unit="m")
     assert d.n == 34 and d.q_rad.shape == (34, 8) and d.robot.prismatic[0]
     assert 0 < d.q_rad[:, 0].min() and d.q_rad[:, 0].max() < 360            # torso lift in mm, not m
@@ -157,7 +157,7 @@ def test_tiago_bad_row(tmp_path):
     bad = text[:5] + [text[5].replace(text[5].split(",")[13], "nan", 1)] + text[6:]
     p = tmp_path / "t.csv"
     p.write_text("\n".join(bad) + "\n")
-    from calib.robot import load_robot
+    from calib.loading import load_robot
     with pytest.raises(RobocalError, match=r"line 6: column arm_1_joint"):
         load_data(p, load_robot(TIAGO_ROBOT), noise_mm=0.2, angle_unit="rad", length_unit="m")
 

@@ -6,7 +6,7 @@ import numpy as np
 from calib.diagnose.families import FAMILIES, family_cases, judge, run_families
 from calib.diagnose.independent import Arm, Spec, generate
 from calib.model import MeasurementModel
-from calib.robot import load_robot
+from calib.loading import load_robot
 
 SUBSET = ("TE j4", "JC j3 + TE j2", "BL j3 x0.3", "quadratic error j2", "clean, t3 + 1 %", "JC j3, 50 poses",
           "clean, noise given x2", "clean")

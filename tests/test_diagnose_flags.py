@@ -13,7 +13,7 @@ from calib.diagnose import diagnose
 from calib.diagnose.data import from_arrays, load_data
 from calib.diagnose.independent import Spec, generate
 from calib.diagnose.select import _group_dependence
-from calib.robot import load_robot
+from calib.loading import load_robot
 
 
 def _independent(specs, n, seed):

@@ -58,7 +58,7 @@ def _write(tmp_path, case: str, seed: int = 0, order=tuple(TARGETS)) -> tuple[st
 
 def _diagnose(csv: str, desc: str):
     from calib.diagnose import diagnose, load_data
-    from calib.robot import load_robot
+    from calib.loading import load_robot
     return diagnose(load_data(csv, load_robot(desc), noise_mm=SIGMA_MM))
 
 

@@ -10,6 +10,8 @@ from calib.effects import (Backlash, CrossCoupling, JointCompliance, LinkComplia
 from calib.model import TORQUE_TERM_THRESHOLD, MeasurementModel, torque_term_size
 from calib.units import DEG, G0_M_S2, NM_PER_LBIN
 from tests.fakes import thesis_puma as fake
+from tests.fakes.oracle.chain import numeric_jacobian, point_in
+from tests.fakes.point_loads import frames
 from tests.fakes.thesis_puma import ThesisPuma
 
 
@@ -41,21 +43,20 @@ def test_backlash_flips_with_approach_direction(puma, rng):
 
 
 def gravity_torque_by_virtual_work(model, q, h=1e-6):
-    """tau_j = -dU/dq_j with U the potential energy of the link masses (independent of Model.loads)."""
+    """tau_j = -dU/dq_j with U the potential energy of the link masses, the links placed by the oracle's plain
+    products (independent of Model.loads and of calib.kinematics)."""
     r = model.robot
     g = r.gravity_m_s2
 
     def U(qq):
-        fp = model.kin.forward(qq)
-        com = fp.frame_t[:, 1:] + np.einsum("nkij,kj->nki", fp.frame_R[:, 1:], r.com_mm)
-        return -np.einsum("nkc,c,k->n", com * 1e-3, g, r.mass_kg)
+        out = []
+        for row in qq:
+            T = frames(r, row)
+            com = np.array([point_in(T[k + 1], r.com_mm[k]) for k in range(r.n)])
+            out.append(-np.einsum("kc,c,k->", com * 1e-3, g, r.mass_kg))
+        return np.array(out)
 
-    tau = np.empty_like(q)
-    for j in range(q.shape[1]):
-        dq = np.zeros(q.shape[1])
-        dq[j] = h
-        tau[:, j] = -(U(q + dq) - U(q - dq)) / (2 * h)
-    return tau
+    return -numeric_jacobian(U, q, h)                   # each pose its own row
 
 
 def test_gravity_torques_match_virtual_work(puma, rng):
@@ -164,11 +165,10 @@ def test_geometric_jacobian_includes_the_torque_change(puma, rng):
     ctx = m.context(n, payload_kg=3.0)
     theta = m.nominal
     J = m.evaluate(q, ctx, theta=theta, jacobian=True, torque_derivative=True).jacobian
+    steps = np.array([1e-6 if name.endswith("_rad") else 1e-4 for name in m.names])
+    fd_all = numeric_jacobian(lambda th: m.points(q, ctx, th), theta, steps)
     for i in range(m.n_geometric):
-        h = 1e-6 if m.names[i].endswith("_rad") else 1e-4
-        d = np.zeros(m.P)
-        d[i] = h
-        fd = (m.points(q, ctx, theta + d) - m.points(q, ctx, theta - d)) / (2 * h)
+        fd = fd_all[:, :, i]
         np.testing.assert_allclose(J[:, :, i], fd, atol=2e-6 * max(1.0, np.abs(fd).max()), err_msg=m.names[i])
 
 

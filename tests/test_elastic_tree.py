@@ -17,15 +17,17 @@ from calib.effects import effect_from_text
 from calib.effects.joint_compliance import JointCompliance
 from calib.effects.lateral_compliance import LateralCompliance
 from calib.effects.mass_moment import MassMoment
-from calib.evaluation import context_of, fit_rows, point_covariance
+from calib.evaluation import fit_rows
+from calib.rows import context_of, point_covariance
 from calib.identify import PointObservations, identify
 from calib.model import MeasurementModel
 from calib.posecsv import read_pose_csv
-from calib.robot import load_robot
+from calib.loading import load_robot
 from calib.targets import TargetContext, with_targets
 from calib.threads import limit
 from tests import elastic_cases as ec
 from tests.fakes import tree_robot as tr
+from tests.fakes.oracle.chain import numeric_jacobian
 
 
 @pytest.fixture(scope="module")
@@ -83,13 +85,9 @@ def test_jacobian_on_a_tree_matches_central_differences(world):
     _, q, ctx = _rows(robot, tree, 4, 5)
     theta = model.nominal
     J = model.evaluate(q, ctx, theta, jacobian=True, torque_derivative=True).jacobian
-    num = np.empty_like(J)
-    for i, name in enumerate(model.names):
-        h = 1e-4 if name.endswith(("_kg", "_kgmm")) else 1e-9 if name.endswith("_per_nm") else \
-            1e-6 if name.endswith("_mm") else 1e-7
-        d = np.zeros(model.P)
-        d[i] = h
-        num[:, :, i] = (model.points(q, ctx, theta + d) - model.points(q, ctx, theta - d)) / (2 * h)
+    steps = np.array([1e-4 if name.endswith(("_kg", "_kgmm")) else 1e-9 if name.endswith("_per_nm") else
+                      1e-6 if name.endswith("_mm") else 1e-7 for name in model.names])
+    num = numeric_jacobian(lambda th: model.points(q, ctx, th), theta, steps)
     scale = np.abs(num).max(axis=(0, 1))
     err = np.abs(J - num).max(axis=(0, 1))
     assert np.all(err <= 1e-5 * np.maximum(scale, 1.0)), model.names[int(np.argmax(err / np.maximum(scale, 1.0)))]

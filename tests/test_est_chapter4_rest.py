@@ -15,13 +15,19 @@ from tests.fakes import thesis_procedures as tp
 DEG = np.pi / 180
 
 
+#: the design resolution of a 1000-count encoder behind a 76.686:1 gear, written out (2 pi per motor turn): the
+#: generators' truth, not the code under test
+S_TRUE = 2 * np.pi / (1000 * 76.686)
+
+
 def test_resolution_slope_and_refusal():
     S = design_resolution_rad(1000, 76.686)
     counts = np.arange(0, 10) * 200.0
     rng = np.random.default_rng(3)
-    meas = tp.quantise(counts * S * 1.001, 1e-7) + 2e-5 * rng.standard_normal(10)
+    meas = tp.quantise(counts * S_TRUE * 1.001, 1e-7) + 2e-5 * rng.standard_normal(10)
     res = encoder_resolution(counts, meas, np.full(10, 2e-5 ** 2), S)
     assert abs(res["scale"].value - 1.001) < 4 * res["scale"].error
+    assert abs(res["rad_per_count"].value - 1.001 * S_TRUE) < 4 * res["rad_per_count"].error
     with pytest.raises(EstimationError, match="resolution is not determined"):
         encoder_resolution(counts, 2e-5 * rng.standard_normal(10), np.full(10, 2e-5 ** 2), S)
 
@@ -34,7 +40,7 @@ def _tool_run(rng, span_deg, steps, sigma_mm=0.05):
     e1 = np.cross(n, [1.0, 0, 0])
     e1 /= np.linalg.norm(e1)
     counts = np.round(np.linspace(0.0, np.radians(span_deg) / S, steps))
-    th = counts * S * 1.002
+    th = counts * S_TRUE * 1.002
     A1 = tp.rotate(c + 100 * n, c, n, th) + sigma_mm * rng.standard_normal((steps, 3))
     A2 = tp.rotate(c + 600 * n + 500 * e1, c, n, th) + sigma_mm * rng.standard_normal((steps, 3))
     return counts, A1, A2, np.eye(6 * steps) * sigma_mm ** 2, S

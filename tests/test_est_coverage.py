@@ -8,6 +8,7 @@ from calib.estimators import compliance, ruler, transmission
 from calib.estimators.chain import synthetic_cpa
 from calib.uncertainty import coverage_fraction, gum_covariance, jacobian
 from calib.units import ARCSEC, DEG, NM_PER_LBIN
+from tests.fakes.cpa_session import from_synthetic
 
 RUNS = 200
 
@@ -29,7 +30,7 @@ def test_ruler_closed_form_coverage():
 
 def test_cpa_chain_coverage_ruler_points_axes_dh():
     s = synthetic_cpa(seed=1, n_points=4)
-    X = s.draw(np.random.default_rng(101), RUNS)
+    X = from_synthetic(s).draw(np.random.default_rng(101), RUNS)     # readings by the oracle
     est = s.chain(X)
     sd = np.sqrt(np.diag(s.cov))
     J = jacobian(s.chain, X, 0.1 * sd)

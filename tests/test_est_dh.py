@@ -9,6 +9,7 @@ from calib.estimators.chain import synthetic_cpa
 from calib.estimators.dh import (LINK_FIELDS, check_axes, dh_estimate, dh_from_axes, misalignments,
                                  puma_thesis_dh)
 from calib.estimators.axes import fit_axis
+from tests.fakes.cpa_session import from_synthetic
 
 FIG_5_10 = dict(X_c1=474.9, Y_c1=2853.0, X_c2=474.7, Z_c2=184.9, X_c3=474.6, Z_c3=-247.1, X_c5=444.9, Z_c5=-679.4,
                 X_c6=444.4, Y_c6=3007.4)
@@ -35,22 +36,23 @@ def test_puma_formulas_errors_three_ways():
 
 def test_common_normals_recover_truth_from_exact_axes():
     s = synthetic_cpa(seed=3)
-    ft = s.kin.forward(s.chain.q_rad[None], s.truth)
-    c, z = ft.frame_t[0, :-1], ft.frame_R[0, :-1, :, 2]
-    out = dh_from_axes(c, z, s.chain.q_rad, s.chain.frame0_R, s.chain.frame0_t, s.chain.x_hint, s.chain.hayati,
-                       s.chain.d_nominal, alpha_ref=s.chain.alpha_ref)
+    F = from_synthetic(s).frames                       # the true chain by the oracle's plain products
+    c, z = np.array([T[:3, 3] for T in F[:-1]]), np.array([T[:3, 2] for T in F[:-1]])
+    f0R, f0t = F[0][:3, :3], F[0][:3, 3]
+    out = dh_from_axes(c, z, s.chain.q_rad, f0R, f0t, s.chain.x_hint, s.chain.hayati, s.chain.d_nominal,
+                       alpha_ref=s.chain.alpha_ref)
     for k in range(5):
         truth = [s.truth[s.kin.index[f"j{k + 1}.{f}"]] for f in LINK_FIELDS]
         np.testing.assert_allclose(out[k], truth, atol=1e-8)
     # any point on each axis will do (the circle centres are not the frame origins)
-    out2 = dh_from_axes(c + 123.0 * z, z, s.chain.q_rad, s.chain.frame0_R, s.chain.frame0_t, s.chain.x_hint,
-                        s.chain.hayati, s.chain.d_nominal, alpha_ref=s.chain.alpha_ref)
+    out2 = dh_from_axes(c + 123.0 * z, z, s.chain.q_rad, f0R, f0t, s.chain.x_hint, s.chain.hayati, s.chain.d_nominal,
+                        alpha_ref=s.chain.alpha_ref)
     np.testing.assert_allclose(out2, out, atol=1e-8)
 
 
 def test_full_chain_three_ways_and_truth():
     s = synthetic_cpa(seed=5)
-    x = s.draw(np.random.default_rng(11))
+    x = from_synthetic(s).draw(np.random.default_rng(11))         # readings by the oracle, not calib.theodolite
     res = s.chain.estimate(x, s.cov, n_mc=3000, rng=2)
     truth = s.truth_dh()
     z = (res.value - truth) / res.error
@@ -64,7 +66,7 @@ def test_axis_fits_feed_dh_estimate():
     s = synthetic_cpa(seed=2, n_points=6)
     rng = np.random.default_rng(3)
     vals, blocks = [], []
-    for j, P in enumerate(s.sweep_points_mm):
+    for j, P in enumerate(from_synthetic(s).sweep_points_mm):
         U = np.eye(P.size) * 0.05 ** 2
         ax = fit_axis(P + 0.05 * rng.standard_normal(P.shape), U, n_mc=0, joint=f"j{j + 1}")
         vals.append(ax.value[:6])

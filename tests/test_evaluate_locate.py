@@ -7,17 +7,13 @@ import numpy as np
 import pytest
 
 from tests.dev_extra import require
+from tests.fakes.oracle.chain import rpy_matrix
 
 from acq.cli import main
 
 pin = require("pinocchio", "pin")
 EX = Path(__file__).resolve().parents[1] / "examples"
 NAMES = ["shoulder_pan_joint", "shoulder_lift_joint", "elbow_joint", "wrist_1_joint", "wrist_2_joint", "wrist_3_joint"]
-
-
-def _rot(rpy):
-    from scipy.spatial.transform import Rotation
-    return Rotation.from_euler("xyz", rpy).as_matrix()
 
 
 def _truth_urdf(tmp_path):
@@ -63,7 +59,7 @@ def world(tmp_path_factory):
     rng = np.random.default_rng(11)
     q = rng.uniform(-2.5, 2.5, (60, 6))
     T1 = np.eye(4)
-    T1[:3, :3], T1[:3, 3] = _rot([0.01, -0.02, 0.6]), [1500.0, -300.0, 200.0]
+    T1[:3, :3], T1[:3, 3] = rpy_matrix(0.01, -0.02, 0.6), [1500.0, -300.0, 200.0]
     truth = _truth_urdf(tmp)
     split = ["fit"] * 40 + ["test"] * 20
     data = _write(tmp / "s1.csv", q, _measure(truth, q, T1, 1), {"split": split, "station": ["S1"] * 60})
@@ -89,7 +85,7 @@ def test_locate_finds_a_new_station(world, capsys):
     _run(capsys, ["identify", str(data), "--robot", str(EX / "urdf" / "ur10_robot.urdf"), "--noise-mm", "0.01",
                   "--out", str(model)])
     T2 = np.eye(4)
-    T2[:3, :3], T2[:3, 3] = _rot([-0.03, 0.01, -1.1]), [-800.0, 2200.0, -50.0]
+    T2[:3, :3], T2[:3, 3] = rpy_matrix(-0.03, 0.01, -1.1), [-800.0, 2200.0, -50.0]
     d2 = _write(tmp / "s2.csv", q[:15], _measure(truth, q[:15], T2, 2), {"station": ["S2"] * 15})
     doc = json.loads(_run(capsys, ["locate", str(model), str(d2), "--json"]))
     (st,) = doc["stations"]
@@ -123,10 +119,10 @@ def test_weak_data_with_priors_does_not_make_the_robot_worse(world, capsys):
                                    "--free", "j*,tool.*", "--prior", "base.x_mm=0±0.01"]))
     # nominal: the URDF itself, evaluated on the same held-out rows (measurement frame = base link here)
     nominal_doc = {}
-    from calib.evaluation import predict_rows
+    from calib.rows import predict_rows
     from calib.model import MeasurementModel
     from calib.posecsv import read_pose_csv
-    from calib.robot import load_robot
+    from calib.loading import load_robot
     robot = load_robot(desc)
     table = read_pose_csv(weak, robot=robot)
     m = MeasurementModel(robot)
@@ -214,7 +210,7 @@ def test_two_stations_in_one_identification(world, capsys):
     """Rows from two instrument set-ups (column station) are fitted jointly: one chain, one base per set-up."""
     tmp, truth, q, T1, data = world
     T2 = np.eye(4)
-    T2[:3, :3], T2[:3, 3] = _rot([0.02, 0.01, 2.0]), [300.0, 1800.0, -120.0]
+    T2[:3, :3], T2[:3, 3] = rpy_matrix(0.02, 0.01, 2.0), [300.0, 1800.0, -120.0]
     qa, qb = q[:30], q[30:]
     pa, pb = _measure(truth, qa, T1, 12), _measure(truth, qb, T2, 13)
     split = (["fit"] * 20 + ["test"] * 10) * 2
@@ -269,7 +265,7 @@ def test_evaluate_matches_stations_by_name(world, capsys):
     order would take the file's first station for the model's first); a station the model lacks is one line."""
     tmp, truth, q, T1, data = world
     T2 = np.eye(4)
-    T2[:3, :3], T2[:3, 3] = _rot([0.02, 0.01, 2.0]), [300.0, 1800.0, -120.0]
+    T2[:3, :3], T2[:3, 3] = rpy_matrix(0.02, 0.01, 2.0), [300.0, 1800.0, -120.0]
     f = _write(tmp / "two_by_name.csv", np.vstack([q[:30], q[30:]]),
                np.vstack([_measure(truth, q[:30], T1, 12), _measure(truth, q[30:], T2, 13)]),
                {"station": ["S1"] * 30 + ["S2"] * 30})

@@ -66,7 +66,7 @@ def gauge_free(res):
 
 @pytest.fixture(scope="module")
 def puma():
-    from calib.robot import load_robot
+    from calib.loading import load_robot
     return load_robot()
 
 

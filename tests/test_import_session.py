@@ -67,7 +67,7 @@ def test_imported_session_uses_the_files_sigmas_and_conditions(tmp_path, sigmas)
     assert a["payload_kg"] == pytest.approx(np.arange(30) % 3)
     assert a["split"][:4] == ["test", "fit", "fit", "fit"] and a["pose"][1] == "p01"
     from calib.diagnose.data import from_session_arrays
-    from calib.robot import load_robot
+    from calib.loading import load_robot
     d = from_session_arrays(load_robot(), a, "i.db")
     assert d.split == a["split"] and d.has["payload"] and d.noise_from == "data"
 
@@ -102,7 +102,7 @@ def _ruler_readings(path, names, setup):
     from tests.fakes.thesis_puma import leica_readings
     st = setup["stations"]
     lines = ["step,procedure,station,target,face,hz_deg,v_deg"]
-    from acq.session.procedures import mark_index, mark_names
+    from acq.session.setup_types import mark_index, mark_names
     marks_mm = setup["ruler"]["marks_mm"]
     for k, pl in enumerate(setup["ruler"]["placements"]):
         d = np.asarray(pl["dir"], float) / np.linalg.norm(pl["dir"])

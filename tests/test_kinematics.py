@@ -4,8 +4,10 @@ import pytest
 from hypothesis import given, settings, strategies as st
 
 from calib.kinematics import Kinematics
-from calib.robot import load_robot
+from calib.loading import load_robot
 from calib.units import DEG
+from tests.fakes.oracle.chain import numeric_jacobian, rot_z
+from tests.fakes.thesis_puma import ThesisPuma, six_e
 
 from pathlib import Path
 
@@ -25,18 +27,18 @@ def thesis_A_matrices(q, a1, a2, d1, d2, d3):
     return A1 @ A2 @ A3 @ A4 @ A5 @ A6
 
 
-def sixE(Xt, Yt, Zt):
-    return np.array([[-1, 0, 0, -Xt], [0, -1, 0, -Yt], [0, 0, -1, -Zt], [0, 0, 0, 1.0]])
-
-
 def test_fk_matches_section_3_4_matrices(puma, rng):
+    """robocal's chain and the tests' oracle (tests/fakes/oracle: the general A_j with Fig 3.5's twists) both equal
+    the six matrices typed in as printed."""
     kin = Kinematics(puma)
+    oracle = ThesisPuma()
     q = rng.uniform(-np.pi, np.pi, (50, 6))
     fp = kin.forward(q)
     for i in range(len(q)):
         T = thesis_A_matrices(q[i], 432.0, -20.3, 149.1, 432.0, 57.1)
         np.testing.assert_allclose(fp.point[i], T[:3, 3], atol=1e-9)
         np.testing.assert_allclose(fp.flange_R[i], T[:3, :3], atol=1e-12)
+        np.testing.assert_allclose(oracle.frames(q[i])[6], T, atol=1e-9)
 
 
 def test_tool_point_follows_6E(puma, rng):
@@ -46,7 +48,7 @@ def test_tool_point_follows_6E(puma, rng):
     q = rng.uniform(-np.pi, np.pi, (20, 6))
     pts = kin.points(q)
     for i in range(len(q)):
-        T = thesis_A_matrices(q[i], 432.0, -20.3, 149.1, 432.0, 57.1) @ sixE(Xt, Yt, Zt)
+        T = thesis_A_matrices(q[i], 432.0, -20.3, 149.1, 432.0, 57.1) @ six_e(Xt, Yt, Zt)
         np.testing.assert_allclose(pts[i], T[:3, 3], atol=1e-9)
 
 
@@ -68,12 +70,7 @@ def test_robotics_toolbox_published_pose():
 
 
 def _fd_jacobian(kin, q, params, h=1e-6):
-    J = np.empty((len(q), 3, kin.P))
-    for i in range(kin.P):
-        d = np.zeros(kin.P)
-        d[i] = h
-        J[:, :, i] = (kin.points(q, params + d) - kin.points(q, params - d)) / (2 * h)
-    return J
+    return numeric_jacobian(lambda th: kin.points(q, th), params, h)
 
 
 def test_parameter_jacobian_matches_finite_differences(puma, rng):
@@ -114,8 +111,7 @@ def test_base_transform_moves_points_rigidly(puma, rng):
     params[kin.index["base.x_mm"]] = 100.0
     params[kin.index["base.yaw_rad"]] = 0.3
     p1 = kin.points(q, params)
-    c, s = np.cos(0.3), np.sin(0.3)
-    R = np.array([[c, -s, 0], [s, c, 0], [0, 0, 1]])
+    R = rot_z(0.3)[:3, :3]
     np.testing.assert_allclose(p1, p0 @ R.T + [100.0, 0, 0], atol=1e-9)
 
 

@@ -9,7 +9,7 @@ import pytest
 
 from acq.cli import main
 from calib import names
-from calib.robot import load_robot
+from calib.loading import load_robot
 
 EX = Path(__file__).resolve().parents[1] / "examples"
 TIAGO = [str(EX / "tiago" / "qualysis_base_hand_calibration.csv"), "--robot", str(EX / "tiago" / "tiago_mocap.toml"),

@@ -246,7 +246,7 @@ def test_a_blunder_is_left_out_of_the_distances():
 def test_the_diagnosis_reads_several_targets_per_pose_from_a_pose_csv(tmp_path):
     from calib.diagnose import noise as dnoise
     from calib.diagnose.data import load_data
-    from calib.robot import load_robot
+    from calib.loading import load_robot
 
     sigma = 0.03
     q, P = _measured(9, 40, 2, sigma, COMPLIANCE)

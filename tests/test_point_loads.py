@@ -8,6 +8,7 @@ import pytest
 from calib.effects import JointCompliance, PoseContext
 from calib.model import MeasurementModel
 from calib.units import DEG
+from tests.fakes.oracle.chain import numeric_jacobian
 from tests.fakes.point_loads import point_force_torques, point_in_frame
 
 READY = np.array([0.0, -90.0, 90.0, 0.0, 0.0, 0.0]) * DEG
@@ -78,26 +79,13 @@ def test_points_fixed_on_a_link(puma, rng, link):
     q2[:, link:] += 0.3
     np.testing.assert_allclose(m.points(q2, tool_mm=p, link=link), ev.point_mm, atol=1e-9)
     # the Jacobian against central differences of the parameters and the point's own coordinates
-    th = m.nominal
-    h = 1e-6
-    for i in range(m.n_geometric):
-        e = np.zeros(m.P)
-        e[i] = h
-        if m.names[i].startswith("tool."):
-            c = "xyz".index(m.names[i][5])
-            dp = np.zeros(3)
-            dp[c] = h
-            num = (m.points(q, tool_mm=p + dp, link=link) - m.points(q, tool_mm=p - dp, link=link)) / (2 * h)
-        else:
-            num = (m.points(q, theta=th + e, tool_mm=p, link=link)
-                   - m.points(q, theta=th - e, tool_mm=p, link=link)) / (2 * h)
+    num_th = numeric_jacobian(lambda th: m.points(q, theta=th, tool_mm=p, link=link), m.nominal, 1e-6)
+    num_p = numeric_jacobian(lambda pp: m.points(q, tool_mm=pp, link=link), np.asarray(p, float), 1e-6)
+    for i in range(m.n_geometric):                 # a tool column moves the point given, not the model's tool
+        num = num_p[:, :, "xyz".index(m.names[i][5])] if m.names[i].startswith("tool.") else num_th[:, :, i]
         np.testing.assert_allclose(ev.jacobian[:, :, i], num, atol=1e-5, err_msg=m.names[i])
-    dq = 1e-6
-    for j in range(puma.n):
-        e = np.zeros(puma.n)
-        e[j] = dq
-        num = (m.points(q + e, tool_mm=p, link=link) - m.points(q - e, tool_mm=p, link=link)) / (2 * dq)
-        np.testing.assert_allclose(ev.joint_jacobian[:, :, j], num, atol=1e-5)
+    num_q = numeric_jacobian(lambda qq: m.points(qq, tool_mm=p, link=link), q, 1e-6)   # each pose its own row
+    np.testing.assert_allclose(ev.joint_jacobian, num_q, atol=1e-5)
 
 
 def test_torque_derivative_with_point_forces(puma, rng):
@@ -109,14 +97,11 @@ def test_torque_derivative_with_point_forces(puma, rng):
     ctx = _ctx(m, len(q), links, pts, F)
     geo = m.nominal[: m.n_geometric]
     d = m.loads(m.kin.forward(q, geo), ctx, derivative=True).dtau_dgeo
-    h = 1e-6
+    num_all = numeric_jacobian(lambda g: m.loads(m.kin.forward(q, g), ctx).joint_torque_nm, geo, 1e-6)
     for i, name in enumerate(m.kin.names):
         if name.startswith("base."):
             continue                    # gravity is given in frame 0: the model lets the base carry it along
-        e = np.zeros_like(geo)
-        e[i] = h
-        num = (m.loads(m.kin.forward(q, geo + e), ctx).joint_torque_nm
-               - m.loads(m.kin.forward(q, geo - e), ctx).joint_torque_nm) / (2 * h)
+        num = num_all[:, :, i]
         np.testing.assert_allclose(d[:, :, i], num, atol=1e-6 * max(1.0, np.abs(num).max()), err_msg=name)
 
 
@@ -131,6 +116,7 @@ def test_link_bending_under_a_mass_on_the_link(puma):
     """Link compliance of link 2 with a mass on link 2 at a: a point on link 2 at x moves by the cantilever
     deflection P x^2 (3a - x) / (6 EI) across the link; a point on link 1 does not move."""
     from calib.effects import LinkCompliance
+    from tests.fakes.oracle.beam import cantilever_deflection
     from tests.fakes.point_loads import frames
     ei = 2.0e11
     m = MeasurementModel(puma, [LinkCompliance(2, ei)])
@@ -148,8 +134,9 @@ def test_link_bending_under_a_mass_on_the_link(puma):
     P = mass * g - (mass * g @ u) * u                                    # the force across the link
     for x in (100.0, 250.0, 400.0):
         d = m.points(q[None], ctx, tool_mm=on_link(x), link=2) - m.points(q[None], tool_mm=on_link(x), link=2)
-        shape = x * x * (3 * a - x) if x <= a else a * a * (3 * x - a)
-        np.testing.assert_allclose(d[0], P * shape / (6 * ei), rtol=1e-9, atol=1e-12)
+        # the oracle integrates EI y'' = M (not the closed form the model uses): equal to its grid's 1e-9
+        want = cantilever_deflection(x, a, 1.0, ei) * P
+        np.testing.assert_allclose(d[0], want, rtol=1e-8, atol=1e-12)
     d1 = m.points(q[None], ctx, tool_mm=[10.0, 20.0, 30.0], link=1) - m.points(q[None], tool_mm=[10.0, 20.0, 30.0],
                                                                               link=1)
     assert np.all(d1 == 0.0)

@@ -6,7 +6,7 @@ import pytest
 
 from calib.errors import RobocalError
 from calib.posecsv import read_pose_csv
-from calib.robot import load_robot
+from calib.loading import load_robot
 from calib.units import DEG
 
 EX = Path(__file__).resolve().parents[1] / "examples"

@@ -7,7 +7,8 @@ import pytest
 from hypothesis import given, settings, strategies as st
 
 from calib.errors import ConfigError
-from calib.robot import load_robot, parse_robot, robot_to_toml
+from calib.robot import parse_robot, robot_to_toml
+from calib.loading import load_robot
 from calib.units import DEG
 
 from importlib import resources

@@ -13,7 +13,7 @@ from acq.emulate.tap_device import TapModel
 from acq.encoders.can_tap import open_can_tap
 from acq.session.demo import _tap_drain, build_demo
 from acq.session.rig import Rig
-from calib.robot import load_robot
+from calib.loading import load_robot
 from tests.fakes.worlds import channel, quiet_world
 
 ROBOT = load_robot()

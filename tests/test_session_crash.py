@@ -81,5 +81,5 @@ def _planned_steps() -> int:
     """Steps of PLAN on the standard set-up (the ruler's placements and marks come from the set-up)."""
     from acq.session.procedures import all_steps
     from acq.session.setup import session_setup, standard_setup
-    from calib.robot import load_robot
+    from calib.loading import load_robot
     return len(all_steps(PLAN, session_setup(standard_setup(), load_robot(None))))

@@ -20,7 +20,7 @@ from acq.session.procedures import all_steps
 from calib.profile import THESIS_READY_DEG as READY_DEG
 from acq.session.setup import session_setup
 from acq.session.steps import Step, TargetSpec
-from calib.robot import load_robot
+from calib.loading import load_robot
 from calib.twin import Twin, load_scenario
 from calib.units import DEG
 

@@ -6,7 +6,8 @@ import numpy as np
 import pytest
 
 from acq.session import checks as ck
-from acq.session.procedures import PROCEDURES, all_steps, mark_index, mark_names, procedure_info
+from acq.session.procedures import PROCEDURES, all_steps, procedure_info
+from acq.session.setup_types import mark_index, mark_names
 from acq.session.setup import standard_setup
 from acq.session.steps import Step
 from calib.setup_plan import into_setup, SetupPlan
@@ -71,7 +72,7 @@ def test_registry_knows_every_procedure():
 
 
 def test_loads_and_gauges_in_the_step_vocabulary():
-    from calib.robot import load_robot
+    from calib.loading import load_robot
     from acq.session.setup import session_setup
     setup = session_setup(standard_setup(), load_robot())
     steps = all_steps({"procedures": ["compliance", "link_compliance"], "compliance": {"joints": [4]}}, setup)
@@ -90,7 +91,7 @@ def test_loads_and_gauges_in_the_step_vocabulary():
 
 def test_steps_as_commands():
     """Every step reads as the command vocabulary; the runner and the bench act on these, not on names."""
-    from calib.robot import load_robot
+    from calib.loading import load_robot
     from acq.session.setup import session_setup
     from acq.session.steps import Ask, Hang, Sight
     setup = session_setup(standard_setup(), load_robot())
@@ -118,7 +119,7 @@ def test_link_steps_ask_the_mass_and_reprocess_reads_both():
     """Contract C3: a link step that hangs a mass asks ``load_kg``; the reduction reads the mass entered (as a point
     force with the description's gravity), and an older step's ``load_n`` as that force's mass."""
     from calib.kinematics import Kinematics
-    from calib.robot import load_robot
+    from calib.loading import load_robot
     from acq.session.rig import c3_setup
     from acq.session.setup import session_setup
     robot = load_robot()
@@ -177,12 +178,11 @@ def test_resolution_truth_is_the_twins_slope_over_the_run():
     tilted by the transmission error (a little, not more than its amplitude allows) when it has."""
     import dataclasses
     from acq.emulate.truth.runs import resolution_in_estimator_terms
-    from calib.estimators.resolution import design_resolution_rad
     from calib.twin import Twin, load_scenario
     from calib.units import DEG
     sc = load_scenario(None)
     r = sc.robot
-    design = design_resolution_rad(r.counts_per_rev[5], r.gear_ratio[5])
+    design = 2 * np.pi / abs(r.counts_per_rev[5] * r.gear_ratio[5])       # written out: not the code under test
     q = np.zeros((7, 6))
     q[:, 5] = np.linspace(0.0, 150.0, 7) * DEG
     counts = np.rint(r.counts_from_joint(q))

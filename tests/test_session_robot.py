@@ -13,7 +13,7 @@ from tests.dev_extra import require
 
 from acq.cli import main
 from calib.errors import RobocalError
-from calib.robot import RobotPath
+from calib.loading import RobotPath
 
 UR10 = str(Path(__file__).resolve().parents[1] / "examples" / "urdf" / "ur10_robot.urdf")
 NAMES = ["shoulder_pan_joint", "shoulder_lift_joint", "elbow_joint", "wrist_1_joint", "wrist_2_joint", "wrist_3_joint"]

@@ -34,9 +34,10 @@ def test_joint_2_and_3_runs_pass_the_preflight_and_a_limit_is_caught():
     from acq.session.preflight import Preflight
     from acq.session.procedures import transmission
     from acq.session.setup import session_setup, standard_setup
-    from calib.robot import load_robot
+    from acq.session.setup_types import setup_of
+    from calib.loading import load_robot
     robot = load_robot(None)
-    setup = session_setup(standard_setup(), robot)
+    setup = setup_of(session_setup(standard_setup(), robot))
     pf = Preflight(robot, setup)
     steps = list(transmission({"transmission": transmission_plan([2, 3])}, setup))
     assert {s.meta["joint"] for s in steps} == {2, 3}

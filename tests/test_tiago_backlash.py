@@ -5,8 +5,8 @@ row; t_start_robot gives the measurement order).
 Fitted on the training session alone, diagnose names play on the wrist joint the data's source names (arm_6_joint,
 by its URDF name), confirms it on all three other sessions, and the exported model predicts each of them at least
 20 % better (RMS, base re-located) than the located geometric model of the same run.  The placebo -- each row's
-direction of the NEXT move -- finds no play.  Both runs use 5 folds (the default leave-one-out gives the same play;
-figures in docs/backlash-confirmation.md).
+direction of the NEXT move -- finds no play.  Both runs use the default folds (5, whatever the number of poses:
+calib.diagnose.gap; figures in docs/backlash-confirmation.md and docs/diagnose-speed.md).
 """
 from __future__ import annotations
 
@@ -25,8 +25,7 @@ ROOT = Path(__file__).resolve().parents[1]
 DESC = ROOT / "examples" / "tiago" / "tiago_mocap_sessions.toml"
 TRAINING = SHARED / "qualisys_2021-11-30_static_postures.csv"
 OTHERS = [SHARED / f"qualisys_2021-11-{s}_static_postures.csv" for s in ("26", "30-1403", "30-1504")]
-OPTIONS = ["--robot", str(DESC), "--angle-unit", "rad", "--length-unit", "m", "--noise-mm", "0.2", "--folds", "5",
-           "--json"]
+OPTIONS = ["--robot", str(DESC), "--angle-unit", "rad", "--length-unit", "m", "--noise-mm", "0.2", "--json"]
 PLAY = ("backlash", "backlash_gravity")
 
 
@@ -83,11 +82,11 @@ def test_a_scale_standing_in_for_the_play_becomes_its_alias():
     from calib.diagnose.candidates import EFFECT_NAMES, build_library
     from calib.diagnose.data import load_data
     from calib.diagnose.standins import resolve
-    from calib.robot import load_robot
+    from calib.loading import load_robot
 
     d = load_data(TRAINING, load_robot(ROOT / "examples" / "tiago" / "tiago_mocap.toml"), 0.2, angle_unit="rad",
                   length_unit="m", order="auto")
-    x = diagnose(d, kinds=tuple(k for k in EFFECT_NAMES if k not in PLAY), max_effects=1, n_folds=5)
+    x = diagnose(d, kinds=tuple(k for k in EFFECT_NAMES if k not in PLAY), max_effects=1)
     (f,) = x.selection.findings
     assert f.candidate.kind == "joint_scale" and d.joint_name(f.candidate.joint) == "arm_6_joint"
     lib = build_library(x.data, PLAY, theta=x.geometric.all_fit.theta)

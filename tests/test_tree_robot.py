@@ -15,9 +15,12 @@ from calib.errors import RobocalError
 from calib.effects.joint_compliance import JointCompliance
 from calib.kinematics import Kinematics
 from calib.model import MeasurementModel
-from calib.robot import load_robot, parse_robot, robot_to_toml
+from calib.robot import parse_robot, robot_to_toml
+from calib.loading import load_robot
 from calib.targets import TargetContext, with_targets
+from tests.dev_extra import require
 from tests.fakes import tree_robot as tr
+from tests.fakes.oracle.chain import numeric_jacobian
 
 POINTS = {"L": ("hand_left_link", [0.0, 0.0, 30.0]), "R": ("hand_right_link", [10.0, 0.0, 30.0])}
 COUPLED = "[joints.coupled]\ntorso_3_joint = { torso_1_joint = -1.0, torso_2_joint = -1.0 }\n"
@@ -58,7 +61,7 @@ def test_two_arms_on_one_torso_match_plain_products(tmp_path):
 
 
 def test_tree_matches_pinocchio(tmp_path):
-    pin = pytest.importorskip("pinocchio")
+    pin = require("pinocchio", "pin")
     tree = tr.two_arm_torso(3)
     robot = load_robot(_description(tmp_path, tree))
     model = pin.buildModelFromUrdf(str(tmp_path / "robot.urdf"))
@@ -120,13 +123,8 @@ def test_tree_jacobian_matches_finite_differences(tmp_path):
     ctx = TargetContext(len(q), robot.n, target=np.tile([0, 1], 4))
     theta = model.nominal
     ev = model.evaluate(q, ctx, theta, jacobian=True, torque_derivative=True)
-    num = np.empty_like(ev.jacobian)
-    for i in range(model.P):
-        h = 1e-6 if model.names[i].endswith("_mm") else 1e-7
-        tp, tm = theta.copy(), theta.copy()
-        tp[i] += h
-        tm[i] -= h
-        num[:, :, i] = (model.points(q, ctx, tp) - model.points(q, ctx, tm)) / (2 * h)
+    steps = np.array([1e-6 if name.endswith("_mm") else 1e-7 for name in model.names])
+    num = numeric_jacobian(lambda th: model.points(q, ctx, th), theta, steps)
     np.testing.assert_allclose(ev.jacobian, num, atol=2e-5 * np.abs(num).max())
 
 
@@ -173,11 +171,11 @@ def test_one_fit_of_both_arms_and_the_shared_torso(tmp_path):
     meas = np.array([[float(r[c]) for c in "xyz"] for r in rows])
     assert np.sqrt(np.mean(np.sum((p_nom - meas) ** 2, axis=1))) > 5 * doc["test_rms_mm"]
     # the calibrated URDF, read by Pinocchio and placed by the side file's base, predicts the test rows as well
-    pin = pytest.importorskip("pinocchio")
+    pin = require("pinocchio", "pin")
     side = json.loads((tmp_path / "calibrated.side.json").read_text())
     base = side["base_link_in_measurement_frame"]
     from tests.fakes.tree_robot import hom, rpy_matrix
-    B = hom(rpy_matrix(np.radians(base["rpy_deg"])), np.array(base["xyz_mm"]))
+    B = hom(rpy_matrix(*np.radians(base["rpy_deg"])), np.array(base["xyz_mm"]))
     pm = pin.buildModelFromUrdf(str(tmp_path / "calibrated.urdf"))
     pd = pm.createData()
     err = []

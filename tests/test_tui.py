@@ -70,9 +70,9 @@ def test_ruler_and_one_joint_sweep_end_to_end(tmp_path):
             assert (tmp_path / "s_report" / "report.html").exists()
             step = str(app.query_one("#step").render())
             assert "report.html" in step
-            assert app.table_columns[:3] == ["estimate", "value", "1 sigma"]
+            assert app.table_columns[:3] == ["estimate", "value ± 1σ", "unit"]
             names = [str(r[0]) for r in app.table_rows]
-            assert any("L_mm" in n for n in names), names
+            assert "theodolite baseline L" in names and not any("_mm" in n or "ruler." in n for n in names), names
             await pilot.press("q")
 
     run(main())
@@ -269,8 +269,8 @@ def test_devices_by_url_through_the_same_drivers(tmp_path):
     from acq.commands.session import real_builder, setup_template
     from acq.emulate.can_node import CanTapNode
     from acq.emulate.tap_device import TapModel
-    from acq.emulate.world import demo_world
-    from calib.robot import load_robot
+    from acq.emulate.factories import demo_world
+    from calib.loading import load_robot
     import json as _json
 
     setup = tmp_path / "setup.json"

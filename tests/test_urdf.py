@@ -6,8 +6,10 @@ from tests.dev_extra import require
 
 from calib.errors import RobocalError
 from calib.kinematics import Kinematics
-from calib.robot import load_robot, robot_from_urdf
+from calib.urdf import robot_from_urdf
+from calib.loading import load_robot
 from calib.units import DEG
+from tests.fakes.oracle.chain import rot_x, rot_y, rot_z, trans
 
 URDFS = str(__import__("pathlib").Path(__file__).resolve().parents[1] / "examples" / "urdf")
 CASES = [("ur10_robot.urdf", None, None), ("tx40_mdh_modified.urdf", None, None),
@@ -30,7 +32,7 @@ def _pin_tip(path, base, tip, names, q_by_name):
 
 def _tip_in_base(robot, readings):
     """Tip point (mm) in the URDF base link: the chain with the base pose set to frame 0 in the base link."""
-    from calib.robot import rpy_from_matrix
+    from calib.angles import rpy_from_matrix
     kin = Kinematics(robot)
     p = kin.nominal.copy()
     F0 = robot.frame0_in_base
@@ -118,12 +120,8 @@ def test_mimic_joint_is_driven_by_the_joint_it_follows(tmp_path):
     r = np.array([[0.4, 120.0]])
     q1 = 0.4
     q2 = -2 * q1 + 0.1
-    # independent: plain homogeneous products
-    def rz(a): c, s = np.cos(a), np.sin(a); return np.array([[c, -s, 0, 0], [s, c, 0, 0], [0, 0, 1, 0], [0, 0, 0, 1.]])
-    def ry(a): c, s = np.cos(a), np.sin(a); return np.array([[c, 0, s, 0], [0, 1, 0, 0], [-s, 0, c, 0], [0, 0, 0, 1.]])
-    def rx(a): c, s = np.cos(a), np.sin(a); return np.array([[1, 0, 0, 0], [0, c, -s, 0], [0, s, c, 0], [0, 0, 0, 1.]])
-    def tr(x, y, z): T = np.eye(4); T[:3, 3] = (x, y, z); return T
-    T = rz(q1) @ tr(300, 0, 100) @ rx(0.2) @ ry(q2) @ tr(200, 100, 0) @ ry(0.3) @ tr(120, 0, 0)
+    # independent: plain homogeneous products (the tests' oracle)
+    T = rot_z(q1) @ trans(300, 0, 100) @ rot_x(0.2) @ rot_y(q2) @ trans(200, 100, 0) @ rot_y(0.3) @ trans(120, 0, 0)
     np.testing.assert_allclose(_tip_in_base(robot, r)[0], T[:3, 3], atol=1e-9)
 
 

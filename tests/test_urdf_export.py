@@ -8,29 +8,25 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-import pinocchio as pin                  # the dev extra installs it: a missing Pinocchio fails, it does not skip
-
 from acq.cli import main
 from calib.compensate import load_model
 from calib.kinematics import Kinematics
+from tests.dev_extra import require
 from tests.fakes import thesis_puma as tp
 from tests.fakes.urdf_chain import UrdfChain, instrument, perturbed, rpy_matrix
 
 EX = Path(__file__).resolve().parents[1] / "examples"
+pin = require("pinocchio", "pin")      # in the dev extra: missing there fails, it does not skip
 UR10 = EX / "urdf" / "ur10_robot.urdf"
 UR10_JOINTS = ["shoulder_pan_joint", "shoulder_lift_joint", "elbow_joint", "wrist_1_joint", "wrist_2_joint",
                "wrist_3_joint"]
 MARKER_MM = np.array([40.0, -25.0, 90.0])        # a reflector on wrist_3_link, off every axis
 
 
-def _rpy_matrix(rpy):
-    return rpy_matrix(*rpy)
-
-
 def _side_base(side: dict) -> np.ndarray:
     b = side["base_link_in_measurement_frame"]
     T = np.eye(4)
-    T[:3, :3], T[:3, 3] = _rpy_matrix(np.radians(b["rpy_deg"])), b["xyz_mm"]
+    T[:3, :3], T[:3, 3] = rpy_matrix(*np.radians(b["rpy_deg"])), b["xyz_mm"]
     return T
 
 
@@ -120,7 +116,7 @@ def ur10_world(tmp_path_factory):
     rng = np.random.default_rng(17)
     q = rng.uniform(-2.8, 2.8, (70, 6))
     T = np.eye(4)
-    T[:3, :3], T[:3, 3] = _rpy_matrix([0.01, -0.02, 0.7]), [1800.0, -400.0, 150.0]
+    T[:3, :3], T[:3, 3] = rpy_matrix(0.01, -0.02, 0.7), [1800.0, -400.0, 150.0]
     pts = instrument(truth.points(q, MARKER_MM)[:, 0], T, 0.01, seed=2)
     data = tmp / "ur10.csv"
     with data.open("w", newline="") as f:

@@ -76,7 +76,7 @@ def run(args) -> int:
     if args.te_joints and not args.resume:     # checked against the robot's planned runs before anything is built
         from acq.session.plans import transmission_plan
         from calib.profile import profile_of
-        from calib.robot import load_robot
+        from calib.loading import load_robot
         transmission_plan(args.te_joints, profile=profile_of(load_robot(args.robot)))
     if args.resume and args.robot:
         raise RobocalError(f"demo: --robot cannot change a resumed session's robot ({db} keeps the one it was "
@@ -86,13 +86,20 @@ def run(args) -> int:
     resume = _resume_command(args, db)
     say(f"recording the session into {db} (Ctrl-C stops it; every step saved is kept)")
     pp = ProgressPrinter()
+    res = None
+    every = demo.runner.steps
     try:
-        with hangups_interrupt(), progress_display("recording session", after_s=0.5) as update:
-            pp.update = lambda done, total, key: update(key, done / max(total, 1))
-            demo.runner.subscribe(pp)
-            state = demo.runner.run()
+        with hangups_interrupt():
+            with progress_display("recording session", after_s=0.5) as update:
+                pp.update = lambda done, total, key: update(key, done / max(total, 1))
+                demo.runner.subscribe(pp)
+                # the steps commanded by the calibrated model wait for the model this session's reduction gives
+                demo.runner.steps = [s for s in every if not s.setup.get("command")]
+                state = demo.runner.run()
+            if state == "finished" and len(demo.runner.steps) < len(every):
+                res, state = _compensated_run(demo, every, str(db))
     except KeyboardInterrupt as exc:             # Ctrl-C or a closed terminal: say what was kept, and where
-        saved, total = len(demo.store.done_keys()), len(demo.runner.steps)
+        saved, total = len(demo.store.done_keys()), len(every)
         say(f"{'the terminal closed' if isinstance(exc, HungUp) else 'interrupted'}: "
             f"{kept_text(saved, total, str(db), resume)}")
         return exit_status(exc)
@@ -112,8 +119,9 @@ def run(args) -> int:
         why = f" ({pp.error})" if pp.error else ""
         say(f"the session ended {state}{why}: {kept_text(pp.saved, pp.total, str(db), resume)}")
         return 1
-    with progress_display("reprocessing", after_s=0.5) as update:
-        res = reprocess(str(db), progress=update)
+    if res is None:
+        with progress_display("reprocessing", after_s=0.5) as update:
+            res = reprocess(str(db), progress=update)
     _summary(res, args.verbose, args.tolerance_mm)
     if args.report:
         from acq.session.report import write_report
@@ -125,6 +133,27 @@ def run(args) -> int:
         _write_json(res, args.json)
     print(f"total {time.perf_counter() - t0:.1f} s", file=sys.stderr)
     return 0
+
+
+def _compensated_run(demo, every: list, db: str) -> tuple[dict, str]:
+    """ISO 9283 with compensation on, as a calibrated controller runs it: the session reprocessed (its pose set
+    identifies the model), the remaining steps commanded by that model (:class:`acq.session.iso_commands.
+    CompensatedCommands`), then the ISO 9283 figures reduced again with them -- the calibration itself is not
+    repeated.  Returns the results and the runner's final state."""
+    from acq.progress import progress_display
+    from acq.session.iso_commands import iso_after_compensated_run
+    from acq.session.reprocess import reprocess
+    with progress_display("reprocessing", after_s=0.5) as update:
+        res = reprocess(db, progress=update)
+    if res.get("robot") is None:                # no model: the problems say why
+        say("ISO 9283: the compensated run was not recorded: the session's pose set gave no calibrated model")
+        return res, "finished"
+    demo.runner.command.use(res["robot"])
+    demo.runner.steps = every
+    state = demo.runner.run()
+    if state == "finished":
+        iso_after_compensated_run(res, db)
+    return res, state
 
 
 def _resume_command(args, db: Path) -> str:
@@ -149,11 +178,10 @@ def _write_json(res: dict, out: str) -> None:
 
 def _summary(res: dict, verbose: bool = False, tolerance_mm: float | None = None) -> None:
     """The compact summary per procedure and the accuracy before/after (every estimate with ``verbose``)."""
-    from acq.session.summary import accuracy_lines, print_summary
+    from acq.session.summary import print_summary, tolerance_lines
     print_summary(res, verbose=verbose)
-    if tolerance_mm is not None:
-        for line in accuracy_lines(res.get("accuracy"), tolerance_mm)[1:]:
-            print(line)
+    for line in tolerance_lines(res.get("accuracy"), tolerance_mm):
+        print(line)
 
 
 def check_pdf_options(args) -> None:

@@ -46,7 +46,8 @@ def add_arguments(p):
     p.add_argument("--geometry", choices=("auto", "full", "offsets"), default="auto",
                    help="geometric parameter set of the baseline (auto: full unless the poses are too few)")
     p.add_argument("--folds", type=positive_int, default=None, metavar="K",
-                   help="k-fold held-out test (default 5; leave-one-out up to 40 poses)")
+                   help="k-fold held-out test (default 5, whatever the number of poses; K = the number of poses is "
+                        "leave-one-out)")
     p.add_argument("--alpha", type=float_range(0, 1, low_open=True, high_open=True), default=0.01,
                    help="family-wise significance level of the nested F-test (default 0.01)")
     p.add_argument("--max-effects", type=nonneg_int, default=6, metavar="N", help="stop after N accepted effects")
@@ -148,7 +149,7 @@ def run(args) -> int:
         raise RobocalError(f"diagnose: --alpha must be between 0 and 1, got {args.alpha}")
     from calib.diagnose import diagnose
     from calib.diagnose.render import render
-    from calib.robot import load_robot
+    from calib.loading import load_robot
 
     from ..progress import progress_display
 

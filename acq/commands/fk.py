@@ -8,7 +8,8 @@ import numpy as np
 
 from calib.errors import RobocalError
 from calib.kinematics import Kinematics
-from calib.robot import load_robot, rpy_from_matrix
+from calib.angles import rpy_from_matrix
+from calib.loading import load_robot
 from acq.argtypes import add_robot_argument
 
 NAME = "fk"

@@ -71,15 +71,16 @@ def run(args) -> int:
     from calib.compensate import model_document, save_model
     from calib.effects import THESIS_RUNNING_ERRORS, effect_from_text
     from calib.effects.mass_moment import check_scale
-    from calib.evaluation import (context_of, data_rows, fit_rows, point_covariance, split_metrics, station_names,
-                                  station_start, with_orientation_points, with_polar_points)
+    from calib.evaluation import data_rows, fit_rows, split_metrics, station_names, station_start, with_polar_points
+    from calib.orientation import with_orientation_points
+    from calib.rows import context_of, point_covariance
     from calib.polar import PolarNoise
     from calib.identify import PointObservations, check_drivers, default_free
     from calib.priors import free_from_patterns, priors_for
     from calib.model import MeasurementModel
     from calib.posecsv import read_pose_csv
     from calib.provenance import provenance
-    from calib.robot import load_robot
+    from calib.loading import load_robot
     from calib.units import DEG
 
     robot = load_robot(args.robot)
@@ -265,18 +266,19 @@ class _Fit:
         self.start, self.outliers, self.loss, self.rule = start, outliers, loss, rule
         self.error_scale = "inflate"
 
-    def select(self, obs, explain: bool = True):
+    def select(self, obs, explain: bool = True, warm=None):
         from calib.selection import select
         return select(self.model, obs, self.free, self.priors, self.theta0, self.start, self.outliers, self.loss,
-                      rule=self.rule, error_scale=self.error_scale, explain=explain)
+                      rule=self.rule, error_scale=self.error_scale, explain=explain, warm=warm)
 
 
 def _heldout(fit: _Fit, sel, measured, obs, weights, table):
     """Before/after on held-out rows: the data's test rows (the fit saw none of them), else k-fold predictions in
     which every fold repeats the whole choice on its own rows."""
     import numpy as np
-    from calib.evaluation import context_of, point_covariance
-    from calib.heldout import crossval, orientation_errors_deg, predict_heldout
+    from calib.heldout import crossval, predict_heldout
+    from calib.orientation import orientation_errors_deg
+    from calib.rows import context_of, point_covariance
 
     if measured.split is not None:
         test = measured.subset(measured.split_mask("test"))
@@ -290,14 +292,15 @@ def _heldout(fit: _Fit, sel, measured, obs, weights, table):
         return out
 
     # a fold repeats every choice that changes its fit; flagging gross errors (the default) changes none, so the
-    # folds leave out its robust refit (rejecting them, --outliers reject, is a choice each fold makes again)
+    # folds leave out its robust refit (rejecting them, --outliers reject, is a choice each fold makes again); each
+    # fold's fits start from the whole set's (a start point, not a choice: calib.selection.select's ``warm``)
     fold = copy.copy(fit)
     if fit.outliers == "flag":
         fold.outliers = "off"
 
     def choose(rows, test):
         train_obs, test_obs = weights.fold(rows, test)      # the noise decided again on the fold's rows
-        s, _ = fold.select(train_obs, explain=False)
+        s, _ = fold.select(train_obs, explain=False, warm=sel)
         return s.located.ident.theta, s.ident, test_obs
     return crossval(fit.model, obs, choose, 5, table.pose_id or None)
 

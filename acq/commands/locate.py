@@ -22,7 +22,8 @@ def add_arguments(p):
 
 
 def run(args) -> int:
-    from calib.evaluation import locate, predict_rows
+    from calib.evaluation import locate
+    from calib.rows import predict_rows
 
     im, table = model_and_table(args, NAME)
     locs = locate(predict_rows(im.model, im.theta, table, new_stations=True), table)

@@ -9,7 +9,7 @@ from calib.errors import RobocalError
 from calib.model import MeasurementModel
 from calib.plan import INDICES, Design, observability, parameter_set, select_poses
 from calib.posecsv import read_pose_csv, write_pose_csv
-from calib.robot import load_robot
+from calib.loading import load_robot
 from calib.units import DEG
 
 from ..progress import progress_display
@@ -273,6 +273,7 @@ def _plan_and_setup(args):
     from pathlib import Path
 
     from acq.session.setup import session_setup, setup_robot
+    from acq.session.setup_types import BenchSetup
 
     path = Path(args.target)
     if not path.is_file():
@@ -284,9 +285,9 @@ def _plan_and_setup(args):
         from acq.commands.session import default_plan
         from acq.session.setup_file import read_partial_setup
         setup = read_partial_setup(path, ("stations", "base_xyz_mm", "ruler"))
-    robot = load_robot(args.robot) if args.robot else setup_robot(setup)
-    setup = session_setup(setup, robot)
+    robot = load_robot(args.robot) if args.robot else setup_robot(BenchSetup.of(setup))
+    setup = BenchSetup.of(session_setup(setup, robot))          # checked as it was read (a partial file may lack a key)
     if not path.read_bytes()[:16] == b"SQLite format 3\x00":
         q = read_pose_csv(args.poses).q_rad / DEG if args.poses else None
-        plan = setup.get("plan") or default_plan(q, setup=setup, robot=robot)
+        plan = setup.plan or default_plan(q, setup=setup, robot=robot)
     return plan, setup, robot

@@ -65,7 +65,7 @@ def _session_model(db: str, res: dict, option: str):
     sigma = np.array([errors.get(n, 0.0) for n in im.model.names], float)
     free = {p["name"] for p in params if p.get("estimated")}
     setup = load_session(db).setup
-    source = urdf_source(setup.get("robot") or None, setup.get("base_link") or None, setup.get("tip_link") or None)
+    source = urdf_source(setup.robot or None, setup.base_link or None, setup.tip_link or None)
     return im, sigma, free, source
 
 

@@ -51,6 +51,9 @@ def add_arguments(p):
     p.add_argument("--te-joints", type=te_joints, metavar="J,J,...", default=None,
                    help="joints whose transmission error a new session measures (default 4,6; 2 and 3 on request), "
                         "plan key transmission.joints")
+    p.add_argument("--model", metavar="MODEL.json",
+                   help="a calibrated model (robocal identify's model JSON) that commands ISO 9283's compensated run "
+                        "of a new session; default: the model the session's own pose set (--poses) identifies")
     p.add_argument("--write-setup", type=output_file, metavar="FILE", help="write a set-up template (JSON) and exit")
 
 
@@ -99,17 +102,20 @@ def parse_tap(text: str) -> tuple[str, dict]:
     raise RobocalError(f"session: --tap {text!r}: expected can:INTERFACE:CHANNEL or serial:URL")
 
 
-def default_plan(poses_deg=None, te_joints=None, setup: dict | None = None, robot=None) -> dict:
+def default_plan(poses_deg=None, te_joints=None, setup=None, robot=None, model_path: str | None = None) -> dict:
     """The standard plan for a real cell (:func:`acq.session.plans.session_plan` with the :data:`CELL
     <acq.session.plans.CELL>` preset), with the operator's pose set when given; ``te_joints``: the
     transmission-error joints (``--te-joints``, plan key ``transmission.joints``; default the robot profile's).
-    ``robot`` and ``setup`` default to the thesis's Puma on its standard bench."""
+    ``robot`` and ``setup`` default to the thesis's Puma on its standard bench; a set-up document has its old keys
+    mapped here, a typed one (:class:`acq.session.setup_types.BenchSetup`) was mapped where it was read."""
     from acq.session.plans import CELL, session_plan
     from acq.session.setup import session_setup, standard_setup
-    from calib.robot import load_robot
+    from acq.session.setup_types import BenchSetup
+    from calib.loading import load_robot
     robot = load_robot(None) if robot is None else robot
-    setup = session_setup(standard_setup() if setup is None else setup, robot)
-    return session_plan(robot, setup, CELL, te_joints, poses_deg)
+    if not isinstance(setup, BenchSetup):
+        setup = session_setup(standard_setup() if setup is None else setup, robot)
+    return session_plan(robot, setup, CELL, te_joints, poses_deg, model_path=model_path)
 
 
 def setup_template() -> dict:
@@ -128,7 +134,7 @@ def setup_template() -> dict:
 
 
 def real_builder(db: str, theodolites: list[str], tap: str | None, setup_path: str | None, poses: str | None,
-                 robot_path: str | None, only: list[str] | tuple = (), te_joints=None):
+                 robot_path: str | None, only: list[str] | tuple = (), te_joints=None, model_path: str | None = None):
     """A TUI builder on real devices (or any device URL): opens them, creates or resumes the session."""
     from acq.drivers import open_theodolite
     from acq.encoders import open_tap
@@ -136,7 +142,9 @@ def real_builder(db: str, theodolites: list[str], tap: str | None, setup_path: s
     from acq.session.setup import (predictor, record_robot, session_setup, setup_robot, setup_stations,
                                    station_names)
     from acq.session.stations import stations_from_store
+    from acq.session.iso_commands import CompensatedCommands
     from acq.session.procedures import all_steps
+    from acq.session.setup_types import setup_of
     from acq.session.rig import ManualBench, Rig
     from acq.session.runner import Runner
     from acq.session.store import SessionStore
@@ -159,17 +167,22 @@ def real_builder(db: str, theodolites: list[str], tap: str | None, setup_path: s
         setup = record_robot(setup, robot_path)
     elif setup_path:
         _same_setup(db, setup, setup_path, robot_path)
+    recorded = setup_of(setup)
     if resume and record_robot(setup, robot_path) != setup:
-        raise RobocalError(f"session: {db} was recorded with the robot {setup.get('robot') or 'puma560 (default)'} "
-                           f"(chain cut {setup.get('base_link') or '-'} -> {setup.get('tip_link') or '-'}): resume "
+        raise RobocalError(f"session: {db} was recorded with the robot {recorded.robot or 'puma560 (default)'} "
+                           f"(chain cut {recorded.base_link or '-'} -> {recorded.tip_link or '-'}): resume "
                            "it with the same --robot, or without --robot")
-    robot = setup_robot(setup)
+    robot = setup_robot(recorded)
     if not resume:
         q = read_pose_csv(poses, robot.n).q_rad / DEG if poses else None
     setup = session_setup(setup, robot)
     if not resume:
-        plan = default_plan(q, te_joints, setup, robot)
-    want = sorted(station_names(setup))
+        if model_path:
+            from calib.compensate import load_model
+            load_model(model_path)                  # a bad model file is one line before anything is opened
+        plan = default_plan(q, te_joints, setup, robot, model_path)
+    bench = setup_of(setup)
+    want = sorted(station_names(bench))
     if sorted(s[0] for s in specs) != want:
         raise RobocalError(f"session: give two theodolites, stations {' and '.join(want)} as the set-up names them "
                            f"(--theodolite {want[0]}=... --theodolite {want[1]}=...)")
@@ -198,14 +211,15 @@ def real_builder(db: str, theodolites: list[str], tap: str | None, setup_path: s
         identities = rig.identities()
         for role, driver, url, ident in identities:
             rig.device_ids[role] = store.add_device(role, driver, url, ident, {})
-        steps = all_steps(plan_d, setup_d)
+        steps = all_steps(plan_d, bench)
         if keep is not None:
             steps = [s for s in steps if keep(s)]
         # the same wiring as the demo's: stations refitted from the session's own ruler steps, the pre-flight
-        runner = Runner(store, rig, steps, operator, bench=ManualBench(), stations=setup_stations(setup_d),
-                        predict=predictor(robot, setup_d),
-                        refit_stations=lambda st: stations_from_store(st, setup_d),
-                        preflight=Preflight(robot, setup_d))
+        runner = Runner(store, rig, steps, operator, bench=ManualBench(), stations=setup_stations(bench),
+                        predict=predictor(robot, bench),
+                        refit_stations=lambda st: stations_from_store(st, bench),
+                        preflight=Preflight(robot, bench),
+                        command=CompensatedCommands(store, (plan_d.get("iso9283") or {}).get("model") or None))
 
         def close():
             rig.close()
@@ -257,6 +271,10 @@ def run(args) -> int:
     if args.te_joints and Path(args.db).exists() and Path(args.db).stat().st_size > 0:
         raise RobocalError(f"session: --te-joints cannot change a resumed session's plan ({args.db} keeps the one it "
                            f"was recorded with): resume without --te-joints, or start a new --db with it")
+    if args.model and (args.emulate or Path(args.db).exists() and Path(args.db).stat().st_size > 0):
+        raise RobocalError("session: --model applies to a new session on devices (an emulated session, or one "
+                           "resumed, commands ISO 9283's compensated run with the model its plan already names or its "
+                           "own pose set identifies)")
     if args.emulate:
         if args.robot and Path(args.db).exists() and Path(args.db).stat().st_size > 0:
             raise RobocalError(f"session: --robot cannot change a resumed session's robot ({args.db} keeps the one it "
@@ -269,7 +287,7 @@ def run(args) -> int:
         builder = emulated_builder(args.db, args.seed, args.only, args.te_joints, args.robot)
     elif args.theodolite:
         builder = real_builder(args.db, args.theodolite, args.tap, args.setup, args.poses, args.robot, args.only,
-                               args.te_joints)
+                               args.te_joints, args.model)
     else:
         raise RobocalError("session: give --emulate, or the devices (--theodolite A=KIND:URL --theodolite "
                            "B=KIND:URL [--tap ...]) and --setup")

@@ -76,6 +76,11 @@ def make_world(scenario: str | None = None, seed: int = 0, noise: bool = True, q
     return TwinWorld(Twin(sc, seed=seed), q0_deg, seed=seed)
 
 
+def demo_world(seed: int | None = 0, noise: bool = True, scenario: str | None = None):
+    """The world of ``robocal://`` URLs and ``robocal emulate`` (kept name): the twin of the default scenario."""
+    return make_world(scenario, seed=seed or 0, noise=noise)
+
+
 _WORLD = ("seed", "noise", "scenario")
 #: URL instruments of one process with the same (scenario, seed, noise) share one world: the theodolites and the
 #: tap of a session opened by URL observe the same robot, not three copies of it

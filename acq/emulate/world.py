@@ -1,7 +1,8 @@
 """Where the emulated instruments get their truth: an injected :class:`World`.
 
 There is one world (issue 13): :class:`~acq.emulate.twin_world.TwinWorld` on :class:`calib.twin.Twin`, built by
-:func:`acq.emulate.factories.make_world` from a scenario.  The protocol stays so a device only depends on the two
+:func:`acq.emulate.factories.make_world` from a scenario (this module imports nothing of the package: every
+device and the factories depend on it, not the other way).  The protocol stays so a device only depends on the two
 questions it asks, both "now":
 
 * ``joint_angles_rad()`` -> the robot's joint readings (the encoder tap turns them into counts with
@@ -29,12 +30,6 @@ class World(Protocol):
     def joint_angles_rad(self) -> np.ndarray: ...
 
     def sight(self, station_name: str, face: int) -> tuple[float, float]: ...
-
-
-def demo_world(seed: int | None = 0, noise: bool = True, scenario: str | None = None):
-    """The world of ``robocal://`` URLs and ``robocal emulate`` (kept name): the twin of the default scenario."""
-    from .factories import make_world
-    return make_world(scenario, seed=seed or 0, noise=noise)
 
 
 def check_station(world: World, station: str, device: str) -> None:

@@ -15,6 +15,8 @@ from calib.estimators.points import StationFit, TargetPoint, locate_targets, poi
 from calib.profile import RobotProfile
 from calib.robot import Robot
 
+from acq.session.setup_types import BenchSetup
+
 from .estimates import Estimates
 from .session import SessionData
 
@@ -50,8 +52,9 @@ class Reduction:
     data: SessionData
     robot: Robot
     profile: RobotProfile
-    setup: dict
+    setup: BenchSetup
     n_mc: int = 0
+    held_out: bool = True          # the pose set's held-out accuracy (False: the model alone, for compensation)
     est: Estimates = field(default_factory=Estimates)
     figs: dict = field(default_factory=dict)
     problems: list[str] = field(default_factory=list)

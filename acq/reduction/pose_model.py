@@ -15,8 +15,10 @@ from calib.estimators.compliance import MAX_REL_ERROR_TWO_SLOPES
 from calib.model import MeasurementModel
 from calib.robot import Robot
 
+from acq.session.setup_types import BenchSetup
 
-def running_error_specs(setup: dict, running: dict, coupling_steps=()) -> list[str]:
+
+def running_error_specs(setup: BenchSetup, running: dict, coupling_steps=()) -> list[str]:
     """The running errors the pose set's model carries, as effect specs (:func:`calib.effects.effect_from_text`).
 
     From the session, never from one robot: the set-up's ``running_errors`` list when it has one; otherwise the
@@ -24,8 +26,8 @@ def running_error_specs(setup: dict, running: dict, coupling_steps=()) -> list[s
     transmission-error run, a joint compliance for each joint whose stiffness was determined, and a cross coupling
     for each pair of the coupling run.
     """
-    if setup.get("running_errors") is not None:
-        return [str(t) for t in setup["running_errors"]]
+    if setup.running_errors is not None:
+        return list(setup.running_errors)
     specs = [f"transmission_error:{j}:{res['omega'].value:.4g}"
              for j, res in sorted((running.get("transmission") or {}).items())]
     specs += [f"joint_compliance:{j}" for j in sorted(running.get("compliance") or {})]

@@ -72,6 +72,27 @@ def migrate_steps(data: SessionData, robot) -> None:
             spec["setup"] = c3_setup(spec["setup"], spec.get("pose_deg"), st["inputs"], kin)
 
 
+def reduce_for(data: SessionData, output: str) -> Reduction:
+    """Only the stages an output needs (``identified``: the model of the pose set, without its held-out accuracy),
+    on a session as loaded: what the calibration core gives a running session (ISO 9283's compensated commands).
+    The output is ``ctx.outputs.get(output)``; why it is missing is in ``ctx.problems``."""
+    robot = setup_robot(data.setup)
+    migrate_steps(data, robot)
+    ctx = Reduction(data, robot, profile_of(robot), data.setup, 0, held_out=False)
+    stages = all_stages()
+    by_output = {s.gives: s for s in stages if s.gives}
+    wanted, todo = set(), [output]
+    while todo:
+        s = by_output[todo.pop()]
+        if s.name not in wanted:
+            wanted.add(s.name)
+            todo += list(s.needs)
+    for stage in stages:                    # dependency order
+        if stage.name in wanted:
+            run_stage(ctx, stage)
+    return ctx
+
+
 def reduce_session(session: str | SessionData, n_mc: int = 0, progress=None) -> dict:
     """Reduce every stage of a session (its path, or as loaded); returns the results document (see the module
     docstring)."""
@@ -92,7 +113,7 @@ def reduce_session(session: str | SessionData, n_mc: int = 0, progress=None) -> 
         "session": {"guid": data.session["guid"], "title": data.session["title"], "path": path,
                     "exit_status": data.session["exit_status"], "steps_accepted": len(data.steps),
                     "procedures": {name: len(sts) for name, sts in by_proc.items()}},
-        "provenance": {**provenance(data.setup.get("robot") or None, None), "code_version": code_version(),
+        "provenance": {**provenance(data.setup.robot or None, None), "code_version": code_version(),
                        "reprocessed_unix_s": time.time(), "input_session": data.session["guid"], "n_mc": n_mc,
                        "elapsed_s": time.perf_counter() - t0},
         "estimates": ctx.est.items,
@@ -102,6 +123,7 @@ def reduce_session(session: str | SessionData, n_mc: int = 0, progress=None) -> 
         "problems": ctx.problems,
         "problem_details": ctx.details,
         "robot": ctx.outputs.get("identified"),
+        "iso9283": ctx.outputs.get("iso9283"),      # ISO 9283 AP and RP per pose, compensation off and on
         "joint_labels": [joint_label(robot, j) for j in range(1, robot.n + 1)],   # how reports name the joints
         "figures": ctx.figs,
         "profile": ctx.profile.as_dict(),

@@ -11,6 +11,7 @@ import numpy as np
 from calib.errors import RobocalError
 
 from acq.session.setup_file import setup_from_text
+from acq.session.setup_types import BenchSetup
 from acq.session.store import StoreError, connect_readonly, from_npy, json_column
 
 
@@ -19,7 +20,7 @@ class SessionData:
     path: str
     session: dict
     plan: dict
-    setup: dict
+    setup: BenchSetup
     steps: list[dict]                               # accepted steps, each with readings, chunks, inputs
     devices: list[dict] = field(default_factory=list)
 
@@ -42,18 +43,19 @@ def _rows(conn, sql, args=()):
     return [dict(zip(cols, r)) for r in cur.fetchall()]
 
 
-def load_session(path: str) -> SessionData:
-    """Every accepted step with the readings of its accepted (last) attempt; opened read-only."""
+def load_session(path: str, procedures: tuple[str, ...] | None = None) -> SessionData:
+    """Every accepted step (of ``procedures`` only, when given) with the readings of its accepted (last) attempt;
+    opened read-only."""
     conn = connect_readonly(path)
     try:
-        return _load(conn, path)
+        return _load(conn, path, procedures)
     except sqlite3.DatabaseError as exc:
         raise StoreError(f"{path}: damaged database ({exc})") from None
     finally:
         conn.close()
 
 
-def _load(conn, path: str) -> SessionData:
+def _load(conn, path: str, procedures: tuple[str, ...] | None = None) -> SessionData:
     """The rows of :func:`load_session`, each JSON column and array blob checked as it is read."""
     sess = _rows(conn, "SELECT * FROM session ORDER BY session_id LIMIT 1")
     if not sess:
@@ -61,6 +63,8 @@ def _load(conn, path: str) -> SessionData:
     s = sess[0]
     steps = _rows(conn, "SELECT * FROM step WHERE session_id=? AND status='accepted' ORDER BY seq",
                   (s["session_id"],))
+    if procedures is not None:
+        steps = [st for st in steps if st["procedure"] in procedures]
     for st in steps:
         a = st["attempts"]
         st["spec"] = json_column(st["spec_json"], f"{path}: step {st['key']!r}: spec_json")
@@ -74,7 +78,7 @@ def _load(conn, path: str) -> SessionData:
         st["counts"] = _counts(ch, f"{path}: step {st['key']!r}: encoder counts")
     devices = _rows(conn, "SELECT role, driver, url, identity_json FROM device")
     return SessionData(path, s, json_column(s["plan_json"], f"{path}: session plan_json"),
-                       setup_from_text(s["setup_json"], f"{path}: session setup_json"), steps, devices)
+                       BenchSetup.of(setup_from_text(s["setup_json"], f"{path}: session setup_json")), steps, devices)
 
 
 def _counts(chunks: list[dict], where: str) -> np.ndarray | None:

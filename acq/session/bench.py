@@ -24,7 +24,7 @@ from calib.profile import RobotProfile, profile_of
 from calib.robot import Robot
 from calib.units import DEG
 
-from .setup import lever_point, frame_point, nominal_theta, standard_setup, up_direction
+from .setup import frame_point, lever_point, standard_setup, theta_with_base, up_direction
 
 DEPTH_MM = 2850.0
 HEIGHT_MM = 300.0
@@ -40,7 +40,7 @@ LINK_LOADS_N = [0, 50, 100, 150]
 
 def _ready_chain(robot: Robot, profile: RobotProfile, base_xyz_mm) -> tuple[MeasurementModel, object]:
     model = MeasurementModel(robot)
-    th = nominal_theta(model, {"base_xyz_mm": list(base_xyz_mm)})
+    th = theta_with_base(model, base_xyz_mm)
     q = np.asarray(profile.ready_deg, float) * robot.edge_scale
     return model, model.kin.forward(q[None], th[: model.n_geometric])
 

@@ -28,11 +28,13 @@ from acq.emulate.scenario import STATIONS, scenario_text
 from acq.errors import DeviceTimeout
 from calib.model import MeasurementModel
 from calib.profile import profile_of
-from calib.robot import RobotPath, load_robot
+from calib.loading import RobotPath
+from calib.loading import load_robot
 from calib.twin import Twin, load_scenario, parse_scenario
 from calib.units import ARCSEC, DEG
 
 from .headless import ScriptedOperator
+from .iso_commands import CompensatedCommands
 from .plans import DEMO, session_plan, transmission_plan  # noqa: F401 (transmission_plan: for callers)
 from .preflight import Preflight
 from .bench import robot_setup
@@ -40,6 +42,7 @@ from .setup import GAUGE_SIGMA_MM, predictor, record_robot, session_setup, setup
 from .procedures import all_steps, tool_target
 from .rig import EmulatedBench, Rig
 from .runner import Runner
+from .setup_types import BenchSetup, setup_of
 from .steps import Step
 from .store import SessionStore
 
@@ -72,11 +75,11 @@ def demo_setup(twin: Twin, base: dict | None = None) -> dict:
 
 
 def demo_plan(twin: Twin, seed: int, n_poses: int = DEMO_POSES, quick: bool = True, te_joints=None,
-              setup: dict | None = None) -> dict:
+              setup: BenchSetup | dict | None = None) -> dict:
     """Which procedures with which parameters: :func:`acq.session.plans.session_plan` with the :data:`DEMO
     <acq.session.plans.DEMO>` preset and a pose set chosen now (so a resume replays the same poses)."""
     from calib.plan import select_poses
-    setup = session_setup(demo_setup(twin), twin.robot) if setup is None else setup
+    setup = setup_of(session_setup(demo_setup(twin), twin.robot) if setup is None else setup)
     model = MeasurementModel(twin.robot)
     lim = twin.robot.limits_rad
     try:
@@ -95,7 +98,7 @@ def demo_plan(twin: Twin, seed: int, n_poses: int = DEMO_POSES, quick: bool = Tr
 FLOOR_BELOW_BASE_MM = 585.0
 
 
-def _visible(twin: Twin, q_rad: np.ndarray, setup: dict) -> np.ndarray:
+def _visible(twin: Twin, q_rad: np.ndarray, setup: BenchSetup) -> np.ndarray:
     """Poses whose tool target is in front of both stations, above the floor (:data:`FLOOR_BELOW_BASE_MM` below
     the robot's base), not too close, and that pass the pre-flight (sight lines clear of the arm, inside the limits)
     with the set-up."""
@@ -104,7 +107,7 @@ def _visible(twin: Twin, q_rad: np.ndarray, setup: dict) -> np.ndarray:
     tp = twin.true_parameters()
     for k in ("x_mm", "y_mm", "z_mm"):
         th[m.index[f"base.{k}"]] = tp[f"base.{k}"]
-    th[: m.n_geometric] = m.kin.params_with_tool(np.asarray(setup["tool_target_mm"], float), th[: m.n_geometric])
+    th[: m.n_geometric] = m.kin.params_with_tool(np.asarray(tool_target(setup).tool_mm, float), th[: m.n_geometric])
     pts = m.points(q_rad, theta=th)
     ok = (pts[:, 1] > 1200) & (pts[:, 2] > tp["base.z_mm"] - FLOOR_BELOW_BASE_MM)
     pf = Preflight(twin.robot, setup)
@@ -118,7 +121,7 @@ def _visible(twin: Twin, q_rad: np.ndarray, setup: dict) -> np.ndarray:
 
 
 def robot_twin(robot_path, seed: int) -> tuple[Twin, str, dict]:
-    """A twin of the robot at ``robot_path`` (a :class:`calib.robot.RobotPath` may carry a URDF's chain cut): its
+    """A twin of the robot at ``robot_path`` (a :class:`calib.loading.RobotPath` may carry a URDF's chain cut): its
     generated scenario (:func:`acq.emulate.scenario.scenario_text`) and the set-up its bench starts from
     (:func:`acq.session.bench.robot_setup`, the scenario's stations)."""
     path = RobotPath(str(Path(str(robot_path)).resolve()), getattr(robot_path, "base_link", None),
@@ -127,7 +130,7 @@ def robot_twin(robot_path, seed: int) -> tuple[Twin, str, dict]:
     base = record_robot(standard_setup(), path)
     base["stations"] = {**base["stations"], **{k: v for k, v in STATIONS.items() if k in base["stations"]}}
     setup = robot_setup(robot, base)
-    text = scenario_text(robot, str(path), setup, seed)
+    text = scenario_text(robot, str(path), setup_of(setup), seed)
     return Twin(parse_scenario(text, f"scenario of {robot.name}"), seed=seed), text, setup
 
 
@@ -158,7 +161,7 @@ def build_demo(db: str | Path, seed: int = 0, resume: bool = False, script: dict
     replaced by the emulated cell's (:func:`demo_setup`).  ``scenario``: a twin scenario TOML (default: the default
     scenario); a resumed session keeps its own.  ``te_joints``: the transmission-error joints of the default plan
     (``--te-joints``; default the robot profile's).  ``robot``: a robot description (``--robot``; a
-    :class:`calib.robot.RobotPath` carries a URDF's chain cut) for a new session: its twin's scenario is generated
+    :class:`calib.loading.RobotPath` carries a URDF's chain cut) for a new session: its twin's scenario is generated
     (:func:`robot_twin`) and kept in the session.  ``clock``: the emulated devices' and the rig's time; by
     default a :class:`~acq.clock.SimClock` (the encoder windows take no wall time), a
     :class:`~acq.clock.RealClock` where a human watches the session (the TUI's ``--emulate``)."""
@@ -205,8 +208,9 @@ def build_demo(db: str | Path, seed: int = 0, resume: bool = False, script: dict
                                               "scenario_path": str(Path(scenario).resolve()) if scenario else None,
                                               "seed": seed},
                                     durable=not clock.simulated)       # a simulated session can be recorded again
+    setup = setup_of(session_setup(setup, twin.robot))     # a resumed session's set-up may use the old keys
     world = TwinWorld(twin, seed=seed * 1000 + seed_offset,       # the gauges read with the set-up's noise
-                      gauge_sigma_mm=(setup.get("link") or {}).get("gauge_sigma_mm") or GAUGE_SIGMA_MM)
+                      gauge_sigma_mm=(setup.link and setup.link.gauge_sigma_mm) or GAUGE_SIGMA_MM)
     tag = uuid.uuid4().hex[:8]
     names = []
     drivers = {}
@@ -236,7 +240,6 @@ def build_demo(db: str | Path, seed: int = 0, resume: bool = False, script: dict
                                                     {"emulated": True, "channel": channel} if role == "encoder tap"
                                                     else {"emulated": True})
     bench = EmulatedBench(world)
-    setup = session_setup(setup, twin.robot)           # a resumed session's set-up may use the old keys
     steps = all_steps(plan_d, setup)
     if steps_filter is not None:
         steps = [s for s in steps if steps_filter(s)]
@@ -259,7 +262,8 @@ def build_demo(db: str | Path, seed: int = 0, resume: bool = False, script: dict
     runner = Runner(store, rig, steps, op, bench=bench, stations=setup_stations(setup),
                     predict=predictor(twin.robot, setup), settle_s=0.0 if clock.simulated else DEMO_SETTLE_S,
                     refit_stations=lambda st: stations_from_store(st, setup),
-                    preflight=Preflight(twin.robot, setup))
+                    preflight=Preflight(twin.robot, setup),
+                    command=CompensatedCommands(store, (plan_d.get("iso9283") or {}).get("model") or None))
     d = DemoRig(runner, world, twin, store, names)
     d._nodes = [node] if node is not None else []
     return d

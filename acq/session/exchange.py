@@ -40,7 +40,7 @@ from calib.units import DEG
 
 from acq.reduction.session import load_session
 
-from .procedures import mark_index
+from .setup_types import BenchSetup, mark_index, setup_of
 from .store import SessionStore, StepRecord, connect_readonly, json_column
 
 READING_COLUMNS = ["step", "procedure", "station", "target", "face", "hz_deg", "v_deg", "q1_deg", "q2_deg", "q3_deg",
@@ -75,7 +75,7 @@ def export_json(db: str, out: str) -> None:
                                    for r in s["readings"]],
                       "encoder_counts_mean": None if s["counts"] is None else np.mean(s["counts"], 0).tolist()})
     doc = {"format": "robocal-session-json", "version": 1, "session": {k: v for k, v in d.session.items()},
-           "plan": d.plan, "setup": d.setup, "steps": steps}
+           "plan": d.plan, "setup": dict(d.setup.doc), "steps": steps}
     text = json.dumps(doc, indent=1, default=str)
     if out == "-":                       # '-' is standard output, as for reprocess --json and demo --json
         print(text)
@@ -99,7 +99,7 @@ def stored_plan_setup(db: str) -> tuple[dict, dict]:
 def session_robot(db: str):
     """The robot a session database was recorded with: its set-up's ``robot`` and chain cut."""
     from .setup import setup_robot
-    return setup_robot(stored_plan_setup(db)[1])
+    return setup_robot(BenchSetup.of(stored_plan_setup(db)[1]))        # checked as it was read
 
 
 def pose_arrays(db: str) -> dict:
@@ -200,7 +200,8 @@ def import_file(path: str, db: str, setup_json: str | None = None, resume: bool 
         raise RobocalError(f"{db}: exists already: import writes a new session database (choose another --db)")
     kind = _detect(path)
     setup = read_setup(setup_json) if setup_json else _default_setup()
-    steps = _pose_steps(path, setup) if kind == "poses" else _reading_steps(path, setup)
+    typed = setup_of(setup, str(setup_json or "the standard set-up"))
+    steps = _pose_steps(path, typed) if kind == "poses" else _reading_steps(path, typed)
     part = partial_path(db)
     if resume and not part.exists():
         raise RobocalError(f"{db}: no unfinished import to resume ({part} does not exist)")
@@ -243,7 +244,7 @@ def _default_setup() -> dict:
     return standard_setup()
 
 
-def _pose_steps(path: str, setup: dict) -> list[StepRecord]:
+def _pose_steps(path: str, setup: BenchSetup) -> list[StepRecord]:
     """Every row of a pose CSV as a ``poses`` step, each measured column kept (:mod:`acq.session.imported`)."""
     from calib.posecsv import raw_rows, read_pose_csv
 
@@ -253,7 +254,7 @@ def _pose_steps(path: str, setup: dict) -> list[StepRecord]:
     robot = setup_robot(setup)
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        t = read_pose_csv(path, robot.n, robot.prismatic, robot=robot if setup.get("robot") else None)
+        t = read_pose_csv(path, robot.n, robot.prismatic, robot=robot if setup.robot else None)
     for w in caught:
         if "ignoring unknown column" not in str(w.message):
             warnings.warn(w.message, stacklevel=2)
@@ -283,13 +284,13 @@ def _finite(text: str, what: str) -> float:
     return v
 
 
-def _reading_steps(path: str, setup: dict | None = None) -> list[StepRecord]:
+def _reading_steps(path: str, setup: BenchSetup | None = None) -> list[StepRecord]:
     """The readings of a raw-readings CSV grouped into steps; ``station`` must name one of the set-up's stations
     (default set-up: A and B)."""
     from calib.posecsv import csv_fields
 
     from .setup import station_names
-    stations = station_names(setup or _default_setup())
+    stations = station_names(setup or setup_of(_default_setup()))
     steps: dict[str, dict] = {}
     lines = [(n, ln) for n, ln in enumerate(read_text(path).splitlines(), 1) if not ln.startswith("#")]
     if not lines:

@@ -74,10 +74,34 @@ class ResolutionPlan:
     repeats: int = 1
 
 
+@dataclass(frozen=True)
+class IsoPose:
+    """One pose of the ISO 9283 cube: its name (P1..P5), the commanded point (measurement frame, mm) and the nominal
+    joint command that puts the description's tool target there (deg; chosen when the plan was made)."""
+
+    pose: str
+    point_mm: tuple[float, float, float]
+    q_deg: tuple[float, ...]
+
+
+@dataclass(frozen=True)
+class IsoPlan:
+    """ISO 9283 pose accuracy and repeatability (:mod:`acq.session.iso_cube`): ``cycles`` per pose (the standard's
+    30), each measurement after a fixed approach move ``approach_deg`` below the command on every joint; ``runs``:
+    ``off`` (the nominal command) and ``on`` (the calibrated model's command)."""
+
+    poses: tuple[IsoPose, ...] = ()
+    cycles: int = 30
+    approach_deg: float = 2.0
+    side_mm: float = 0.0
+    runs: tuple[str, ...] = ("off", "on")
+    model: str = ""                  # a calibrated model JSON for the "on" run ("": the session's pose set's)
+
+
 #: plan key -> its parameters' type
 SECTIONS = {"ruler": RulerPlan, "instrument_check": InstrumentCheckPlan, "sweeps": SweepPlan, "poses": PosesPlan,
             "transmission": TransmissionPlan, "compliance": CompliancePlan, "coupling": CouplingPlan,
-            "encoder_resolution": ResolutionPlan}
+            "encoder_resolution": ResolutionPlan, "iso9283": IsoPlan}
 
 PLAN_SCHEMA: dict[str, Any] = {
     "type": "object", "additionalProperties": False,
@@ -102,6 +126,16 @@ PLAN_SCHEMA: dict[str, Any] = {
                           "angle_deg": FINITE, "repeats": _COUNT}),
         "encoder_resolution": _obj({"joints": _JOINTS, "points": {**_COUNT, "minimum": 2},
                                     "span_deg": {**FINITE, "exclusiveMinimum": 0}, "repeats": _COUNT}),
+        "iso9283": _obj({"poses": {"type": "array", "minItems": 1, "items": {
+                             "type": "object", "additionalProperties": False, "required": ["pose", "point_mm", "q_deg"],
+                             "properties": {"pose": {"type": "string"},
+                                            "point_mm": {"type": "array", "items": FINITE, "minItems": 3,
+                                                         "maxItems": 3},
+                                            "q_deg": {"type": "array", "items": FINITE, "minItems": 1}}}},
+                         "cycles": {**_COUNT, "minimum": 2}, "approach_deg": {**FINITE, "exclusiveMinimum": 0},
+                         "side_mm": {**FINITE, "minimum": 0},
+                         "runs": {"type": "array", "items": {"enum": ["off", "on"]}, "uniqueItems": True},
+                         "model": {"type": "string"}}),
     },
 }
 
@@ -120,6 +154,7 @@ class SessionPlan:
     compliance: CompliancePlan = CompliancePlan()
     coupling: CouplingPlan = CouplingPlan()
     encoder_resolution: ResolutionPlan = ResolutionPlan()
+    iso9283: IsoPlan = IsoPlan()
 
     def to_dict(self) -> dict:
         """The plan as JSON data (what the session database keeps)."""
@@ -130,13 +165,20 @@ def _tuples(v):
     return tuple(_tuples(x) for x in v) if isinstance(v, (list, tuple)) else v
 
 
+def _field(name: str, v):
+    """A plan entry's field as the dataclass holds it: tuples for lists, ranges per joint, the ISO cube's poses."""
+    if name == "range_deg":
+        return {j: tuple(r) for j, r in v.items()}
+    if name == "poses" and v and isinstance(v[0], dict):
+        return tuple(IsoPose(p["pose"], tuple(p["point_mm"]), tuple(p["q_deg"])) for p in v)
+    return _tuples(v)
+
+
 def plan_of(doc: dict | SessionPlan, where: str = "session plan") -> SessionPlan:
     """The typed plan of a plan document, checked against :data:`PLAN_SCHEMA` (one line naming ``where`` and the
     key when it does not follow it); a :class:`SessionPlan` as it is."""
     if isinstance(doc, SessionPlan):
         return doc
     check_schema(doc, PLAN_SCHEMA, where)
-    parts = {k: SECTIONS[k](**{f: (_tuples(v) if f != "range_deg" else {j: tuple(r) for j, r in v.items()})
-                                for f, v in doc[k].items()})
-             for k in SECTIONS if k in doc}
+    parts = {k: SECTIONS[k](**{f: _field(f, v) for f, v in doc[k].items()}) for k in SECTIONS if k in doc}
     return SessionPlan(tuple(doc.get("procedures", ())), int(doc.get("seed", 0)), **parts)

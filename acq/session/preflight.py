@@ -36,6 +36,7 @@ from calib.model import MeasurementModel
 from calib.units import DEG
 
 from .setup import nominal_theta, setup_stations
+from .setup_types import BenchSetup, setup_of
 from .steps import Step, TargetSpec
 
 PREFLIGHT_LIMITS = {
@@ -89,14 +90,15 @@ def preflight_check(name: str):
 class Preflight:
     """Checks steps against ``robot`` and ``setup``; ``stations`` default to the set-up's (name -> Station)."""
 
-    def __init__(self, robot, setup: dict, stations: dict | None = None, limits: dict | None = None):
+    def __init__(self, robot, setup: BenchSetup | dict, stations: dict | None = None, limits: dict | None = None):
+        setup = setup_of(setup)
         self.robot = robot
         self.setup = setup
         self.model = MeasurementModel(robot)
         self.theta = nominal_theta(self.model, setup)
         self.stations = stations if stations is not None else setup_stations(setup)
-        lim = {**PREFLIGHT_LIMITS, **({"min_focus_mm": setup["min_focus_mm"]} if "min_focus_mm" in setup else {})}
-        self.limits = {**lim, **setup.get("preflight", {}), **(limits or {})}
+        lim = {**PREFLIGHT_LIMITS, **({} if setup.min_focus_mm is None else {"min_focus_mm": setup.min_focus_mm})}
+        self.limits = {**lim, **setup.preflight, **(limits or {})}
         self.g_n_per_kg = self.model.gravity_n_per_kg(self.theta)
         self._chains: dict[tuple, object] = {}     # pose -> one-pose chain pass (nominal model: stations do not matter)
         self._links: dict[int, tuple] = {}         # id(chain pass) -> (links, sample points) for the line of sight
@@ -220,7 +222,7 @@ def _reach(pf: Preflight, geo: StepGeometry) -> list[Finding]:
         if d > reach:
             out.append(Finding("reach", geo.step.key, d, reach, "mm", f"target {t.name} (link {j}) {d:.0f} mm "
                                f"from the base, the arm with that target reaches {reach:.0f} mm"))
-    floor = pf.setup.get("floor_z_mm")
+    floor = pf.setup.floor_z_mm
     if floor is not None:
         lowest = min([float(np.min(geo.fp.frame_t[0, :, 2]))] + [float(p[2]) for _, p in _on_robot(geo)])
         if lowest < floor:

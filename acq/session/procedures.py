@@ -2,7 +2,8 @@
 
 Read a procedure top to bottom to know what the operator will be asked, in order.  Procedures take the session
 ``plan`` (their parameters: :class:`~acq.session.plan_doc.SessionPlan`, or its JSON form, checked on entry) and
-``setup`` (the geometry of the bench) and never touch a device: the runner does the
+``setup`` (the geometry of the bench: :class:`~acq.session.setup_types.BenchSetup`, typed once by
+:func:`all_steps`) and never touch a device: the runner does the
 I/O, checks and storage.  Step keys are stable (``sweep/j2/03``), so a resumed session skips what is committed.
 
 Units: poses in degrees (what the operator types into the teach pendant), lengths in mm, loads as masses in kg (old set-ups: forces in N).
@@ -20,16 +21,15 @@ from calib.units import G0_M_S2
 from . import checks as ck
 from .plan_doc import SessionPlan, plan_of
 from .setup import point_p, reference_pose_deg, setup_profile, station_names
+from .setup_types import BenchSetup, ComplianceLoad, LinkLoad, mark_index, setup_of
 from .steps import InputSpec, Step, TargetSpec
-
-MARKS = ("C", "D", "E")
 
 
 def _fmt(q) -> str:
     return "[" + ", ".join(f"{v:.1f}" for v in q) + "] deg"
 
 
-def _both(setup: dict) -> str:
+def _both(setup: BenchSetup) -> str:
     """"theodolite A, then with B" with the set-up's station names."""
     a, b = station_names(setup)
     return f"theodolite {a}, then with {b}"
@@ -41,25 +41,29 @@ def _pose(j: int, angle_deg: float, base) -> tuple[float, ...]:
     return tuple(q)
 
 
-def tool_target(setup: dict) -> TargetSpec:
-    return TargetSpec("P", tool_mm=tuple(setup["tool_target_mm"]))
+def tool_target(setup: BenchSetup) -> TargetSpec:
+    if setup.tool_target_mm is None:
+        raise RobocalError("set-up: tool_target_mm: missing (the steps sighting the tool target need it)")
+    return TargetSpec("P", tool_mm=setup.tool_target_mm)
 
 
-def sweep_target(setup: dict, j: int) -> TargetSpec:
+def sweep_target(setup: BenchSetup, j: int) -> TargetSpec:
     """Target P_j of joint j's sweep: the set-up's designed one (``sweep_targets``), else the tool target."""
-    cfg = setup.get("sweep_targets", {}).get(str(j))
-    if cfg is None:
+    tg = (setup.sweep_targets or {}).get(j)
+    if tg is None:
         return tool_target(setup)
-    return TargetSpec("P", tool_mm=tuple(cfg["point_mm"]), link=cfg.get("link"))
+    return TargetSpec("P", tool_mm=tg.point_mm, link=tg.link)
 
 
-def extended_targets(setup: dict) -> tuple[TargetSpec, TargetSpec]:
-    et = setup["extended_tool"]
-    return TargetSpec("A1", tool_mm=tuple(et["A1_mm"])), TargetSpec("A2", tool_mm=tuple(et["A2_mm"]))
+def extended_targets(setup: BenchSetup) -> tuple[TargetSpec, TargetSpec]:
+    et = setup.extended_tool
+    if et is None:
+        raise RobocalError("set-up: extended_tool: missing (the runs on A1 and A2 need it)")
+    return TargetSpec("A1", tool_mm=et.A1_mm), TargetSpec("A2", tool_mm=et.A2_mm)
 
 
 # -- 4.2 levelling and the instrument check ---------------------------------------------------------------------------
-def levelling(plan: dict, setup: dict) -> Iterator[Step]:
+def levelling(plan: SessionPlan, setup: BenchSetup) -> Iterator[Step]:
     """Each theodolite levelled before anything is sighted: the thesis's analysis assumes parallel vertical axes
     (section 4.2, assumption 1).  The operator enters the residual tilt its level shows (electronic level: the two
     inclination readings; plate level only: the bubble's offset converted with its sensitivity)."""
@@ -75,11 +79,11 @@ def levelling(plan: dict, setup: dict) -> Iterator[Step]:
             setup={"station": name}, meta={"station": name})
 
 
-def instrument_check(plan: dict, setup: dict) -> Iterator[Step]:
+def instrument_check(plan: SessionPlan, setup: BenchSetup) -> Iterator[Step]:
     """Both faces of both instruments on a far target: their collimation and index errors.  Two-face means cancel
     them, but an instrument far out of adjustment (or a face change that did not happen) shows here first."""
     p = plan_of(plan).instrument_check
-    far = setup.get("far_target_mm")
+    far = setup.far_target_mm
     yield Step(
         key="instrument/far", procedure="instrument_check", title="Instrument check on the far target",
         instruction=("Sight the far target F (a sharp mark on the wall, a few metres away) with each theodolite, face "
@@ -89,41 +93,25 @@ def instrument_check(plan: dict, setup: dict) -> Iterator[Step]:
 
 
 # -- 4.2 ruler -----------------------------------------------------------------------------------------------------
-def mark_names(n_marks: int) -> tuple[str, ...]:
-    """Names of a ruler's marks: C, D, E for three (the thesis's); C, D, E1, E2 ... when E is marked at several
-    distances (the series that varies R)."""
-    return MARKS if n_marks == 3 else ("C", "D", *[f"E{i}" for i in range(1, n_marks - 1)])
-
-
-def mark_index(name: str) -> int:
-    """Index of a mark in ``marks_mm`` from its name (C 0, D 1, E or E1 2, E2 3 ...)."""
-    if name in ("C", "D", "E"):
-        return "CDE".index(name)
-    if name.startswith("E") and name[1:].isdigit() and int(name[1:]) >= 1:
-        return int(name[1:]) + 1
-    raise ValueError(f"unknown ruler mark {name!r} (C, D, E or E1, E2 ...)")
-
-
-def ruler(plan: dict, setup: dict) -> Iterator[Step]:
+def ruler(plan: SessionPlan, setup: BenchSetup) -> Iterator[Step]:
     """Theodolite pre-calibration: marks C, D, E of a ruler, levelled in the stations' plane, both faces.
 
     A placement sights every mark, or those it lists (``marks``: names) -- the series that varies R as the thesis
     does (Fig 5.4: R from 1792 to 1860 mm) marks E at several distances and sights one of them per placement, with C
     and the last mark on every placement (the fit starts from the ruler's two ends)."""
-    r = setup["ruler"]
-    marks = r["marks_mm"]
-    names = mark_names(len(marks))
+    r = setup.ruler
+    marks = r.marks_mm
     sta, stb = station_names(setup)
     p = plan_of(plan).ruler
-    for k, pl in enumerate(r["placements"]):
-        c = np.asarray(pl["C_mm"], float) if pl.get("C_mm") is not None else None
-        u = np.asarray(pl.get("dir", [1.0, 0.0, 0.0]), float)
-        for name in pl.get("marks", names):
+    for k, pl in enumerate(r.placements):
+        c = np.asarray(pl.C_mm, float) if pl.C_mm is not None else None
+        u = np.asarray(pl.dir, float)
+        for name in r.sighted(pl):
             m = mark_index(name)
             point = None if c is None else tuple(float(v) for v in c + marks[m] * u / np.linalg.norm(u))
             yield Step(
                 key=f"ruler/p{k}/{name}", procedure="ruler", title=f"Ruler placement {k + 1}: mark {name}",
-                instruction=(f"Ruler placement {k + 1} ({pl.get('where', 'as set up')}), levelled in the plane of "
+                instruction=(f"Ruler placement {k + 1} ({pl.where or 'as set up'}), levelled in the plane of "
                              f"the theodolites. Sight mark {name} ({marks[m]:.1f} mm from C) with theodolite {sta}, "
                              f"then with {stb}, face I then face II."),
                 targets=(TargetSpec(name, point_mm=point),), repeats=p.repeats, encoders=False,
@@ -131,7 +119,7 @@ def ruler(plan: dict, setup: dict) -> Iterator[Step]:
 
 
 # -- 4.3 joint sweeps ------------------------------------------------------------------------------------------------
-def sweeps(plan: dict, setup: dict) -> Iterator[Step]:
+def sweeps(plan: SessionPlan, setup: BenchSetup) -> Iterator[Step]:
     """Joint orientations and centres: each joint swept alone from READY (the set-up's reference pose), target P
     sighted at each position; by default every revolute joint of the robot."""
     p = plan_of(plan).sweeps
@@ -160,7 +148,7 @@ def sweeps(plan: dict, setup: dict) -> Iterator[Step]:
             repeats=p.repeats, meta={"point": "P", "L_p_mm": lp})
 
 
-def _wrist_swept(setup: dict, joints) -> bool:
+def _wrist_swept(setup: BenchSetup, joints) -> bool:
     """Point P belongs to the thesis's scheme: its robot profile has it, and the plan sweeps the wrist's last two
     joints (their axes give the wrist centre P is measured from)."""
     profile = setup_profile(setup)
@@ -168,7 +156,7 @@ def _wrist_swept(setup: dict, joints) -> bool:
 
 
 # -- Chapter 6 pose set ----------------------------------------------------------------------------------------------
-def poses(plan: dict, setup: dict) -> Iterator[Step]:
+def poses(plan: SessionPlan, setup: BenchSetup) -> Iterator[Step]:
     """The identification pose set (from ``robocal plan poses`` or chosen at session creation)."""
     p = plan_of(plan).poses
     qs = p.q_deg
@@ -180,7 +168,7 @@ def poses(plan: dict, setup: dict) -> Iterator[Step]:
 
 
 # -- 4.4 transmission error ------------------------------------------------------------------------------------------
-def transmission(plan: dict, setup: dict) -> Iterator[Step]:
+def transmission(plan: SessionPlan, setup: BenchSetup) -> Iterator[Step]:
     """Joint angle from the extended tool's targets A1, A2 against the encoder, over a joint's range."""
     p = plan_of(plan).transmission
     a1, a2 = extended_targets(setup)
@@ -198,58 +186,60 @@ def transmission(plan: dict, setup: dict) -> Iterator[Step]:
                 pose_deg=q, targets=(a1, a2), repeats=p.repeats, meta={"joint": j, "index": i})
 
 
-def _hung(cfg: dict, load_n: float) -> dict:
+def _hung(link: int | None, point_mm, loads_n, masses_kg, load_n: float) -> dict:
     """The step's hung mass in the step vocabulary (a mass at a point on a link), when the set-up gives the point
     (:func:`acq.session.setup.session_setup` maps old set-ups); ``tested_joint``: the joint it must turn."""
-    if cfg.get("point_mm") is None or not cfg.get("loads_n"):
+    if point_mm is None or not loads_n:
         return {}
-    kg = dict(zip(cfg["loads_n"], cfg.get("masses_kg", [v / G0_M_S2 for v in cfg["loads_n"]])))
-    return {"loads": [{"link": int(cfg["link"]), "point_mm": list(cfg["point_mm"]), "mass_kg": kg[load_n]}],
-            "tested_joint": int(cfg["link"])}
+    kg = dict(zip(loads_n, masses_kg if masses_kg is not None else [v / G0_M_S2 for v in loads_n]))
+    return {"loads": [{"link": int(link), "point_mm": list(point_mm), "mass_kg": kg[load_n]}],
+            "tested_joint": int(link)}
 
 
 # -- 4.5 joint compliance --------------------------------------------------------------------------------------------
-def compliance(plan: dict, setup: dict) -> Iterator[Step]:
+def compliance(plan: SessionPlan, setup: BenchSetup) -> Iterator[Step]:
     """Masses hung at a point on link j (a lever), increasing then decreasing; A1, A2 sighted at each load.
 
-    In the step vocabulary (contract C3) each step hangs ``setup["loads"]`` (one mass at the set-up's point) with
+    In the step vocabulary (contract C3) each step hangs ``step.setup["loads"]`` (one mass at the set-up's point) with
     ``load_direction`` ``{"j": +1 / -1}``, and the operator enters the mass actually hung (``load_kg``); a set-up
     without points (not mapped by :func:`acq.session.setup.session_setup`) keeps the old lever prompts in N."""
     p = plan_of(plan).compliance
     a1, a2 = extended_targets(setup)
     sta, stb = station_names(setup)
-    for j in p.joints or sorted(int(k) for k in setup.get("compliance", {})):
-        cfg = setup["compliance"][str(j)]
-        loads = list(cfg["loads_n"])
+    for j in p.joints or sorted(setup.compliance):
+        cfg = setup.compliance.get(j)
+        if cfg is None:
+            raise RobocalError(f"set-up: compliance: the plan loads joint {j}, the set-up has no entry \"{j}\"")
+        loads = list(cfg.loads_n)
         series = [("load", v, +1) for v in loads] + [("unload", v, -1) for v in reversed(loads[:-1])]
-        q = tuple(cfg.get("pose_deg") or reference_pose_deg(setup))
+        q = tuple(cfg.pose_deg or reference_pose_deg(setup))
         for i, (phase, load, direction) in enumerate(series):
-            hung = _hung(cfg, load)
+            hung = _hung(cfg.link, cfg.point_mm, cfg.loads_n, cfg.masses_kg, load)
             what = f"{hung['loads'][0]['mass_kg']:.3g} kg ({load:g} N)" if hung else f"{load:g} N"
             yield Step(
                 key=f"compliance/j{j}/{i:02d}", procedure="compliance",
                 title=f"Joint {j} {'loading' if direction > 0 else 'unloading'}: {what}",
                 instruction=(f"Brakes released, robot holding {_fmt(q)}. "
                              f"{'Hang' if direction > 0 else 'Remove weights to leave'} {what} on the lever at "
-                             f"{cfg['lever_mm']:g} mm from joint {j}'s axis, wait for the arm to settle, enter the "
+                             f"{cfg.lever_mm:g} mm from joint {j}'s axis, wait for the arm to settle, enter the "
                              f"load, then sight A1 and A2 with theodolite {sta}, then with {stb}."),
                 pose_deg=q, targets=(a1, a2), repeats=p.repeats,
                 inputs=_load_inputs(j, cfg, load, hung),
-                setup={"joint": j, "load_n": load, "lever_mm": cfg["lever_mm"],
-                       "theta_i_deg": cfg.get("theta_i_deg", 0.0),
+                setup={"joint": j, "load_n": load, "lever_mm": cfg.lever_mm,
+                       "theta_i_deg": cfg.theta_i_deg,
                        "load_direction": {str(j): direction} if hung else direction, **hung},
                 meta={"joint": j, "index": i, "phase": phase})
 
 
-def _load_inputs(j: int, cfg: dict, load_n: float, hung: dict) -> tuple[InputSpec, ...]:
+def _load_inputs(j: int, cfg: ComplianceLoad, load_n: float, hung: dict) -> tuple[InputSpec, ...]:
     """What the operator enters at a compliance step: the load (kg when the step hangs a mass), the lever as
     measured and its angle from level (recorded with the step)."""
     load = (_load_spec("load_kg", "kg", f"Mass now on the lever of joint {j}", hung["loads"][0]["mass_kg"]) if hung
             else _load_spec("load_n", "N", f"Load now on the lever of joint {j}", load_n))
-    lever = float(cfg["lever_mm"])
+    lever = float(cfg.lever_mm)
     return (load, InputSpec("lever_mm", "mm", "Lever arm from the joint's axis", lever,
                             tolerance=max(LEVER_REL_TOL * lever, LEVER_MIN_TOL_MM)),
-            InputSpec("theta_i_deg", "deg", "Lever angle from the horizontal", cfg.get("theta_i_deg", 0.0),
+            InputSpec("theta_i_deg", "deg", "Lever angle from the horizontal", cfg.theta_i_deg,
                       tolerance=LEVER_ANGLE_TOL_DEG))
 
 
@@ -267,23 +257,25 @@ def _load_spec(name: str, unit: str, prompt: str, planned: float) -> InputSpec:
 
 
 # -- 4.6 link compliance ---------------------------------------------------------------------------------------------
-def link_compliance(plan: dict, setup: dict) -> Iterator[Step]:
+def link_compliance(plan: SessionPlan, setup: BenchSetup) -> Iterator[Step]:
     """Dial gauges along a link, loads at its end; the operator enters the gauge readings."""
-    cfg = setup["link"]
-    j = cfg["joint"]
-    xs = cfg["gauges_x_mm"]
-    for i, load in enumerate(cfg["loads_n"]):
-        hung = _hung({"link": j, "point_mm": cfg.get("load_point_mm"), **cfg}, load)
+    cfg: LinkLoad | None = setup.link
+    if cfg is None:
+        raise RobocalError("set-up: link: missing (the link-compliance procedure needs it)")
+    j = cfg.joint
+    xs = cfg.gauges_x_mm
+    for i, load in enumerate(cfg.loads_n):
+        hung = _hung(cfg.link if cfg.link is not None else j, cfg.load_point_mm, cfg.loads_n, cfg.masses_kg, load)
         yield Step(
             key=f"link/j{j}/{i:02d}", procedure="link_compliance", title=f"Link {j}: load {load:g} N",
             instruction=(f"Dial gauges at {', '.join(f'{x:g}' for x in xs)} mm from joint {j}'s centre, zeroed "
-                         f"without load. Hang {load:g} N at {cfg['load_x_mm']:g} mm, wait 30 s, read every gauge."),
-            pose_deg=tuple(cfg.get("pose_deg") or reference_pose_deg(setup)), targets=(), faces=(),
+                         f"without load. Hang {load:g} N at {cfg.load_x_mm:g} mm, wait 30 s, read every gauge."),
+            pose_deg=tuple(cfg.pose_deg or reference_pose_deg(setup)), targets=(), faces=(),
             inputs=(_link_load_input(hung, load),
                     *[InputSpec(f"gauge{g + 1}_mm", "mm", f"Dial gauge {g + 1} at {x:g} mm")
                       for g, x in enumerate(xs)]),
-            setup={"joint": j, "load_n": load, "load_x_mm": cfg["load_x_mm"], "gauges_x_mm": list(xs), **hung,
-                   **({"gauges": cfg["gauges"]} if "gauges" in cfg else {})},
+            setup={"joint": j, "load_n": load, "load_x_mm": cfg.load_x_mm, "gauges_x_mm": list(xs), **hung,
+                   **({"gauges": [g.to_doc() for g in cfg.gauges]} if cfg.gauges is not None else {})},
             meta={"joint": j, "index": i})
 
 
@@ -296,7 +288,7 @@ def _link_load_input(hung: dict, load_n: float) -> InputSpec:
 
 
 # -- 4.7 wrist coupling ----------------------------------------------------------------------------------------------
-def coupling(plan: dict, setup: dict) -> Iterator[Step]:
+def coupling(plan: SessionPlan, setup: BenchSetup) -> Iterator[Step]:
     """Joint k alone through theta, then j and k together: the encoder of k shows sigma_jk theta_j more."""
     p = plan_of(plan).coupling
     th = p.angle_deg
@@ -322,7 +314,7 @@ def coupling(plan: dict, setup: dict) -> Iterator[Step]:
 
 
 # -- 5.4.2 encoder resolution -----------------------------------------------------------------------------------------
-def encoder_resolution(plan: dict, setup: dict) -> Iterator[Step]:
+def encoder_resolution(plan: SessionPlan, setup: BenchSetup) -> Iterator[Step]:
     """Joint j stepped in one direction while A1, A2 are sighted and the encoder tapped (thesis Fig 5.14): the slope
     of the measured angle on the counts is the resolution achieved.  Why the default span is wide (150 deg):
     reprocess fits the joint's axis from A2 over the run itself, and a 30 deg arc leaves it tilted enough to bias the
@@ -343,13 +335,44 @@ def encoder_resolution(plan: dict, setup: dict) -> Iterator[Step]:
                 pose_deg=q, targets=(a1, a2), repeats=p.repeats, meta={"joint": j, "index": i})
 
 
+# -- ISO 9283 pose accuracy and repeatability ------------------------------------------------------------------------
+def iso9283(plan: dict, setup: dict) -> Iterator[Step]:
+    """The five poses of the ISO 9283 cube (:mod:`acq.session.iso_cube`), ``cycles`` times each, every measurement
+    after the same approach move (every joint arriving in the positive direction), target P sighted like a pose of
+    the pose set.  Run ``off`` commands the nominal joint command; run ``on`` the calibrated model's command for the
+    same point, which the runner's ``command`` hook supplies when the step is reached
+    (:class:`acq.session.iso_commands.CompensatedCommands`): the step carries the nominal one until then."""
+    p = plan_of(plan).iso9283
+    target = tool_target(setup)
+    for run in p.runs:
+        for c in range(p.cycles):
+            for pose in p.poses:
+                yield iso_step(run, c, p.cycles, pose, p.approach_deg, target, setup)
+
+
+def iso_step(run: str, cycle: int, cycles: int, pose, approach_deg: float, target: TargetSpec, setup: dict) -> Step:
+    """One ISO 9283 measurement: pose ``pose`` (:class:`~acq.session.plan_doc.IsoPose`) in cycle ``cycle``."""
+    q = tuple(pose.q_deg)
+    approach = tuple(v - approach_deg for v in q)
+    on = run == "on"
+    command = "the calibrated model's command for the same point" if on else _fmt(q)
+    return Step(
+        key=f"iso9283/{run}/c{cycle:02d}/{pose.pose}", procedure="iso9283",
+        title=f"ISO 9283, compensation {run}: pose {pose.pose}, cycle {cycle + 1}/{cycles}",
+        instruction=(f"Move the robot to the approach pose {_fmt(approach)}, then to {command} (every joint arriving "
+                     f"in the positive direction), sight target P with {_both(setup)}."),
+        pose_deg=q, targets=(target,), encoders=False,
+        setup={"approach_deg": list(approach), **({"command": "compensated"} if on else {})},
+        meta={"run": run, "pose": pose.pose, "cycle": cycle, "point_mm": list(pose.point_mm), "nominal_deg": list(q)})
+
+
 @dataclass(frozen=True)
 class ProcedureInfo:
     """What the rest of the session needs to know about a procedure, found by name instead of name branches:
     its step generator, extra acceptance checks ``(step, readings, values, limits) -> list[Check]`` (readings as
     stored, the operator's values by input name) and whether its accepted steps refit the stations (the ruler)."""
 
-    steps: Callable[[dict, dict], Iterator[Step]]
+    steps: Callable[[SessionPlan, BenchSetup], Iterator[Step]]
     checks: tuple = ()
     refits_stations: bool = False
 
@@ -386,12 +409,14 @@ register_procedure("compliance", compliance)
 register_procedure("link_compliance", link_compliance)
 register_procedure("coupling", coupling)
 register_procedure("encoder_resolution", encoder_resolution)
+register_procedure("iso9283", iso9283)
 
 
-def all_steps(plan: dict | SessionPlan, setup: dict) -> list[Step]:
-    """Every step of the session's plan (checked here, once: :func:`acq.session.plan_doc.plan_of`), in order; keys
-    are checked for uniqueness (resume depends on them)."""
+def all_steps(plan: dict | SessionPlan, setup: dict | BenchSetup) -> list[Step]:
+    """Every step of the session's plan (checked here, once: :func:`acq.session.plan_doc.plan_of`, and the set-up:
+    :func:`acq.session.setup_types.setup_of`), in order; keys are checked for uniqueness (resume depends on them)."""
     plan = plan_of(plan)
+    setup = setup_of(setup)
     out: list[Step] = []
     for name in plan.procedures:
         try:

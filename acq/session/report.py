@@ -10,7 +10,6 @@ numbers beside them, and, when the stage failed, which stage, what the numbers w
 from __future__ import annotations
 
 import base64
-import datetime as dt
 import html
 import io
 import json
@@ -21,10 +20,14 @@ from typing import Callable
 import numpy as np
 
 from calib.fileio import atomic_write_text
+from calib.kinds import describe
 from calib.units import DEG
 
-from .sections import DETERMINED, NEGLIGIBLE, SECTIONS, UNDETERMINED, WEAK, Section, beside_the_thesis, bound_text, \
-    needs_action, section_bounds, section_estimates, section_problems, section_verdict, shown, shows, thesis_rows
+from .iso_report import iso_html
+from .numbers import legend, below_floor_sentence, same_floor, value_pm, when
+from .sections import DETERMINED, HELD, NEGLIGIBLE, SECTIONS, UNDETERMINED, WEAK, Section, beside_the_thesis, \
+    bound_text, needs_action, section_bounds, section_estimates, section_problems, section_verdict, shown, shows, \
+    thesis_rows
 
 STYLE = """
 body { font-family: system-ui, -apple-system, "Segoe UI", sans-serif; max-width: 60rem; margin: 1.5rem auto;
@@ -36,7 +39,7 @@ th, td { border: 1px solid #c8c8c8; padding: 0.15rem 0.5rem; text-align: right; 
 th { background: #eef2f8; } td.name, th.name { text-align: left; }
 .answer { background: #f3f7fc; border: 1px solid #2b5797; border-radius: 6px; padding: 0.6rem 1rem; }
 .verdict { font-weight: 600; } .determined { color: #1a7f37; } .weakly { color: #9a6700; }
-.not { color: #cf222e; } .problem { background: #fff4f4; border-left: 4px solid #cf222e; padding: 0.3rem 0.8rem; }
+.not { color: #cf222e; } .held { color: #666; } .problem { background: #fff4f4; border-left: 4px solid #cf222e; padding: 0.3rem 0.8rem; }
 .muted { color: #666; font-size: 0.85rem; } figure { margin: 0.5rem 0; } img { max-width: 100%; }
 .keep { break-inside: avoid; }
 /* print (--pdf is this page printed): a title never ends a page without what it titles, a table or a figure is not
@@ -122,7 +125,7 @@ def _sweeps_fig(f: dict, res: dict):
     return [("Joint sweeps: the circles the targets describe and the joint axes", fig)]
 
 
-def _dh_fig(f: dict, lengths: bool):
+def _dh_fig(f: dict, lengths: bool, labels=None):
     rows = [d for d in f.get("dh", []) if d["nominal"] == d["nominal"] and d["name"].endswith("_mm") == lengths]
     if not rows:
         return []
@@ -137,7 +140,7 @@ def _dh_fig(f: dict, lengths: bool):
         ax.plot(x, [((d["truth"] if d["truth"] is not None else d["nominal"]) - d["nominal"]) * scale for d in rows],
                 "x", label="truth − nominal (emulated)")
     ax.axhline(0, color="k", lw=0.5)
-    ax.set_xticks(x, [d["name"].rsplit("_", 1)[0] for d in rows], rotation=90, fontsize=7)
+    ax.set_xticks(x, [describe(f"dh.{d['name']}", labels).name for d in rows], rotation=90, fontsize=7)
     ax.set_ylabel(f"deviation ({unit})")
     ax.legend(fontsize=7)
     what = "lengths a, d" if lengths else "angles θ offset, α, β"
@@ -146,12 +149,12 @@ def _dh_fig(f: dict, lengths: bool):
 
 @figure("dh_lengths")
 def _dh_lengths(f: dict, res: dict):
-    return _dh_fig(f, True)
+    return _dh_fig(f, True, res.get("joint_labels"))
 
 
 @figure("dh_angles")
 def _dh_angles(f: dict, res: dict):
-    return _dh_fig(f, False)
+    return _dh_fig(f, False, res.get("joint_labels"))
 
 
 @figure("transmission")
@@ -269,7 +272,7 @@ def _accuracy_map(f: dict, res: dict):
 
 # -- text ----------------------------------------------------------------------------------------------------------
 def _verdict_class(v: str) -> str:
-    return {DETERMINED: "determined", NEGLIGIBLE: "determined", WEAK: "weakly", UNDETERMINED: "not"}[v]
+    return {DETERMINED: "determined", NEGLIGIBLE: "determined", HELD: "held", WEAK: "weakly", UNDETERMINED: "not"}[v]
 
 
 def accuracy_verdict(acc: dict, tolerance_mm: float | None) -> str:
@@ -281,6 +284,7 @@ def accuracy_verdict(acc: dict, tolerance_mm: float | None) -> str:
     ratio = acc["after_rms_mm"] / acc["floor_mm"] if acc["floor_mm"] > 0 else np.inf
     if ratio <= 1.5:
         words.append("What remains is at the instruments' own floor: the model explains everything they can see.")
+        words.append(below_floor_sentence(acc))
     else:
         words.append(f"What remains is {ratio:.1f}× the instruments' floor: an effect the model does not include "
                      f"remains (see the diagnosis: robocal diagnose).")
@@ -288,7 +292,7 @@ def accuracy_verdict(acc: dict, tolerance_mm: float | None) -> str:
         ok = acc["after_max_mm"] <= tolerance_mm
         words.append(f"Tolerance {tolerance_mm:g} mm: {'met on every held-out pose' if ok else 'NOT met'} "
                      f"(largest error {acc['after_max_mm']:.3f} mm).")
-    return " ".join(words)
+    return " ".join(w for w in words if w)
 
 
 def _robot_name(res: dict) -> str | None:
@@ -310,7 +314,7 @@ def _answer(res: dict, record, tolerance_mm: float | None, figs_png: dict | None
     acc = res.get("accuracy")
     created = ""
     if record is not None and record.created_unix_s:
-        created = dt.datetime.fromtimestamp(record.created_unix_s, dt.timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
+        created = when(record.created_unix_s)
     robot = _robot_name(res)
     inst = []
     if record is not None:
@@ -347,35 +351,39 @@ def _answer(res: dict, record, tolerance_mm: float | None, figs_png: dict | None
             f"</section>")
 
 
-def _estimates_table(ests: list[dict]) -> str:
+def _estimates_table(ests: list[dict], labels=None) -> str:
+    """The section's estimates: name, value ± 1σ rounded to the error, unit, emulated truth, verdict, meaning."""
     has_truth = any(e.get("truth") is not None for e in ests)
-    head = "<tr><th class='name'>estimate</th><th>value</th><th>1σ error</th><th class='name'>unit</th>" + \
-           ("<th>truth (emulated)</th>" if has_truth else "") + "<th class='name'>verdict</th></tr>"
+    head = "<tr><th class='name'>estimate</th><th>value ± 1σ</th><th class='name'>unit</th>" + \
+           ("<th>truth (emulated)</th>" if has_truth else "") + "<th class='name'>verdict</th>" \
+           "<th class='name'>meaning</th></tr>"
     rows = []
     for e in ests:
-        s = shown(e)
-        err = "held" if s.error is None else f"{s.error:.3g}"
-        unit = s.unit + (f" ({s.extra})" if s.extra else "")
-        truth = ("" if s.truth is None else f"{s.truth:.6g}") if has_truth else None
-        rows.append(f"<tr><td class='name'>{html.escape(s.name)}</td><td>{s.value:.6g}</td><td>{err}</td>"
+        s = shown(e, labels)
+        value = f"{s.value:.6g}" if s.error is None else value_pm(s.value, s.error)
+        unit = s.unit_text + (f" ({s.extra})" if s.extra else "")
+        truth = ("" if s.truth is None or s.error is None else s.beside(s.truth)) if has_truth else None
+        rows.append(f"<tr><td class='name'>{html.escape(s.name)}</td><td>{html.escape(value)}</td>"
                     f"<td class='name'>{html.escape(unit)}</td>" + ("" if truth is None else f"<td>{truth}</td>")
-                    + f"<td class='name {_verdict_class(s.verdict)}'>{s.verdict}</td></tr>")
+                    + f"<td class='name {_verdict_class(s.verdict)}'>{html.escape(s.verdict)}</td>"
+                    f"<td class='name muted'>{html.escape(s.meaning)}</td></tr>")
     return f"<table><thead>{head}</thead>{''.join(rows)}</table>"      # thead: repeated on every printed page
 
 
 def _thesis_table(rows: list[dict]) -> str:
     if not rows:
         return ""
-    out = ["<div class='keep'><h3>Beside the thesis</h3><table><tr><th class='name'>quantity</th><th>robocal</th>"
-           "<th>1σ</th><th>thesis</th><th>difference</th><th>in σ</th><th class='name'>note</th></tr>"]
+    out = ["<div class='keep'><h3>Beside the thesis</h3><table><tr><th class='name'>quantity</th>"
+           "<th>robocal ± 1σ</th><th>thesis</th><th>difference</th><th>in σ</th><th class='name'>note</th></tr>"]
     for r in rows:
-        unit = "" if r["unit"] == "1" else f" {r['unit']}"
+        unit = "" if not r["unit"] else f" {r['unit']}"
         sig = "" if r["sigmas"] is None else f"{r['sigmas']:+.1f}"
         th_err = "" if r["thesis_error"] is None else f" ± {r['thesis_error']:g}"
         note = r["note"] + (f" (lb in/rad: {r['lbin'][0]:.4g} vs {r['lbin'][1]:.4g})" if r.get("lbin") else "")
-        err = "" if r["error"] is None else f"{r['error']:.2g}"
-        out.append(f"<tr><td class='name'>{html.escape(r['label'])}</td><td>{r['robocal']:.6g}{unit}</td>"
-                   f"<td>{err}</td><td>{r['thesis']:.6g}{th_err}{unit}</td><td>{r['difference']:+.4g}</td><td>{sig}</td>"
+        ours = value_pm(r["robocal"], r["error"])
+        diff = "" if r["error"] is None else f"{r['difference']:+.2g}"
+        out.append(f"<tr><td class='name'>{html.escape(r['label'])}</td><td>{html.escape(ours)}{unit}</td>"
+                   f"<td>{r['thesis']:.6g}{th_err}{unit}</td><td>{diff}</td><td>{sig}</td>"
                    f"<td class='name'>{html.escape(note)}</td></tr>")
     out.append("</table></div>")
     return "".join(out)
@@ -408,7 +416,8 @@ def _section_html(sec: Section, res: dict, record, figs_png: dict[str, list[tupl
     sb = section_bounds(sec, bounds)
     if not mine and not sp and not sb and (record is None or sec.key not in record.procedures):
         return ""
-    v, why = section_verdict(sec, est, probs, bounds, beside_the_thesis(res))
+    labels = res.get("joint_labels")
+    v, why = section_verdict(sec, est, probs, bounds, beside_the_thesis(res), labels)
     anchor = sec.key if not sec.only_with_results else f"{sec.key}-{sec.prefixes[0].rstrip('.')}"
     out = [f"<section id='{anchor}'><h2>{html.escape(sec.title)}</h2>",
            f"<p>{html.escape(sec.what)}</p>", _what_was_done(sec, record),
@@ -421,7 +430,7 @@ def _section_html(sec: Section, res: dict, record, figs_png: dict[str, list[tupl
     if needs_action(v) and not sp and sec.advice:
         out.append(f"<p class='muted'>What to do: {html.escape(sec.advice)}</p>")
     for b in sb:
-        out.append(f"<p class='verdict {_verdict_class(v)}'>{html.escape(bound_text(b))}."
+        out.append(f"<p class='verdict {_verdict_class(v)}'>{html.escape(bound_text(b, labels))}."
                    + (f" {html.escape(b['note'][0].upper() + b['note'][1:])}." if b.get("note") else "")
                    + (f" <span class='muted'>Emulated truth: {b['truth']:.4g} {html.escape(b.get('unit', ''))}"
                       f"</span>" if b.get("truth") is not None else
@@ -432,16 +441,20 @@ def _section_html(sec: Section, res: dict, record, figs_png: dict[str, list[tupl
             out.append(f"<figure><img alt='{html.escape(caption)}' src='{src}'/><figcaption>{html.escape(caption)}"
                        f"</figcaption></figure>")
     if mine:
-        out.append(_estimates_table(mine))
-    out.append(_thesis_table(thesis_rows(sec, mine, beside_the_thesis(res))))
+        out.append(_estimates_table(mine, labels))
+    out.append(_thesis_table(thesis_rows(sec, mine, beside_the_thesis(res), labels)))
     out.append("</section>")
     return "".join(out)
 
 
-def _diagnosis_html(diag: dict | None) -> str:
-    """The diagnosis section (present when the session was reprocessed with ``--diagnose``)."""
+def _diagnosis_html(diag: dict | None, acc: dict | None = None) -> str:
+    """The diagnosis section (present when the session was reprocessed with ``--diagnose``); its floor is the
+    accuracy's (one floor per pose set), named rather than stated again when ``acc`` has it."""
     if not diag:
         return ""
+    same = same_floor(acc, diag)
+    floor = "the instrument floor stated above" if same else \
+        f"an instrument floor of {diag['noise_floor_mm']:.3f} mm"
     from .summary import finding_flags
     rows = "".join(
         f"<tr><td class='name'>{html.escape(f['label'])}</td><td>{f['rms_after_mm']:.3f}</td>"
@@ -455,15 +468,14 @@ def _diagnosis_html(diag: dict | None) -> str:
     un = f"<p class='verdict weakly'>Unexplained: {html.escape(str(unexplained))}</p>" if unexplained else ""
     return (f"<section id='diagnosis'><h2>Diagnosis of the sim-to-real gap</h2>"
             f"<p>On poses each fit did not use: {diag['baseline_rms_mm']:.3f} mm RMS with the geometry alone, "
-            f"{diag['final_rms_mm']:.3f} mm with the findings below, against an instrument floor of "
-            f"{diag['noise_floor_mm']:.3f} mm — {html.escape(str(diag.get('stop_reason', '')))}.</p>{table}{un}"
+            f"{diag['final_rms_mm']:.3f} mm with the findings below, against {floor} — {html.escape(str(diag.get('stop_reason', '')))}.</p>{table}{un}"
             "<p class='muted'>A finding is accepted only when it is significant, shrinks the held-out excess over "
             "the floor materially and keeps its parameters across folds; <i>doubtful</i> marks one that the data "
             "cannot tell apart from another candidate (its alias), whose stated error exceeds a quarter of its value, "
             "or whose own driver still orders the residual beyond the noise.</p></section>")
 
 
-def _estimation_errors(est: list[dict]):
+def _estimation_errors(est: list[dict], labels=None):
     rows = [e for e in est if e.get("truth") is not None and e["error"] > 0 and not e.get("held")]
     if not rows:
         return None
@@ -472,7 +484,7 @@ def _estimation_errors(est: list[dict]):
     fig, ax = plt.subplots(figsize=(8, 3))
     ax.bar(range(len(z)), np.clip(z, -10, 10))
     ax.axhline(2, color="r", lw=0.6), ax.axhline(-2, color="r", lw=0.6)
-    ax.set_xticks(range(len(z)), [e["name"] for e in rows], rotation=90, fontsize=6)
+    ax.set_xticks(range(len(z)), [describe(e["name"], labels).name for e in rows], rotation=90, fontsize=6)
     ax.set_ylabel("(estimate − truth) / error (1)")
     med = float(np.median(np.abs(z)))
     return (f"Estimation errors against the emulated truth (clipped at 10): median |z| {med:.2f}, 0.67 is honest", fig)
@@ -480,9 +492,24 @@ def _estimation_errors(est: list[dict]):
 
 def _provenance_html(res: dict) -> str:
     prov = res.get("provenance") or {}
-    items = "".join(f"<tr><th class='name'>{html.escape(str(k))}</th><td class='name'>{html.escape(str(v))}</td></tr>"
-                    for k, v in prov.items())
+    items = "".join(f"<tr><th class='name'>{html.escape(k)}</th><td class='name'>{html.escape(v)}</td></tr>"
+                    for k, v in provenance_rows(prov))
     return f"<section id='provenance'><h2>Provenance</h2><table>{items}</table></section>"
+
+
+def provenance_rows(prov: dict) -> list[tuple[str, str]]:
+    """The provenance as people read it: a time (``..._unix_s``) as ISO 8601 with its zone and a duration
+    (``..._s``) in seconds to three digits, under their names without the unit; every other entry as it is."""
+    out = []
+    for k, v in prov.items():
+        key, number = str(k), isinstance(v, (int, float)) and not isinstance(v, bool)
+        if key.endswith("_unix_s") and number:
+            out.append((key[: -len("_unix_s")], when(v)))
+        elif key.endswith("_s") and number:
+            out.append((key[: -len("_s")], f"{v:.3g} s"))
+        else:
+            out.append((key, str(v)))
+    return out
 
 
 def render_figures(res: dict) -> dict[str, list[tuple[str, object]]]:
@@ -500,16 +527,18 @@ def report_html(res: dict, tolerance_mm: float | None = None, record=None) -> st
     """The whole report as one HTML document (figures embedded)."""
     figs = {k: [(c, _png(fig)) for c, fig in v] for k, v in render_figures(res).items()}
     body = [f"<h1>Calibration report</h1><p class='muted'>robocal — {html.escape(res['session']['title'])}</p>",
+            f"<p class='muted' id='legend'>{html.escape(legend(beside_the_thesis(res)))}</p>",
             _answer(res, record, tolerance_mm, figs)]
     present = [sec for sec in SECTIONS if shows(sec, res)]
     body += [_section_html(sec, res, record, figs) for sec in present]
-    body.append(_diagnosis_html(res.get("diagnosis")))
+    body.append(iso_html(res))                              # ISO 9283 AP and RP per pose, off and on
+    body.append(_diagnosis_html(res.get("diagnosis"), res.get("accuracy")))
     known = {p for sec in present for p in section_problems(sec, res.get("problems", []))}
     others = [p for p in res.get("problems", []) if p not in known]
     if others:
         body.append("<section id='notes'><h2>Notes</h2><ul>" + "".join(f"<li>{html.escape(p)}</li>" for p in others)
                     + "</ul></section>")
-    ee = _estimation_errors(res.get("estimates", []))
+    ee = _estimation_errors(res.get("estimates", []), res.get("joint_labels"))
     if ee is not None:
         body.append(f"<section id='honesty'><h2>Are the stated errors honest?</h2><figure><img alt='estimation "
                     f"errors' src='{_png(ee[1])}'/><figcaption>{html.escape(ee[0])}</figcaption></figure></section>")

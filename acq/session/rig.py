@@ -211,6 +211,8 @@ class EmulatedBench(Bench):
     def prepare(self, step: Step, inputs: dict) -> None:
         w = self.world
         if step.pose_deg is not None:
+            if step.setup.get("approach_deg"):      # the approach move first (ISO 9283: one direction)
+                w.command(np.asarray(step.setup["approach_deg"], float) * DEG)
             w.command(np.asarray(step.pose_deg, float) * DEG)
         s = c3_setup(step.setup, step.pose_deg, inputs, self._kin)
         w.hang(hung_masses(s.get("loads", [])), load_directions(s, w.robot.n))

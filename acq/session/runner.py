@@ -67,6 +67,7 @@ from typing import Callable, Protocol
 
 import numpy as np
 
+from calib.errors import RobocalError
 from calib.units import DEG
 
 from ..errors import DeviceError
@@ -158,7 +159,8 @@ class Runner:
                  bench: Bench | None = None, stations: dict | None = None,
                  predict: Callable[[Step], dict] | None = None, limits: dict | None = None,
                  capture_s: float = 0.02, settle_s: float = 0.0,
-                 refit_stations: Callable[[SessionStore], dict | None] | None = None, preflight=None):
+                 refit_stations: Callable[[SessionStore], dict | None] | None = None, preflight=None,
+                 command: Callable[[Step], Step] | None = None):
         self.store = store
         self.rig = rig
         self.steps = steps
@@ -171,6 +173,7 @@ class Runner:
         self.settle_s = settle_s
         self.refit_stations = refit_stations
         self.preflight = preflight          # acq.session.preflight.Preflight (or anything with check/check_step)
+        self.command = command              # a step's joint command computed when it is reached (ISO 9283's "on")
         self.stations_fitted = False        # True once the stations come from the session's own ruler sightings
         self.events: queue.Queue = queue.Queue()
         self.state = "idle"
@@ -270,7 +273,9 @@ class Runner:
         """One step: setup prompt, acquisition, checks, decision -- repeated until accepted, skipped, paused or
         aborted -- then the step is committed.  Returns the outcome (accepted, skipped, pause, abort)."""
         rec = _StepLog(time.time())
-        blocked = self._preflight_step(step)
+        planned = step
+        step, blocked = self._commanded(planned)
+        blocked = blocked or self._preflight_step(step)
         while True:
             rec.attempt += 1
             self._emit_started(index, step, rec.attempt)
@@ -279,7 +284,8 @@ class Runner:
                 if action in ("pause", "abort"):
                     return action
                 if action == "repeat":              # the operator changed something: check again
-                    blocked = self._preflight_step(step)
+                    step, blocked = self._commanded(planned)
+                    blocked = blocked or self._preflight_step(step)
                     continue
                 status = "skipped"
                 break
@@ -346,6 +352,23 @@ class Runner:
         self.emit("step_saved", key=step.key, status=status, attempts=rec.attempt)
         if status == "accepted" and procedure_info(step.procedure).refits_stations:
             self._refit()
+
+    def _commanded(self, step: Step) -> tuple[Step, list]:
+        """The step as it will be commanded: a step whose ``setup["command"]`` names a computed command (the
+        calibrated model's, ``compensated``) gets it from the ``command`` hook now -- the stored step then holds
+        the command actually sent.  Without the hook, or when it cannot compute one (no calibrated model yet), the
+        step is blocked with the reason (the operator can skip it)."""
+        if not step.setup.get("command"):
+            return step, []
+        try:
+            if self.command is None:
+                raise RobocalError(f"{step.key}: needs the {step.setup['command']} command and this session has no "
+                                   "calibrated model to compute it")
+            return self.command(step), []
+        except RobocalError as exc:
+            out = [ck.Check("command", False, None, None, "", str(exc))]
+            self._emit_checks(step, out)
+            return step, out
 
     def _preflight_step(self, step: Step) -> list:
         """The pre-flight of this step with the stations as they are now (the ruler refit changes them): failing

@@ -2,16 +2,17 @@
 own numbers beside them, and what to do when a stage failed.  The terminal summary and the HTML report are two views
 of these sections (a registry: a new procedure adds one entry, no branch elsewhere).
 
-Units at this edge: lengths in mm; angles in degrees, or arc seconds where they are small instrument angles; joint
-stiffness in N m/rad with lb in/rad beside it (the thesis's unit); everything else as estimated.
+Names, units and meanings at this edge come from one vocabulary, :mod:`calib.kinds` (lengths in mm; angles in
+degrees, an encoder's resolution in arc seconds per count; joint stiffness in N m/rad with lb in/rad beside it, the
+thesis's unit); numbers are rounded to their error by :mod:`acq.session.numbers`.
 
 Verdicts (per estimate, then per section: the worst of its estimates):
 * ``determined``: the stated 1-sigma error is small against the quantity (under 10 % of a magnitude such as a
   stiffness or a length; under 0.5 mm / 0.05 deg / 0.001 for a deviation or share that may be near zero);
 * ``weakly determined``: under 50 % / 2 mm / 0.25 deg / 0.005;
-* ``not determined``: anything larger, or a zero or non-finite error on an estimated quantity.  A parameter held at
-  its design value (the data cannot separate it from another) is listed as held and does not make its section
-  undetermined: the section is judged on what it estimated;
+* ``not determined``: anything larger, or a zero or non-finite error on an estimated quantity;
+* ``held at design value``: a parameter the data cannot separate from another, kept at its design value.  It is
+  shown as held, not as a failure, and does not weaken its section: the section is judged on what it estimated;
 * ``negligible``: the procedure found the effect below what it can resolve and states a one-sided bound instead of an
   estimate (``bounds`` in the results: e.g. the link is at least this stiff); the section's ``bounded`` words say
   what that means (for the link, the thesis's own finding).
@@ -19,28 +20,30 @@ Verdicts (per estimate, then per section: the worst of its estimates):
 from __future__ import annotations
 
 import math
-import re
 from dataclasses import dataclass, field
 
+from calib.kinds import describe
 from calib.units import DEG, NM_PER_LBIN
+
+from .numbers import like_value, rounded, value_pm
 
 DETERMINED, WEAK, UNDETERMINED = "determined", "weakly determined", "not determined"
 NEGLIGIBLE = "negligible"
-_RANK = {DETERMINED: 0, NEGLIGIBLE: 0, WEAK: 1, UNDETERMINED: 2}
+#: a parameter kept at its design value: not a failure, and no reason for its section's verdict
+HELD = "held at design value (not determined by these poses)"
+_RANK = {DETERMINED: 0, NEGLIGIBLE: 0, HELD: 0, WEAK: 1, UNDETERMINED: 2}
+#: a difference from the thesis's printed number beyond this many σ is explained in words
+THESIS_SIGMAS = 3.0
 
 
 def needs_action(verdict: str) -> bool:
     """Whether a section's verdict calls for the operator's advice (a weak or missing result, not a bound)."""
     return _RANK[verdict] > 0
 
-#: estimate-name endings whose value is a magnitude (its error is judged against the value itself)
-MAGNITUDES = ("L_mm", "K1_Nm_per_rad", "K2_Nm_per_rad", "EI_Nmm2", "amplitude1_rad", "omega", "sigma45", "sigma46",
-              "sigma56")
-
 
 @dataclass
 class Shown:
-    """An estimate as shown: display name, value and error in display units, unit, truth, verdict, note."""
+    """An estimate as shown: human name, value and error in display units, unit, truth, verdict, note, meaning."""
 
     name: str
     value: float
@@ -50,24 +53,38 @@ class Shown:
     verdict: str
     note: str = ""
     extra: str = ""          # e.g. the lb in/rad equivalent
+    meaning: str = ""
 
+    @property
+    def unit_text(self) -> str:
+        """The unit as printed (``dimensionless`` for a pure number)."""
+        return self.unit or "dimensionless"
 
-def _angle_scale(unit: str) -> tuple[float, str]:
-    """Radians are shown in degrees; every other unit as estimated."""
-    if unit == "1":
-        return 1.0, ""
-    return (1.0 / DEG, "deg") if unit == "rad" else (1.0, unit)
+    @property
+    def value_text(self) -> str:
+        """``value ± error unit`` rounded to the error, or what a held value is."""
+        if self.error is None:
+            return f"{self.value:.6g} {self.unit_text}, {HELD}"
+        return f"{value_pm(self.value, self.error)} {self.unit_text}"
+
+    def beside(self, x: float) -> str:
+        """Another number in this estimate's unit (a truth, the thesis's), rounded as the value is."""
+        return like_value(x, self.value, self.error)
+
+    def sigmas(self, x: float) -> float | None:
+        """(value - x) in units of the error."""
+        return (self.value - x) / self.error if self.error else None
 
 
 def verdict_of(e: dict) -> str:
     """The verdict of one estimate (see the module docstring)."""
     if e.get("held"):
-        return UNDETERMINED
+        return HELD
     err, val = e.get("error"), e.get("value")
     if err is None or not math.isfinite(err) or err <= 0 or val is None or not math.isfinite(val):
         return UNDETERMINED
-    name, unit = e["name"], e.get("unit", "")
-    if name.endswith(MAGNITUDES):
+    unit = e.get("unit", "")
+    if describe(e["name"]).magnitude:
         rel = err / abs(val) if val else math.inf
         return DETERMINED if rel < 0.10 else WEAK if rel < 0.5 else UNDETERMINED
     if unit == "mm":
@@ -79,18 +96,17 @@ def verdict_of(e: dict) -> str:
     return DETERMINED if err < 0.1 * max(abs(val), 1e-12) else WEAK if err < 0.5 * abs(val) else UNDETERMINED
 
 
-def shown(e: dict) -> Shown:
-    """One estimate in display units."""
-    name, unit = e["name"], e.get("unit", "")
-    scale, du = _angle_scale(unit)
+def shown(e: dict, labels=None) -> Shown:
+    """One estimate in display units, named and explained by :func:`calib.kinds.describe` (``labels``: the
+    session's joint labels)."""
+    d = describe(e["name"], labels)
     err = None if e.get("held") else e.get("error")
     extra = ""
-    if unit == "N m/rad":
+    if e.get("unit") == "N m/rad":
         extra = f"{e['value'] / NM_PER_LBIN:.4g} lb in/rad"
     truth = e.get("truth")
-    pretty = re.sub(r"_(rad|mm|deg|Nm_per_rad|Nmm2|Nm|rad_per_nm|per_nmm2)$", "", name)
-    return Shown(pretty, e["value"] * scale, None if err is None else err * scale, du,
-                 None if truth is None else truth * scale, verdict_of(e), e.get("note", ""), extra)
+    return Shown(d.name, e["value"] / d.scale, None if err is None else err / d.scale, d.unit,
+                 None if truth is None else truth / d.scale, verdict_of(e), e.get("note", ""), extra, d.meaning)
 
 
 @dataclass
@@ -141,7 +157,7 @@ section(Section(
 section(Section(
     "sweep", "Joint axes and DH parameters (circle point analysis, §4.3)", ("dh.", "misalign."),
     "Each joint swept alone while a target on its link is sighted; a circle and its axis fitted per joint; the DH "
-    "parameters follow from successive axes, and each measured axis against its design direction (misalign.*).",
+    "parameters follow from successive axes, and each measured axis against its design direction (the misalignments).",
     ("sweeps", "sweep", "misalignment"),
     "Widen the sweep of a joint whose axis is weakly determined, or put its target farther from the axis "
     "(100-1200 mm, about 600 mm suggested).",
@@ -228,15 +244,16 @@ def section_bounds(sec: Section, bounds: list[dict]) -> list[dict]:
     return [b for b in bounds if b["name"].startswith(sec.prefixes)]
 
 
-def bound_text(b: dict) -> str:
-    """A bound as a metrologist states it: ``j2.EI ≥ 3.1e+12 N mm² (95 %, one-sided)``."""
-    name = re.sub(r"_(lower|upper)_bound_(Nmm2|Nm_per_rad|mm|rad)$", "", b["name"]).split(".", 1)[-1]
+def bound_text(b: dict, labels=None) -> str:
+    """A bound as a metrologist states it: ``joint 2 link's flexural rigidity EI ≥ 3.1e+12 N mm² (95 %,
+    one-sided)``."""
+    d = describe(b["name"], labels)
     sign = "≥" if b.get("side", "lower") == "lower" else "≤"
-    unit = b.get("unit", "").replace("^2", "²")
-    text = f"{name} {sign} {b['value']:.3g} {unit} ({100 * b['confidence']:g} %, one-sided)"
+    unit = d.unit or b.get("unit", "").replace("^2", "²")
+    text = f"{d.name} {sign} {rounded(b['value'] / d.scale)} {unit} ({100 * b['confidence']:g} %, one-sided)"
     if b.get("detection_limit_Nmm2"):
-        text += f"; these loads and gauges could not tell a link stiffer than {b['detection_limit_Nmm2']:.3g} {unit} " \
-                f"from a rigid one"
+        text += f"; these loads and gauges could not tell a link stiffer than {rounded(b['detection_limit_Nmm2'])} " \
+                f"{unit} from a rigid one"
     return text
 
 
@@ -262,10 +279,11 @@ def shows(sec: Section, res: dict) -> bool:
 
 
 def section_verdict(sec: Section, estimates: list[dict], problems: list[str],
-                    bounds: list[dict] = (), thesis: bool = True) -> tuple[str, str]:
+                    bounds: list[dict] = (), thesis: bool = True, labels=None) -> tuple[str, str]:
     """(verdict, reason) of a whole section: the worst of its estimates, negligible when it states a bound instead
     (the effect is below what the procedure resolves; with ``thesis``, the thesis's own finding put before it), or
-    not determined when it failed."""
+    not determined when it failed.  Parameters held at their design values are no reason: the section is judged on
+    what it estimated.  ``labels``: the session's joint labels, for the reason's words."""
     mine = section_estimates(sec, estimates)
     probs = section_problems(sec, problems)
     if not mine and section_bounds(sec, list(bounds)) and not probs:
@@ -282,18 +300,14 @@ def section_verdict(sec: Section, estimates: list[dict], problems: list[str],
         return v, "every estimate's error is small against its value"
     # the reason is the estimate's error against its value (a note on an estimate may be about its truth, which is
     # no reason for a verdict; the notes are shown beside the estimates)
-    why = "held at its design value" if worst.get("held") else f"{shown(worst).name}: error {_fmt_err(worst)}"
-    return v, why
+    sw = shown(worst, labels)
+    return v, f"{sw.name}: {sw.value_text}"
 
 
-def _fmt_err(e: dict) -> str:
-    s = shown(e)
-    return "none" if s.error is None else f"{s.error:.3g} {s.unit} on {s.value:.6g} {s.unit}"
-
-
-def thesis_rows(sec: Section, estimates: list[dict], thesis: bool = True) -> list[dict]:
+def thesis_rows(sec: Section, estimates: list[dict], thesis: bool = True, labels=None) -> list[dict]:
     """robocal's value beside the thesis's, and their difference in units of robocal's stated error (none unless
-    ``thesis``: the robot is the thesis's Puma, :func:`beside_the_thesis`)."""
+    ``thesis``: the robot is the thesis's Puma, :func:`beside_the_thesis`).  A difference beyond
+    :data:`THESIS_SIGMAS` is explained (:func:`thesis_difference_words`)."""
     if not thesis:
         return []
     by_name = {e["name"]: e for e in estimates}
@@ -302,13 +316,28 @@ def thesis_rows(sec: Section, estimates: list[dict], thesis: bool = True) -> lis
         e = by_name.get(row.estimate)
         if e is None:
             continue
-        s = shown(e)
+        s = shown(e, labels)
         diff = s.value - row.thesis
-        z = diff / s.error if s.error else None
+        z = s.sigmas(row.thesis)
         out.append({"label": row.label, "robocal": s.value, "error": s.error, "thesis": row.thesis,
-                    "thesis_error": row.thesis_error, "unit": row.unit if row.unit != "N m/rad" else "N m/rad",
-                    "difference": diff, "sigmas": z,
-                    "note": "; ".join(filter(None, [row.note, "robocal: one slope over every load (the breakpoint "
-                                                    "is not determined)" if e.get("single_slope") else ""])),
+                    "thesis_error": row.thesis_error, "unit": s.unit, "difference": diff, "sigmas": z,
+                    "note": "; ".join(filter(None, [
+                        row.note, "robocal: one slope over every load (the breakpoint is not determined)"
+                        if e.get("single_slope") else "", thesis_difference_words(s, z),
+                        f"{HELD}: nothing to compare" if e.get("held") else ""])),
                     "lbin": (s.value * LB, row.thesis * LB) if row.unit == "N m/rad" else None})
     return out
+
+
+def thesis_difference_words(s: Shown, z: float | None) -> str:
+    """Why an estimate lies more than :data:`THESIS_SIGMAS` from the thesis's printed number: the thesis measured
+    its own Puma in 1986, and this robot (an emulated twin with its own truth, or another Puma) is not that one."""
+    if z is None or abs(z) <= THESIS_SIGMAS:
+        return ""
+    if s.truth is not None:
+        zt = s.sigmas(s.truth)
+        return (f"more than {THESIS_SIGMAS:g}σ from the thesis's number because the twin's truth "
+                f"({s.beside(s.truth)} {s.unit_text}) is not the thesis's robot; the estimate is {zt:+.1f}σ from "
+                f"the twin's truth")
+    return (f"more than {THESIS_SIGMAS:g}σ from the thesis's number: this robot is not the one the thesis measured, "
+            f"so the difference compares two robots")

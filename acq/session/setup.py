@@ -13,10 +13,13 @@ import numpy as np
 from calib.errors import RobocalError
 from calib.model import MeasurementModel
 from calib.profile import THESIS_READY_DEG, profile_of
+from calib.loading import load_robot
+from calib.setup_plan import sweep_targets
 from calib.theodolite import thesis_stations
 from calib.units import ARCSEC, DEG
 
 from .setup_file import default_of
+from .setup_types import BenchSetup, PointP, mark_index, mark_names, setup_of
 from .steps import Step
 
 
@@ -70,7 +73,7 @@ def standard_setup() -> dict:
 
 def record_robot(setup: dict, robot_path) -> dict:
     """The set-up naming the robot a session is recorded with: ``robot_path`` (``--robot``: a path, or a
-    :class:`calib.robot.RobotPath` carrying ``--base-link`` / ``--tip-link``) as ``robot``, its chain cut as
+    :class:`calib.loading.RobotPath` carrying ``--base-link`` / ``--tip-link``) as ``robot``, its chain cut as
     ``base_link`` / ``tip_link``; the set-up itself when no ``--robot`` was given.  Why: the session keeps its
     set-up, and reprocessing loads the robot from it (:func:`setup_robot`), so the cut must travel with the name."""
     if not robot_path:
@@ -83,69 +86,72 @@ def record_robot(setup: dict, robot_path) -> dict:
     return out
 
 
-def setup_robot(setup: dict):
+def setup_robot(setup: BenchSetup | dict):
     """The robot a session's set-up names: ``robot`` (a description file; empty: the shipped Puma) cut at
     ``base_link`` / ``tip_link`` when the set-up records a URDF chain cut, so a reprocess loads the same chain the
     session was recorded with."""
-    from calib.robot import load_robot
-    return load_robot(setup.get("robot") or None, setup.get("base_link") or None, setup.get("tip_link") or None)
+    s = setup_of(setup)
+    return load_robot(s.robot or None, s.base_link or None, s.tip_link or None)
 
 
-def setup_profile(setup: dict):
+def setup_profile(setup: BenchSetup):
     """The profile (:func:`calib.profile.profile_of`) of the robot the set-up names: what the plan's defaults
     come from (which joints, which pairs)."""
-    return _profile(setup.get("robot") or "", setup.get("base_link") or "", setup.get("tip_link") or "")
+    return _profile(setup.robot, setup.base_link, setup.tip_link)
 
 
 @lru_cache(maxsize=16)
 def _profile(robot: str, base_link: str, tip_link: str):
     """Cached: a plan's generators ask for it once per procedure."""
-    return profile_of(setup_robot({"robot": robot, "base_link": base_link, "tip_link": tip_link}))
+    return profile_of(load_robot(robot or None, base_link or None, tip_link or None))
 
 
-def reference_pose_deg(setup: dict) -> tuple[float, ...]:
+def reference_pose_deg(setup: BenchSetup) -> tuple[float, ...]:
     """The pose the joints are swept about and the runs start from (deg): the set-up's ``reference_pose_deg``,
     which :func:`session_setup` fills from the robot's profile; the thesis's READY for a set-up written before."""
-    return tuple(float(v) for v in (setup.get("reference_pose_deg") or THESIS_READY_DEG))
+    return tuple(float(v) for v in (setup.reference_pose_deg or THESIS_READY_DEG))
 
 
-def station_names(setup: dict) -> tuple[str, str]:
+def station_names(setup: BenchSetup) -> tuple[str, str]:
     """The two stations' names as the set-up gives them (``stations.names``; default A and B)."""
-    names = setup.get("stations", {}).get("names") or default_of("stations", "names")
-    return str(names[0]), str(names[1])
+    return setup.stations.names
 
 
-def point_p(setup: dict, n_links: int | None = None):
+def point_p(setup: BenchSetup, n_links: int | None = None):
     """The set-up's point P (eq 4.3.15's d3): ``(link, point in that frame (mm), L_p_mm)`` -- a mark on the tool's
     axis ``L_p_mm`` beyond the flange -- or None when the set-up has none (older set-ups: no P step).  ``n_links``:
     the robot's joint count, to check the link (default link 6, the Puma's flange)."""
-    cfg = setup.get("point_p")
-    if not cfg:
+    pp: PointP | None = setup.point_p
+    if pp is None:
         return None
     with _section("point_p"):
-        lp = float(cfg["L_p_mm"])
-        if not np.isfinite(lp) or lp <= 0:
-            raise ValueError(f"L_p_mm must be a positive length, got {cfg['L_p_mm']}")
-        link = int(cfg.get("link", 6))
-        if n_links is not None and not 1 <= link <= n_links:
-            raise ValueError(f"link must be one of the robot's links 1..{n_links}, got {link}")
-        return link, (0.0, 0.0, lp), lp
+        if not np.isfinite(pp.L_p_mm) or pp.L_p_mm <= 0:
+            raise ValueError(f"L_p_mm must be a positive length, got {pp.L_p_mm:g}")
+        if n_links is not None and not 1 <= pp.link <= n_links:
+            raise ValueError(f"link must be one of the robot's links 1..{n_links}, got {pp.link}")
+        return pp.link, (0.0, 0.0, pp.L_p_mm), pp.L_p_mm
 
 
-def setup_stations(setup: dict) -> dict:
+def setup_stations(setup: BenchSetup | dict) -> dict:
     """Approximate stations from the setup (for the acquisition checks; reprocessing uses the ruler's)."""
-    s = setup["stations"]
-    a, b = thesis_stations(s["L_mm"], s["gamma1_deg"] * DEG, s["gamma2_deg"] * DEG, s.get("sigma_arcsec", default_of("stations", "sigma_arcsec")) * ARCSEC)
-    na, nb = station_names(setup)
+    s = setup_of(setup).stations
+    a, b = thesis_stations(s.L_mm, s.gamma1_deg * DEG, s.gamma2_deg * DEG, s.sigma_arcsec * ARCSEC)
+    na, nb = s.names
     return {na: replace(a, name=na), nb: replace(b, name=nb)}
 
 
-def nominal_theta(model: MeasurementModel, setup: dict) -> np.ndarray:
+def nominal_theta(model: MeasurementModel, setup: BenchSetup | dict) -> np.ndarray:
     """The model's nominal parameters with the robot base where the set-up puts it (position and roll-pitch-yaw)."""
+    s = setup_of(setup)
+    return theta_with_base(model, s.base_xyz_mm, s.base_rpy_deg)
+
+
+def theta_with_base(model: MeasurementModel, base_xyz_mm, base_rpy_deg=(0.0, 0.0, 0.0)) -> np.ndarray:
+    """The model's nominal parameters with the robot base at ``base_xyz_mm``, turned by ``base_rpy_deg``."""
     th = model.nominal.copy()
-    for k, v in zip(("x_mm", "y_mm", "z_mm"), setup.get("base_xyz_mm", [0.0, 0.0, 0.0])):
+    for k, v in zip(("x_mm", "y_mm", "z_mm"), base_xyz_mm):
         th[model.index[f"base.{k}"]] = v
-    roll, pitch, yaw = np.asarray(setup.get("base_rpy_deg", default_of("base_rpy_deg")), float) * DEG
+    roll, pitch, yaw = np.asarray(base_rpy_deg, float) * DEG
     for k, v in (("yaw_rad", yaw), ("pitch_rad", pitch), ("roll_rad", roll)):
         th[model.index[f"base.{k}"]] = v
     return th
@@ -174,7 +180,7 @@ def _prior_sigmas(names: list[str], tol: dict) -> np.ndarray:
     return np.asarray(out)
 
 
-def predictor(robot, setup: dict, tolerances: dict | None = None):
+def predictor(robot, setup: BenchSetup | dict, tolerances: dict | None = None):
     """Where the nominal model with the setup's base puts each tool target of a step, and how far off an
     uncalibrated description can be there: target -> (point_mm, sigma_mm) for the plausibility check.
 
@@ -257,16 +263,16 @@ def lever_point(fp, joint: int, lever_mm: float, theta_deg: float, up: np.ndarra
     return o + lever_mm * (np.cos(t) * h + np.sin(t) * up)
 
 
-def design_sweep_targets(model: MeasurementModel, setup: dict, robot, radius_mm: float | dict | None = None) -> dict:
+def design_sweep_targets(model: MeasurementModel, setup: BenchSetup, robot,
+                         radius_mm: float | dict | None = None) -> dict:
     """Per-joint sweep targets at ``radius_mm`` (default the set-up's ``sweep_radius_mm`` or 600 mm) about each
     joint's axis at the reference pose (the set-up's ``reference_pose_deg``, else the robot profile's), on the side
     facing the theodolites (see :func:`calib.setup_plan.sweep_targets`)."""
-    from calib.setup_plan import sweep_targets
-    r = radius_mm if radius_mm is not None else setup.get("sweep_radius_mm", default_of("sweep_radius_mm"))
+    r = radius_mm if radius_mm is not None else setup.sweep_radius_mm
     radii = {int(k): float(v) for k, v in r.items()} if isinstance(r, dict) else \
         {j: float(r) for j in range(1, robot.n + 1)}
     mid = np.mean([st.position for st in setup_stations(setup).values()], axis=0)
-    q = np.asarray(setup.get("reference_pose_deg") or profile_of(robot).ready_deg, float) * robot.edge_scale
+    q = np.asarray(setup.reference_pose_deg or profile_of(robot).ready_deg, float) * robot.edge_scale
     return sweep_targets(model, nominal_theta(model, setup), q, radii, mid)
 
 
@@ -284,7 +290,6 @@ def _section(where: str):
 def _ruler_marks(placement: dict, marks_mm) -> None:
     """Every mark a placement sights must be one the ruler has (C, D, E -- or E1, E2 ... when E is marked at
     several distances)."""
-    from .procedures import mark_index, mark_names
     names = mark_names(len(marks_mm))
     for name in placement.get("marks", names):
         if name not in names:
@@ -357,7 +362,8 @@ def session_setup(setup: dict, robot) -> dict:
     out = json.loads(json.dumps(setup))
     m = MeasurementModel(robot)
     with _section("base_xyz_mm / base_rpy_deg"):
-        th = nominal_theta(m, out)[: m.n_geometric]
+        th = theta_with_base(m, out["base_xyz_mm"], out.get("base_rpy_deg", default_of("base_rpy_deg")))
+        th = th[: m.n_geometric]
     g = float(np.linalg.norm(robot.gravity_m_s2))
     with _section("reference_pose_deg"):
         ready = out.setdefault("reference_pose_deg", list(profile_of(robot).ready_deg))
@@ -373,11 +379,12 @@ def session_setup(setup: dict, robot) -> dict:
     if out.get("link"):
         with _section("link"):
             _link_entry(out["link"], robot, chain, g, ready)
-    point_p(out, robot.n)                                    # a bad point P is one line here, not a crash later
+    typed = setup_of(out)
+    point_p(typed, robot.n)                                  # a bad point P is one line here, not a crash later
     for k, pl in enumerate(out.get("ruler", {}).get("placements", [])):
         with _section(f"ruler.placements[{k}].marks"):
             _ruler_marks(pl, out["ruler"].get("marks_mm", []))
     if "sweep_targets" not in out:
         with _section("sweep_radius_mm"):
-            out["sweep_targets"] = design_sweep_targets(m, out, robot)
+            out["sweep_targets"] = design_sweep_targets(m, typed, robot)
     return out

@@ -16,6 +16,8 @@ from typing import Any
 
 from calib.jsonfile import FINITE, check_schema, parse_json, read_json
 
+from .plan_doc import PLAN_SCHEMA
+
 _VEC3 = {"type": "array", "items": FINITE, "minItems": 3, "maxItems": 3}
 _VEC3_OR_NULL = {"anyOf": [_VEC3, {"type": "null"}]}
 _NUMBERS = {"type": "array", "items": FINITE}
@@ -86,8 +88,14 @@ SETUP_SCHEMA: dict[str, Any] = _obj({
                    "additionalProperties": _COMPLIANCE_ENTRY},
     "link": _LINK,
     "running_errors": {"type": "array", "items": {"type": "string"}},
-    "plan": {"type": "object"},                       # a plan carried in the set-up (checked as a plan when used)
-    "design": {"type": "object"},                     # robocal plan setup's record of its design (informative)
+    # ISO 9283 pose accuracy and repeatability (acq.session.iso_cube): cycles per pose (the standard's 30; at least
+    # two for a repeatability), the cube's side and centre when the cell dictates them, the approach move
+    "iso9283": _obj({"cycles": {"type": "integer", "minimum": 2, "maximum": 10000}, "side_mm": _POSITIVE,
+                     "centre_mm": _VEC3, "approach_deg": {"type": "number", "exclusiveMinimum": 0, "maximum": 30}}),
+    "plan": PLAN_SCHEMA,                              # a plan carried in the set-up: the session plan's schema
+    "design": {"type": "object", "additionalProperties": _obj(   # robocal plan setup's record (informative)
+        {"variables": {"type": "object", "additionalProperties": FINITE},
+         "errors": {"type": "object", "additionalProperties": FINITE}, "note": {"type": "string"}})},
 }, required=("stations", "base_xyz_mm", "tool_target_mm", "ruler"))
 
 

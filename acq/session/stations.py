@@ -8,6 +8,7 @@ miss-distance check can then be held to what the reading noise explains (see :mo
 """
 from __future__ import annotations
 
+import json
 from dataclasses import replace
 
 import numpy as np
@@ -17,7 +18,7 @@ from calib.theodolite import Station, thesis_stations
 from calib.units import ARCSEC
 
 from .setup import station_names
-from .setup_file import default_of
+from .setup_types import BenchSetup, setup_of
 from .store import json_column
 
 
@@ -33,15 +34,31 @@ def ruler_rows(steps: list[dict], names: tuple[str, str] = ("A", "B")) -> np.nda
     return np.array(rows, float).reshape(-1, 6)
 
 
-def fit_ruler(rows: np.ndarray, setup: dict):
+#: the last fit, by its inputs: the same ruler readings are fitted by the runner's last refit, the reduction, the
+#: demo's compensated ISO 9283 run (its runner refits at start) and the ISO 9283 figures after it -- a pure function
+#: of the rows and the set-up, whose result callers only read
+_LAST: dict[bytes, tuple] = {}
+
+
+def fit_ruler(rows: np.ndarray, setup: BenchSetup):
     """The ruler fit (:class:`EstimateSet`) and the stations it gives; raises RobocalError when underdetermined."""
+    a = np.ascontiguousarray(rows, float)
+    key = a.tobytes() + repr((tuple(setup.ruler.marks_mm), setup.stations, station_names(setup))).encode()
+    if key not in _LAST:
+        fitted = _fit_ruler(a, setup)
+        _LAST.clear()
+        _LAST[key] = fitted
+    return _LAST[key]
+
+
+def _fit_ruler(rows: np.ndarray, setup: BenchSetup):
     from calib.estimators.ruler import RulerSightings, ruler_lsq
     if len(rows) == 0:
         raise RobocalError("ruler: no sightings")
-    sigma = setup["stations"].get("sigma_arcsec", default_of("stations", "sigma_arcsec")) * ARCSEC
+    sigma = setup.stations.sigma_arcsec * ARCSEC
     a = np.asarray(rows, float)
     s = RulerSightings(a[:, 0], a[:, 1], a[:, 2], a[:, 3], a[:, 4], a[:, 5])
-    res = ruler_lsq(s, setup["ruler"]["marks_mm"], sigma)
+    res = ruler_lsq(s, list(setup.ruler.marks_mm), sigma)
     L, g1, g2 = (res[n].value for n in ("L_mm", "gamma1_rad", "gamma2_rad"))
     hb = res["hB_mm"].value if "hB_mm" in res.names else 0.0
     A, B = thesis_stations(L, g1, g2, sigma, hb)
@@ -64,7 +81,7 @@ def ruler_station_fit(res, stations: dict[str, Station]):
     return StationFit(names, sub.value.copy(), sub.cov.copy(), build)
 
 
-def stations_from_store(store, setup: dict, min_marks: int = 6) -> dict[str, Station] | None:
+def stations_from_store(store, setup: BenchSetup | dict, min_marks: int = 6) -> dict[str, Station] | None:
     """Stations refitted from the ruler steps committed so far, or None while they cannot determine them.
 
     ``min_marks``: accepted ruler steps needed before a fit is tried (two placements of three marks): one placement
@@ -81,6 +98,7 @@ def stations_from_store(store, setup: dict, min_marks: int = 6) -> dict[str, Sta
         steps.append({"spec": json_column(spec, f"{store.path}: step {step_id}: spec_json"), "readings": readings})
     if len(steps) < min_marks:
         return None
+    setup = setup_of(setup)
     try:
         return fit_ruler(ruler_rows(steps, station_names(setup)), setup)[1]
     except (RobocalError, KeyError, ValueError, np.linalg.LinAlgError):

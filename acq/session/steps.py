@@ -118,6 +118,8 @@ def commands(step: Step) -> list:
     s = step.setup
     out: list = [Ask(step.inputs)]
     if step.pose_deg is not None:
+        if s.get("approach_deg"):                  # a fixed approach: every joint arrives from one direction
+            out.append(Move(tuple(s["approach_deg"])))
         out.append(Move(tuple(step.pose_deg)))
     if s.get("loads"):
         ld = s.get("load_direction", {})

@@ -464,17 +464,9 @@ class RobocalApp(App):
         self.call_from_thread(self._show_results, res, out)
 
     def _show_results(self, res: dict, out: str) -> None:
-        rows = []
-        for e in res.get("estimates", []):
-            truth = e.get("truth")
-            rows.append((e["name"], f"{e['value']:.6g}", f"{e['error']:.2g}", e.get("unit", ""),
-                         "" if truth is None else f"{truth:.6g}"))
-        for b in res.get("bounds", []):                     # no effect measurable: a one-sided bound
-            truth = b.get("truth")
-            rows.append((b["name"], f"{'≥' if b.get('side') == 'lower' else '≤'} {b['value']:.6g}",
-                         f"{100 * b['confidence']:g} % one-sided", b.get("unit", ""),
-                         "" if truth is None else f"{truth:.6g}"))
-        self._show_table(("estimate", "value", "1 sigma", "unit", "truth"), rows)
+        from acq.session.summary import estimate_rows          # names, units and rounding as the summary has them
+        self._show_table(("estimate", "value ± 1σ", "unit", "truth", "verdict"),
+                         [row[:5] for row in estimate_rows(res)])
         self.results_dir = out
         where = self.handle.db_path if self.handle else ""
         self.query_one("#step", Static).update(

@@ -23,7 +23,7 @@ from calib.identify import identify
 
 from .data import DiagnosisData
 from .gap import CVResult, geometric_free, noise_floor_mm, rms_mm
-from .select import MATERIAL_SHARE
+from .findings import MATERIAL_SHARE
 
 BASE_PARAMS = tuple(f"base.{k}" for k in ("x_mm", "y_mm", "z_mm", "yaw_rad", "pitch_rad", "roll_rad"))
 #: poses a station group needs to re-station (6 parameters, 3 observations a pose, and some to spare)

@@ -190,7 +190,7 @@ def load_data(path: str | Path, robot: Robot | None = None, noise_mm: float | No
     ``direction_threshold``: approach directions from the measurement order (:mod:`calib.approach`); how they were
     inferred is a note of the data."""
     from calib.posecsv import read_pose_csv
-    from calib.robot import load_robot
+    from calib.loading import load_robot
 
     path = Path(path)
     if not path.exists():

@@ -124,7 +124,7 @@ def judge(expected: set, findings: list[tuple[tuple, bool]]) -> str:
 
 
 def run_family_case(case: FamilyCase) -> FamilyResult:
-    from calib.robot import load_robot
+    from calib.loading import load_robot
 
     from .data import from_arrays
     from .engine import diagnose

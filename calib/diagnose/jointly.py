@@ -16,14 +16,14 @@ import numpy as np
 from calib.distributions import f_sf
 from calib.pruning import SIGNIFICANT
 
+from .findings import MATERIAL_SHARE, Finding, NearMiss, param_report, project, refit, stability, stated_spread
+
 #: most members a group may have (the strongest by linearised score)
 MAX_MEMBERS = 8
 
 
 def joint_group(cx, cur, lin, ok, tests, chi2, n_tested: int):
     """The best group of one kind that passes (a list of Findings and the new fit), or "" with nothing found."""
-    from .select import MATERIAL_SHARE, Finding, NearMiss, _param_report, _refit, _stability, _stated_spread
-
     kinds = _groups(ok, chi2, cur.chi2)
     for kind, members in kinds.items():
         p, F = _group_test(lin, tests, ok, members)
@@ -32,9 +32,9 @@ def joint_group(cx, cur, lin, ok, tests, chi2, n_tested: int):
             continue
         cands = [ok[k][0] for k in members]
         for _ in range(2):
-            model, new = _refit(cx.data, cur, cands, cx.geo_free, cx.loss)
+            model, new = refit(cx.data, cur, cands, cx.geo_free, cx.loss)
             first = len(model.effects) - len(cands)
-            spreads = [_stated_spread(model, new, c, _stability(model, new, c, first + i)[1], first + i)
+            spreads = [stated_spread(model, new, c, stability(model, new, c, first + i)[1], first + i)
                        for i, c in enumerate(cands)]
             keep = [c for c, s in zip(cands, spreads) if s <= 1.0 / SIGNIFICANT]
             if len(keep) == len(cands) or len(keep) < 2:
@@ -48,11 +48,11 @@ def joint_group(cx, cur, lin, ok, tests, chi2, n_tested: int):
             continue
         out = []
         for i, c in enumerate(cands):
-            spread, fold_sigma = _stability(model, new, c, first + i)
+            spread, fold_sigma = stability(model, new, c, first + i)
             f = Finding(c, new.rms_mm, new.max_mm, p, F, float("nan"), new.chi2,
-                        _param_report(c, model, new, fold_sigma, first + i), n_tested, spread, [],
+                        param_report(c, model, new, fold_sigma, first + i), n_tested, spread, [],
                         gain / cx.excess_mm if cx.excess_mm > 0 else float("nan"), new,
-                        stated_spread=_stated_spread(model, new, c, fold_sigma, first + i))
+                        stated_spread=stated_spread(model, new, c, fold_sigma, first + i))
             f.jointly = [o.label for o in cands if o is not c]
             out.append(f)
         return out, new
@@ -77,11 +77,10 @@ def _groups(ok, chi2: np.ndarray, cur_chi2: float) -> dict[str, list[int]]:
 
 def _group_test(lin, tests, ok, members: list[int]) -> tuple[float, float]:
     """Nested F-test of the members' columns together against the current model (whitened, all poses)."""
-    from .select import _project
     if tests.r0 is None:
         return 1.0, 0.0
     cols = [c for k in members for c in ok[k][1]]
-    B = _project(lin.Qa, lin.Jw[:, cols])
+    B = project(lin.Qa, lin.Jw[:, cols])
     dc, *_ = np.linalg.lstsq(B, tests.r0, rcond=None)
     e = tests.r0 - B @ dc
     rss0, rss1 = float(tests.r0 @ tests.r0), float(e @ e)

@@ -18,7 +18,7 @@ import numpy as np
 
 from calib.effects import make_effect
 
-from .candidates import Candidate
+from .candidate import Candidate
 from .data import DiagnosisData
 
 #: where the preloads are placed among the poses' load torques (0: play held by gravity alone)

@@ -3,7 +3,7 @@ from __future__ import annotations
 
 from ..names import prose
 from .engine import Diagnosis
-from .select import DOUBTFUL_SPREAD
+from .findings import DOUBTFUL_SPREAD
 
 
 def _p(p: float) -> str:

@@ -38,19 +38,16 @@ from calib.identifiability import analyse
 from calib.model import MeasurementModel
 from calib.pruning import SIGNIFICANT
 
-from .candidates import Candidate
+from .candidate import Candidate
 from .data import DiagnosisData
+from .findings import (MATERIAL_SHARE, STABLE_MAX, Finding, NearMiss, param_report, project, refit, stability,
+                       stated_spread)
 from .gap import CVResult, cv_fit
+from .jointly import joint_group
 
 #: a candidate must keep at least this share of its whitened signature once the current model's columns are
 #: projected out (else the geometry absorbs it: the guard of §9, "O1/O4 not collapsing")
 MIN_INDEPENDENT = 0.02
-#: an accepted effect must shrink the held-out RMS by this share of the baseline excess (baseline - floor)
-MATERIAL_SHARE = 0.10
-#: jackknife relative spread of the parameters across folds above which a candidate is not accepted
-STABLE_MAX = 0.5
-#: ... and above which an accepted finding is marked doubtful
-DOUBTFUL_SPREAD = 0.25
 #: aliases: fitted signatures this correlated, explaining at least this share of the best one's reduction
 ALIAS_CORR = 0.9
 ALIAS_SHARE = 0.8
@@ -64,55 +61,11 @@ LINEAR_SLACK = 0.5
 
 
 @dataclass
-class Finding:
-    candidate: Candidate
-    rms_after_mm: float
-    max_after_mm: float
-    p_value: float                  # Bonferroni-corrected
-    f_statistic: float
-    delta_bic: float                # BIC(with) - BIC(without), whitened, for reference
-    heldout_chi2: float
-    parameters: dict[str, float]
-    n_tested: int
-    stability: float = 0.0          # jackknife relative spread of the parameters across folds
-    aliases: list[str] = field(default_factory=list)
-    shrink_share: float = float("nan")   # share of the baseline excess this effect removed
-    fit: CVResult | None = None     # the model with this and the earlier findings, fitted (for --confirm)
-    leftover: str = ""              # structure the final residual still shows along this effect's own driver
-    stated_spread: float = float("nan")  # the parameters' stated 1-sigma (Jacobian or folds, the larger) / value
-    jointly: list[str] = field(default_factory=list)   # the other members of its joint group (calib.diagnose.jointly)
-
-    @property
-    def unstable(self) -> bool:
-        """The parameters are not determined to better than :data:`DOUBTFUL_SPREAD` of their value by their own
-        stated error (the larger of the Jacobian's and the folds' spread): the amplitude is within 4 sigma of 0."""
-        spread = self.stated_spread if self.stated_spread == self.stated_spread else self.stability
-        return spread > DOUBTFUL_SPREAD
-
-    @property
-    def doubtful(self) -> bool:
-        return self.unstable or bool(self.aliases) or bool(self.leftover)
-
-
-@dataclass
 class Round:
     """What one round looked at: the best few candidates by held-out score (for the report)."""
     baseline_rms_mm: float
     ranking: list[tuple[str, float, float]]      # (label, predicted held-out RMS mm, corrected p)
     accepted: str | None
-
-
-@dataclass
-class NearMiss:
-    """A candidate that was refitted or tested but not accepted, and why (the "closest candidates")."""
-    label: str
-    rms_mm: float                   # held-out RMS with it (refitted, or the linearised prediction)
-    p_value: float
-    reason: str
-    group: tuple = ()               # the candidate's group (one per joint and kind)
-
-    def as_dict(self) -> dict:
-        return {"candidate": self.label, "rms_mm": self.rms_mm, "p_value": self.p_value, "reason": self.reason}
 
 
 @dataclass
@@ -133,10 +86,6 @@ def _white_rows(W: np.ndarray, A: np.ndarray) -> np.ndarray:
 
 def _rows(idx: np.ndarray) -> np.ndarray:
     return (3 * np.asarray(idx)[:, None] + np.arange(3)).ravel()
-
-
-def _project(Q: np.ndarray, A: np.ndarray) -> np.ndarray:
-    return A - Q @ (Q.T @ A)
 
 
 @dataclass
@@ -292,7 +241,7 @@ def _nested_tests(data: DiagnosisData, cur: CVResult, lin: _Linear, ok) -> _Test
     m = 3 * data.n
     r_all = _white_rows(data.whitening, (data.points_mm - cur.model.points(
         data.q_rad, data.ctx, cur.all_fit.theta[: cur.model.P]))[:, :, None])[:, 0]
-    r0 = _project(lin.Qa, r_all[:, None])[:, 0]
+    r0 = project(lin.Qa, r_all[:, None])[:, 0]
     rss0 = float(r0 @ r0)
     M = len(ok)
     C = lin.Jw[:, [k for _, cols in ok for k in cols]]
@@ -316,7 +265,7 @@ def _adds_to(lin: _Linear, tests: _Tests, k: int, i: int, cols_k: list[int], col
     than candidate ``i`` already does?  Large: the data cannot tell ``k`` from ``i``."""
     r0, t = tests.r0, tests.signature[i]
     rss_i = float((r0 - t) @ (r0 - t))
-    both = _project(lin.Qa, lin.Jw[:, cols_i + cols_k])
+    both = project(lin.Qa, lin.Jw[:, cols_i + cols_k])
     dc, *_ = np.linalg.lstsq(both, r0, rcond=None)
     e = r0 - both @ dc
     rss_b = float(e @ e)
@@ -353,68 +302,6 @@ def _aliases(k: int, ok, tests: _Tests, lin: _Linear, alpha: float) -> list[str]
     return [lab for _, lab in sorted(out, reverse=True)[:3]]
 
 
-def _stability(model: MeasurementModel, cv: CVResult, cand: Candidate, e_i: int = -1) -> tuple[float, np.ndarray]:
-    """Jackknife spread of an effect's estimated parameters over the folds (``e_i``: its index in the model, the
-    newest by default): (relative spread, per-parameter sigma of the whole effect's parameters, zero for the ones not
-    estimated)."""
-    e_i = e_i % len(model.effects)
-    s = model.effect_slices[e_i]
-    names = model.effects[e_i].param_names
-    idx = [s.start + names.index(p) for p in cand.free]
-    vals = np.array([f.theta[idx] for f in cv.folds])
-    k = len(vals)
-    if k < 2:                   # the data's own split: one fit, no spread to measure
-        return float("nan"), np.zeros(s.stop - s.start)
-    se = np.sqrt((k - 1) / k * np.sum((vals - vals.mean(0)) ** 2, axis=0))
-    ref = float(np.linalg.norm(cv.all_fit.theta[idx]))
-    full = np.zeros(s.stop - s.start)
-    full[[names.index(p) for p in cand.free]] = se
-    return (float(np.linalg.norm(se)) / ref if ref > 0 else float("inf")), full
-
-
-def _stated_spread(model: MeasurementModel, cv: CVResult, cand: Candidate, fold_sigma: np.ndarray,
-                   e_i: int = -1) -> float:
-    """An effect's stated 1-sigma (the larger of the Jacobian's and the folds' spread, as reported) relative to its
-    estimated value (norms over its estimated parameters); ``e_i`` as :func:`_stability`."""
-    e_i = e_i % len(model.effects)
-    s = model.effect_slices[e_i]
-    names = model.effects[e_i].param_names
-    loc = [names.index(p) for p in cand.free]
-    sig = np.maximum(cv.all_fit.sigma[s][loc], fold_sigma[loc])
-    ref = float(np.linalg.norm(cv.all_fit.theta[s][loc]))
-    return float(np.linalg.norm(sig)) / ref if ref > 0 else float("inf")
-
-
-def _param_report(cand: Candidate, model: MeasurementModel, cv: CVResult, fold_sigma: np.ndarray,
-                  e_i: int = -1) -> dict:
-    """Parameters in edge units; the 1-sigma is the larger of the Jacobian's and the folds' spread."""
-    e_i = e_i % len(model.effects)
-    s = model.effect_slices[e_i]
-    names = model.effects[e_i].param_names
-    theta = cv.all_fit.theta
-    sig = np.maximum(cv.all_fit.sigma[s], fold_sigma)
-    vals = {n: float(theta[s][k]) for k, n in enumerate(names)}
-    sigs = {n: float(sig[k]) for k, n in enumerate(names)}
-    return cand.parameters(vals, sigs)
-
-
-def _refit(data: DiagnosisData, cur: CVResult, cand: Candidate | list[Candidate], geo_free: list[str],
-           loss: str) -> tuple[MeasurementModel, CVResult]:
-    """Step 5: the current model plus ``cand`` (or several candidates together) fitted fully in every fold (warm
-    start) and on all poses."""
-    cands = cand if isinstance(cand, list) else [cand]
-    new = [c.make() for c in cands]
-    model = MeasurementModel(data.robot, list(cur.model.effects) + new)
-    qual = [f"{e.label}.{p}" for e, c in zip(new, cands) for p in c.free]
-    vals = np.concatenate([e.values for e in new])
-    th0 = [np.concatenate([f.theta, vals]) for f in cur.folds]
-    th0_all = np.concatenate([cur.all_fit.theta[: cur.model.P], vals])
-    folds = [(f.train, f.test) for f in cur.folds]
-    free_all = list(dict.fromkeys(geo_free + [n for n in cur.model.names[cur.model.n_geometric:]
-                                              if n in cur.all_fit.free] + qual))
-    return model, cv_fit(model, data, free_all, folds, theta0=th0, theta0_all=th0_all, start=False, loss=loss)
-
-
 @dataclass
 class _Context:
     """What the rounds share."""
@@ -438,9 +325,9 @@ def _try_accept(cx: _Context, cur: CVResult, lin: _Linear, ok, tests: _Tests, k:
                 n_tested: int) -> tuple[Finding, CVResult] | str:
     """Refit candidate ``k`` and apply the acceptance rule; a Finding and the new fit, or why not."""
     cand = ok[k][0]
-    model, new = _refit(cx.data, cur, cand, cx.geo_free, cx.loss)
+    model, new = refit(cx.data, cur, cand, cx.geo_free, cx.loss)
     gain = cur.rms_mm - new.rms_mm
-    spread, fold_sigma = _stability(model, new, cand)
+    spread, fold_sigma = stability(model, new, cand)
     why = ""
     if new.chi2 >= cur.chi2:
         why = "does not shrink the held-out gap once refitted fully"
@@ -449,7 +336,7 @@ def _try_accept(cx: _Context, cur: CVResult, lin: _Linear, ok, tests: _Tests, k:
                f"of the excess gap ({1000 * cx.excess_mm:.1f} um)")
     elif spread > STABLE_MAX:
         why = f"its parameters are not stable across the folds (relative spread {spread:.2f})"
-    stated = _stated_spread(model, new, cand, fold_sigma)
+    stated = stated_spread(model, new, cand, fold_sigma)
     if not why and stated > 1.0 / SIGNIFICANT:
         why = (f"not significant: its value is within {SIGNIFICANT:g} sigma of zero (stated error "
                f"{100 * stated:.0f} % of it), the rule identify holds parameters by")
@@ -457,7 +344,7 @@ def _try_accept(cx: _Context, cur: CVResult, lin: _Linear, ok, tests: _Tests, k:
         cx.near.append(NearMiss(cand.label, new.rms_mm, float(tests.p[k]), why, cand.group))
         return why
     f = Finding(cand, new.rms_mm, new.max_mm, float(tests.p[k]), float(tests.F[k]), float(tests.dbic[k]), new.chi2,
-                _param_report(cand, model, new, fold_sigma), n_tested, spread,
+                param_report(cand, model, new, fold_sigma), n_tested, spread,
                 _aliases(k, ok, tests, lin, cx.alpha),
                 gain / cx.excess_mm if cx.excess_mm > 0 else float("nan"), new,
                 stated_spread=stated)
@@ -520,7 +407,6 @@ def _round(cx: _Context, cur: CVResult, remaining: list[Candidate], rounds: list
             rnd.accepted = cand.label
             return res, held
         why = why or f"best remaining candidate {cand.label} {res}"
-    from .jointly import joint_group
     res = joint_group(cx, cur, lin, ok, tests, chi2, len(ok))
     if isinstance(res, tuple):
         rnd.accepted = " + ".join(f.candidate.label for f in res[0])

@@ -24,10 +24,11 @@ import numpy as np
 from calib.distributions import f_sf
 from calib.model import MeasurementModel
 
-from .candidates import Candidate
+from .candidate import Candidate
 from .data import DiagnosisData
 from .gap import CVResult, cv_fit
-from .select import MATERIAL_SHARE, Finding, Selection, _param_report, _stability, _stated_spread
+from .findings import MATERIAL_SHARE, Finding, param_report, stability, stated_spread
+from .select import Selection
 
 #: kinds that can imitate play on their joint
 STAND_INS = ("joint_scale", "transmission_error", "joint_compliance")
@@ -160,16 +161,16 @@ def _replace(data, sel: Selection, f: Finding, plays: list[Candidate], excess: f
     if not (accept(fit) if accept is not None else fit.rms_mm <= cur.rms_mm + 0.5 * MATERIAL_SHARE * excess):
         return False
     model = fit.model
-    spread, fold_sigma = _stability(model, fit, p)
+    spread, fold_sigma = stability(model, fit, p)
     m3 = 3 * data.n
     dof0, dof1 = max(1, m3 - len(without.all_fit.free)), max(1, m3 - len(fit.all_fit.free))
     rss0, rss1 = without.all_fit.reduced_chi2 * dof0, fit.all_fit.reduced_chi2 * dof1
     F = (rss0 - rss1) / max(rss1 / dof1, 1e-300)
     before = sel.findings[-2].rms_after_mm if len(sel.findings) > 1 else without.rms_mm
     new = Finding(p, fit.rms_mm, fit.max_mm, min(1.0, float(f_sf(max(F, 0.0), 1, dof1)) * len(plays)), float(F),
-                  float(rss1 - rss0 + np.log(m3)), fit.chi2, _param_report(p, model, fit, fold_sigma), len(plays),
+                  float(rss1 - rss0 + np.log(m3)), fit.chi2, param_report(p, model, fit, fold_sigma), len(plays),
                   spread, [alias] + list(f.aliases), (before - fit.rms_mm) / excess if excess > 0 else float("nan"),
-                  fit, stated_spread=_stated_spread(model, fit, p, fold_sigma))
+                  fit, stated_spread=stated_spread(model, fit, p, fold_sigma))
     sel.findings[-1] = new
     sel.final = fit
     sel.skipped.append(f"{alias.split(' (')[0]}: replaced by {p.label} (held-out RMS {fit.rms_mm:.4f} mm with it, "

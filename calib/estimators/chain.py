@@ -16,7 +16,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..kinematics import Kinematics
-from ..robot import Robot, load_robot
+from ..robot import Robot
+from ..loading import load_robot
 from ..theodolite import thesis_readings, thesis_stations
 from ..units import ARCSEC, DEG
 from ..uncertainty import EstimateSet, propagate

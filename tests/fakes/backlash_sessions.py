@@ -1,7 +1,7 @@
 """Independent truth for play in the drives: several measurement sessions of one program on a Puma whose joints have
 play that gravity loads (issue 27).  Imports nothing from ``calib``: the chain is :class:`ThesisPuma`'s plain 4x4
-products, the gravity torque is written again here from cross products, the play and the approach directions come
-from the robot's own motion sequence.
+products and its gravity torques (a lumped end-effector mass at the tool point included); the play and the approach
+directions come from the robot's own motion sequence.
 
 The physics, one pose at a time:
 
@@ -26,6 +26,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .oracle.effects import play_offset
 from .thesis_puma import DEG, ThesisPuma, base_matrix
 
 PUMA_TOML = Path(__file__).resolve().parents[2] / "calib" / "data" / "puma560.toml"
@@ -59,16 +60,7 @@ class Arm:
 
     def torques(self, q: np.ndarray) -> np.ndarray:
         """(6,) gravity torque about each joint axis (N m), the tool mass included; one pose."""
-        T = self.puma.frames(q)
-        g = T[0][:3, :3] @ self.puma.gravity_m_s2
-        bodies = [((T[i + 1][:3, :3] @ self.puma.com_mm[i] + T[i + 1][:3, 3]) * 1e-3, self.puma.mass_kg[i], i + 1)
-                  for i in range(6)]
-        bodies.append((self.puma.tool_point(q) * 1e-3, self.tool_mass_kg, 7))
-        tau = np.zeros(6)
-        for j in range(1, 7):
-            o, z = T[j - 1][:3, 3] * 1e-3, T[j - 1][:3, 2]
-            tau[j - 1] = sum(z @ np.cross(r - o, m * g) for r, m, link in bodies if link >= j)
-        return tau
+        return self.puma.gravity_torques(q, self.tool_mass_kg)
 
     def true_angles(self, q: np.ndarray, approach: np.ndarray) -> np.ndarray:
         """Joint angles of one pose given its readings and each joint's last motion (+1/-1)."""
@@ -76,8 +68,7 @@ class Arm:
         tau = self.torques(q)
         for p in self.plays:
             j = p.joint - 1
-            side = np.sign(tau[j]) if abs(tau[j]) > p.preload_nm else -approach[j]
-            th[j] += 0.5 * p.width_rad * side
+            th[j] += play_offset(p.width_rad, tau[j], p.preload_nm, approach[j])
         return th
 
 

@@ -34,7 +34,7 @@ def _file(name: str, data: bytes) -> Path:
 
 
 def _robot(data: bytes) -> None:
-    from calib.robot import load_robot
+    from calib.loading import load_robot
     load_robot(_file("robot.toml", data))
 
 

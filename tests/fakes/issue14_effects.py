@@ -6,17 +6,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from .oracle.chain import rotation_vector
 from .thesis_puma import ThesisPuma
-
-
-def rodrigues(w: np.ndarray) -> np.ndarray:
-    """Exact rotation matrix of the rotation vector ``w``."""
-    a = np.linalg.norm(w)
-    if a == 0:
-        return np.eye(3)
-    k = w / a
-    K = np.array([[0, -k[2], k[1]], [k[2], 0, -k[0]], [-k[1], k[0], 0]])
-    return np.eye(3) + np.sin(a) * K + (1 - np.cos(a)) * K @ K
 
 
 def joint_scale_point(arm: ThesisPuma, q: np.ndarray, joint: int, scale: float) -> np.ndarray:
@@ -34,7 +25,7 @@ def axis_tilt_point(arm: ThesisPuma, q: np.ndarray, joint: int, c: float, s: flo
     w_local = np.array([c * np.cos(phi) + s * np.sin(phi), -c * np.sin(phi) + s * np.cos(phi), 0.0])
     R0, o = T[joint - 1][:3, :3], T[joint - 1][:3, 3]
     p = arm.tool_point(q)
-    return o + rodrigues(R0 @ w_local) @ (p - o)
+    return o + rotation_vector(R0 @ w_local) @ (p - o)
 
 
 def parallel_axes_point(arm: ThesisPuma, q: np.ndarray, joint: int, beta: float) -> np.ndarray:

@@ -15,19 +15,16 @@ from __future__ import annotations
 
 import numpy as np
 
-TWO_PI = 2 * np.pi
+from .oracle.beam import cantilever_deflection
+from .oracle.chain import rotate_points as rotate
+from .oracle.effects import quantise, transmission_truth, two_slope_deflection
+from .oracle.stations import TWO_PI, face_two, station_angles
+
+
+__all__ = ["ARCSEC", "cantilever_deflection", "puma_ready_axes", "quantise", "rotate", "ruler_rows", "sightings",
+           "station_angles", "transmission_truth", "two_slope_deflection"]
+
 ARCSEC = np.pi / (180 * 3600)
-
-
-def station_angles(P, L, g1, g2, hB=0.0):
-    """Section 5.3.1: (Hz_A, V_A, Hz_B, V_B) in radians of points P (N, 3) in R_f."""
-    P = np.atleast_2d(np.asarray(P, float))
-    X, Y, Z = P[:, 0], P[:, 1], P[:, 2]
-    alpha = np.arctan2(Y, X)
-    beta = np.arctan2(Y, L - X)
-    phi_a = np.arctan2(Z, np.hypot(X, Y))
-    phi_b = np.arctan2(Z - hB, np.hypot(L - X, Y))
-    return (np.mod(-(alpha + g1), TWO_PI), np.pi / 2 - phi_a, np.mod(beta + g2, TWO_PI), np.pi / 2 - phi_b)
 
 
 def sightings(P, names, L, g1, g2, hB, sigma, rng, faces=(1, 2), repeats=1, collimation=None, index=None):
@@ -63,47 +60,10 @@ def ruler_rows(L, g1, g2, hB, placements, marks, sigma, rng, faces=(1, 2)):
         for m in range(len(marks)):
             for st, h, v in ((0, hA[m], vA[m]), (1, hB_[m], vB[m])):
                 for f in faces:
-                    hz, vv = (h, v) if f == 1 else (h + np.pi, TWO_PI - v)
+                    hz, vv = (h, v) if f == 1 else face_two(h, v)
                     rows.append((p, m, st, f, np.mod(hz + sigma * rng.standard_normal(), TWO_PI),
                                  vv + sigma * rng.standard_normal()))
     return np.array(rows, float)
-
-
-def rotate(P, c, n, theta):
-    """Rodrigues: points P (..., 3) turned by theta (...) about the axis through c along unit n."""
-    n = np.asarray(n, float) / np.linalg.norm(n)
-    d = np.asarray(P, float) - c
-    th = np.asarray(theta, float)[..., None]
-    return c + d * np.cos(th) + np.cross(n, d) * np.sin(th) + n * (d @ n)[..., None] * (1 - np.cos(th))
-
-
-def transmission_truth(theta_enc, amplitude, omega, phase=0.0):
-    """The thesis's transmission error (section 5.4.2): true joint angle minus encoder angle."""
-    return amplitude * np.sin(omega * np.asarray(theta_enc, float) + phase)
-
-
-def two_slope_deflection(T, K1, K2, Tb, offset, unloading):
-    """Section 5.5.2's loading curve with a breakpoint, unloading parallel but offset by the dead zone."""
-    T = np.asarray(T, float)
-    return np.where(T <= Tb, T / K1, Tb / K1 + (T - Tb) / K2) + offset * np.asarray(unloading, float)
-
-
-def cantilever_deflection(x_mm, a_mm, P_N, EI):
-    """Deflection at x of a clamped cantilever under a point load P at a, by integrating ``y'' = M / EI`` twice
-    (trapezoid rule on a fine grid, y(0) = y'(0) = 0) -- deliberately not the closed form."""
-    grid = np.linspace(0.0, max(np.max(x_mm), np.max(a_mm)) * 1.001, 20001)
-    out = []
-    for x, a, P in np.broadcast(x_mm, a_mm, P_N):
-        M = P * np.clip(a - grid, 0, None)                 # moment about the section at s: P (a - s) for s < a
-        slope = np.concatenate([[0], np.cumsum(0.5 * (M[1:] + M[:-1]) * np.diff(grid))]) / EI
-        y = np.concatenate([[0], np.cumsum(0.5 * (slope[1:] + slope[:-1]) * np.diff(grid))])
-        out.append(np.interp(x, grid, y))
-    return np.array(out)
-
-
-def quantise(angle_rad, rad_per_count):
-    """An incremental encoder's reading: whole counts."""
-    return np.round(np.asarray(angle_rad, float) / rad_per_count) * rad_per_count
 
 
 def puma_ready_axes(a1, a2, d1, d2, d3, L_p, base, tilt_axis, tilt):

@@ -18,9 +18,10 @@ from ``calib``), so that a misunderstanding in the model cannot hide in the test
   coupling ``sigma * q_source`` (section 4.7); gravity torques are plain cross products of each link's weight about
   each joint axis.
 
-Everything is a loop over poses and links of 4x4 products: slow, obvious, and the point.  Units mm, rad, N, kg.
-Approximation shared with robocal's model on purpose (it is the thesis's small-deflection view): the torques that
-deflect the joints are those of the configuration given by the readings.
+The formulas themselves are written once in tests/fakes/oracle (chain, stations, effects); this module is the thesis
+Puma built from them.  Everything is a loop over poses and links of 4x4 products: slow, obvious, and the point.
+Units mm, rad, N, kg.  Approximation shared with robocal's model on purpose (it is the thesis's small-deflection
+view): the torques that deflect the joints are those of the configuration given by the readings.
 """
 from __future__ import annotations
 
@@ -30,6 +31,14 @@ from pathlib import Path
 
 import numpy as np
 
+from .oracle.chain import a_matrix, axis_torques, base_matrix, dh_frames, rot_y
+from .oracle.effects import CrossCoupling, JointCompliance, TransmissionError
+from .oracle.stations import leica_readings, point_from_angles, thesis_angles
+
+__all__ = ["DEG", "FIG_3_5_ALPHA_DEG", "FIG_5_10_A_MM", "FIG_5_10_D_MM", "CrossCoupling", "JointCompliance",
+           "ThesisPuma", "TransmissionError", "a_matrix", "base_matrix", "leica_readings", "point_from_angles",
+           "rot_y", "six_e", "thesis_angles", "true_points"]
+
 DEG = np.pi / 180.0
 #: Fig 3.5 twist angles alpha_1..alpha_6 (deg)
 FIG_3_5_ALPHA_DEG = (-90.0, 180.0, 90.0, -90.0, 90.0, 0.0)
@@ -38,36 +47,10 @@ FIG_5_10_A_MM = (0.0, 432.0, -20.3, 0.0, 0.0, 0.0)
 FIG_5_10_D_MM = (0.0, 149.1, 0.0, 432.0, 0.0, 57.1)
 
 
-# -- chain ------------------------------------------------------------------------------------------------------------
-def a_matrix(theta: float, d: float, a: float, alpha: float) -> np.ndarray:
-    """The A_j matrix of section 3.4 as printed."""
-    ct, st, ca, sa = np.cos(theta), np.sin(theta), np.cos(alpha), np.sin(alpha)
-    return np.array([[ct, -st * ca, st * sa, a * ct],
-                     [st, ct * ca, -ct * sa, a * st],
-                     [0.0, sa, ca, d],
-                     [0.0, 0.0, 0.0, 1.0]])
-
-
-def rot_y(beta: float) -> np.ndarray:
-    c, s = np.cos(beta), np.sin(beta)
-    return np.array([[c, 0, s, 0], [0, 1, 0, 0], [-s, 0, c, 0], [0, 0, 0, 1.0]])
-
-
+# -- chain (the products are tests/fakes/oracle/chain.py's) ---------------------------------------------------------
 def six_e(xt: float, yt: float, zt: float) -> np.ndarray:
     """^6E of section 3.4 as printed: the tool at (-Xt, -Yt, -Zt) of frame 6, its axes reversed."""
     return np.array([[-1.0, 0, 0, -xt], [0, -1.0, 0, -yt], [0, 0, -1.0, -zt], [0, 0, 0, 1.0]])
-
-
-def base_matrix(xyz_mm=(0.0, 0.0, 0.0), yaw: float = 0.0, pitch: float = 0.0, roll: float = 0.0) -> np.ndarray:
-    """Measurement frame <- robot frame 0: translate, then turn about z (yaw), the new y (pitch), the new x (roll)."""
-    cz, sz, cy, sy, cx, sx = np.cos(yaw), np.sin(yaw), np.cos(pitch), np.sin(pitch), np.cos(roll), np.sin(roll)
-    rz = np.array([[cz, -sz, 0], [sz, cz, 0], [0, 0, 1.0]])
-    ry = np.array([[cy, 0, sy], [0, 1.0, 0], [-sy, 0, cy]])
-    rx = np.array([[1.0, 0, 0], [0, cx, -sx], [0, sx, cx]])
-    T = np.eye(4)
-    T[:3, :3] = rz @ ry @ rx
-    T[:3, 3] = xyz_mm
-    return T
 
 
 @dataclass
@@ -99,11 +82,8 @@ class ThesisPuma:
 
     def frames(self, q: np.ndarray) -> list[np.ndarray]:
         """Frames 0..6 in the measurement frame for one pose of joint angles ``q`` (6,)."""
-        T = [self.base.copy()]
-        for j in range(6):
-            A = a_matrix(q[j] + self.theta_offset[j], self.d_mm[j], self.a_mm[j], self.alpha[j]) @ rot_y(self.beta[j])
-            T.append(T[-1] @ A)
-        return T
+        return dh_frames(self.base, np.asarray(q, float) + self.theta_offset, self.d_mm, self.a_mm, self.alpha,
+                         self.beta)
 
     def tool_point(self, q: np.ndarray) -> np.ndarray:
         """The tool point for one pose: base A_1 ... A_6 ^6E, its translation."""
@@ -117,75 +97,12 @@ class ThesisPuma:
         """
         T = self.frames(q)
         g = T[0][:3, :3] @ self.gravity_m_s2
-        bodies = [(T[i + 1][:3, :3] @ self.com_mm[i] + T[i + 1][:3, 3], self.mass_kg[i], i + 1) for i in range(6)]
-        bodies.append(((T[6] @ six_e(*self.tool_xyz_t))[:3, 3], payload_kg, 7))
-        tau = np.zeros(6)
-        for j in range(6):
-            o, z = T[j][:3, 3], T[j][:3, 2]
-            for r, m, link in bodies:
-                if link >= j + 1:
-                    tau[j] += z @ np.cross((r - o) * 1e-3, m * g)
-        return tau
+        loads = [(T[i + 1][:3, :3] @ self.com_mm[i] + T[i + 1][:3, 3], self.mass_kg[i] * g, i + 1) for i in range(6)]
+        loads.append(((T[6] @ six_e(*self.tool_xyz_t))[:3, 3], payload_kg * g, 6))
+        return axis_torques(T, loads)
 
 
-# -- running errors ---------------------------------------------------------------------------------------------------
-@dataclass
-class TransmissionError:
-    """K_theta = s sin(order q) + c cos(order q), added to joint ``joint``'s reading (section 5.4.2)."""
-
-    joint: int
-    order: float
-    sin_rad: float
-    cos_rad: float = 0.0
-
-    def delta(self, q: np.ndarray, tau: np.ndarray) -> np.ndarray:
-        out = np.zeros(6)
-        out[self.joint - 1] = self.sin_rad * np.sin(self.order * q[self.joint - 1]) + \
-            self.cos_rad * np.cos(self.order * q[self.joint - 1])
-        return out
-
-
-@dataclass
-class JointCompliance:
-    """The joint gives way along the torque: stiffness k1 up to the breakpoint torque, k2 beyond (section 5.5.2).
-
-    Written as the deflection-torque curve through its corners, read off by linear interpolation.
-    """
-
-    joint: int
-    k1_nm_per_rad: float
-    k2_nm_per_rad: float | None = None
-    breakpoint_nm: float = np.inf
-
-    def deflection(self, tau: float) -> float:
-        k2 = self.k1_nm_per_rad if self.k2_nm_per_rad is None else self.k2_nm_per_rad
-        if not np.isfinite(self.breakpoint_nm):
-            return tau / self.k1_nm_per_rad
-        tb, far = self.breakpoint_nm, 2.0 * max(abs(tau), self.breakpoint_nm) + 1.0     # a corner beyond tau
-        knee = tb / self.k1_nm_per_rad
-        end = knee + (far - tb) / k2
-        return float(np.interp(tau, [-far, -tb, 0.0, tb, far], [-end, -knee, 0.0, knee, end]))
-
-    def delta(self, q: np.ndarray, tau: np.ndarray) -> np.ndarray:
-        out = np.zeros(6)
-        out[self.joint - 1] = self.deflection(tau[self.joint - 1])
-        return out
-
-
-@dataclass
-class CrossCoupling:
-    """A share ``sigma`` of joint ``source``'s reading appears in joint ``joint`` (section 4.7)."""
-
-    joint: int
-    source: int
-    sigma: float
-
-    def delta(self, q: np.ndarray, tau: np.ndarray) -> np.ndarray:
-        out = np.zeros(6)
-        out[self.joint - 1] = self.sigma * q[self.source - 1]
-        return out
-
-
+# -- running errors (tests/fakes/oracle/effects.py) -------------------------------------------------------------------
 def true_points(arm: ThesisPuma, q_rad: np.ndarray, effects=(), payload_kg=0.0) -> tuple[np.ndarray, np.ndarray]:
     """Tool points (N, 3) and true joint angles (N, 6) for joint readings (N, 6): reading + every running error."""
     q_rad = np.atleast_2d(q_rad)
@@ -197,38 +114,3 @@ def true_points(arm: ThesisPuma, q_rad: np.ndarray, effects=(), payload_kg=0.0) 
         pts.append(arm.tool_point(th))
         ths.append(th)
     return np.array(pts), np.array(ths)
-
-
-# -- theodolites (section 4.2, eq 4.3.1 and its inverse, section 5.3.1) ---------------------------------------------
-def thesis_angles(points_mm: np.ndarray, L_mm: float, height_b_mm: float = 0.0):
-    """Interior angles alpha (at A), beta (at B) from the baseline and the elevations phi_A, phi_B of points (N, 3)."""
-    X, Y, Z = np.asarray(points_mm, float).T
-    alpha = np.arctan2(Y, X)              # tan^-1(Y / X), in the right quadrant when the point is behind A or B
-    beta = np.arctan2(Y, L_mm - X)
-    phi_a = np.arctan(Z / np.sqrt(X ** 2 + Y ** 2))
-    phi_b = np.arctan((Z - height_b_mm) / np.sqrt((L_mm - X) ** 2 + Y ** 2))
-    return alpha, beta, phi_a, phi_b
-
-
-def point_from_angles(alpha, beta, phi, L_mm: float) -> np.ndarray:
-    """Eq 4.3.1 as printed: X = L tan b / (tan a + tan b), Y = L tan a tan b / (...), Z = L tan b tan phi /
-    ((tan a + tan b) cos a)."""
-    ta, tb = np.tan(alpha), np.tan(beta)
-    X = L_mm * tb / (ta + tb)
-    Y = L_mm * ta * tb / (ta + tb)
-    Z = L_mm * tb * np.tan(phi) / ((ta + tb) * np.cos(alpha))
-    return np.stack([X, Y, Z], -1)
-
-
-def leica_readings(points_mm: np.ndarray, L_mm: float, gamma1: float, gamma2: float,
-                   height_b_mm: float = 0.0) -> np.ndarray:
-    """(N, 4) readings Hz_A, V_A, Hz_B, V_B of levelled, error-free instruments for points on the +Y side.
-
-    The circles read clockwise; A's circle reads alpha' = alpha + gamma1 counter-clockwise from its zero, so
-    Hz_A = -alpha'; B looks back along the baseline and reads beta' = beta + gamma2 clockwise, Hz_B = beta'.  V is
-    the zenith angle, pi/2 - phi.
-    """
-    alpha, beta, phi_a, phi_b = thesis_angles(points_mm, L_mm, height_b_mm)
-    two_pi = 2 * np.pi
-    return np.stack([np.mod(-(alpha + gamma1), two_pi), np.pi / 2 - phi_a,
-                     np.mod(beta + gamma2, two_pi), np.pi / 2 - phi_b], -1)

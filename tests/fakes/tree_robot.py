@@ -1,5 +1,6 @@
 """An independent branched robot: a torso of three joints (the third coupled to the first two), two 7-joint arms and
-a two-joint head, written as a URDF and moved by plain 4x4 products of its own joint table.
+a two-joint head, written as a URDF and moved by plain 4x4 products of its own joint table (the oracle's rotations,
+tests/fakes/oracle/chain.py).
 
 Nothing here imports robocal: the truth a test compares robocal's tree kinematics, identification, gravity torques
 and URDF export with is made from the joint table directly (origin xyz/rpy, axis, joint value), the way a URDF
@@ -10,6 +11,10 @@ from __future__ import annotations
 from dataclasses import dataclass, field, replace
 
 import numpy as np
+
+from .oracle.chain import axis_angle, hom, rpy_matrix
+
+__all__ = ["Elasticity", "FakeJoint", "FakeTree", "axis_angle", "hom", "rpy_matrix"]
 
 
 @dataclass
@@ -43,27 +48,6 @@ class FakeTree:
         return next(j for j in self.joints if j.name == name)
 
 
-def rpy_matrix(rpy) -> np.ndarray:
-    r, p, y = rpy
-    Rx = np.array([[1, 0, 0], [0, np.cos(r), -np.sin(r)], [0, np.sin(r), np.cos(r)]])
-    Ry = np.array([[np.cos(p), 0, np.sin(p)], [0, 1, 0], [-np.sin(p), 0, np.cos(p)]])
-    Rz = np.array([[np.cos(y), -np.sin(y), 0], [np.sin(y), np.cos(y), 0], [0, 0, 1]])
-    return Rz @ Ry @ Rx
-
-
-def axis_angle(axis, q) -> np.ndarray:
-    k = np.asarray(axis, float) / np.linalg.norm(axis)
-    K = np.array([[0, -k[2], k[1]], [k[2], 0, -k[0]], [-k[1], k[0], 0]])
-    return np.eye(3) + np.sin(q) * K + (1 - np.cos(q)) * K @ K
-
-
-def hom(R=np.eye(3), t=(0.0, 0.0, 0.0)) -> np.ndarray:
-    T = np.eye(4)
-    T[:3, :3] = R
-    T[:3, 3] = t
-    return T
-
-
 def link_poses(tree: FakeTree, values: dict[str, float], elastic: "Elasticity | None" = None,
                g=(0.0, 0.0, -9.80665)) -> dict[str, np.ndarray]:
     """Every link's frame (4x4, metres) in the root link for joint values by name (mimic joints follow).
@@ -79,7 +63,7 @@ def link_poses(tree: FakeTree, values: dict[str, float], elastic: "Elasticity | 
         if j.mimic is not None:
             leader, mult, off = j.mimic
             q = mult * values.get(leader, 0.0) + off
-        T = out[j.parent] @ hom(rpy_matrix(j.rpy), j.xyz_m)
+        T = out[j.parent] @ hom(rpy_matrix(*j.rpy), j.xyz_m)
         if j.name in loads:
             M, z = loads[j.name]
             q += elastic.joint.get(j.name, 0.0) * float(M @ z)
@@ -136,7 +120,7 @@ def joint_moments(tree: FakeTree, values: dict[str, float], g=(0.0, 0.0, -9.8066
     for j in tree.joints:
         if j.type != "revolute":
             continue
-        T = poses[j.parent] @ hom(rpy_matrix(j.rpy), j.xyz_m)
+        T = poses[j.parent] @ hom(rpy_matrix(*j.rpy), j.xyz_m)
         z = T[:3, :3] @ (np.asarray(j.axis, float) / np.linalg.norm(j.axis))
         o = T[:3, 3]
         below = [first[link] for link in _subtree(tree, j.child) if link in first]

@@ -4,7 +4,8 @@ matrices, sharing no code with robocal (it imports nothing from ``calib``).
 Why: a test of the URDF import or export whose truth comes from robocal's own chain can only show that robocal agrees
 with itself.  Here the URDF's own conventions are written again, as plainly as possible: a joint's child frame is
 ``parent @ Trans(xyz) @ Rz(yaw) @ Ry(pitch) @ Rx(roll) @ motion(q)``, a revolute joint turns about its ``axis``
-(Rodrigues), a prismatic one slides along it, metres and radians in the file.
+(Rodrigues), a prismatic one slides along it, metres and radians in the file.  The rotations are the oracle's
+(tests/fakes/oracle/chain.py).
 
 :func:`perturbed` makes a "real robot" from a description: every moving joint's origin moved by a few mm and turned
 by a few tenths of a degree (seeded), the way a built robot differs from its drawing.
@@ -15,31 +16,15 @@ import xml.etree.ElementTree as ET
 
 import numpy as np
 
+from .oracle.chain import axis_angle, hom, rpy_matrix
+
+__all__ = ["UrdfChain", "instrument", "perturbed", "rpy_matrix"]
+
 MOVING = ("revolute", "continuous", "prismatic")
 
 
 def _vec(text: str | None, default=(0.0, 0.0, 0.0)) -> np.ndarray:
     return np.array([float(v) for v in text.split()]) if text else np.array(default, float)
-
-
-def rpy_matrix(r: float, p: float, y: float) -> np.ndarray:
-    cr, sr, cp, sp, cy, sy = np.cos(r), np.sin(r), np.cos(p), np.sin(p), np.cos(y), np.sin(y)
-    Rx = np.array([[1, 0, 0], [0, cr, -sr], [0, sr, cr]])
-    Ry = np.array([[cp, 0, sp], [0, 1, 0], [-sp, 0, cp]])
-    Rz = np.array([[cy, -sy, 0], [sy, cy, 0], [0, 0, 1]])
-    return Rz @ Ry @ Rx
-
-
-def _axis_angle(u: np.ndarray, q: float) -> np.ndarray:
-    u = u / np.linalg.norm(u)
-    K = np.array([[0, -u[2], u[1]], [u[2], 0, -u[0]], [-u[1], u[0], 0]])
-    return np.eye(3) + np.sin(q) * K + (1 - np.cos(q)) * K @ K
-
-
-def _hom(R=np.eye(3), t=(0, 0, 0)) -> np.ndarray:
-    T = np.eye(4)
-    T[:3, :3], T[:3, 3] = R, t
-    return T
 
 
 class UrdfChain:
@@ -60,7 +45,7 @@ class UrdfChain:
         o = j.find("origin")
         xyz = _vec(o.get("xyz") if o is not None else None)
         rpy = _vec(o.get("rpy") if o is not None else None)
-        return _hom(rpy_matrix(*rpy), xyz * 1000.0)
+        return hom(rpy_matrix(*rpy), xyz * 1000.0)
 
     def tip_frames(self, q: np.ndarray) -> np.ndarray:
         """(N, 4, 4) the tip link's frame in the base link (mm) for joint values q (N, moving joints): rad, or m for
@@ -77,9 +62,9 @@ class UrdfChain:
                     u = _vec(ax.get("xyz") if ax is not None else None, (1.0, 0.0, 0.0))
                     v = vals[j.get("name")]
                     if kind == "prismatic":
-                        T = T @ _hom(t=u / np.linalg.norm(u) * v * 1000.0)
+                        T = T @ hom(t=u / np.linalg.norm(u) * v * 1000.0)
                     else:
-                        T = T @ _hom(_axis_angle(u, v))
+                        T = T @ hom(axis_angle(u, v))
             out.append(T)
         return np.array(out)
 

@@ -1,7 +1,9 @@
 """Worlds for tests: the one world (the twin of the default scenario) with or without reading noise."""
 from __future__ import annotations
 
+import time
 import uuid
+from typing import Callable
 
 from acq.emulate.factories import make_world
 
@@ -14,6 +16,18 @@ def quiet_world(seed: int = 0):
 
 def noisy_world(seed: int = 0):
     return make_world(None, seed=seed, noise=True)
+
+
+def until(condition: Callable[[], bool], timeout_s: float = 10.0) -> bool:
+    """Whether ``condition()`` came true within ``timeout_s`` of real time, polled: for a reader thread to take
+    delivery of what a simulated clock already sent.  What is asserted afterwards is set by the simulated time, not
+    by how fast the machine is; the real-time bound only keeps a broken reader from hanging the test."""
+    deadline = time.monotonic() + timeout_s
+    while not condition():
+        if time.monotonic() > deadline:
+            return False
+        time.sleep(0.005)
+    return True
 
 
 def channel() -> str:

@@ -20,6 +20,7 @@ from calib.twin import Twin, load_scenario, parse_scenario
 
 from acq.reduction.session import SessionData, load_session
 from acq.session.setup import setup_robot
+from acq.session.setup_types import BenchSetup
 
 #: stage name -> truth function(scoring, trace of the stage)
 TRUTHS: dict[str, Callable[["Scoring", dict], None]] = {}
@@ -44,7 +45,7 @@ class Scoring:
     robot: Robot
 
     @property
-    def setup(self) -> dict:
+    def setup(self) -> BenchSetup:
         return self.data.setup
 
     @property

@@ -13,7 +13,7 @@ from calib.units import DEG
 
 from acq.session.procedures import sweep_target
 from acq.session.setup import nominal_theta, point_p
-from acq.session.setup_file import default_of
+from acq.session.setup_types import BenchSetup
 
 from . import Scoring, truth_of
 
@@ -39,7 +39,7 @@ def _frames(sc: Scoring, q0: np.ndarray):
     return kin, p_design, kin.forward(q0[None], p_design), kin.forward(theta, p_true), theta[0] - q0
 
 
-def base_gauge_truth(truth: dict, setup: dict, R0: np.ndarray, tv: dict) -> dict:
+def base_gauge_truth(truth: dict, setup: BenchSetup, R0: np.ndarray, tv: dict) -> dict:
     """The truth of the first link's d and zero offset in the frame the sweeps measure them in: frame 0 where the
     set-up puts the base (a tape gives it to the millimetre), not where the twin has it.  Why: the foot of joint 1's
     common normal is measured from the set-up's origin along z0, and its zero from the set-up's yaw, so a base 0.1
@@ -48,11 +48,11 @@ def base_gauge_truth(truth: dict, setup: dict, R0: np.ndarray, tv: dict) -> dict
         return {}
     out = {}
     o_true = np.array([truth[f"base.{k}_mm"] for k in "xyz"])
-    o_set = np.asarray(setup.get("base_xyz_mm", o_true), float)
+    o_set = np.asarray(setup.base_xyz_mm, float)
     if "j1.d_mm" in tv:
         out["j1.d_mm"] = tv["j1.d_mm"] + float((o_true - o_set) @ R0[:, 2])
     if "j1.theta_offset_rad" in tv and "base.yaw_rad" in truth:
-        yaw_set = float(np.asarray(setup.get("base_rpy_deg", default_of("base_rpy_deg")), float)[2]) * DEG
+        yaw_set = float(setup.base_rpy_deg[2]) * DEG
         out["j1.theta_offset_rad"] = tv["j1.theta_offset_rad"] + truth["base.yaw_rad"] - yaw_set
     return out
 

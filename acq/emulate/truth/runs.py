@@ -1,14 +1,13 @@
 """Truths of the running-error runs: transmission error, joint and link compliance, coupling, encoder resolution --
-from the twin's scenario effects, or the same fit on the twin's noise-free data where the estimator's quantity is
-not the effect's own value."""
+from the twin's scenario effects by the thesis's own formulas.  Where the estimator's quantity is not the effect's own
+value (one slope over a two-slope joint, the resolution achieved over a run the transmission error tilts), the truth
+is the weighted straight line through the twin's exact values (:func:`weighted_line`, plain algebra), never the
+reduction's estimator run on noise-free data: the truth must not share the code it judges."""
 from __future__ import annotations
 
 import numpy as np
 
-from calib.effects import JointCompliance, LinkCompliance, Loads, PoseContext, TransmissionError
-from calib.errors import RobocalError
-from calib.estimators.compliance import single_slope_fit
-from calib.estimators.resolution import encoder_resolution
+from calib.effects import JointCompliance, LinkCompliance, TransmissionError
 
 from . import Scoring, truth_of
 
@@ -27,22 +26,40 @@ def transmission_truth(sc: Scoring, trace: dict) -> None:
             sc.set(f"te.j{e.joint}.amplitude1_rad", first_harmonic_amplitude(e))
 
 
+def weighted_line(columns: list, y, cov) -> np.ndarray | None:
+    """The coefficients of ``y = sum_k b_k columns[k]`` by generalised least squares with the covariance ``cov``
+    (a matrix, or the rows' variances): ``b = (X' C^-1 X)^-1 X' C^-1 y``, solved whitened.  None when the columns do
+    not determine them."""
+    y = np.asarray(y, float)
+    X = np.stack([np.broadcast_to(np.asarray(c, float), y.shape) for c in columns], -1)
+    C = np.asarray(cov, float)
+    C = np.diag(np.broadcast_to(C, y.shape)) if C.ndim < 2 else C
+    W = np.linalg.inv(np.linalg.cholesky(C))
+    b, _, rank, _ = np.linalg.lstsq(W @ X, W @ y, rcond=None)
+    return b if rank == X.shape[1] else None
+
+
+def two_slope_deflection(effect: JointCompliance, T, unloading) -> np.ndarray:
+    """Section 4.5's joint deflection under torque ``T`` from the twin's parameters: slope c1 up to the breakpoint
+    and c2 beyond it, in the torque's direction; the unloading branch ``h`` above the loading one."""
+    c1, c2, tb, h = effect.values
+    T = np.asarray(T, float)
+    a, tb = np.abs(T), tb if np.isfinite(tb) else np.inf
+    d = np.where(a <= tb, c1 * T, np.sign(T) * (c1 * tb + c2 * (a - tb)) if np.isfinite(tb) else c1 * T)
+    return d + h * (np.where(np.asarray(unloading, bool), 0.5, -0.5))
+
+
 def single_slope_truth(effect: JointCompliance, j: int, T, sign: float, unload, cov) -> dict:
-    """What one slope fitted over every load gives on the deflections the twin's compliance makes at the same
-    torques, without noise, with the same weights ``cov`` (the twin's two slopes are not what a single slope
-    estimates, and which mean of them it is depends on the weights)."""
-    n = max(effect.joint, j)
-    tau = np.zeros((len(T), n))
-    tau[:, j - 1] = T
-    ctx_dir = np.zeros((len(T), n))
-    ctx_dir[:, j - 1] = np.where(unload, -1.0, 1.0)
-    ctx = PoseContext(len(T), n, load_direction=ctx_dir)
-    d, _ = effect.joint_delta(np.zeros((len(T), n)), ctx, Loads(tau, np.zeros((len(T), n, 3))), effect.values)
-    try:
-        clean = single_slope_fit(sign * T, sign * d[:, j - 1], unload, cov)
-    except RobocalError:
+    """What one slope over every load is of the twin's deflections at the same torques, with the same weights
+    ``cov``: the weighted line ``d = theta0 + offset u + T / K1`` through them (the twin's two slopes are not what a
+    single slope estimates, and which mean of them it is depends on the weights).  Empty when the loads do not
+    determine a slope."""
+    T = np.asarray(T, float)
+    u = np.asarray(unload, bool).astype(float)
+    b = weighted_line([np.ones_like(T), u, sign * T], sign * two_slope_deflection(effect, T, unload), cov)
+    if b is None or not b[2] > 0:
         return {}
-    return {e.name: float(e.value) for e in clean.estimates()}
+    return {"K1_Nm_per_rad": float(1.0 / b[2]), "offset_rad": float(b[1]), "theta0_rad": float(b[0])}
 
 
 @truth_of("compliance")
@@ -78,7 +95,7 @@ def compliance_truth(sc: Scoring, trace: dict) -> None:
 @truth_of("link")
 def link_truth(sc: Scoring, trace: dict) -> None:
     """The scenario's link compliance of the tested link; a rigid link (no truth, said) when it has none."""
-    joint = (sc.setup.get("link") or {}).get("joint")
+    joint = sc.setup.link.joint if sc.setup.link is not None else None
     ei = [1.0 / float(e.values[0]) for e in sc.twin.scenario.effects
           if isinstance(e, LinkCompliance) and e.joint == joint]
     prefix = f"link.j{joint}."
@@ -99,17 +116,18 @@ def coupling_truth(sc: Scoring, trace: dict) -> None:
 
 
 def resolution_in_estimator_terms(twin, j: int, counts, signed_counts, cov_rad2, design_rad_per_count: float) -> dict:
-    """The twin's resolution of joint ``j`` as the run's fit sees it: the same fit on the twin's true joint angles
-    (the encoders plus the joint's running errors, e.g. its transmission error) at the run's counts ``(steps, n)``,
-    without noise.  Why: the slope the run measures is the resolution achieved over the run, which the transmission
-    error tilts by more than the fit's error; the description's value alone would not be what it estimates."""
+    """The twin's resolution of joint ``j`` as the run sees it: the slope of the weighted line (:func:`weighted_line`,
+    the run's weights ``cov_rad2``) through the twin's true joint angles (the encoders plus the joint's running
+    errors, e.g. its transmission error) at the run's counts ``(steps, n)``.  Why: the slope the run measures is the
+    resolution achieved over the run, which the transmission error tilts by more than the fit's error; the
+    description's value alone would not be what it estimates."""
     q = twin.robot.joint_from_counts(np.asarray(counts, float))
-    try:
-        _, th = twin.true_points(q, twin.context(len(q)))
-        clean = encoder_resolution(signed_counts, th[:, j - 1] - th[0, j - 1], cov_rad2, design_rad_per_count)
-    except RobocalError:
+    _, th = twin.true_points(q, twin.context(len(q)))
+    c = np.asarray(signed_counts, float)
+    b = weighted_line([np.ones_like(c), c - c[0]], th[:, j - 1] - th[0, j - 1], cov_rad2)
+    if b is None:
         return {"rad_per_count": design_rad_per_count, "scale": 1.0}
-    return {k: float(clean[k].value) for k in ("rad_per_count", "scale")}
+    return {"rad_per_count": float(b[1]), "scale": float(b[1] / design_rad_per_count)}
 
 
 @truth_of("resolution")

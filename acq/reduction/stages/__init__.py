@@ -7,7 +7,7 @@ from importlib import import_module
 from ..registry import Stage, in_order
 
 MODULES = ("ruler", "sweeps", "misalignment", "compensation", "compliance", "transmission", "poses", "link",
-           "coupling", "resolution")
+           "coupling", "resolution", "iso9283")
 
 
 def all_stages() -> list[Stage]:

@@ -62,12 +62,12 @@ def gauge_rows(ctx: Reduction, steps: list[dict], j: int, joints: list[int]):
 def reduce_link(ctx: Reduction, steps: list[dict]) -> None:
     if not steps:
         return
-    cfg = ctx.setup["link"]
-    j = int(cfg["joint"])
+    cfg = ctx.setup.link
+    j = cfg.joint
     measured = {i: r for i, r in (ctx.outputs.get("compliance") or {}).items() if i <= j}
     joints = sorted(set(measured) | {j})
     y, X, x, P = gauge_rows(ctx, steps, j, joints)
-    sigma = float(cfg.get("gauge_sigma_mm") or GAUGE_SIGMA_MM)
+    sigma = float(cfg.gauge_sigma_mm or GAUGE_SIGMA_MM)
     C = sigma ** 2 * np.eye(len(y))
     keep = [0]
     for c, i in enumerate(joints, 1):        # a measured joint's turn taken out, with its stiffness's error
@@ -78,8 +78,8 @@ def reduce_link(ctx: Reduction, steps: list[dict]) -> None:
         elif np.any(np.abs(X[:, c]) > 0):
             keep.append(c)
     res = rigidity_from_design(X[:, keep], y, C, ("EI_Nmm2",),
-                               second_moment_mm4=cfg.get("second_moment_mm4"), n_mc=ctx.n_mc)
-    ctx.figs["link"] = {"x_mm": x, "load_n": P, "deflection_mm": y.tolist(), "load_x_mm": [cfg.get("load_x_mm")] * len(y)}
+                               second_moment_mm4=cfg.second_moment_mm4, n_mc=ctx.n_mc)
+    ctx.figs["link"] = {"x_mm": x, "load_n": P, "deflection_mm": y.tolist(), "load_x_mm": [cfg.load_x_mm] * len(y)}
     prefix = f"link.j{j}."
     if isinstance(res, RigidityBound):
         ctx.est.add_bound(f"{prefix}EI_lower_bound_Nmm2", res.EI_lower_bound_Nmm2, "N mm^2", "lower", res.confidence,

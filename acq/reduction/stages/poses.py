@@ -23,11 +23,11 @@ from ..registry import Stage
 MIN_POSES = 8
 
 
-def accuracy(ctx: Reduction, model, obs, free, theta0, priors) -> None:
+def accuracy(ctx: Reduction, model, obs, free, theta0, priors, warm=None) -> None:
     """Before/after accuracy on held-out poses into ``figs['accuracy']``; a pose set too small to split is said,
-    not guessed."""
+    not guessed.  ``warm``: the fit on every pose, where the fit on the fit poses starts."""
     try:
-        acc = before_after(model, obs, free, theta0=theta0, priors=priors)
+        acc = before_after(model, obs, free, theta0=theta0, priors=priors, warm=warm)
     except RobocalError as exc:
         ctx.said(f"poses: accuracy before/after not computed: {exc}")
         return
@@ -82,7 +82,8 @@ def reduce_poses(ctx: Reduction, steps: list[dict]) -> dict | None:
                          "rms_mm": float(ident.residual_rms), "held": [n for n in wanted if n not in ident.free],
                          "points_mm": P.tolist(), "running_errors": list(specs)}
     ctx.trace["poses"] = {"q_rad": q}
-    accuracy(ctx, model, obs, ident.free, theta0, priors)
+    if ctx.held_out:
+        accuracy(ctx, model, obs, ident.free, theta0, priors, ident.theta)
     return model_document(model, ident)
 
 

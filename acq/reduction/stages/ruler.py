@@ -9,6 +9,7 @@ from calib.estimators.points import StationFit
 from calib.units import ARCSEC, DEG
 
 from acq.session.setup import setup_stations, station_names
+from acq.session.setup_types import BenchSetup
 from acq.session.stations import fit_ruler, ruler_rows, ruler_station_fit
 
 from ..context import Reduction
@@ -17,7 +18,7 @@ from ..registry import Stage
 NAMES = ("L_mm", "gamma1_rad", "gamma2_rad", "hB_mm")
 
 
-def fitted_stations(steps: list[dict], setup: dict):
+def fitted_stations(steps: list[dict], setup: BenchSetup):
     """The ruler fit of ``steps`` (:class:`calib.uncertainty.EstimateSet`) and the stations it gives with the fit's
     covariance (:class:`calib.estimators.points.StationFit`)."""
     res, stations = fit_ruler(ruler_rows(steps, station_names(setup)), setup)

@@ -14,6 +14,7 @@ from calib.kinematics import ChainPass, Kinematics
 from calib.units import DEG
 
 from acq.session.setup import nominal_theta
+from acq.session.setup_types import BenchSetup
 
 from ..context import Reduction
 from ..joints import by_joint
@@ -47,11 +48,11 @@ class SweptAxes:
         return np.array([R[j][:, 2] for j in range(n)]), np.array([R[j + 1][:, 0] for j in range(n)])
 
 
-def reference_pose(sweep_steps: list[dict], setup: dict) -> np.ndarray:
+def reference_pose(sweep_steps: list[dict], setup: BenchSetup) -> np.ndarray:
     """The pose the joints were swept about (rad): the set-up's ``reference_pose_deg`` when given, else from the
     session's own sweep steps -- every sweep holds the other joints at it and centres its own joint on it."""
-    if setup.get("reference_pose_deg") is not None:
-        return np.asarray(setup["reference_pose_deg"], float) * DEG
+    if setup.reference_pose_deg is not None:
+        return np.asarray(setup.reference_pose_deg, float) * DEG
     return np.median(np.array([st["spec"]["pose_deg"] for st in sweep_steps], float), axis=0) * DEG
 
 
