@@ -8,7 +8,7 @@ from calib.diagnose.engine import diagnose
 from calib.diagnose.families import SIGMA_MM
 from calib.diagnose.independent import Spec, generate
 from calib.diagnose.nested import outer_folds
-from calib.robot import load_robot
+from calib.loading import load_robot
 
 
 def _data(points):

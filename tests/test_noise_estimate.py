@@ -264,7 +264,7 @@ def _weights_of(csv: str, desc: str):
     from calib.identify import PointObservations, default_free
     from calib.model import MeasurementModel
     from calib.posecsv import read_pose_csv
-    from calib.robot import load_robot
+    from calib.loading import load_robot
     robot = load_robot(desc)
     table, robot, offsets = fit_rows(read_pose_csv(csv, robot.n, robot.prismatic, robot=robot), robot)
     model = MeasurementModel(robot, offsets)
