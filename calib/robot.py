@@ -133,6 +133,10 @@ class Robot:
     variable_of: np.ndarray | None = None
     # the frame each tool point is fixed in (0..n); a point not named here is on frame n (the chain's tip)
     tool_point_frames: dict[str, int] = field(default_factory=dict)
+    # per link, where its joint's bearing is: the URDF joint's origin, as the signed distance (mm) along the joint's
+    # axis from the origin of robocal's frame of that joint (a DH/Hayati frame lies where the common normals put it,
+    # up to a link's length away); None (every pivot at the frame's origin) for a description not built from a URDF
+    urdf_pivot_mm: np.ndarray | None = None
 
     def __post_init__(self):
         if self.prismatic.size != len(self.a_mm):

@@ -23,13 +23,14 @@ moving joint; on a tree, a branch link per further child of a joint, :func:`anal
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
 
 from .angles import rot_zyx, rpy_from_matrix
 from .errors import RobocalError
+from .kinematics import Kinematics
 from .robot import Robot
 from .units import DEG, G0_M_S2
 
@@ -616,4 +617,23 @@ def robot_from_analysis(ch, points: dict[str, tuple[str, np.ndarray]], source: s
         parent_frame=ch.parent_frame, variable_of=ch.variable_of,
     )
     kw.update(fields)
-    return Robot(**kw)
+    robot = Robot(**kw)
+    return replace(robot, urdf_pivot_mm=_pivots_mm(ch, robot, B))
+
+
+def _pivots_mm(ch: UrdfChain, robot: Robot, base_in_world: np.ndarray) -> np.ndarray:
+    """Per internal link, the URDF joint's origin as a signed distance (mm) along the joint's axis from the origin
+    of robocal's frame of that joint, both at zero joint values (the pivot a lateral compliance bends about; 0 for a
+    fixed link)."""
+    fp = Kinematics(robot).forward(np.zeros((1, robot.n)))
+    out = np.zeros(robot.n)
+    var = robot.variable_of if robot.variable_of is not None else np.arange(robot.n)
+    for k, j in enumerate(ch.axes):
+        if var[k] < 0 or j.type == "fixed":
+            continue
+        T = np.eye(4)
+        for step in _path(ch.tree, ch.base_link, j.child):
+            T = T @ _to_mm(step.origin)
+        p = (base_in_world @ T)[:3, 3]
+        out[k] = float((p - fp.joint_origin[0, k]) @ fp.joint_axis[0, k])
+    return out

@@ -76,7 +76,9 @@ def build_library(data: DiagnosisData, kinds: tuple[str, ...] = EFFECT_NAMES,
         # a joint bending under the moment of the branches it carries (a torso under both arms); on a serial arm
         # the same moment bends the link beyond it, whose link_compliance candidate has nearly the signature, and
         # the validated diagnosis of arms keeps its library (identify --effect lateral_compliance fits it anywhere)
-        offer.all([Candidate("lateral_compliance", j, free=axes) for j, axes in _bending_axes(data, rev)])
+        pivots = robot.urdf_pivot_mm if robot.urdf_pivot_mm is not None else np.zeros(n)
+        offer.all([Candidate("lateral_compliance", j, free=axes, pivot_mm=float(pivots[j - 1]))
+                   for j, axes in _bending_axes(data, rev)])
     offer.all([Candidate("backlash", j, free=("width_rad",)) for j in own])
     if "backlash_gravity" in kinds:
         out.candidates += gravity_backlash_candidates(data, theta, out.skipped)
