@@ -274,3 +274,24 @@ def test_an_effect_whose_condition_is_constant_is_refused_in_identify_and_untest
     assert "instrument_drift" not in " ".join(skipped)
     r = run_cli("identify", str(p), "--effect", "instrument_drift")
     assert r.returncode == 0, r.stderr
+
+
+def test_gauss_newton_reaches_the_trust_region_minimum(monkeypatch):
+    """The plain-loss fits take Gauss-Newton steps (calib.identify._gauss_newton) instead of scipy's trust region;
+    both must end at the same minimum: every estimate within 1e-6 sigma, the sigmas to 1e-6 relative (scipy's
+    least_squares, with Gauss-Newton switched off, is the reference)."""
+    import calib.identify as ci
+    tw = geometric_twin(5)
+    m, pts = measure_points(tw, tw.random_poses(80))
+    obs = PointObservations(m.q_read_rad, pts.point_mm, pts.cov_mm2)
+    model = MeasurementModel(tw.robot)
+    calls = []
+    real = ci._gauss_newton
+    monkeypatch.setattr(ci, "_gauss_newton", lambda *a, **k: calls.append(real(*a, **k)) or calls[-1])
+    gn = identify(model, obs, outliers="off")
+    monkeypatch.setattr(ci, "_gauss_newton", lambda *a, **k: None)
+    tr = identify(model, obs, outliers="off")
+    assert any(c is not None for c in calls) and gn.free == tr.free      # Gauss-Newton did the fit
+    k = [gn.names.index(n) for n in gn.free]
+    assert np.max(np.abs(gn.theta[k] - tr.theta[k]) / tr.sigma[k]) < 1e-6
+    np.testing.assert_allclose(gn.sigma[k], tr.sigma[k], rtol=1e-6)
