@@ -55,7 +55,7 @@ def cached_array(kind: str, inputs: bytes, compute: Callable[[], np.ndarray]) ->
     path = folder / f"{kind}-{key[:32]}.npy"
     try:
         return np.load(path, allow_pickle=False)
-    except (OSError, ValueError):
+    except (OSError, ValueError, EOFError):     # absent, or not a whole .npy (then computed and written again)
         pass
     value = np.asarray(compute())
     try:

@@ -66,3 +66,13 @@ def test_the_demo_pose_set_from_the_cache_is_the_one_chosen_afresh(tmp_path, mon
     kept = demo_poses(twin, 0, 12, True, setup)
     assert len(list(tmp_path.iterdir())) == 1
     assert np.array_equal(fresh, stored) and np.array_equal(stored, kept)
+
+
+def test_a_damaged_entry_is_computed_again(calls, tmp_path):
+    made, compute = calls
+    first = cache.cached_array("t", b"a", compute)
+    for f in tmp_path.iterdir():
+        f.write_bytes(b"")
+    again = cache.cached_array("t", b"a", compute)
+    assert len(made) == 2 and again.shape == first.shape
+    assert np.array_equal(cache.cached_array("t", b"a", compute), again) and len(made) == 2
