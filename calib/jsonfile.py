@@ -68,12 +68,46 @@ def _validator_class():
     return jsonschema.validators.extend(jsonschema.Draft202012Validator, {"finite": finite, "notNaN": not_nan})
 
 
+#: documents already found valid: (id of the schema, canonical JSON text) -> the schema (held, so its id stays its own)
+_VALID: dict[tuple[int, str], dict] = {}
+_VALID_MAX = 64
+
+
+def _plain(doc: Any) -> bool:
+    """Only JSON's own types (dict with str keys, list, str, int, float, bool, None): then the canonical text names
+    the document exactly (a tuple, which the schema does not take for an array, would print as one)."""
+    if isinstance(doc, dict):
+        return all(isinstance(k, str) and _plain(v) for k, v in doc.items())
+    if isinstance(doc, list):
+        return all(_plain(v) for v in doc)
+    return doc is None or isinstance(doc, (str, int, float))
+
+
+def _memo_key(doc: Any, schema: dict) -> tuple[int, str] | None:
+    if not _plain(doc):
+        return None
+    try:
+        return id(schema), json.dumps(doc, sort_keys=True, allow_nan=True)
+    except (TypeError, ValueError, RecursionError):
+        return None
+
+
 def check_schema(doc: Any, schema: dict, src: str) -> Any:
-    """``doc`` if it follows ``schema``; otherwise one line naming the first offending key (the deepest first)."""
+    """``doc`` if it follows ``schema``; otherwise one line naming the first offending key (the deepest first).
+
+    A document already found valid against the same schema object is not checked again (why: a session's set-up is
+    read back from its database and typed several times per run; each full check cost ~25 ms)."""
+    key = _memo_key(doc, schema)
+    if key is not None and _VALID.get(key) is schema:
+        return doc
     import jsonschema
     validator = _validator_class()(schema)
     error = jsonschema.exceptions.best_match(validator.iter_errors(doc))
     if error is None:
+        if key is not None:
+            if len(_VALID) >= _VALID_MAX:
+                _VALID.pop(next(iter(_VALID)))
+            _VALID[key] = schema
         return doc
     where = json_path(error.absolute_path) or "document"
     message = error.message if len(error.message) <= 160 else error.message[:157] + "..."

@@ -242,13 +242,28 @@ class Twin:
         ``rng`` to the twin's own generator (an emulator passes its own so that its stream is its own).
         """
         stations = self.stations if stations is None else stations
+        return self.noisy(self.exact_readings(points_mm, stations, faces), stations, rng)
+
+    def exact_readings(self, points_mm: np.ndarray, stations: list[Station] | None = None,
+                       faces: list[int] | None = None) -> np.ndarray:
+        """The readings (N, 2k) of :meth:`observe` before noise: each station's observation with its instrument
+        errors.  A caller that reads one point many times (an emulated theodolite) may keep them and pass them to
+        :meth:`noisy` for each reading."""
+        stations = self.stations if stations is None else stations
         faces = faces or [1] * len(stations)
-        rng = self.rng if rng is None else rng
         pts = np.atleast_2d(np.asarray(points_mm, float))
         cols = []
         for s, f in zip(stations, faces):
             cols += list(s.observe(pts, f))
-        out = np.stack(cols, -1)
+        return np.stack(cols, -1)
+
+    def noisy(self, exact: np.ndarray, stations: list[Station] | None = None,
+              rng: np.random.Generator | None = None):
+        """Readings and gross-error mask from :meth:`exact_readings` (not modified): the noise and gross errors of
+        :meth:`observe`, then Hz wrapped."""
+        stations = self.stations if stations is None else stations
+        rng = self.rng if rng is None else rng
+        out = np.array(exact, float)
         sig = np.concatenate([[s.sigma_hz_rad, s.sigma_v_rad] for s in stations])
         if self.scenario.angle_noise:
             out = out + rng.normal(size=out.shape) * sig

@@ -281,3 +281,20 @@ def test_malformed_setup_is_one_line(tmp_path, edit, text):
     assert r.returncode == 2 and "Traceback" not in r.stderr
     assert r.stderr.strip().splitlines() == [f"robocal: error: {r.stderr.split('error: ', 1)[1].strip()}"]
     assert text in r.stderr, r.stderr
+
+
+def test_a_step_checked_again_sees_the_stations_moved(twin, setup):
+    """The runner checks a step before the session and again with the refitted stations: the findings that read
+    the stations follow them (kept per step are only the others, e.g. a joint beyond its limit)."""
+    from dataclasses import replace
+    pf = _pf(twin, setup)
+    lo = twin.robot.limits_rad[3, 0] / DEG
+    pose = tuple(READY_DEG[:3]) + (lo - 5.0,) + tuple(READY_DEG[4:])
+    a = pf.stations["A"].position
+    step = _point_step("p", a + np.array([0.0, 2000.0, 100.0]), pose)
+    first = [f.check for f in pf.check_step(step)]
+    assert first == ["joint limit"]
+    pf.stations = {**pf.stations, "A": replace(pf.stations["A"], y_mm=float(a[1]) + 1900.0)}   # 100 mm away now
+    again = pf.check_step(step)
+    assert [f.check for f in again] == ["joint limit", "sight"]
+    assert "closer than its focus distance" in again[1].detail

@@ -1,6 +1,6 @@
 """The rig keeps the face it left a motorised telescope in (no question to the instrument for a sighting in that
-face) and still notices a telescope turned by hand in between: the reading's own face disagrees, the rig turns it
-back and reads again, so a reading is never stored under the wrong face."""
+face, nor before turning it to the other) and still notices a telescope turned by hand in between: the reading's own
+face disagrees, the rig turns it back and reads again, so a reading is never stored under the wrong face."""
 from __future__ import annotations
 
 import uuid
@@ -43,7 +43,7 @@ def test_a_known_face_is_not_asked_again(station):
     for face in (1, 1, 2, 2, 1):
         rig.face("A", face)
         assert rig.sight("A").face == face
-    assert station.asked == 3                      # once per change of face, not once per sighting
+    assert station.asked == 1                      # once, when the rig did not know it: not per change or sighting
 
 
 def test_a_telescope_turned_by_hand_is_turned_back_before_the_reading(station):

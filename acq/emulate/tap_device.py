@@ -68,17 +68,25 @@ class TapModel:
         self._made = 0
         self.max_backlog = max(1, int(self.rate_hz * max_backlog_s))
         self.skipped = 0
+        self._last: tuple = (None, ())          # (readings and offsets, their counts): see _counts
 
     def latch(self, t_s: float | None = None) -> RawSample:
         """The sample the tap latches now, stamped ``t_s`` seconds (default the clock's now: a simulated clock's harness
         latches a window's samples at once and passes each one's scheduled time)."""
-        counts = np.rint(self.robot.counts_from_joint(self.world.joint_angles_rad())).astype(np.int64)
-        counts += self.count_offset
         t_s = self.clock() if t_s is None else t_s
-        s = RawSample(self.seq & 0xFFFF, int(t_s * 1e6) & 0xFFFFFFFF,
-                      tuple(wrap_i32(c) for c in counts), self.flags)
+        s = RawSample(self.seq & 0xFFFF, int(t_s * 1e6) & 0xFFFFFFFF, self._counts(), self.flags)
         self.seq += 1
         return s
+
+    def _counts(self) -> tuple[int, ...]:
+        """The wrapped counts of the joints' present readings; kept while the readings (and offsets) stay the same:
+        an encoder window latches tens of samples of one pose, each the same conversion."""
+        q = self.world.joint_angles_rad()
+        key = (q.tobytes(), self.count_offset.tobytes())
+        if key != self._last[0]:
+            counts = np.rint(self.robot.counts_from_joint(q)).astype(np.int64) + self.count_offset
+            self._last = (key, tuple(wrap_i32(c) for c in counts))
+        return self._last[1]
 
     def due(self, now_s: float | None = None) -> int:
         """How many samples the schedule owes now (a stalled harness skips, like a tap overrunning its buffer)."""

@@ -72,6 +72,7 @@ class TwinWorld:
         self._target = Target("P", tool_mm=self._default_tool)
         self._cache: np.ndarray | None = None
         self._faults: dict[str, list] = {}          # station -> [hz_rad, v_rad, readings left]
+        self._exact: dict[tuple, np.ndarray] = {}   # (station, face, target point) -> readings before noise
 
     # -- what the session's physical layer sets -------------------------------------------------------------------
     def command(self, q_rad) -> None:
@@ -172,7 +173,13 @@ class TwinWorld:
         st = self._station(station_name)
         p = self.target_mm()
         with self._lock:
-            out, _ = self.twin.observe(p[None], [st], [face], rng=self._rng)
+            key = (station_name, face, p.tobytes())
+            exact = self._exact.get(key)
+            if exact is None:           # the target's readings without noise: once per target, station and face
+                if len(self._exact) >= 64:
+                    self._exact.clear()
+                exact = self._exact[key] = self.twin.exact_readings(p[None], [st], [face])
+            out, _ = self.twin.noisy(exact, [st], rng=self._rng)
             hz, v = float(out[0, 0]), float(out[0, 1])
             f = self._faults.get(station_name)
             if f is not None and f[2] > 0:

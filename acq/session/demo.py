@@ -17,12 +17,14 @@ repeats than a real session, but every procedure is present.
 from __future__ import annotations
 
 import json
+import pickle
 import uuid
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
+from acq.cache import cached_array
 from acq.clock import Clock, SimClock
 from acq.emulate.scenario import STATIONS, scenario_text
 from acq.errors import DeviceTimeout
@@ -78,19 +80,33 @@ def demo_plan(twin: Twin, seed: int, n_poses: int = DEMO_POSES, quick: bool = Tr
               setup: BenchSetup | dict | None = None) -> dict:
     """Which procedures with which parameters: :func:`acq.session.plans.session_plan` with the :data:`DEMO
     <acq.session.plans.DEMO>` preset and a pose set chosen now (so a resume replays the same poses)."""
-    from calib.plan import select_poses
     setup = setup_of(session_setup(demo_setup(twin), twin.robot) if setup is None else setup)
+    q = demo_poses(twin, seed, n_poses, quick, setup)
+    return session_plan(twin.robot, setup, DEMO, te_joints, np.round(q, 3), seed)
+
+
+def demo_poses(twin: Twin, seed: int, n_poses: int, quick: bool, setup: BenchSetup) -> np.ndarray:
+    """The demo's pose set (joint readings, degrees or mm), chosen by :func:`calib.plan.select_poses` among
+    candidates the pre-flight passes.  A pure function of the robot, the set-up, the twin's base, the seed and the
+    count: kept in the on-disk cache (:mod:`acq.cache`; 0.3-0.4 s of CPU saved per run)."""
+    tp = twin.true_parameters()
+    inputs = pickle.dumps((twin.robot, json.dumps(dict(setup.doc), sort_keys=True, default=str),
+                           [tp[f"base.{k}_mm"] for k in "xyz"], int(seed), int(n_poses), bool(quick)))
+    return cached_array("demo-poses", inputs, lambda: _choose_poses(twin, seed, n_poses, quick, setup))
+
+
+def _choose_poses(twin: Twin, seed: int, n_poses: int, quick: bool, setup: BenchSetup) -> np.ndarray:
+    from calib.plan import select_poses
     model = MeasurementModel(twin.robot)
     lim = twin.robot.limits_rad
     try:
         plan = select_poses(model, n_poses, seed=seed, pool=300 if quick else 2000, test=100,
                             accept=lambda q: _visible(twin, q, setup), compare=False)
-        q = np.asarray(plan.q_rad) / twin.robot.edge_scale
+        return np.asarray(plan.q_rad) / twin.robot.edge_scale
     except Exception:           # planning is an aid; fall back to seeded random poses within the limits
         rng = np.random.default_rng(seed)
-        q = (lim[:, 0] + 0.2 * np.ptp(lim, 1) + 0.6 * np.ptp(lim, 1) * rng.random((n_poses, twin.robot.n))) \
+        return (lim[:, 0] + 0.2 * np.ptp(lim, 1) + 0.6 * np.ptp(lim, 1) * rng.random((n_poses, twin.robot.n))) \
             / twin.robot.edge_scale
-    return session_plan(twin.robot, setup, DEMO, te_joints, np.round(q, 3), seed)
 
 
 #: the floor below the robot's frame 0 (mm): the thesis cell's is 400 mm below the instruments' horizon, the Puma's

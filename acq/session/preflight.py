@@ -77,12 +77,17 @@ class StepGeometry:
 
 
 CHECKS: dict[str, Callable[["Preflight", StepGeometry], list[Finding]]] = {}
+#: the checks that read the stations (the runner's ruler refit changes them); the others' findings are kept per step
+USES_STATIONS: set[str] = set()
 
 
-def preflight_check(name: str):
-    """Register a check under ``name`` (runs on every step; a check that does not apply returns [])."""
+def preflight_check(name: str, uses_stations: bool = False):
+    """Register a check under ``name`` (runs on every step; a check that does not apply returns []);
+    ``uses_stations``: its findings depend on ``Preflight.stations`` (computed again at each check of a step)."""
     def deco(fn):
         CHECKS[name] = fn
+        if uses_stations:
+            USES_STATIONS.add(name)
         return fn
     return deco
 
@@ -102,6 +107,7 @@ class Preflight:
         self.g_n_per_kg = self.model.gravity_n_per_kg(self.theta)
         self._chains: dict[tuple, object] = {}     # pose -> one-pose chain pass (nominal model: stations do not matter)
         self._links: dict[int, tuple] = {}         # id(chain pass) -> (links, sample points) for the line of sight
+        self._fixed: dict[int, tuple] = {}         # id(step) -> (step, geometry, findings of the station-free checks)
 
     # -- geometry ------------------------------------------------------------------------------------------------
     def geometry(self, step: Step) -> StepGeometry:
@@ -143,10 +149,19 @@ class Preflight:
 
     # -- running -------------------------------------------------------------------------------------------------
     def check_step(self, step: Step) -> list[Finding]:
-        geo = self.geometry(step)
+        """The step's findings in the registry's order.  Its geometry and the findings of the checks that do not
+        read the stations are kept per step: the runner checks every step before the session and again, with the
+        refitted stations, before it runs it."""
+        got = self._fixed.get(id(step))
+        if got is None or got[0] is not step:
+            geo = self.geometry(step)
+            got = (step, geo, {name: fn(self, geo) for name, fn in CHECKS.items() if name not in USES_STATIONS})
+            if len(self._fixed) < 10_000:
+                self._fixed[id(step)] = got
+        _, geo, fixed = got
         out: list[Finding] = []
-        for fn in CHECKS.values():
-            out += fn(self, geo)
+        for name, fn in CHECKS.items():
+            out += fixed[name] if name in fixed else fn(self, geo)
         return out
 
     def check(self, steps: list[Step]) -> list[Finding]:
@@ -254,7 +269,7 @@ def _distances_to(a0, a1, pts) -> np.ndarray:
     return d[0] if one else d
 
 
-@preflight_check("sight")
+@preflight_check("sight", uses_stations=True)
 def _sight(pf: Preflight, geo: StepGeometry) -> list[Finding]:
     lim = pf.limits
     out = []
@@ -321,7 +336,7 @@ def _link_samples(pf: Preflight, fp) -> tuple[np.ndarray, np.ndarray]:
     return links, pts
 
 
-@preflight_check("intersection")
+@preflight_check("intersection", uses_stations=True)
 def _intersection(pf: Preflight, geo: StepGeometry) -> list[Finding]:
     lo, hi = pf.limits["intersection_deg"]
     sts = list(pf.stations.values())

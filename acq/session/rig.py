@@ -104,12 +104,15 @@ class Rig:
 
         The face the rig last saw is kept, so a sighting in the face the telescope is already in costs no question
         to the instrument (half the round trips of a session); :meth:`sight` checks every reading's face against
-        it, so a telescope turned by hand in between is noticed and brought back before the reading is used."""
+        it, so a telescope turned by hand in between is noticed and brought back before the reading is used.  For
+        the same reason a telescope known to be in the other face is turned without asking first (the face is
+        asked only when the rig does not know it: at the start and after a fault)."""
         drv = self.theodolites[station]
-        if not (hasattr(drv, "face") and hasattr(drv, "change_face")) or self._faces.get(station) == face:
+        known = self._faces.get(station)
+        if not (hasattr(drv, "face") and hasattr(drv, "change_face")) or known == face:
             return
         self._faces.pop(station, None)
-        if drv.face() != face:
+        if (drv.face() if known is None else known) != face:
             drv.change_face()
         self._faces[station] = face
 

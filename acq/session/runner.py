@@ -16,8 +16,8 @@ thread, never in the UI thread.
 
 **Events** (runner -> UI): ``runner.subscribe(callback)`` registers ``callback(event)``; it is called *in the runner
 thread*, so a Textual app should forward with ``app.post_message(...)`` (``call_from_thread`` is fine too).  A
-subscriber exception is logged and ignored.  For polling UIs, ``runner.events`` is a ``queue.Queue`` of the same
-objects.  Every event is an :class:`Event` with ``kind`` and ``data`` (a JSON-able dict):
+subscriber exception is logged and ignored.  For polling UIs, ``runner.events`` is a ``queue.SimpleQueue`` of the
+same objects (``get``/``get_nowait``/``empty``; C-implemented: a session emits thousands of events, mostly unread).  Every event is an :class:`Event` with ``kind`` and ``data`` (a JSON-able dict):
 
 =====================  ==================================================================================
 kind                   data
@@ -175,7 +175,7 @@ class Runner:
         self.preflight = preflight          # acq.session.preflight.Preflight (or anything with check/check_step)
         self.command = command              # a step's joint command computed when it is reached (ISO 9283's "on")
         self.stations_fitted = False        # True once the stations come from the session's own ruler sightings
-        self.events: queue.Queue = queue.Queue()
+        self.events: queue.SimpleQueue = queue.SimpleQueue()
         self.state = "idle"
         self._subs: list[Callable[[Event], None]] = []
         self._pause = threading.Event()

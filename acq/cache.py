@@ -1,0 +1,68 @@
+"""An on-disk cache for pure computations a short command repeats on every run with the same inputs.
+
+Why: ``robocal demo`` chooses its pose set from random candidates checked by the pre-flight (about 0.35 s of CPU of
+a run that should take 2.5 s), and the choice is a pure function of the robot, the set-up and the seed.  The result
+is kept under the user's cache folder, keyed by a hash of the inputs *and* of robocal's own source (``calib/`` and
+``acq/session/``), so any change of the code that computes it is a miss, never a stale answer.  A cache that cannot be
+read or written is no cache (the value is computed); ``ROBOCAL_CACHE_DIR`` moves it, ``ROBOCAL_CACHE_DIR=off``
+turns it off.
+"""
+from __future__ import annotations
+
+import functools
+import hashlib
+import io
+import os
+from pathlib import Path
+from typing import Callable
+
+import numpy as np
+
+from calib.fileio import atomic_write_bytes
+
+_ROOT = Path(__file__).resolve().parents[1]
+#: the source folders whose code the cached computations run (a change of any file there is a miss)
+_SOURCES = ("calib", "acq/session")
+
+
+def cache_dir() -> Path | None:
+    """The cache folder, or None when turned off (``ROBOCAL_CACHE_DIR=off`` or empty)."""
+    env = os.environ.get("ROBOCAL_CACHE_DIR")
+    if env is not None:
+        return None if env.strip().lower() in ("", "off", "0", "no") else Path(env)
+    base = os.environ.get("XDG_CACHE_HOME") or str(Path.home() / ".cache")
+    return Path(base) / "robocal"
+
+
+@functools.cache
+def code_fingerprint() -> str:
+    """SHA-256 of the sources the cached computations depend on (~8 ms for ~150 files)."""
+    h = hashlib.sha256()
+    for folder in _SOURCES:
+        for p in sorted((_ROOT / folder).rglob("*.py")):
+            h.update(str(p.relative_to(_ROOT)).encode())
+            h.update(p.read_bytes())
+    return h.hexdigest()
+
+
+def cached_array(kind: str, inputs: bytes, compute: Callable[[], np.ndarray]) -> np.ndarray:
+    """``compute()``'s array, from the cache when this ``kind`` was computed for the same ``inputs`` (bytes that
+    name them exactly) and the same source; computed and stored otherwise."""
+    folder = cache_dir()
+    if folder is None:
+        return compute()
+    key = hashlib.sha256(b"\0".join([kind.encode(), code_fingerprint().encode(), inputs])).hexdigest()
+    path = folder / f"{kind}-{key[:32]}.npy"
+    try:
+        return np.load(path, allow_pickle=False)
+    except (OSError, ValueError, EOFError):     # absent, or not a whole .npy (then computed and written again)
+        pass
+    value = np.asarray(compute())
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+        buf = io.BytesIO()
+        np.save(buf, value, allow_pickle=False)
+        atomic_write_bytes(path, buf.getvalue())
+    except Exception:           # a read-only or full disk: the value is still right, only not kept
+        pass
+    return value

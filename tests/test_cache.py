@@ -1,0 +1,78 @@
+"""The on-disk cache (acq.cache) gives back exactly what the computation gave, recomputes when the inputs or robocal's
+source change, and is skipped when turned off; the demo's pose set from the cache is the one chosen afresh."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import acq.cache as cache
+
+
+@pytest.fixture
+def calls(tmp_path, monkeypatch):
+    monkeypatch.setenv("ROBOCAL_CACHE_DIR", str(tmp_path))
+    made = []
+
+    def compute():
+        made.append(1)
+        return np.random.default_rng(len(made)).random((4, 6))
+    return made, compute
+
+
+def test_a_hit_is_the_computed_array_bit_for_bit(calls):
+    made, compute = calls
+    first = cache.cached_array("t", b"inputs", compute)
+    again = cache.cached_array("t", b"inputs", compute)
+    assert len(made) == 1
+    assert again.dtype == first.dtype and np.array_equal(again, first)
+
+
+def test_other_inputs_or_other_source_are_a_miss(calls, monkeypatch):
+    made, compute = calls
+    cache.cached_array("t", b"a", compute)
+    cache.cached_array("t", b"b", compute)
+    assert len(made) == 2
+    monkeypatch.setattr(cache, "code_fingerprint", lambda: "edited")
+    cache.cached_array("t", b"a", compute)
+    assert len(made) == 3
+
+
+def test_off_computes_every_time(calls, monkeypatch):
+    made, compute = calls
+    monkeypatch.setenv("ROBOCAL_CACHE_DIR", "off")
+    cache.cached_array("t", b"a", compute)
+    cache.cached_array("t", b"a", compute)
+    assert len(made) == 2
+
+
+def test_an_unwritable_cache_still_gives_the_value(tmp_path, monkeypatch):
+    blocker = tmp_path / "file"
+    blocker.write_text("not a folder")
+    monkeypatch.setenv("ROBOCAL_CACHE_DIR", str(blocker / "sub"))
+    assert np.array_equal(cache.cached_array("t", b"a", lambda: np.arange(3.0)), np.arange(3.0))
+
+
+def test_the_demo_pose_set_from_the_cache_is_the_one_chosen_afresh(tmp_path, monkeypatch):
+    from acq.session.demo import _choose_poses, demo_poses
+    from acq.session.setup import session_setup
+    from acq.session.demo import demo_setup
+    from acq.session.setup_types import setup_of
+    from calib.twin import Twin
+    monkeypatch.setenv("ROBOCAL_CACHE_DIR", str(tmp_path))
+    twin = Twin(seed=0)
+    setup = setup_of(session_setup(demo_setup(twin), twin.robot))
+    fresh = _choose_poses(twin, 0, 12, True, setup)
+    stored = demo_poses(twin, 0, 12, True, setup)
+    kept = demo_poses(twin, 0, 12, True, setup)
+    assert len(list(tmp_path.iterdir())) == 1
+    assert np.array_equal(fresh, stored) and np.array_equal(stored, kept)
+
+
+def test_a_damaged_entry_is_computed_again(calls, tmp_path):
+    made, compute = calls
+    first = cache.cached_array("t", b"a", compute)
+    for f in tmp_path.iterdir():
+        f.write_bytes(b"")
+    again = cache.cached_array("t", b"a", compute)
+    assert len(made) == 2 and again.shape == first.shape
+    assert np.array_equal(cache.cached_array("t", b"a", compute), again) and len(made) == 2
