@@ -3,7 +3,7 @@
 Why at parse time: a long fit must never end in a traceback about its output directory, and a NaN or a negative rate
 must never reach a server thread or a loop.  Each type is a callable for ``argparse``'s ``type=``; it raises
 :class:`argparse.ArgumentTypeError` with a message that reads after the option name
-(``--rate-hz must be positive, got '-5'``), which :mod:`acq.cli` prints as one line with exit status 2.
+(``--rate-hz must be positive, got '-5'``), which :mod:`app.cli` prints as one line with exit status 2.
 """
 from __future__ import annotations
 
@@ -193,7 +193,7 @@ def add_force_argument(p) -> None:
 
 def te_joints(raw: str) -> list[int]:
     """``--te-joints 2,3,4,6``: the joints whose transmission error a session measures, distinct joint numbers (which
-    of them the robot has a planned range for is checked against its profile, :func:`acq.session.demo.transmission_plan`)."""
+    of them the robot has a planned range for is checked against its profile, :func:`app.demo.transmission_plan`)."""
     try:
         js = [int(v) for v in raw.split(",") if v.strip()]
     except ValueError:

@@ -18,7 +18,7 @@ import serial
 from .errors import DeviceTimeout, LinkLost
 
 #: package holding ``protocol_robocal`` so ``robocal://geocom?seed=3`` opens an emulated instrument
-URL_HANDLER_PACKAGE = "acq.emulate.urlhandler"
+URL_HANDLER_PACKAGE = "sim.emulate.urlhandler"
 _POLL_S = 0.02
 
 

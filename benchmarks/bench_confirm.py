@@ -5,7 +5,7 @@ the three other sessions (62, 63 and 59 poses) of shared/data/figaroh-tiago-extr
 --confirm A --confirm B --confirm C``, with approach directions inferred from the t_start_robot column.  Target: under
 10 s whole process on the 2-core machine.  Baseline, measured in the same run: the same ``diagnose`` without
 ``--confirm`` (what confirming adds is the difference).  Each command runs in a fresh process (``python -m
-acq.cli``), so the figure includes interpreter start-up and imports; wall and CPU time (user + system of the child)
+app.cli``), so the figure includes interpreter start-up and imports; wall and CPU time (user + system of the child)
 are printed: on the shared, loaded machine the CPU time is the fairer figure.  Two held-out settings: the default
 (5-fold whatever the number of poses, :data:`calib.diagnose.gap.DIAGNOSE_FOLDS`) and leave-one-out (``--folds 37``,
 37 fits per candidate refit: the default up to 40 poses before 2026-11-26).
@@ -38,7 +38,7 @@ def run(argv: list[str]) -> tuple[float, float, dict]:
     env = dict(os.environ, PYTHONPATH=os.pathsep.join(filter(None, [str(ROOT), os.environ.get("PYTHONPATH")])))
     before = resource.getrusage(resource.RUSAGE_CHILDREN)
     t = time.perf_counter()
-    r = subprocess.run([sys.executable, "-m", "acq.cli", *argv], capture_output=True, text=True, env=env, cwd=ROOT)
+    r = subprocess.run([sys.executable, "-m", "app.cli", *argv], capture_output=True, text=True, env=env, cwd=ROOT)
     wall = time.perf_counter() - t
     after = resource.getrusage(resource.RUSAGE_CHILDREN)
     if r.returncode:

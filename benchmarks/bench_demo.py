@@ -73,7 +73,7 @@ def run_demo(seed: int, bytecode: bool = True, root: Path = ROOT, cache: bool = 
     with tempfile.TemporaryDirectory() as tmp:
         before = resource.getrusage(resource.RUSAGE_CHILDREN)
         t0 = time.perf_counter()
-        r = subprocess.run([sys.executable, "-m", "acq.cli", "demo", "--db", str(Path(tmp) / "demo.db"),
+        r = subprocess.run([sys.executable, "-m", "app.cli", "demo", "--db", str(Path(tmp) / "demo.db"),
                             "--seed", str(seed)], capture_output=True, text=True, env=env, cwd=tmp)
         wall = time.perf_counter() - t0
         after = resource.getrusage(resource.RUSAGE_CHILDREN)

@@ -78,8 +78,8 @@ def ratios(estimates: list[dict]) -> list[tuple[str, str, float]]:
 def run_seed(seed: int, workdir: Path, steps: str = "all") -> list[dict]:
     """The estimates of one seeded demo run recording the steps of ``STEPS[steps]`` (reprocessed without Monte
     Carlo, as ``robocal demo`` does)."""
-    from acq.session.demo import build_demo
-    from acq.session.reprocess import reprocess
+    from app.demo import build_demo
+    from app.reprocess import reprocess
     keep = STEPS[steps]
     db = Path(workdir) / f"demo-{steps}-{seed}.db"
     demo = build_demo(db, seed=seed, steps_filter=None if keep is None else (lambda s: s.procedure in keep))

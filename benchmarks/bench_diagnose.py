@@ -26,7 +26,7 @@ BASELINE = {"puma": 5.0, "twin": 5.0, "chain": 30.0}      # seconds, the issue's
 
 PUMA = """
 from calib.diagnose.engine import diagnose
-from calib.diagnose.validate import Case, make_case_data
+from sim.validate import Case, make_case_data
 data, _ = make_case_data(Case("transmission_error", 4, None, 3.0, seed=1, n_poses=400))
 d = diagnose(data, level="full")
 print("findings:", [f.candidate.label for f in d.selection.findings])
@@ -34,14 +34,14 @@ print("findings:", [f.candidate.label for f in d.selection.findings])
 
 TWIN = """
 import sys
-from acq.cli import main
+from app.cli import main
 sys.exit(main(["diagnose", {path!r}, "--json"]) and 1)
 """
 
 #: the plain baseline measured in the same run: one geometric least-squares fit of the same file, whole process
 IDENTIFY = """
 import sys
-from acq.cli import main
+from app.cli import main
 sys.exit(main(["identify", {path!r}, "--json"]) and 1)
 """
 
@@ -96,7 +96,7 @@ def _twin_csv() -> str:
     import io
     import tempfile
 
-    from acq.cli import main as cli
+    from app.cli import main as cli
     path = os.path.join(tempfile.mkdtemp(prefix="bench_diagnose_"), "twin400.csv")
     with contextlib.redirect_stdout(io.StringIO()):
         cli(["twin", "--poses", "400", "--export", path])

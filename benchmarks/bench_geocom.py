@@ -19,10 +19,10 @@ sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 
 from acq.drivers import geocom_codec as gc  # noqa: E402
 from acq.drivers.geocom import GeoComTheodolite  # noqa: E402
-from acq.emulate.geocom_device import GeoComDevice  # noqa: E402
-from acq.emulate.pty_host import PtyHost  # noqa: E402
-from acq.emulate import registry  # noqa: E402
-from acq.emulate.factories import demo_world  # noqa: E402
+from sim.emulate.geocom_device import GeoComDevice  # noqa: E402
+from sim.emulate.pty_host import PtyHost  # noqa: E402
+from sim.emulate import registry  # noqa: E402
+from sim.emulate.factories import demo_world  # noqa: E402
 
 
 def main(argv=None) -> int:

@@ -25,7 +25,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 def _cpu_per_step(db: Path, keep, limit: int) -> tuple[float, int]:
     """CPU seconds per step of the demo's steps that ``keep`` selects (at most ``limit``), recorded alone."""
-    from acq.session.demo import build_demo
+    from app.demo import build_demo
     chosen: list[str] = []
 
     def pick(step) -> bool:

@@ -39,7 +39,7 @@ from calib.effects import THESIS_RUNNING_ERRORS, JointCompliance, effect_from_te
 from calib.identify import PointObservations, identify  # noqa: E402
 from calib.model import MeasurementModel  # noqa: E402
 from calib.theodolite import intersect  # noqa: E402
-from calib.twin import Twin, load_scenario  # noqa: E402
+from sim.twin import Twin, load_scenario  # noqa: E402
 
 
 def measure(tw: Twin, n: int):

@@ -37,7 +37,7 @@ FRAMES_PER_SAMPLE = 4                 # the tap: 4 frames per 6-joint sample
 
 
 def bench_reprocess(db: Path, runs: int) -> list[float]:
-    from acq.session.reprocess import reprocess
+    from app.reprocess import reprocess
     out = []
     for _ in range(runs):
         t0 = time.perf_counter()
@@ -76,7 +76,7 @@ def main(argv=None) -> int:
     with tempfile.TemporaryDirectory() as tmp:
         db = Path(a.db)
         if a.record:
-            from acq.session.demo import build_demo
+            from app.demo import build_demo
             db = Path(tmp) / "demo.db"
             t0 = time.perf_counter()
             d = build_demo(db, seed=0)

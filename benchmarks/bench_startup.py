@@ -5,7 +5,7 @@ Targets (issue 18, the 2-core development machine, whole process, median): ``rob
 ``robocal fk 0 -90 90 0 0 0`` <= 350 ms.  The commands are run interleaved (one of each per round), so a change of
 the machine's load hits them alike; the load average is printed before and after.
 
-Start-up share of real commands: each runs in a fresh process that calls ``acq.cli.main`` twice; the second call
+Start-up share of real commands: each runs in a fresh process that calls ``app.cli.main`` twice; the second call
 finds every module imported, so its time is the command's own work (``compute``), and ``start-up`` is the process's
 wall time minus that (interpreter, imports, first-call set-up).  Cases: ``robocal reprocess`` of the example
 session, ``robocal identify`` and ``robocal diagnose`` of 400 poses of the twin (``robocal twin --poses 400
@@ -31,18 +31,18 @@ import time
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
-ROBOCAL = [sys.executable, "-m", "acq.cli"]
+ROBOCAL = [sys.executable, "-m", "app.cli"]
 FK = ["fk", "0", "-90", "90", "0", "0", "0"]
 #: (row, argv after the interpreter, target ms or None)
 START_ROWS = [("python -c pass (floor)", ["-c", "pass"], None),
-              ("robocal --help", ["-m", "acq.cli", "--help"], 150.0),
-              ("robocal fk --help", ["-m", "acq.cli", "fk", "--help"], None),
-              ("robocal fk 0 -90 90 0 0 0", ["-m", "acq.cli", *FK], 350.0)]
+              ("robocal --help", ["-m", "app.cli", "--help"], 150.0),
+              ("robocal fk --help", ["-m", "app.cli", "fk", "--help"], None),
+              ("robocal fk 0 -90 90 0 0 0", ["-m", "app.cli", *FK], 350.0)]
 
 #: the child for the share rows: two calls of main(); prints the second call's time (s)
 SHARE_CHILD = """
 import contextlib, io, os, sys, time
-from acq.cli import main
+from app.cli import main
 argv = sys.argv[1:]
 with contextlib.redirect_stdout(io.StringIO()):
     assert main(argv) == 0

@@ -1,6 +1,6 @@
 """Benchmark: the CAN tap reader at 8,000 frames/s and at the real limit of a 1 Mbit/s bus.
 
-The sender is the emulated tap (``acq.emulate.can_node.CanTapNode``), *paced*: its schedule (``TapModel``) owes
+The sender is the emulated tap (``sim.emulate.can_node.CanTapNode``), *paced*: its schedule (``TapModel``) owes
 ``rate / 4`` samples per second of 4 frames each (status + three joint-pair frames, 8 data bytes each) and it sends
 what is owed every millisecond.  The bus is python-can's ``virtual`` bus, which has no bit rate: the bus load printed
 is what these frames would take on a real 1 Mbit/s bus, counted with stuff bits (``acq.encoders.can_bits``):
@@ -30,9 +30,9 @@ sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 
 import can  # noqa: E402
 
-from acq.emulate.can_node import CanTapNode  # noqa: E402
-from acq.emulate.tap_device import TapModel, can_frames  # noqa: E402
-from acq.emulate.factories import demo_world  # noqa: E402
+from sim.emulate.can_node import CanTapNode  # noqa: E402
+from sim.emulate.tap_device import TapModel, can_frames  # noqa: E402
+from sim.emulate.factories import demo_world  # noqa: E402
 from acq.encoders.can_bits import frame_bits, worst_case_frame_bits  # noqa: E402
 from acq.encoders.can_tap import open_can_tap  # noqa: E402
 

@@ -68,7 +68,7 @@ def _files(tmp: Path, poses: int) -> dict[str, list[str]]:
                 wt.writerow([f"p{i}", t] + [f"{np.degrees(v[k]):.8f}" for k in readings] + [f"{x:.5f}" for x in p])
             p = tr.point_mm(real, v, *POINTS["L"]) + rng.normal(0, 0.05, 3)
             wa.writerow([f"{np.degrees(v[k]):.8f}" for k in arm] + [f"{x:.5f}" for x in p])
-    cli = [sys.executable, "-m", "acq.cli"]
+    cli = [sys.executable, "-m", "app.cli"]
     zeros = ["0"] * len(readings)
     out = {
         "fk, URDF (UR10)": cli + ["fk", "--robot", str(ROOT / "examples/urdf/ur10_robot.urdf")] + ["0"] * 6,

@@ -53,7 +53,7 @@ def _files(tmp: Path, poses: int) -> dict[str, list[str]]:
                 row = [f"p{i}", t] + [f"{np.degrees(v[k]):.8f}" for k in READINGS]
                 we.writerow(row + [f"{x:.5f}" for x in tr.point_mm(real, v, link, xyz, elastic=elastic) + noise])
                 wr.writerow(row + [f"{x:.5f}" for x in tr.point_mm(real, v, link, xyz) + noise])
-    cli = [sys.executable, "-m", "acq.cli"]
+    cli = [sys.executable, "-m", "app.cli"]
     robot = ["--robot", str(tmp / "tree.toml"), "--noise-mm", "0.05"]
     index = {name: k + 1 for k, name in enumerate(_joint_names(tmp / "tree.toml"))}
     effects = [a for name in JOINT for a in ("--effect", f"joint_compliance:{index[name]}")] + \

@@ -25,7 +25,7 @@ sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 
 from textual import events  # noqa: E402
 
-from acq.tui.app import RobocalApp, SessionHandle  # noqa: E402
+from app.tui.app import RobocalApp, SessionHandle  # noqa: E402
 from tests.fakes.fake_runner import FakeRunner  # noqa: E402
 
 TARGET_MS = 100.0

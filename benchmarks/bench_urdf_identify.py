@@ -83,7 +83,7 @@ def main() -> None:
     ap.add_argument("--poses", type=int, default=500)
     ap.add_argument("--seed", type=int, default=0)
     args = ap.parse_args()
-    from acq.cli import main as cli
+    from app.cli import main as cli
 
     rng = np.random.default_rng(args.seed)
     state = rng.bit_generator.state

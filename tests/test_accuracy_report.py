@@ -60,7 +60,7 @@ def test_before_after_on_independent_data(seed):
 
 
 def test_summary_is_compact_with_full_names_and_degrees():
-    from acq.session.summary import summary_lines
+    from offline.summary import summary_lines
     res = {"session": {"title": "t"}, "accuracy": None, "problems": ["transmission: the order is not determined"],
            "estimates": [
                {"name": "ruler.gamma1_rad", "value": np.radians(-1.489), "error": np.radians(0.01), "unit": "rad",
@@ -76,7 +76,7 @@ def test_summary_is_compact_with_full_names_and_degrees():
 
 @pytest.fixture(scope="module")
 def example_result():
-    from acq.session.reprocess import reprocess
+    from app.reprocess import reprocess
     return reprocess(str(EXAMPLE))
 
 
@@ -89,7 +89,7 @@ def test_example_session_accuracy_key(example_result):
 
 
 def test_report_opens_with_the_answer_and_has_every_section(example_result, tmp_path):
-    from acq.session.report import write_report
+    from offline.report import write_report
     path = write_report(example_result, tmp_path, tolerance_mm=0.5)
     page = path.read_text(encoding="utf-8")
     assert page.index("id='answer'") < page.index("id='ruler'")
@@ -110,7 +110,7 @@ BROWSER = shutil.which("chromium") or shutil.which("chromium-browser") or shutil
 @pytest.mark.skipif(BROWSER is None, reason="no headless browser installed")
 def test_report_as_a_person_sees_it(example_result, tmp_path):
     """The report rendered by a real browser: every section and figure is in the page it shows."""
-    from acq.session.report import write_report
+    from offline.report import write_report
     path = write_report(example_result, tmp_path)
     flags = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
              "--disable-background-networking", "--disable-component-update", "--disable-sync",
@@ -131,10 +131,10 @@ def test_a_failed_stage_is_explained_not_dumped(monkeypatch, tmp_path, capsys):
     text stays in the JSON's problem_details, out of the terminal and the report."""
     import dataclasses
 
-    import acq.reduction.stages.transmission as te
-    import acq.session.reprocess as rp
-    from acq.session.report import write_report
-    from acq.session.summary import print_summary
+    import offline.reduction.stages.transmission as te
+    import app.reprocess as rp
+    from offline.report import write_report
+    from offline.summary import print_summary
 
     def broken(*a, **k):
         raise np.linalg.LinAlgError("Singular matrix")
@@ -152,7 +152,7 @@ def test_a_failed_stage_is_explained_not_dumped(monkeypatch, tmp_path, capsys):
 
 
 def test_values_are_printed_to_the_precision_of_their_error():
-    from acq.session.summary import value_pm
+    from offline.summary import value_pm
     assert value_pm(18608.2, 403.0) == "18610 ± 400"
     assert value_pm(1609.8768, 0.03344) == "1609.877 ± 0.033"
     assert value_pm(0.180262, 0.00029) == "0.18026 ± 0.00029"
@@ -162,9 +162,9 @@ def test_values_are_printed_to_the_precision_of_their_error():
 
 def test_diagnosis_section_when_present(example_result, tmp_path):
     """reprocess --diagnose: the pose set's diagnosis in the summary and in its own report section."""
-    from acq.commands.reprocess import session_diagnosis
-    from acq.session.report import write_report
-    from acq.session.summary import summary_lines
+    from app.commands.reprocess import session_diagnosis
+    from offline.report import write_report
+    from offline.summary import summary_lines
     res = {**example_result, "diagnosis": session_diagnosis(str(EXAMPLE))}
     text = "\n".join(t for _, t in summary_lines(res))
     assert "Diagnosis of the sim-to-real gap" in text and "joint_compliance j3" in text

@@ -9,10 +9,10 @@ import pytest
 from hypothesis import given, settings, strategies as st
 
 from acq.clock import SimClock
-from acq.emulate.can_node import CanTapNode
-from acq.emulate.pty_host import PtyHost
-from acq.emulate.slcan_device import SlcanTapDevice
-from acq.emulate.tap_device import RawSample, TapModel, can_frames, wrap_i32
+from sim.emulate.can_node import CanTapNode
+from sim.emulate.pty_host import PtyHost
+from sim.emulate.slcan_device import SlcanTapDevice
+from sim.emulate.tap_device import RawSample, TapModel, can_frames, wrap_i32
 from acq.encoders.assembler import SampleAssembler
 from acq.encoders.can_codec import TapCanCodec, load_dbc
 from acq.encoders.can_tap import CanTap, open_can_tap

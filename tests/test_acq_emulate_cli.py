@@ -10,7 +10,7 @@ import time
 import can
 import pytest
 
-from acq.cli import main
+from app.cli import main
 from acq.drivers import open_theodolite
 from acq.encoders.can_codec import TapCanCodec
 
@@ -18,7 +18,7 @@ ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 
 
 def _start(*argv):
-    p = subprocess.Popen([sys.executable, "-m", "acq.cli", "emulate", *argv], cwd=ROOT, stdout=subprocess.PIPE,
+    p = subprocess.Popen([sys.executable, "-m", "app.cli", "emulate", *argv], cwd=ROOT, stdout=subprocess.PIPE,
                          stderr=subprocess.PIPE, text=True)
     first = p.stdout.readline().strip()
     return p, first
@@ -85,7 +85,7 @@ def test_emulate_bad_combination_is_one_line_error(capsys):
 def test_emulate_bad_tcp_port_is_one_line():
     import subprocess
     import sys
-    r = subprocess.run([sys.executable, "-m", "acq.cli", "emulate", "geocom", "--tcp", "99999"], capture_output=True,
+    r = subprocess.run([sys.executable, "-m", "app.cli", "emulate", "geocom", "--tcp", "99999"], capture_output=True,
                        text=True, timeout=60)
     assert r.returncode == 2 and "a TCP port is 0..65535" in r.stderr and "Traceback" not in r.stderr
 
@@ -113,7 +113,7 @@ def test_bad_options_are_refused_at_start(capsys, argv, why):
 
 
 def test_a_failing_server_thread_takes_the_process_down(capsys, monkeypatch):
-    from acq.emulate.geocom_device import GeoComDevice
+    from sim.emulate.geocom_device import GeoComDevice
 
     def broken(self, now=None):
         raise RuntimeError("the device broke")
@@ -157,7 +157,7 @@ def test_emulate_runs_on_the_twin_of_the_chosen_scenario(tmp_path):
                 readings.append(t.angles().hz_rad)
         finally:
             assert _stop(p) == 0
-    from acq.emulate.factories import make_world
+    from sim.emulate.factories import make_world
     assert abs(readings[0] - make_world(None, noise=False).true_sight("B", 1)[0]) < 1e-12
     assert abs(readings[0] - readings[1]) > 1e-3
 
@@ -166,8 +166,8 @@ def test_tcp_host_reports_a_failing_device_to_its_owner():
     import socket
     import threading as th
 
-    from acq.emulate.geocom_device import GeoComDevice
-    from acq.emulate.tcp_host import TcpHost
+    from sim.emulate.geocom_device import GeoComDevice
+    from sim.emulate.tcp_host import TcpHost
     from tests.fakes.worlds import quiet_world
 
     class Broken(GeoComDevice):

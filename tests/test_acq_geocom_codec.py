@@ -8,7 +8,7 @@ from hypothesis import given, settings, strategies as st
 
 from acq.drivers import geocom_codec as gc
 from acq.drivers.geocom_codes import RETURN_CODES, describe
-from acq.emulate.geocom_device import GeoComDevice, crc16_arc_bitwise
+from sim.emulate.geocom_device import GeoComDevice, crc16_arc_bitwise
 from tests.fakes.worlds import quiet_world
 
 

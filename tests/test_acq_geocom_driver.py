@@ -10,8 +10,8 @@ import pytest
 from acq.drivers import geocom_codec as gc
 from acq.drivers import open_theodolite
 from acq.drivers.geocom import GeoComTheodolite
-from acq.emulate import registry
-from acq.emulate.geocom_device import GeoComDevice
+from sim.emulate import registry
+from sim.emulate.geocom_device import GeoComDevice
 from acq.errors import DeviceTimeout, InstrumentError, LinkLost, ProtocolError
 from tests.fakes.faults import FaultyDevice
 from tests.fakes.worlds import noisy_world, quiet_world

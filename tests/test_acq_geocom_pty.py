@@ -6,8 +6,8 @@ import pytest
 from tests.dev_extra import require
 
 from acq.drivers.geocom import GeoComTheodolite
-from acq.emulate.geocom_device import GeoComDevice
-from acq.emulate.pty_host import PtyHost
+from sim.emulate.geocom_device import GeoComDevice
+from sim.emulate.pty_host import PtyHost
 from acq.errors import LinkLost
 from tests.fakes.faults import FaultyDevice
 from tests.fakes.worlds import quiet_world

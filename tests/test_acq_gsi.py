@@ -9,9 +9,9 @@ from hypothesis import given, strategies as st
 
 from acq.drivers import gsi_codec as gsi
 from acq.drivers.gsi import GsiTheodolite
-from acq.emulate import registry
-from acq.emulate.gsi_device import GsiDevice
-from acq.emulate.pty_host import PtyHost
+from sim.emulate import registry
+from sim.emulate.gsi_device import GsiDevice
+from sim.emulate.pty_host import PtyHost
 from acq.errors import DeviceTimeout, InstrumentError, ProtocolError
 from tests.fakes.faults import FaultyDevice
 from tests.fakes.worlds import quiet_world

@@ -6,7 +6,7 @@ import serial
 
 from acq.drivers import drivers, open_theodolite
 from acq.drivers.base import Theodolite
-from acq.emulate import registry
+from sim.emulate import registry
 from acq.encoders import open_tap
 from acq.link import SerialLink, register_url_handlers
 from calib.errors import RobocalError
@@ -75,7 +75,7 @@ def test_bad_emulator_options_are_refused_when_the_port_opens(url, why):
 def test_url_instruments_observe_the_twin_of_a_chosen_scenario(tmp_path):
     """C5: robocal:// URLs run on TwinWorld; ``scenario=`` selects the twin (here: its stations moved)."""
     from acq.drivers import open_theodolite
-    from acq.emulate.twin_world import TwinWorld
+    from sim.emulate.twin_world import TwinWorld
     import importlib.resources as res
 
     text = (res.files("calib") / "data" / "twin_default.toml").read_text(encoding="utf-8")

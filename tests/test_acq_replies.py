@@ -154,8 +154,8 @@ def test_every_gsi_call_on_arbitrary_replies_gives_a_value_or_a_device_error(cal
 
 # -- the session runner gets a warning as a device fault (repeat / skip / pause) --------------------------------------
 def test_a_warning_without_values_reaches_the_runner_as_a_device_fault(tmp_path):
-    from acq.emulate import registry
-    from acq.session.demo import build_demo
+    from sim.emulate import registry
+    from app.demo import build_demo
     from acq.session.headless import ScriptedOperator
 
     seen = {}

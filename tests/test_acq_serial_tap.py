@@ -8,9 +8,9 @@ import pytest
 from hypothesis import given, settings, strategies as st
 
 from acq.clock import SimClock
-from acq.emulate import registry
-from acq.emulate.pty_host import PtyHost
-from acq.emulate.tap_device import RawSample, SerialTapDevice, serial_frame
+from sim.emulate import registry
+from sim.emulate.pty_host import PtyHost
+from sim.emulate.tap_device import RawSample, SerialTapDevice, serial_frame
 from acq.encoders.cobs_codec import (FrameError, TapFrame, cobs_decode, cobs_encode, crc16_ccitt_false,
                                      decode_frame, encode_frame)
 from acq.encoders.serial_tap import open_serial_tap

@@ -4,7 +4,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from acq.cli import main
+from app.cli import main
 from calib.approach import last_moves
 from calib.posecsv import read_pose_csv
 from calib.units import DEG

@@ -14,7 +14,7 @@ import json
 import numpy as np
 import pytest
 
-from acq.cli import main
+from app.cli import main
 from calib.units import DEG
 
 from .fakes.backlash_sessions import Arm, Play, sessions, write_csv

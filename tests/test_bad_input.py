@@ -14,7 +14,7 @@ from pathlib import Path
 
 import pytest
 
-from acq.cli import main
+from app.cli import main
 
 PUMA = (resources.files("calib") / "data" / "puma560.toml").read_text(encoding="utf-8")
 SCENARIO = (resources.files("calib") / "data" / "twin_default.toml").read_text(encoding="utf-8")

@@ -6,10 +6,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from acq.emulate.twin_world import TwinWorld
-from acq.session.rig import EmulatedBench
+from sim.emulate.twin_world import TwinWorld
+from sim.emulate.bench import EmulatedBench
 from acq.session.steps import Step, TargetSpec
-from calib.twin import Twin, parse_scenario
+from sim.twin import Twin, parse_scenario
 from calib.units import DEG
 from tests.fakes.oracle.beam import cantilever_deflection
 from tests.fakes.point_loads import frames, point_force_torques

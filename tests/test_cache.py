@@ -53,11 +53,11 @@ def test_an_unwritable_cache_still_gives_the_value(tmp_path, monkeypatch):
 
 
 def test_the_demo_pose_set_from_the_cache_is_the_one_chosen_afresh(tmp_path, monkeypatch):
-    from acq.session.demo import _choose_poses, demo_poses
+    from app.demo import _choose_poses, demo_poses
     from acq.session.setup import session_setup
-    from acq.session.demo import demo_setup
+    from app.demo import demo_setup
     from acq.session.setup_types import setup_of
-    from calib.twin import Twin
+    from sim.twin import Twin
     monkeypatch.setenv("ROBOCAL_CACHE_DIR", str(tmp_path))
     twin = Twin(seed=0)
     setup = setup_of(session_setup(demo_setup(twin), twin.robot))

@@ -1,4 +1,4 @@
-"""The demo's sending virtual bus (acq.emulate.can_node.SenderVirtualBus) delivers what python-can's virtual bus
+"""The demo's sending virtual bus (sim.emulate.can_node.SenderVirtualBus) delivers what python-can's virtual bus
 delivers: the same frames in order, each receiver its own message object, flagged received, on the channel."""
 from __future__ import annotations
 
@@ -7,7 +7,7 @@ import uuid
 import can
 import pytest
 
-from acq.emulate.can_node import SenderVirtualBus
+from sim.emulate.can_node import SenderVirtualBus
 
 
 def _frames():

@@ -11,7 +11,7 @@ import sys
 import pytest
 
 from acq.argtypes import ROBOT_HELP
-from acq.cli import build_parser, command_index
+from app.cli import build_parser, command_index
 
 
 def _parsers():
@@ -80,14 +80,14 @@ def test_every_example_parses():
     (["plan", "poses", "--cont", "3"], "plan poses: unknown option --cont (did you mean --count?)"),
 ])
 def test_a_prefix_or_typo_is_an_error_naming_the_option(args, named):
-    r = subprocess.run([sys.executable, "-m", "acq.cli", *args], capture_output=True, text=True, timeout=60)
+    r = subprocess.run([sys.executable, "-m", "app.cli", *args], capture_output=True, text=True, timeout=60)
     assert r.returncode == 2 and named in r.stderr, r.stderr
     assert len(r.stderr.strip().splitlines()) == 1 and "Traceback" not in r.stderr
 
 
 def test_session_without_a_terminal_refuses_in_one_line(tmp_path):
     db = tmp_path / "n.db"
-    r = subprocess.run([sys.executable, "-m", "acq.cli", "session", "--emulate", "--db", str(db)],
+    r = subprocess.run([sys.executable, "-m", "app.cli", "session", "--emulate", "--db", str(db)],
                        stdin=subprocess.DEVNULL, capture_output=True, text=True, timeout=60)
     assert r.returncode == 2 and r.stderr.startswith("robocal: error: session: needs a terminal"), r.stderr
     assert len(r.stderr.strip().splitlines()) == 1 and not db.exists()

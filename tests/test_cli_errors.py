@@ -11,7 +11,8 @@ import sys
 import numpy as np
 import pytest
 
-from acq import argtypes, cli
+from acq import argtypes
+from app import cli
 from calib.errors import RobocalError
 from calib.fileio import atomic_path, atomic_write_text
 
@@ -86,7 +87,7 @@ def test_parse_errors_are_one_line(capsys):
 def test_last_resort_handler_names_command_and_exception(monkeypatch, capsys):
     def boom(args):
         raise ZeroDivisionError("division by zero")
-    from acq.commands import fk
+    from app.commands import fk
     monkeypatch.setattr(fk, "run", boom)
     assert cli.main(["fk", "0", "0", "0", "0", "0", "0"]) == 3
     err = capsys.readouterr().err
@@ -97,7 +98,7 @@ def test_last_resort_handler_names_command_and_exception(monkeypatch, capsys):
 
 
 def test_exit_codes_through_the_console_script():
-    r = subprocess.run([sys.executable, "-m", "acq.cli", "fk", "nan", "0", "0", "0", "0", "0"], capture_output=True,
+    r = subprocess.run([sys.executable, "-m", "app.cli", "fk", "nan", "0", "0", "0", "0", "0"], capture_output=True,
                        text=True, timeout=60)
     assert r.returncode == 2 and r.stderr.count("\n") == 1 and "Traceback" not in r.stderr
 
@@ -106,11 +107,11 @@ def test_top_level_help_loads_no_command_module():
     """First contact is fast: ``robocal --help`` lists every command without importing numpy, scipy or the model
     (each command's module is imported only when that command runs)."""
     code = ("import sys, contextlib, io\n"
-            "from acq.cli import main\n"
+            "from app.cli import main\n"
             "with contextlib.redirect_stdout(io.StringIO()) as out:\n"
             "    rc = main(['--help'])\n"
             "assert rc == 0 and 'reprocess' in out.getvalue() and 'diagnose' in out.getvalue(), out.getvalue()\n"
-            "heavy = [m for m in ('numpy', 'scipy', 'calib.model', 'acq.commands.plan') if m in sys.modules]\n"
+            "heavy = [m for m in ('numpy', 'scipy', 'calib.model', 'app.commands.plan') if m in sys.modules]\n"
             "assert not heavy, heavy\n")
     r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
     assert r.returncode == 0, r.stderr
@@ -153,7 +154,7 @@ def test_a_bad_setup_file_is_one_line_wherever_it_is_given(tmp_path, capsys, bad
 
 def test_an_option_that_cannot_apply_is_an_error(tmp_path, capsys):
     """--setup on a resumed demo, on an emulated session, or on plan setup without --out was silently ignored."""
-    from acq.commands.session import setup_template
+    from app.commands.session import setup_template
     good = tmp_path / "setup.json"
     good.write_text(json.dumps(setup_template()))
     cases = {("demo", "--resume", "--db", str(tmp_path / "d.db"), "--setup", str(good)):
@@ -173,7 +174,7 @@ def test_a_resumed_session_keeps_its_setup(tmp_path):
     stored set-up is untouched."""
     import sqlite3
 
-    from acq.commands.session import real_builder, setup_template
+    from app.commands.session import real_builder, setup_template
     theo = ["A=geocom:robocal://geocom?seed=3&station=A", "B=gsi:robocal://gsi?seed=3&station=B"]
     setup = setup_template()
     f = tmp_path / "setup.json"

@@ -15,7 +15,8 @@ from pathlib import Path
 
 import pytest
 
-from acq import cli, commands
+from app import cli
+from app import commands
 
 ROOT = Path(__file__).resolve().parents[1]
 #: libraries no command module may import when it is loaded (its run may, where it needs them)
@@ -23,7 +24,7 @@ HEAVY = ("scipy", "matplotlib", "textual", "rich", "cantools", "can", "serial", 
          "yaml", "pinocchio")
 
 _AFTER = ("import contextlib, io, json, sys\n"
-          "from acq.cli import main\n"
+          "from app.cli import main\n"
           "rcs = []\n"
           "with contextlib.redirect_stdout(io.StringIO()):\n"
           "    for argv in %r:\n"
@@ -67,12 +68,12 @@ def test_a_constant_below_the_first_function_is_still_found(tmp_path):
 
 def test_no_command_module_imports_a_heavy_library_when_loaded():
     code = ("import importlib, json, os, sys\n"
-            "from acq import commands\n"
+            "from app import commands\n"
             "folder = commands.__path__[0]\n"
             "out = {}\n"
             "for f in sorted(os.listdir(folder)):\n"
             "    if f.endswith('.py') and f != '__init__.py':\n"
-            "        importlib.import_module('acq.commands.' + f[:-3])\n"
+            "        importlib.import_module('app.commands.' + f[:-3])\n"
             "        out[f] = sorted(m for m in sys.modules if m.split('.')[0] in %r)\n"
             "print(json.dumps(out))\n") % (HEAVY,)
     r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)

@@ -1,8 +1,8 @@
 """The ``robocal`` command runs BLAS on one thread unless the user asks for more (issue 18, item 1).
 
 The count must be fixed before numpy loads (BLAS libraries read it once), so the checks run the command in a fresh
-process, through the two ways it is started (the console script's ``from acq.cli import main`` and
-``python -m acq.cli``), and read the loaded BLAS's own thread count with threadpoolctl after the command ran.
+process, through the two ways it is started (the console script's ``from app.cli import main`` and
+``python -m app.cli``), and read the loaded BLAS's own thread count with threadpoolctl after the command ran.
 """
 from __future__ import annotations
 
@@ -22,14 +22,14 @@ _REPORT = ("import json, os\n"
            "if p['user_api'] == 'blas'], 'env': {k: os.environ.get(k) for k in %r}}))\n" % (threads.BLAS_ENV_VARS,))
 _CONSOLE = ("import sys, contextlib, io\n"
             "sys.argv = ['robocal'] + %r\n"
-            "from acq.cli import main\n"
+            "from app.cli import main\n"
             "with contextlib.redirect_stdout(io.StringIO()):\n"
             "    rc = main()\n") + _REPORT
 _MODULE = ("import sys, contextlib, io, runpy\n"
            "sys.argv = ['robocal'] + %r\n"
            "with contextlib.redirect_stdout(io.StringIO()):\n"
            "    try:\n"
-           "        runpy.run_module('acq.cli', run_name='__main__', alter_sys=True)\n"
+           "        runpy.run_module('app.cli', run_name='__main__', alter_sys=True)\n"
            "    except SystemExit as exc:\n"
            "        rc = exc.code\n") + _REPORT
 _FK = ["fk", "0", "-90", "90", "0", "0", "0"]
@@ -90,7 +90,7 @@ def test_a_users_own_blas_setting_is_respected(var):
 
 def test_the_entry_module_imports_no_numpy():
     """``--threads`` acts before numpy loads only if nothing on the way to main() imports it."""
-    code = "import sys, acq.cli\nassert not [m for m in ('numpy', 'scipy') if m in sys.modules]"
+    code = "import sys, app.cli\nassert not [m for m in ('numpy', 'scipy') if m in sys.modules]"
     r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
     assert r.returncode == 0, r.stderr
 
@@ -100,7 +100,7 @@ def test_the_entry_module_imports_no_numpy():
     (_FK + ["--threads"], {}, "--threads"), (_FK, {threads.THREADS_ENV: "many"}, threads.THREADS_ENV),
 ])
 def test_bad_thread_counts_are_one_line(argv, extra, where):
-    r = subprocess.run([sys.executable, "-m", "acq.cli", *argv], capture_output=True, text=True, timeout=60,
+    r = subprocess.run([sys.executable, "-m", "app.cli", *argv], capture_output=True, text=True, timeout=60,
                        env=_clean_env(**extra))
     assert r.returncode == 2 and r.stderr.count("\n") == 1, r.stderr
     assert r.stderr.startswith(f"robocal: error: {where} must be")
@@ -123,7 +123,7 @@ def test_called_from_python_with_numpy_loaded_the_run_is_capped(monkeypatch):
     import numpy  # noqa: F401 -- loaded, as in a notebook or a test
     from threadpoolctl import threadpool_info
 
-    from acq import cli
+    from app import cli
     for k in threads.BLAS_ENV_VARS + (threads.THREADS_ENV,):
         monkeypatch.delenv(k, raising=False)
     def blas() -> dict[str, int]:

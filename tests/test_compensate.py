@@ -14,7 +14,7 @@ from calib.identify import PointObservations, identify
 from calib.model import MeasurementModel
 from calib.loading import load_robot
 from calib.theodolite import intersect
-from calib.twin import Twin
+from sim.twin import Twin
 
 
 @pytest.fixture(scope="module")
@@ -87,7 +87,7 @@ def test_bad_model_file(tmp_path):
 
 def test_identify_and_compensate_commands(tmp_path):
     csv = tmp_path / "poses.csv"
-    run = lambda *a: subprocess.run([sys.executable, "-m", "acq.cli", *a], capture_output=True, text=True,
+    run = lambda *a: subprocess.run([sys.executable, "-m", "app.cli", *a], capture_output=True, text=True,
                                     timeout=300)
     r = run("twin", "--poses", "120", "--export", str(csv))
     assert r.returncode == 0, r.stderr

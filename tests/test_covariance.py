@@ -1,7 +1,7 @@
 """Covariances that hold (issue 24, item 5): correlations within [-1, 1] for every effect kind, and a near-singular
 covariance named by its directions instead of printed as numbers.
 
-The fits run on points from the independent generator (:mod:`calib.diagnose.independent`: plain 4x4 products,
+The fits run on points from the independent generator (:mod:`sim.independent`: plain 4x4 products,
 several effects in the truth), so each kind's columns meet a chain they do not describe exactly -- the situation the
 correlations of 1.18 and 3.85 came from.  The covariance code is checked against the textbook inverse of the
 column-scaled normal matrix in long double precision.
@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from calib.covariance import correlation, from_jacobian
-from calib.diagnose.independent import Spec, generate
+from sim.independent import Spec, generate
 from calib.effects import EFFECTS, make_effect
 from calib.identify import PointObservations, default_free, identify
 from calib.model import MeasurementModel

@@ -8,11 +8,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from acq.cli import main
+from app.cli import main
 from calib.diagnose import diagnose, load_data
 from calib.diagnose.candidates import build_library
 from calib.diagnose.data import from_arrays
-from calib.diagnose.validate import Case, cases, make_case_data, run_case, run_validation
+from sim.validate import Case, cases, make_case_data, run_case, run_validation
 from calib.errors import RobocalError
 from calib.posecsv import write_pose_csv
 

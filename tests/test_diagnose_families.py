@@ -1,10 +1,10 @@
-"""The broadened validation on the independent generator (calib/diagnose/independent.py shares no code with the
+"""The broadened validation on the independent generator (sim/independent.py shares no code with the
 model): a small seeded subset, one case of every family; no family may have more than 5 % (confidently) wrong (here:
 none); a wrong finding flagged doubtful is its own verdict, never counted right."""
 import numpy as np
 
-from calib.diagnose.families import FAMILIES, family_cases, judge, run_families
-from calib.diagnose.independent import Arm, Spec, generate
+from sim.families import FAMILIES, family_cases, judge, run_families
+from sim.independent import Arm, Spec, generate
 from calib.model import MeasurementModel
 from calib.loading import load_robot
 

@@ -11,7 +11,7 @@ import pytest
 
 from calib.diagnose import diagnose
 from calib.diagnose.data import from_arrays, load_data
-from calib.diagnose.independent import Spec, generate
+from sim.independent import Spec, generate
 from calib.diagnose.select import _group_dependence
 from calib.loading import load_robot
 
@@ -30,7 +30,7 @@ def _findings(data):
 @pytest.mark.parametrize("poses,seed", [(200, 1), (400, 2)])
 def test_real_effects_on_the_twin_are_not_doubtful(tmp_path, capsys, poses, seed):
     """The twin's joint-3 compliance and joint-4 transmission error (the thesis's findings) come out confident."""
-    from acq.cli import main
+    from app.cli import main
     path = tmp_path / "twin.csv"
     assert main(["twin", "--poses", str(poses), "--seed", str(seed), "--export", str(path)]) == 0
     capsys.readouterr()

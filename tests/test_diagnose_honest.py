@@ -6,7 +6,7 @@ import numpy as np
 
 from calib.diagnose import diagnose, noise
 from calib.diagnose.data import from_arrays
-from calib.diagnose.validate import Case, make_case_data
+from sim.validate import Case, make_case_data
 from calib.loading import load_robot
 
 
@@ -103,7 +103,7 @@ def test_confirm_on_independent_data(tmp_path, capsys):
     the robot carried none (the same twin, the effect switched off)."""
     import json
 
-    from acq.cli import main
+    from app.cli import main
     data, _ = _case_csv(tmp_path, "day1.csv", Case("joint_compliance", 3, None, 4.0, seed=5, n_poses=80))
     day2, _ = _case_csv(tmp_path, "day2.csv", Case("joint_compliance", 3, None, 4.0, seed=5, n_poses=50))
     clean, _ = _case_csv(tmp_path, "clean.csv", Case(None, None, None, 0.0, seed=5, n_poses=50))
@@ -118,7 +118,7 @@ def test_confirm_on_independent_data(tmp_path, capsys):
 
 
 def test_confirm_bad_input_is_one_line(tmp_path, capsys):
-    from acq.cli import main
+    from app.cli import main
     data, _ = _case_csv(tmp_path, "day1.csv", Case(None, None, None, 0.0, seed=6, n_poses=40))
     n = 30
     st = ["A"] * (n - 2) + ["B"] * 2
@@ -139,7 +139,7 @@ def test_confirm_bad_input_is_one_line(tmp_path, capsys):
 
 
 def test_the_datas_own_split_and_too_few_training_poses(tmp_path, capsys):
-    from acq.cli import main
+    from app.cli import main
     split = ["fit"] * 60 + ["test"] * 30
     p, _ = _case_csv(tmp_path, "split.csv", Case("backlash", 3, None, 4.0, seed=8, n_poses=90), {"split": split})
     import json
@@ -158,7 +158,7 @@ def test_confirm_file_for_a_robot_with_more_joints_is_refused_like_identify_refu
     """OTHER with an extra q7 column (another robot) used to be read as the Puma and its findings "confirmed"; now
     the check identify makes on its data (joint columns the description lacks) refuses it in one line, before the
     diagnosis runs, and the same file as DATA is refused alike."""
-    from acq.cli import main
+    from app.cli import main
     data, _ = _case_csv(tmp_path, "day1.csv", Case(None, None, None, 0.0, seed=6, n_poses=40))
     other, _ = _case_csv(tmp_path, "q7.csv", Case(None, None, None, 0.0, seed=7, n_poses=30),
                          {"q7": ["0"] * 30})

@@ -2,7 +2,7 @@
 and cross products for the gravity torques: no code shared with robocal's model)."""
 from calib.diagnose.data import from_arrays
 from calib.diagnose.engine import diagnose
-from calib.diagnose.independent import Spec, generate
+from sim.independent import Spec, generate
 from calib.loading import load_robot
 
 TRUTH = (2, 3, 4, 5, 6)

@@ -16,7 +16,7 @@ from importlib import resources
 import numpy as np
 import pytest
 
-from acq.cli import main
+from app.cli import main
 from tests.fakes.thesis_puma import JointCompliance, ThesisPuma, TransmissionError, base_matrix, true_points
 
 PUMA_TOML = resources.files("calib") / "data" / "puma560.toml"

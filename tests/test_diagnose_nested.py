@@ -1,12 +1,12 @@
 """A diagnosis without a split nests its k-fold figure (issue 24, item 1): in each outer fold every choice -- gross
 errors, geometric set, floor, effects -- is made on its fit rows alone, so the values of a fold's test rows cannot
-change what predicts them.  Data from the independent generator (calib/diagnose/independent.py)."""
+change what predicts them.  Data from the independent generator (sim/independent.py)."""
 import numpy as np
 
 from calib.diagnose.data import from_arrays
 from calib.diagnose.engine import diagnose
-from calib.diagnose.families import SIGMA_MM
-from calib.diagnose.independent import Spec, generate
+from sim.families import SIGMA_MM
+from sim.independent import Spec, generate
 from calib.diagnose.nested import outer_folds
 from calib.loading import load_robot
 

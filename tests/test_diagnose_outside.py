@@ -3,8 +3,8 @@ name; the best partial finding flagged doubtful, and the cause reported unexplai
 the gap."""
 from calib.diagnose.data import from_arrays
 from calib.diagnose.engine import diagnose
-from calib.diagnose.families import SIGMA_MM
-from calib.diagnose.independent import Spec, generate
+from sim.families import SIGMA_MM
+from sim.independent import Spec, generate
 from calib.diagnose.render import render
 from calib.loading import load_robot
 

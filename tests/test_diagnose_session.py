@@ -9,7 +9,7 @@ EXAMPLE = Path(__file__).resolve().parent.parent / "examples" / "demo-session.db
 
 def test_diagnose_the_demo_session_names_the_twins_effects():
     before = EXAMPLE.read_bytes()
-    r = subprocess.run([sys.executable, "-m", "acq.cli", "diagnose", str(EXAMPLE), "--json"], capture_output=True,
+    r = subprocess.run([sys.executable, "-m", "app.cli", "diagnose", str(EXAMPLE), "--json"], capture_output=True,
                        text=True, timeout=600)
     assert r.returncode == 0, r.stderr
     out = json.loads(r.stdout)

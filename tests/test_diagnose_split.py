@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from calib.diagnose import diagnose
-from calib.diagnose.validate import Case, make_case_data
+from sim.validate import Case, make_case_data
 from calib.identify import identify
 
 

@@ -20,7 +20,7 @@ _CODE = """
 import json
 from threadpoolctl import threadpool_info
 from calib.diagnose.engine import diagnose
-from calib.diagnose.validate import Case, make_case_data
+from sim.validate import Case, make_case_data
 seen = {}
 def progress(stage, frac):
     for p in threadpool_info():

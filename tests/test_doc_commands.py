@@ -154,7 +154,7 @@ def scratch(tmp_path_factory):
         (tmp / d).symlink_to(ROOT / d)
     bindir = tmp / ".bin"
     bindir.mkdir()
-    for name, body in (("robocal", f'exec "{sys.executable}" -m acq.cli "$@"'),
+    for name, body in (("robocal", f'exec "{sys.executable}" -m app.cli "$@"'),
                        ("python", f'exec "{sys.executable}" "$@"'), ("python3", f'exec "{sys.executable}" "$@"')):
         f = bindir / name
         f.write_text(f"#!/bin/sh\n{body}\n")

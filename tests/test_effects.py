@@ -274,7 +274,7 @@ def test_a_new_effect_is_one_class_registered_once(puma):
     """A kind registered once is built by the text, the scenario, the model JSON and the model without other edits."""
     from calib.effects import EFFECTS, Effect, effect_from_text, register_effect
     from calib.tomlspec import Field
-    from calib.twin import parse_scenario
+    from sim.twin import parse_scenario
 
 
     class ZeroOffsetDrift(Effect):

@@ -12,7 +12,7 @@ from contextlib import redirect_stderr, redirect_stdout
 import numpy as np
 import pytest
 
-from acq.cli import main
+from app.cli import main
 from calib.effects import effect_from_text
 from calib.effects.joint_compliance import JointCompliance
 from calib.effects.lateral_compliance import LateralCompliance

@@ -9,7 +9,7 @@ import pytest
 from tests.dev_extra import require
 from tests.fakes.oracle.chain import rpy_matrix
 
-from acq.cli import main
+from app.cli import main
 
 pin = require("pinocchio", "pin")
 EX = Path(__file__).resolve().parents[1] / "examples"

@@ -11,7 +11,7 @@ from calib.identify import AngleObservations, PointObservations, identify
 from calib.model import MeasurementModel
 from calib.plan import Design, select_poses
 from calib.theodolite import intersect
-from calib.twin import Twin, load_scenario
+from sim.twin import Twin, load_scenario
 
 DATA = Path(__file__).parent / "data"
 
@@ -205,7 +205,7 @@ def test_predicted_uncertainty_matches_achieved_error():
 
 
 def run_cli(*args):
-    return subprocess.run([sys.executable, "-m", "acq.cli", *args], capture_output=True, text=True, timeout=300)
+    return subprocess.run([sys.executable, "-m", "app.cli", *args], capture_output=True, text=True, timeout=300)
 
 
 def test_fig_6_4_poses_cannot_separate_shoulder_offset_from_base():

@@ -10,9 +10,9 @@ from importlib import resources
 import numpy as np
 import pytest
 
-from acq.cli import main
-from acq.session.exchange import pose_arrays
-from acq.session.reprocess import load_session, reprocess
+from app.cli import main
+from offline.exchange import pose_arrays
+from app.reprocess import load_session, reprocess
 from acq.session.setup import standard_setup
 from tests.fakes.thesis_puma import ThesisPuma, base_matrix
 

@@ -12,7 +12,7 @@ import time
 import pytest
 
 from acq.session.steps import Step
-from acq.tui.app import RobocalApp, SessionHandle
+from app.tui.app import RobocalApp, SessionHandle
 from tests.fakes.still_runner import StillRunner
 from tests.tmux_term import Terminal, needs_tmux
 
@@ -27,7 +27,7 @@ def _saved(db) -> int:
 
 def _robocal(words: list[str]) -> list[str]:
     assert words[0] == "robocal"
-    return [sys.executable, "-m", "acq.cli", *words[1:]]
+    return [sys.executable, "-m", "app.cli", *words[1:]]
 
 
 def _interrupt_demo(tmp_path, sig) -> tuple[subprocess.CompletedProcess, str]:

@@ -13,11 +13,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from acq.emulate.twin_world import TwinWorld
-from acq.reduction.run import reduce_for
-from acq.reduction.session import load_session
+from sim.emulate.twin_world import TwinWorld
+from offline.reduction.run import reduce_for
+from offline.reduction.session import load_session
 from acq.session.plans import DEMO_ISO_CYCLES
-from calib.twin import Twin, load_scenario
+from sim.twin import Twin, load_scenario
 from calib.units import DEG
 from tests.fakes import iso9283_by_hand
 
@@ -27,7 +27,7 @@ POSES = ["P1", "P2", "P3", "P4", "P5"]
 
 def _cli(*args, cwd):
     env = dict(os.environ, PYTHONPATH=str(ROOT))
-    return subprocess.run([sys.executable, "-m", "acq.cli", *args], cwd=cwd, env=env, capture_output=True,
+    return subprocess.run([sys.executable, "-m", "app.cli", *args], cwd=cwd, env=env, capture_output=True,
                           text=True, timeout=600)
 
 
@@ -119,9 +119,9 @@ def test_zero_cycles_is_one_line_exit_2(tmp_path):
 
 def test_a_live_session_commands_from_its_own_pose_set(tmp_path):
     """The path ``robocal session`` takes: the runner reaches the compensated steps and its hook identifies the model
-    from the pose set recorded so far (:class:`acq.session.iso_commands.CompensatedCommands`), no reprocess first."""
-    from acq.session.demo import build_demo, demo_plan
-    from acq.session.reprocess import reprocess
+    from the pose set recorded so far (:class:`offline.iso_commands.CompensatedCommands`), no reprocess first."""
+    from app.demo import build_demo, demo_plan
+    from app.reprocess import reprocess
     twin = Twin(load_scenario(None), seed=2)
     plan = demo_plan(twin, seed=2)
     plan["procedures"] = ["ruler", "poses", "iso9283"]
@@ -139,7 +139,7 @@ def test_a_live_session_commands_from_its_own_pose_set(tmp_path):
 def test_a_compensated_step_without_a_model_is_blocked(tmp_path):
     """No pose set, no model file: the compensated steps are blocked with the reason, never run on the nominal
     command under the name "compensated"."""
-    from acq.session.demo import build_demo, demo_plan
+    from app.demo import build_demo, demo_plan
     from acq.session.headless import ScriptedOperator
     twin = Twin(load_scenario(None), seed=0)
     plan = demo_plan(twin, seed=0)
@@ -170,8 +170,8 @@ def test_a_cube_the_working_volume_cannot_hold_is_one_line_exit_2(tmp_path):
 def test_a_model_file_commands_the_compensated_run(demo, tmp_path):
     """``robocal session --model``: no pose set in the session, the compensated commands from a model identified
     before (here the demo's own, written as the model JSON a calibration leaves)."""
-    from acq.session.demo import build_demo, demo_plan
-    from acq.session.reprocess import reprocess
+    from app.demo import build_demo, demo_plan
+    from app.reprocess import reprocess
     _, res, _ = demo
     model = tmp_path / "model.json"
     model.write_text(json.dumps(res["robot"]))

@@ -7,7 +7,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from acq.cli import main
+from app.cli import main
 from calib import names
 from calib.loading import load_robot
 

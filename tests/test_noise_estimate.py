@@ -13,7 +13,7 @@ from importlib import resources
 import numpy as np
 import pytest
 
-from acq.cli import main
+from app.cli import main
 from calib import noise
 from calib.theodolite import thesis_stations
 from tests.fakes.thesis_procedures import ARCSEC, sightings
@@ -258,7 +258,7 @@ def test_the_diagnosis_reads_several_targets_per_pose_from_a_pose_csv(tmp_path):
 
 def _weights_of(csv: str, desc: str):
     """identify's noise decision on a wide CSV (no --noise-mm): the fit rows' table and its Weights."""
-    from acq.commands.identify import _Fit
+    from app.commands.identify import _Fit
     from calib.evaluation import context_of, fit_rows, point_covariance
     from calib.fitreport import Weights
     from calib.identify import PointObservations, default_free

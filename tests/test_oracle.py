@@ -1,13 +1,13 @@
 """The tests' oracle (tests/fakes/oracle) checked against what nobody here wrote -- scipy's rotations, the thesis's
 eq 4.3.1 in the other direction, a central-difference of a known function -- and the one chain still written outside
-it, the diagnosis's validation generator (calib/diagnose/independent.py, shipped with robocal so it cannot import the
+it, the diagnosis's validation generator (sim/independent.py, shipped with robocal so it cannot import the
 tests), held to the oracle's products and torques."""
 from __future__ import annotations
 
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from calib.diagnose.independent import TOOL_MM, Arm
+from sim.independent import TOOL_MM, Arm
 from calib.loading import load_robot
 from tests.fakes.oracle.beam import cantilever_deflection
 from tests.fakes.oracle.chain import (a_matrix, axis_angle, axis_torques, base_matrix, dh_frames, hayati_matrix,

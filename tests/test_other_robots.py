@@ -2,7 +2,7 @@
 and a 7-joint arm (TIAGo's arm chain, cut from its URDF) run every Chapter 4 procedure that applies to them end to
 end -- ``robocal demo --robot`` -- and report their own answers with honest errors, with no Puma name, no thesis
 number and no eq 4.3.15 estimate in what they print or write.  The truths are those of each robot's generated twin
-(:mod:`acq.emulate.scenario`), scored after the reduction."""
+(:mod:`sim.emulate.scenario`), scored after the reduction."""
 from __future__ import annotations
 
 import json
@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from acq.cli import main
+from app.cli import main
 
 URDF = Path(__file__).resolve().parents[1] / "examples" / "urdf"
 UR10 = str(URDF / "ur10_robot.urdf")
@@ -106,7 +106,7 @@ def test_seven_joint_arm_demo(tmp_path, capsys):
 
 def test_session_emulate_takes_the_robot(tmp_path):
     """``robocal session --emulate --robot``: the emulated cell of that robot, its twin kept in the session."""
-    from acq.commands.session import emulated_builder
+    from app.commands.session import emulated_builder
     from acq.session.headless import ScriptedOperator
     db = tmp_path / "e.db"
     handle = emulated_builder(str(db), 0, ["ruler/p0/"], None, UR10)(ScriptedOperator())

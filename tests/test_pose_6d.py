@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from acq.cli import main
+from app.cli import main
 from calib.compensate import load_model
 from tests.fakes.urdf_chain import UrdfChain, perturbed, rpy_matrix
 

@@ -50,7 +50,7 @@ def test_hashes_name_the_files_used(tmp_path):
 
 
 def cli(*args):
-    return subprocess.run([sys.executable, "-m", "acq.cli", *args], capture_output=True, text=True, timeout=600)
+    return subprocess.run([sys.executable, "-m", "app.cli", *args], capture_output=True, text=True, timeout=600)
 
 
 @pytest.fixture(scope="module")

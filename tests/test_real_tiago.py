@@ -10,7 +10,7 @@ from pathlib import Path
 
 import pytest
 
-from acq.cli import main
+from app.cli import main
 
 SHARED = Path(__file__).resolve().parents[2] / "shared"
 if not SHARED.exists():

@@ -8,7 +8,7 @@ import sys
 
 import pytest
 
-from acq.session.pdf import find_renderer
+from offline.pdf import find_renderer
 from tests.test_accuracy_report import EXAMPLE
 
 RENDERER = find_renderer()
@@ -20,9 +20,9 @@ needs_renderer = pytest.mark.skipif(RENDERER is None or shutil.which("pdftotext"
 @pytest.fixture(scope="module")
 def printed(tmp_path_factory):
     """The example session's report with its diagnosis, written as HTML and printed to PDF."""
-    from acq.commands.reprocess import session_diagnosis
-    from acq.session.report import write_report
-    from acq.session.reprocess import reprocess
+    from app.commands.reprocess import session_diagnosis
+    from offline.report import write_report
+    from app.reprocess import reprocess
     res = reprocess(str(EXAMPLE))
     res["diagnosis"] = session_diagnosis(str(EXAMPLE))
     out = tmp_path_factory.mktemp("pdf")
@@ -71,7 +71,7 @@ def test_a_title_is_never_the_last_line_of_a_page(printed):
 def test_without_a_renderer_pdf_is_one_line_and_exit_2_before_any_work(tmp_path):
     """No browser on PATH and no WeasyPrint: refused at once (the example's reprocess takes seconds; not started)."""
     env = {"PATH": str(tmp_path), "ROBOCAL_BROWSER": "", "PYTHONPATH": ":".join(sys.path)}
-    probe = "import acq.session.pdf as p; p.RENDERERS[1] = (lambda: False, None); import acq.cli as c, sys; " \
+    probe = "import offline.pdf as p; p.RENDERERS[1] = (lambda: False, None); import app.cli as c, sys; " \
             "sys.exit(c.main(sys.argv[1:]))"
     r = subprocess.run([sys.executable, "-c", probe, "reprocess", str(EXAMPLE), "--report", str(tmp_path / "r"),
                         "--pdf"], capture_output=True, text=True, timeout=60, env=env)
@@ -81,6 +81,6 @@ def test_without_a_renderer_pdf_is_one_line_and_exit_2_before_any_work(tmp_path)
 
 
 def test_pdf_without_report_is_refused(tmp_path):
-    r = subprocess.run([sys.executable, "-m", "acq.cli", "reprocess", str(EXAMPLE), "--pdf"], capture_output=True,
+    r = subprocess.run([sys.executable, "-m", "app.cli", "reprocess", str(EXAMPLE), "--pdf"], capture_output=True,
                        text=True, timeout=60)
     assert r.returncode == 2 and "--pdf needs --report DIR" in r.stderr

@@ -8,7 +8,7 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-import acq.reduction.pose_errors as rp
+import offline.reduction.pose_errors as rp
 from calib.errors import RobocalError
 
 NAMES = ["a_mm", "transmission_error.j4.s1_rad", "transmission_error.j4.c1_rad", "held_mm"]

@@ -33,12 +33,12 @@ UNIX_TIME = re.compile(r"(?<![\d.])1[6-9]\d{8}(?:\.\d+)?(?![\d])")
 
 @pytest.fixture(scope="module")
 def result():
-    from acq.session.reprocess import reprocess
+    from app.reprocess import reprocess
     return reprocess(str(EXAMPLE))
 
 
 def terminal(res: dict, verbose: bool = False, width: int = 160) -> str:
-    from acq.session.summary import print_summary
+    from offline.summary import print_summary
     buf = io.StringIO()
     print_summary(res, verbose=verbose, console=Console(file=buf, width=width, color_system=None))
     return buf.getvalue()
@@ -55,7 +55,7 @@ def visible(page: str) -> str:
 
 @pytest.fixture(scope="module")
 def report_text(result, tmp_path_factory):
-    from acq.session.report import write_report
+    from offline.report import write_report
     out = tmp_path_factory.mktemp("report")
     return visible(write_report(result, out).read_text(encoding="utf-8"))
 
@@ -134,7 +134,7 @@ def test_numbers_are_rounded_to_their_error(result, report_text):
 def test_a_truth_is_rounded_like_its_value_and_zero_is_0(result):
     """A truth of -2.8e-33 (a parameter the twin leaves at zero, computed) is printed 0, and every truth has the
     decimals of the value on its line."""
-    from acq.session.summary import summary_lines
+    from offline.summary import summary_lines
     res = copy.deepcopy(result)
     e = next(e for e in res["estimates"] if e["name"] == "ruler.hB_mm")
     e["truth"] = -2.75869e-33
@@ -173,7 +173,7 @@ def test_one_instrument_floor(result, report_text):
 
 def test_the_diagnosis_states_the_same_floor_not_a_second_one(result):
     """The accuracy's floor and the diagnosis's are one (the same points): the diagnosis names it."""
-    from acq.session.summary import summary_lines
+    from offline.summary import summary_lines
     res = {**result, "diagnosis": {"baseline_rms_mm": 0.267, "final_rms_mm": 0.103, "findings": [],
                                    "noise_floor_mm": result["accuracy"]["floor_mm"], "stop_reason": "at the floor"}}
     text = "\n".join(t for _, t in summary_lines(res))
@@ -207,8 +207,8 @@ def held_result(result) -> dict:
 
 
 def test_held_parameters_are_held_not_failures(result, tmp_path):
-    from acq.session.report import report_html
-    from acq.session.summary import summary_lines
+    from offline.report import report_html
+    from offline.summary import summary_lines
     res = held_result(result)
     assert sum(bool(e.get("held")) for e in res["estimates"]) >= 1
     lines = summary_lines(res)
@@ -236,7 +236,7 @@ def test_thesis_differences_beyond_3_sigma_are_explained(result, report_text):
 
 
 def test_another_robot_is_not_set_beside_the_thesis(result):
-    from acq.session.report import report_html
+    from offline.report import report_html
     res = copy.deepcopy(result)
     res["profile"] = {**(res.get("profile") or {}), "reference_robot": False}
     page = visible(report_html(res))

@@ -97,7 +97,7 @@ def test_singular_coupling_matrix_is_refused(tmp_path):
 def test_cli_reports_bad_file_in_one_line_without_traceback(tmp_path):
     bad = tmp_path / "broken.toml"
     bad.write_text(PUMA_TEXT.replace("d_mm = 57.1", "d_mm = nan"))
-    r = subprocess.run([sys.executable, "-m", "acq.cli", "fk", "0", "0", "0", "0", "0", "0", "--robot", str(bad)],
+    r = subprocess.run([sys.executable, "-m", "app.cli", "fk", "0", "0", "0", "0", "0", "0", "--robot", str(bad)],
                        capture_output=True, text=True)
     assert r.returncode == 2
     assert r.stderr.strip().count("\n") == 0

@@ -6,7 +6,7 @@ from importlib import resources
 import numpy as np
 import pytest
 
-from acq.cli import main
+from app.cli import main
 from calib.heldout import crossval
 from calib.identify import PointObservations, default_free, identify
 from calib.model import MeasurementModel

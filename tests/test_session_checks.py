@@ -12,8 +12,8 @@ import numpy as np
 import pytest
 
 from acq.session.checks import DEFAULT_LIMITS
-from acq.session.demo import build_demo, demo_plan
-from calib.twin import Twin
+from app.demo import build_demo, demo_plan
+from sim.twin import Twin
 from calib.units import ARCSEC
 
 SEED = 4
@@ -103,7 +103,7 @@ def test_scenario_gross_errors_fail_miss_distances(tmp_path, poses_deg):
 
 def test_fault_hook_rejects_bad_input(tmp_path):
     from calib.errors import RobocalError
-    from acq.emulate.twin_world import TwinWorld
+    from sim.emulate.twin_world import TwinWorld
     w = TwinWorld(Twin(seed=0))
     with pytest.raises(RobocalError):
         w.inject_sighting_error("C", v_rad=1e-4)

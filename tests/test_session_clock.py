@@ -8,10 +8,10 @@ import numpy as np
 import pytest
 
 from acq.clock import RealClock, SimClock
-from acq.emulate.can_node import CanTapNode
-from acq.emulate.tap_device import TapModel
+from sim.emulate.can_node import CanTapNode
+from sim.emulate.tap_device import TapModel
 from acq.encoders.can_tap import open_can_tap
-from acq.session.demo import _tap_drain, build_demo
+from app.demo import _tap_drain, build_demo
 from acq.session.rig import Rig
 from calib.loading import load_robot
 from tests.fakes.worlds import channel, quiet_world
@@ -100,8 +100,8 @@ def test_demo_is_simulated_and_the_tui_emulation_real(tmp_path, monkeypatch):
         assert d.runner.rig.clock.simulated
     finally:
         d.close()
-    import acq.session.demo as demo
-    from acq.commands.session import emulated_builder
+    import app.demo as demo
+    from app.commands.session import emulated_builder
 
     class Built(Exception):
         pass

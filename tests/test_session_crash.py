@@ -11,7 +11,7 @@ import time
 
 import pytest
 
-from acq.session.demo import build_demo
+from app.demo import build_demo
 
 PLAN = {"procedures": ["ruler", "sweeps", "coupling"], "ruler": {"repeats": 1},
         "sweeps": {"points": 3, "span_deg": 40.0, "joints": [2, 3]}, "coupling": {"pairs": [[5, 6]]}, "seed": 5}

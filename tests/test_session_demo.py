@@ -9,9 +9,9 @@ import sqlite3
 import numpy as np
 import pytest
 
-from acq.cli import main
-from acq.session.demo import build_demo
-from acq.session.reprocess import reprocess
+from app.cli import main
+from app.demo import build_demo
+from app.reprocess import reprocess
 
 SMALL = {
     "procedures": ["ruler", "sweeps", "poses", "transmission", "compliance", "link_compliance", "coupling"],
@@ -40,8 +40,8 @@ def _scenario_with_link_compliance(folder) -> str:
 @pytest.fixture(scope="module")
 def session(tmp_path_factory):
     """A demo session recorded in two runs: paused after 25 decisions, then resumed to the end."""
-    from calib.twin import Twin
-    from acq.session.demo import demo_plan
+    from sim.twin import Twin
+    from app.demo import demo_plan
     folder = tmp_path_factory.mktemp("demo")
     db = folder / "s.db"
     plan = dict(SMALL, poses=demo_plan(Twin(seed=3), 3, n_poses=16)["poses"])
@@ -208,8 +208,8 @@ def test_stiff_link_is_reported_as_a_bound_not_a_failure(tmp_path):
     """The default scenario's link has no compliance (the thesis found it negligible against the joints'): the dial
     gauges read noise only, and the result is a 95 % lower bound on EI with the verdict "negligible" -- in the JSON,
     the summary and the report -- not "not determined"."""
-    from acq.session.report import report_html
-    from acq.session.summary import summary_lines
+    from offline.report import report_html
+    from offline.summary import summary_lines
     db = tmp_path / "link.db"
     d = build_demo(db, seed=4, plan={"procedures": ["link_compliance"], "seed": 4})
     assert d.runner.run() == "finished"

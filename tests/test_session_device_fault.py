@@ -1,6 +1,6 @@
 """An unplugged theodolite fails the step attempt, not the session: the operator repeats once it is back."""
-from acq.emulate import registry
-from acq.session.demo import build_demo
+from sim.emulate import registry
+from app.demo import build_demo
 from acq.session.headless import ScriptedOperator
 
 

@@ -3,7 +3,7 @@ step whose value was not entered acquires nothing and offers nothing to accept -
 a failed check naming both.  Driven on the emulated cell with an operator that answers like a person would."""
 import sqlite3
 
-from acq.session.demo import build_demo
+from app.demo import build_demo
 from acq.session.runner import Answer
 
 KEY = "compliance/j3/01"

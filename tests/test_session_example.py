@@ -8,7 +8,7 @@ from pathlib import Path
 
 import pytest
 
-from acq.session.reprocess import reprocess
+from app.reprocess import reprocess
 
 EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
 DB = EXAMPLES / "demo-session.db"

@@ -4,10 +4,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from acq.session.demo import demo_setup
+from app.demo import demo_setup
 from acq.session.procedures import all_steps
 from acq.session.setup import predictor, session_setup
-from calib.twin import Twin, load_scenario
+from sim.twin import Twin, load_scenario
 
 
 def _plan_steps():

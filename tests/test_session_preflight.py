@@ -14,14 +14,14 @@ import sys
 import numpy as np
 import pytest
 
-from acq.session.demo import build_demo, demo_plan, demo_setup
+from app.demo import build_demo, demo_plan, demo_setup
 from acq.session.preflight import Preflight, failing_lines, load_torques_nm
 from acq.session.procedures import all_steps
 from calib.profile import THESIS_READY_DEG as READY_DEG
 from acq.session.setup import session_setup
 from acq.session.steps import Step, TargetSpec
 from calib.loading import load_robot
-from calib.twin import Twin, load_scenario
+from sim.twin import Twin, load_scenario
 from calib.units import DEG
 
 G = 9.80665
@@ -42,7 +42,7 @@ def _pf(twin, setup, **limits):
 
 
 def test_default_plans_pass(twin, setup):
-    from acq.commands.session import default_plan
+    from app.commands.session import default_plan
     for plan in (demo_plan(twin, 0), default_plan()):
         steps = all_steps(plan, setup)
         assert failing_lines(_pf(twin, setup).check(steps)) == []
@@ -204,7 +204,7 @@ def test_resumed_session_keeps_its_steps(tmp_path, twin):
 
 
 def _cli(*args):
-    return subprocess.run([sys.executable, "-m", "acq.cli", *args], capture_output=True, text=True, timeout=120)
+    return subprocess.run([sys.executable, "-m", "app.cli", *args], capture_output=True, text=True, timeout=120)
 
 
 def test_plan_check_cli(tmp_path, twin, setup):

@@ -177,8 +177,8 @@ def test_resolution_truth_is_the_twins_slope_over_the_run():
     """The emulated truth for the resolution run: the description's resolution when the twin has no running errors,
     tilted by the transmission error (a little, not more than its amplitude allows) when it has."""
     import dataclasses
-    from acq.emulate.truth.runs import resolution_in_estimator_terms
-    from calib.twin import Twin, load_scenario
+    from sim.emulate.truth.runs import resolution_in_estimator_terms
+    from sim.twin import Twin, load_scenario
     from calib.units import DEG
     sc = load_scenario(None)
     r = sc.robot

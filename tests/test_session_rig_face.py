@@ -8,8 +8,8 @@ import uuid
 import pytest
 
 from acq.drivers.geocom import GeoComTheodolite
-from acq.emulate import registry
-from acq.emulate.geocom_device import GeoComDevice
+from sim.emulate import registry
+from sim.emulate.geocom_device import GeoComDevice
 from acq.session.rig import Rig
 from tests.fakes.worlds import quiet_world
 

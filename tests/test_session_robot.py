@@ -11,7 +11,7 @@ import pytest
 
 from tests.dev_extra import require
 
-from acq.cli import main
+from app.cli import main
 from calib.errors import RobocalError
 from calib.loading import RobotPath
 
@@ -25,8 +25,8 @@ def _stored_setup(db) -> dict:
 
 
 def test_session_records_the_chain_cut_and_reloads_it(tmp_path):
-    from acq.commands.session import real_builder, setup_template
-    from acq.session.exchange import session_robot
+    from app.commands.session import real_builder, setup_template
+    from offline.exchange import session_robot
     (tmp_path / "setup.json").write_text(json.dumps(setup_template()))
     db = str(tmp_path / "s.db")
     build = real_builder(db, THEODOLITES, None, str(tmp_path / "setup.json"), None,
@@ -49,7 +49,7 @@ def test_reprocess_of_an_imported_session_uses_the_setups_cut(tmp_path):
     with a set-up naming the UR10 cut at base_link: reprocess identifies that chain (its robot document names the
     cut) and fits the points to their noise."""
     pin = require("pinocchio", "pin")
-    from acq.session.reprocess import reprocess
+    from app.reprocess import reprocess
     from acq.session.setup import standard_setup
     model = pin.buildModelFromUrdf(UR10)
     data = model.createData()

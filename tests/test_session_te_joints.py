@@ -10,13 +10,13 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from acq.cli import main
-from acq.session.demo import build_demo, transmission_plan
-from acq.session.reprocess import reprocess
+from app.cli import main
+from app.demo import build_demo, transmission_plan
+from app.reprocess import reprocess
 
 
 def test_the_option_maps_to_the_plan_key():
-    from acq.commands.session import default_plan
+    from app.commands.session import default_plan
     assert default_plan()["transmission"]["joints"] == [4, 6]                 # default unchanged
     plan = default_plan(te_joints=[2, 3, 4, 6])["transmission"]
     assert plan["joints"] == [2, 3, 4, 6] and set(plan["range_deg"]) == {"2", "3", "4", "6"}

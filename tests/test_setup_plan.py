@@ -58,13 +58,13 @@ def test_search_beats_the_thesis_setup_and_respects_the_room():
 
 
 def test_plan_setup_command():
-    r = subprocess.run([sys.executable, "-m", "acq.cli", "plan", "setup", "ruler", "--json"], capture_output=True,
+    r = subprocess.run([sys.executable, "-m", "app.cli", "plan", "setup", "ruler", "--json"], capture_output=True,
                        text=True, timeout=300)
     assert r.returncode == 0, r.stderr
     out = json.loads(r.stdout)
     assert out["procedure"] == "ruler" and 500 <= out["variables"]["L_mm"] <= 3000
     assert out["errors"]["robot_point_mm"] > 0
-    r = subprocess.run([sys.executable, "-m", "acq.cli", "plan", "setup", "ruler", "--room-y", "500"],
+    r = subprocess.run([sys.executable, "-m", "app.cli", "plan", "setup", "ruler", "--room-y", "500"],
                        capture_output=True, text=True, timeout=60)
     assert r.returncode == 2 and "minimum focus" in r.stderr
 
@@ -80,7 +80,7 @@ def test_sweep_design_written_into_a_setup_keeps_its_robot(tmp_path):
     assert plan.errors["link_mm"] <= sweep_errors(600.0, centre, C, axis=(0, 1, 0))["link_mm"] + 1e-9
     assert "fixed" in plan.note
     out = tmp_path / "s.json"
-    r = subprocess.run([sys.executable, "-m", "acq.cli", "plan", "setup", "sweep", "--out", str(out)],
+    r = subprocess.run([sys.executable, "-m", "app.cli", "plan", "setup", "sweep", "--out", str(out)],
                        capture_output=True, text=True, timeout=120)
     assert r.returncode == 0, r.stderr
     assert "given:" in r.stdout and "base" in r.stdout

@@ -16,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
-from acq.cli import main
+from app.cli import main
 
 SHARED = Path(__file__).resolve().parents[2] / "shared" / "data" / "figaroh-tiago-extra"
 if not SHARED.exists():

@@ -150,7 +150,7 @@ def test_one_fit_of_both_arms_and_the_shared_torso(tmp_path):
     robot = load_robot(desc)
     data = tmp_path / "poses.csv"
     _write_data(data, real, robot, 80, 12)
-    out = subprocess.run([sys.executable, "-m", "acq.cli", "identify", str(data), "--robot", desc, "--noise-mm", "0.05",
+    out = subprocess.run([sys.executable, "-m", "app.cli", "identify", str(data), "--robot", desc, "--noise-mm", "0.05",
                           "--json", "--out-urdf", str(tmp_path / "calibrated.urdf")], capture_output=True, text=True,
                          cwd=tmp_path)
     assert out.returncode == 0, out.stderr
@@ -223,7 +223,7 @@ def test_bad_coupling_is_one_line(tmp_path, extra, match):
 
 def test_point_on_an_unknown_link_is_one_line(tmp_path):
     desc = _description(tmp_path, tr.two_arm_torso(0), {"L": ("no_such_link", [0, 0, 0])}, extra="")
-    out = subprocess.run([sys.executable, "-m", "acq.cli", "fk", "--robot", desc] + ["0"] * 16, capture_output=True,
+    out = subprocess.run([sys.executable, "-m", "app.cli", "fk", "--robot", desc] + ["0"] * 16, capture_output=True,
                          text=True)
     assert out.returncode == 2
     assert out.stderr.count("\n") == 1 and "tool.points.L.link" in out.stderr and "no_such_link" in out.stderr
@@ -233,7 +233,7 @@ def test_fk_prints_every_point(tmp_path):
     tree = tr.two_arm_torso(0)
     desc = _description(tmp_path, tree)
     robot = load_robot(desc)
-    out = subprocess.run([sys.executable, "-m", "acq.cli", "fk", "--robot", desc, "--json"] + ["10"] * 16,
+    out = subprocess.run([sys.executable, "-m", "app.cli", "fk", "--robot", desc, "--json"] + ["10"] * 16,
                          capture_output=True, text=True)
     assert out.returncode == 0, out.stderr
     doc = json.loads(out.stdout)
@@ -255,7 +255,7 @@ def test_contradictory_shared_joint_in_one_pose_is_one_line(tmp_path):
     cells[2] = f"{float(cells[2]) + 1.0:.9f}"
     lines[4] = ",".join(cells)
     data.write_text("\n".join(lines) + "\n")
-    out = subprocess.run([sys.executable, "-m", "acq.cli", "identify", str(data), "--robot", desc],
+    out = subprocess.run([sys.executable, "-m", "app.cli", "identify", str(data), "--robot", desc],
                          capture_output=True, text=True)
     assert out.returncode == 2
     assert out.stderr.count("\n") == 1 and "line 5" in out.stderr and "torso_1_joint" in out.stderr
@@ -271,7 +271,7 @@ def test_rows_without_a_target_on_a_tree_are_one_line(tmp_path):
     rows = list(csv.reader(open(data)))
     k = rows[0].index("target")
     data.write_text("\n".join(",".join(r[:k] + r[k + 1:]) for r in rows) + "\n")
-    out = subprocess.run([sys.executable, "-m", "acq.cli", "identify", str(data), "--robot", desc],
+    out = subprocess.run([sys.executable, "-m", "app.cli", "identify", str(data), "--robot", desc],
                          capture_output=True, text=True)
     assert out.returncode == 2 and out.stderr.count("\n") == 1 and "a target column" in out.stderr
 
@@ -284,6 +284,6 @@ def test_two_points_a_pose_count_as_equations(tmp_path):
     robot = load_robot(desc)
     data = tmp_path / "poses.csv"
     _write_data(data, tr.perturbed(tree, 2), robot, 25, 3)
-    out = subprocess.run([sys.executable, "-m", "acq.cli", "identify", str(data), "--robot", desc, "--noise-mm",
+    out = subprocess.run([sys.executable, "-m", "app.cli", "identify", str(data), "--robot", desc, "--noise-mm",
                           "0.05", "--select", "all"], capture_output=True, text=True)
     assert out.returncode == 0, out.stderr

@@ -9,9 +9,9 @@ import dataclasses
 import numpy as np
 import pytest
 
-from acq.emulate.truth.runs import resolution_in_estimator_terms, single_slope_truth
+from sim.emulate.truth.runs import resolution_in_estimator_terms, single_slope_truth
 from calib.effects import JointCompliance, TransmissionError
-from calib.twin import Twin, load_scenario
+from sim.twin import Twin, load_scenario
 from calib.units import DEG
 from tests.fakes import thesis_procedures as tp
 

@@ -5,8 +5,8 @@ from __future__ import annotations
 
 import math
 
-from acq.session.demo import build_demo, transmission_plan
-from acq.session.reprocess import reprocess
+from app.demo import build_demo, transmission_plan
+from app.reprocess import reprocess
 
 S1, C1, S2, C2 = 0.047, 0.020, 0.012, 0.009          # deg, written into the scenario below
 

@@ -9,9 +9,9 @@ import time
 
 import pytest
 
-from acq.commands.session import emulated_builder
+from app.commands.session import emulated_builder
 from acq.session.store import SessionStore
-from acq.tui.app import RobocalApp
+from app.tui.app import RobocalApp
 from tests.tmux_term import Terminal, needs_tmux
 
 
@@ -226,7 +226,7 @@ def test_real_terminal_under_tmux(tmp_path):
 
 def test_interface_stays_responsive_under_a_flood_and_keeps_every_record():
     """A bus at its limit (8 kHz live updates) and 200 readings per step: prompts and records all arrive, keys work."""
-    from acq.tui.app import SessionHandle
+    from app.tui.app import SessionHandle
     from tests.fakes.fake_runner import FakeRunner
 
     holder = {}
@@ -266,10 +266,10 @@ def test_devices_by_url_through_the_same_drivers(tmp_path):
     file from the template, and the ruler steps recorded through the TUI."""
     import can
 
-    from acq.commands.session import real_builder, setup_template
-    from acq.emulate.can_node import CanTapNode
-    from acq.emulate.tap_device import TapModel
-    from acq.emulate.factories import demo_world
+    from app.commands.session import real_builder, setup_template
+    from sim.emulate.can_node import CanTapNode
+    from sim.emulate.tap_device import TapModel
+    from sim.emulate.factories import demo_world
     from calib.loading import load_robot
     import json as _json
 
@@ -311,15 +311,15 @@ def test_devices_by_url_through_the_same_drivers(tmp_path):
     (["session", "--theodolite", "A=geocom:x", "--theodolite", "B=geocom:y"], "needs --setup"),
 ])
 def test_session_command_bad_device_arguments(tmp_path, args, words):
-    r = subprocess.run([sys.executable, "-m", "acq.cli", *args, "--db", str(tmp_path / "n.db")],
+    r = subprocess.run([sys.executable, "-m", "app.cli", *args, "--db", str(tmp_path / "n.db")],
                        capture_output=True, text=True, timeout=60)
     assert r.returncode == 2 and words in r.stderr and "Traceback" not in r.stderr
 
 
 def test_a_plan_that_fails_the_preflight_is_refused_with_the_reason(tmp_path):
     """A session whose plan drives joint 4 past its stop: the TUI shows why, nothing is recorded."""
-    from acq.session.demo import build_demo, demo_plan
-    from calib.twin import Twin
+    from app.demo import build_demo, demo_plan
+    from sim.twin import Twin
     db = tmp_path / "bad.db"
     plan = demo_plan(Twin(seed=2), 2, n_poses=8)
     plan["procedures"] = ["transmission"]

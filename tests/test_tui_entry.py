@@ -6,7 +6,7 @@ import asyncio
 import pytest
 
 from acq.session.steps import InputSpec, Step, TargetSpec
-from acq.tui.app import RobocalApp, SessionHandle
+from app.tui.app import RobocalApp, SessionHandle
 from tests.fakes.still_runner import StillRunner
 
 LOAD = InputSpec("load_kg", "kg", "Mass hung", 1.02, tolerance=0.1)

@@ -7,8 +7,8 @@ import numpy as np
 import pytest
 
 from acq.session.steps import InputSpec, Step, TargetSpec
-from acq.tui.app import RobocalApp, SessionHandle
-from acq.tui.panels import Progress, joint_table, shorten, theodolite_lines
+from app.tui.app import RobocalApp, SessionHandle
+from app.tui.panels import Progress, joint_table, shorten, theodolite_lines
 from tests.fakes.still_runner import StillRunner
 
 TITLE = "Ruler placement 1: mark C"
@@ -176,6 +176,6 @@ def test_time_estimate_is_steady_when_kinds_of_step_alternate():
 
 
 def test_time_left_reads_with_its_unit():
-    from acq.tui.panels import duration_text
+    from app.tui.panels import duration_text
     assert duration_text(42) == "40 s" and duration_text(14 * 60 + 10) == "14 min"
     assert duration_text(112 * 60) == "1 h 50 min" and duration_text(47 * 60) == "45 min"

@@ -2,7 +2,7 @@
 import numpy as np
 
 from acq.session.checks import intersect_targets
-from acq.tui.views import StepData, plot_series
+from app.tui.views import StepData, plot_series
 from calib.theodolite import thesis_stations
 from calib.units import DEG
 

@@ -9,7 +9,7 @@ import pytest
 
 from calib.errors import ConfigError
 from calib.theodolite import intersect
-from calib.twin import Twin, load_scenario, parse_scenario
+from sim.twin import Twin, load_scenario, parse_scenario
 from calib.units import ARCSEC, DEG, NM_PER_LBIN
 from tests.fakes import thesis_puma as fake
 from tests.fakes.thesis_puma import ThesisPuma, base_matrix
@@ -181,7 +181,7 @@ def test_bad_scenario_names_file_and_key(tmp_path, old, new, key, words):
 
 
 def run_cli(*args):
-    return subprocess.run([sys.executable, "-m", "acq.cli", *args], capture_output=True, text=True, timeout=120)
+    return subprocess.run([sys.executable, "-m", "app.cli", *args], capture_output=True, text=True, timeout=120)
 
 
 def test_twin_command_json_summary():

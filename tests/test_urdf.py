@@ -149,7 +149,7 @@ def test_several_leaves_are_listed():
 
 
 def test_fk_command_prints_the_tip_in_the_base_link(capsys):
-    from acq.cli import main
+    from app.cli import main
     path = f"{URDFS}/tiago_no_hand.urdf"
     rc = main(["fk", "--robot", path, "--tip-link", "arm_7_link", "--json", "100", "10", "20", "30", "40", "50",
                "60", "70"])
@@ -165,7 +165,7 @@ def test_fk_command_prints_the_tip_in_the_base_link(capsys):
 @pytest.mark.parametrize("case", ["loop", "tip", "column", "target", "split", "reading"])
 def test_bad_input_is_one_line_exit_2(tmp_path, capsys, case):
     """The issue's list of bad input, through the command line: one line naming the file and the place, exit 2."""
-    from acq.cli import main
+    from app.cli import main
     ur10 = f"{URDFS}/ur10_robot.urdf"
     names = "shoulder_pan_joint,shoulder_lift_joint,elbow_joint,wrist_1_joint,wrist_2_joint,wrist_3_joint"
     desc = tmp_path / "d.toml"

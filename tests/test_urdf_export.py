@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from acq.cli import main
+from app.cli import main
 from calib.compensate import load_model
 from calib.kinematics import Kinematics
 from tests.dev_extra import require

@@ -20,7 +20,7 @@ class Terminal:
     def __init__(self, args: list[str], width: int, height: int):
         assert shutil.which("tmux"), "tmux is needed (the CI script installs it)"
         self.name = f"robocal-test-{os.getpid()}-{width}x{height}"
-        cmd = " ".join([sys.executable, "-m", "acq.cli", *args])
+        cmd = " ".join([sys.executable, "-m", "app.cli", *args])
         # Textual sizes itself from COLUMNS/LINES when set (pytest sets them): let the pane decide
         env_cmd = f"cd {os.getcwd()} && env -u COLUMNS -u LINES TERM=xterm-256color {cmd}; sleep 30"
         subprocess.run(["tmux", "kill-session", "-t", self.name], capture_output=True)

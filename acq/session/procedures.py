@@ -341,7 +341,7 @@ def iso9283(plan: dict, setup: dict) -> Iterator[Step]:
     after the same approach move (every joint arriving in the positive direction), target P sighted like a pose of
     the pose set.  Run ``off`` commands the nominal joint command; run ``on`` the calibrated model's command for the
     same point, which the runner's ``command`` hook supplies when the step is reached
-    (:class:`acq.session.iso_commands.CompensatedCommands`): the step carries the nominal one until then."""
+    (:class:`offline.iso_commands.CompensatedCommands`): the step carries the nominal one until then."""
     p = plan_of(plan).iso9283
     target = tool_target(setup)
     for run in p.runs:

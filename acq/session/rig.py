@@ -22,7 +22,6 @@ import numpy as np
 
 from acq.clock import Clock, RealClock
 from acq.drivers.base import AngleReading
-from calib.loads import hung_masses
 from calib.units import DEG
 
 from .steps import Step, TargetSpec
@@ -192,59 +191,6 @@ class Bench:
 
 class ManualBench(Bench):
     pass
-
-
-class EmulatedBench(Bench):
-    """Acts on a :class:`acq.emulate.twin_world.TwinWorld`: the demo's robot, loads, targets and dial gauges.
-
-    It only places things -- the robot at the step's pose, masses at points on links, gauges at points -- and the
-    world's one model does the physics.  Steps in the vocabulary of contract C3 (``setup["loads"]``,
-    ``setup["gauges"]``) are read as they are; older steps (a load ``load_n`` on a lever ``lever_mm`` of joint
-    ``joint``; dial gauges at ``gauges_x_mm`` along link ``joint`` with the load at ``load_x_mm``) are first
-    translated into the same vocabulary by :func:`c3_setup`.
-    """
-
-    def __init__(self, world):
-        from acq.emulate.twin_world import Target
-        from calib.kinematics import Kinematics
-        self.world = world
-        self._Target = Target
-        self._kin = Kinematics(world.robot)            # the description: what the technician knows
-
-    def prepare(self, step: Step, inputs: dict) -> None:
-        w = self.world
-        if step.pose_deg is not None:
-            if step.setup.get("approach_deg"):      # the approach move first (ISO 9283: one direction)
-                w.command(np.asarray(step.setup["approach_deg"], float) * DEG)
-            w.command(np.asarray(step.pose_deg, float) * DEG)
-        s = c3_setup(step.setup, step.pose_deg, inputs, self._kin)
-        w.hang(hung_masses(s.get("loads", [])), load_directions(s, w.robot.n))
-
-    def aim(self, target: TargetSpec) -> None:
-        self.world.aim(self._Target(target.name, tool_mm=target.tool_mm, point_mm=target.point_mm,
-                                    link=getattr(target, "link", None)))
-
-    def read_inputs(self, step: Step) -> dict:
-        """What an operator reads off this bench for the step's inputs, by name: the mass it hangs (``load_kg``), the
-        force, lever and lever angle of its set-up, its dial gauges.  The bench hangs what the step's set-up says;
-        entering it is the operator's act, so a scripted operator enters this, not the plan's hint (tilts are read
-        from the instruments, :func:`acq.session.demo.build_demo`)."""
-        names = {i.name for i in step.inputs}
-        out = {k: float(v) for k, v in step.setup.items() if k in names and isinstance(v, (int, float))}
-        loads = c3_setup(step.setup, step.pose_deg, {}, self._kin).get("loads") or []
-        if "load_kg" in names and loads:
-            out["load_kg"] = float(loads[0]["mass_kg"])
-        out.update(self.read_gauges(step, out))
-        return out
-
-    def read_gauges(self, step: Step, inputs: dict | None = None) -> dict:
-        """What the step's dial gauges show (``<name>_mm``), with the step's loads hung at its pose."""
-        s = c3_setup(step.setup, step.pose_deg, inputs or {}, self._kin)
-        if not s.get("gauges"):
-            return {}
-        self.prepare(step, inputs or {})
-        return {f"{g['name']}_mm": self.world.gauge_mm(int(g["link"]), g["point_mm"], g["axis"])
-                for g in s.get("gauges", [])}
 
 
 def c3_setup(setup: dict, pose_deg, inputs: dict, kin) -> dict:

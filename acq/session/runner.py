@@ -4,7 +4,7 @@ API for front ends (the headless one in :mod:`acq.session.headless`, the Textual
 =================================================================================================
 
 Build: ``runner = Runner(store, rig, steps, operator, bench=ManualBench(), stations=..., predict=..., limits=...,
-refit_stations=..., preflight=...)`` (:func:`acq.session.demo.build_demo` shows a complete wiring).  With
+refit_stations=..., preflight=...)`` (:func:`app.demo.build_demo` shows a complete wiring).  With
 ``preflight`` (:class:`acq.session.preflight.Preflight`) the runner refuses to start while any remaining step fails
 it (state ``refused``, a ``preflight`` event with one line per step), and checks each step again with the current
 stations before asking for it (a failing step can only be skipped).  ``refit_stations(store)`` (e.g.

@@ -1,7 +1,7 @@
 """Fault injection around the emulated devices, for the reliability tests.
 
 :class:`FaultyDevice` wraps any byte device (GeoCOM, GSI, serial tap, SLCAN) and sits behind the same harnesses
-(``robocal://instance/<name>`` or a :class:`~acq.emulate.pty_host.PtyHost`): latency, dropped and garbled bytes,
+(``robocal://instance/<name>`` or a :class:`~sim.emulate.pty_host.PtyHost`): latency, dropped and garbled bytes,
 wrong CRC, a silent device, unplug in the middle of a frame.  Return-code faults use the device's own hook
 (``GeoComDevice.script_rc``) because a real instrument chooses the code, not the cable.
 

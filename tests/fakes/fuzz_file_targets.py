@@ -39,7 +39,7 @@ def _robot(data: bytes) -> None:
 
 
 def _scenario(data: bytes) -> None:
-    from calib.twin import load_scenario
+    from sim.twin import load_scenario
     load_scenario(_file("scenario.toml", data))
 
 
@@ -63,12 +63,12 @@ def _pose_csv(data: bytes) -> None:
 
 
 def _readings_csv(data: bytes) -> None:
-    from acq.session.exchange import _reading_steps
+    from offline.exchange import _reading_steps
     _reading_steps(str(_file("readings.csv", data)))
 
 
 def _session_db(data: bytes) -> None:
-    from acq.session.reprocess import load_session
+    from app.reprocess import load_session
     path = _file("session.db", data)
     for extra in ("-wal", "-shm"):
         Path(f"{path}{extra}").unlink(missing_ok=True)
@@ -83,7 +83,7 @@ def _data(name: str) -> bytes:
 @functools.lru_cache(maxsize=None)
 def _twin_files() -> dict[str, bytes]:
     """A pose CSV from the twin, the model identified from it and a session imported from it (made once)."""
-    from acq.cli import main
+    from app.cli import main
     d = Path(tempfile.mkdtemp(prefix="robocal-fuzz-seeds-"))
     import contextlib
     import io
@@ -98,7 +98,7 @@ def _twin_files() -> dict[str, bytes]:
 
 
 def _setup_seed() -> bytes:
-    from acq.commands.session import setup_template
+    from app.commands.session import setup_template
     return json.dumps(setup_template(), indent=1).encode()
 
 

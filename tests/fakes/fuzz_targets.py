@@ -180,10 +180,10 @@ _DEVICES: dict[str, object] = {}
 def _device(kind: str):
     """One device per kind and process (the world costs ~0.5 s to build); its state carries over, as a real one's."""
     if kind not in _DEVICES:
-        from acq.emulate.factories import make_world
-        from acq.emulate.geocom_device import GeoComDevice
-        from acq.emulate.gsi_device import GsiDevice
-        from acq.emulate.slcan_device import SlcanTapDevice
+        from sim.emulate.factories import make_world
+        from sim.emulate.geocom_device import GeoComDevice
+        from sim.emulate.gsi_device import GsiDevice
+        from sim.emulate.slcan_device import SlcanTapDevice
         w = make_world(None, noise=True)
         _DEVICES.update(geocom=GeoComDevice(w, "A"), gsi=GsiDevice(w, "B", stream_hz=20.0),
                         slcan=SlcanTapDevice(w, w.robot, rate_hz=100.0))
@@ -223,7 +223,7 @@ def _slcan_emulator(data: bytes) -> None:
 
 
 def _url_options(data: bytes) -> None:
-    from acq.emulate.factories import _take
+    from sim.emulate.factories import _take
     options = dict(parse_qsl(data.decode("latin-1"), keep_blank_values=True))
     _take(options, ("seed", "station", "noise", "motorised", "name", "serial", "scenario", "wordlen", "unit",
                     "stream_hz", "rate_hz"), "fuzz")

@@ -5,7 +5,7 @@ import time
 import uuid
 from typing import Callable
 
-from acq.emulate.factories import make_world
+from sim.emulate.factories import make_world
 
 
 def quiet_world(seed: int = 0):

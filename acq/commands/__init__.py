@@ -1,1 +1,0 @@
-"""Subcommands of ``robocal``: each module here is one command (see :mod:`acq.cli`)."""

@@ -1,1 +1,0 @@
-"""pyserial protocol handler package: ``serial.protocol_handler_packages.append("acq.emulate.urlhandler")``."""

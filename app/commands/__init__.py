@@ -1,0 +1,1 @@
+"""Subcommands of ``robocal``: each module here is one command (see :mod:`app.cli`)."""

@@ -1,0 +1,79 @@
+"""What every reduction stage works with: the session, the robot and its profile, the set-up, the estimates and
+figures collected so far, the problems said, the outputs of earlier stages, and the located targets.
+
+``trace`` keeps, per stage, what an independent check of its estimates needs that is not in the estimates
+themselves (the joint readings of the pose set, the torques a stiffness was fitted against ...): the simulation side
+(:mod:`sim.emulate.truth`) computes an emulated session's truths from it afterwards.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from calib.estimators.points import StationFit, TargetPoint, locate_targets, points_covariance
+from calib.profile import RobotProfile
+from calib.robot import Robot
+
+from acq.session.setup_types import BenchSetup
+
+from offline.reduction.estimates import Estimates
+from offline.reduction.session import SessionData
+
+
+class Located:
+    """Targets of every step intersected with the stations of the session (one batch, on the first call), with
+    covariances that carry the stations' fit uncertainty."""
+
+    def __init__(self, steps: list[dict], station_fit: StationFit):
+        self.steps = steps
+        self.station_fit = station_fit
+        self._by_step: dict[int, dict[str, TargetPoint]] | None = None
+
+    def __call__(self, step: dict) -> dict[str, TargetPoint]:
+        """Target name -> :class:`~calib.estimators.points.TargetPoint` of one step (empty: nothing located)."""
+        if self._by_step is None:
+            rows = [{**r, "target": f"{i}/{r['target']}"} for i, s in enumerate(self.steps) for r in s["readings"]]
+            self._by_step = {}
+            for key, tp in locate_targets(rows, self.station_fit).items():
+                i, tg = key.split("/", 1)
+                self._by_step.setdefault(id(self.steps[int(i)]), {})[tg] = tp
+        return self._by_step.get(id(step), {})
+
+    def covariance(self, points: list[TargetPoint]) -> np.ndarray:
+        """Joint covariance of located targets (the stations' common term included)."""
+        return points_covariance(points, self.station_fit)
+
+
+@dataclass
+class Reduction:
+    """The state of one reduction (see the module docstring)."""
+
+    data: SessionData
+    robot: Robot
+    profile: RobotProfile
+    setup: BenchSetup
+    n_mc: int = 0
+    held_out: bool = True          # the pose set's held-out accuracy (False: the model alone, for compensation)
+    est: Estimates = field(default_factory=Estimates)
+    figs: dict = field(default_factory=dict)
+    problems: list[str] = field(default_factory=list)
+    details: list[str] = field(default_factory=list)   # technical causes of failed stages: JSON only
+    trace: dict = field(default_factory=dict)
+    outputs: dict = field(default_factory=dict)
+    _located: Located | None = None
+
+    def steps_of(self, procedures: tuple[str, ...]) -> list[dict]:
+        """The accepted steps of these procedures, in the order recorded."""
+        return [st for st in self.data.steps if st["procedure"] in procedures]
+
+    @property
+    def points(self) -> Located:
+        """The located targets, with the stations the ruler stage gave (``outputs["stations"]``)."""
+        if self._located is None:
+            self._located = Located(self.data.steps, self.outputs["stations"])
+        return self._located
+
+    def said(self, text: str) -> None:
+        """A problem a stage met on part of its data (the rest of it still counts)."""
+        self.problems.append(text)

@@ -1,0 +1,108 @@
+"""Torques about the joints at a loading step, from the geometry: the description's link weights plus the hung masses
+as point forces (:mod:`calib.loads`), through the model's one load computation -- and what their errors are (the
+geometry as known, the lever, the masses weighed).  Used by the joint-compliance stage."""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from calib.loads import hung_masses, point_force_context
+from calib.model import MeasurementModel
+from calib.units import DEG
+
+from acq.session.setup import DESCRIPTION_TOLERANCES, nominal_theta
+
+from offline.reduction.context import Reduction
+from offline.reduction.joints import reading_q
+
+
+@dataclass
+class StepLoads:
+    """One loading step: joint readings (rad), total torque about every joint (N m), the joints' axes (n, 3) in the
+    measurement frame, the torques' derivatives w.r.t. the geometric parameters (n, P_geometric) and the load points'
+    coordinates in their frames (n, 3, summed over the loads: they move together when the lever is measured wrong),
+    and the hung masses' torque per kg hung (n,: what a wrong mass changes, the thesis's Delta N)."""
+
+    q_rad: np.ndarray
+    torque_nm: np.ndarray
+    axes: np.ndarray
+    dtau_dgeo: np.ndarray
+    dtau_dpoint: np.ndarray
+    hung_nm_per_kg: np.ndarray
+
+
+def swept_geometry(ctx: Reduction) -> tuple[MeasurementModel, np.ndarray, np.ndarray]:
+    """The model the torques are computed with (the description, the bench's base from the set-up), its parameters
+    and each one's 1-sigma: the session's own DH estimates from the sweeps where it has them (they run first), the
+    description within its tolerances (:data:`acq.session.setup.DESCRIPTION_TOLERANCES`) elsewhere.  Why: a Puma's
+    a3 can be 10 mm off its drawing, which is 2 % of a compliance lever."""
+    model = MeasurementModel(ctx.robot)
+    theta = nominal_theta(model, ctx.setup)
+    tol = DESCRIPTION_TOLERANCES
+    sig = np.array([tol["length_mm"] if n.startswith("j") and n.endswith("_mm") else
+                    tol["angle_deg"] * DEG if n.startswith("j") and n.endswith("_rad") else 0.0
+                    for n in model.kin.names])
+    for name, e in ctx.est.named("dh.").items():
+        if name in model.kin.index and not e["held"] and np.isfinite(e["error"]):
+            theta[model.index[name]], sig[model.kin.index[name]] = e["value"], e["error"]
+    return model, theta, sig
+
+
+def step_loads(step: dict, ctx: Reduction, model: MeasurementModel, theta: np.ndarray) -> StepLoads:
+    """The loads of one step (see :class:`StepLoads`)."""
+    robot = ctx.robot
+    spec = step["spec"]
+    q = reading_q(step, robot)
+    g = model.gravity_n_per_kg(theta)
+    masses = hung_masses(spec["setup"].get("loads", []))           # in the step vocabulary since reading
+    forces = point_force_context(masses, g)
+    fp = model.kin.forward(q[None], theta[: model.n_geometric])
+    ld = model.loads(fp, model.context(1, **forces), derivative=True)
+    hung_nm = ld.joint_torque_nm[0] - model.loads(fp, model.context(1)).joint_torque_nm[0]
+    mass_kg = float(sum(m.mass_kg for m in masses))
+    # moving a load's point by e_c in its frame j adds (R_j e_c x F) . z_i to joint i's torque (i <= j)
+    z = fp.joint_axis[0]
+    dpoint = np.zeros((robot.n, 3))
+    for m, f in zip(masses, forces["point_force_n"][0]):
+        R = fp.frame_R[0, m.link]
+        for i in range(min(m.link, robot.n)):
+            dpoint[i] += np.cross(R.T, f * 1e-3) @ z[i]
+    return StepLoads(q, ld.joint_torque_nm[0], z, ld.dtau_dgeo[0], dpoint,
+                     hung_nm / mass_kg if mass_kg > 0 else 0 * hung_nm)
+
+
+def torque_covariance(per_step: list[StepLoads], j: int, sig_geo: np.ndarray) -> np.ndarray:
+    """Covariance of the torques about joint j over a loading series, from the geometry they were computed with
+    (``sig_geo``, per geometric parameter) and the load point's position (a lever measured with a tape: the tool
+    tolerance), each common to the whole series -- the thesis's Delta L_j and Delta theta_ij terms, from the model's
+    torque derivative instead of N L cos(theta); and the mass hung at each step (the thesis's Delta N: each step's
+    weights weighed to ``load_mass_kg``, independent from step to step)."""
+    tol = DESCRIPTION_TOLERANCES
+    Jg = np.array([p.dtau_dgeo[j - 1] for p in per_step]) * sig_geo                 # (steps, P)
+    Jp = np.array([p.dtau_dpoint[j - 1] for p in per_step]) * tol["tool_mm"]        # (steps, 3)
+    dN = np.array([p.hung_nm_per_kg[j - 1] for p in per_step]) * tol["load_mass_kg"]
+    return Jg @ Jg.T + Jp @ Jp.T + np.diag(dN ** 2)
+
+
+def compliance_deflection(per_step: list[StepLoads], fits: dict, j: int, skip: int | None = None):
+    """What the joints whose stiffness the session measured (``fits``: joint -> two-slope fit) turn about joint j's
+    axis over a series of steps, from the first: ``sum_i (z_i . z_j) (T_i - T_i[0]) / K_i`` -- a deflection of joint
+    i about its own axis turns a line on the tool by its projection on j's axis, so joints whose axes are parallel
+    to j's (a UR arm's shoulder, elbow and first wrist joint) add their whole deflection to any angle measured about
+    it.  Returns the deflection (steps,) and its covariance from the stiffnesses' errors; ``skip``: a joint left out
+    (the one being fitted).  Why: a series loads every joint up the chain, and a turn of the joint being measured
+    changes the gravity torque on the others."""
+    T = np.array([p.torque_nm for p in per_step])                  # (steps, n)
+    z = np.array([p.axes for p in per_step])                       # (steps, n, 3)
+    out, cov = np.zeros(len(per_step)), np.zeros((len(per_step), len(per_step)))
+    for i, res in sorted(fits.items()):
+        if i == skip:
+            continue
+        K, sK = res["K1_Nm_per_rad"].value, res["K1_Nm_per_rad"].error
+        v = np.einsum("sc,sc->s", z[:, i - 1], z[:, j - 1]) * (T[:, i - 1] - T[0, i - 1])
+        if not np.any(np.abs(v) > 1e-9 * max(K, 1.0)):
+            continue
+        out += v / K
+        cov += np.outer(v, v) * (sK / K ** 2) ** 2
+    return out, cov
