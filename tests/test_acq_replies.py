@@ -163,7 +163,7 @@ def test_a_warning_without_values_reaches_the_runner_as_a_device_fault(tmp_path)
     class Operator(ScriptedOperator):
         def ask(self, req):
             if req.kind == "setup" and req.step.key.endswith("/D") and "scripted" not in seen:
-                registry.slot(self.demo.names[0]).device.script_rc(2026, 1283, with_values=False)
+                registry.slot(self.demo.names[0]).device.script_rc(2107, 1283, with_values=False)
                 seen["scripted"] = True
             if req.kind == "decision" and any(c.name == "device" for c in req.checks):
                 seen["fault"] = [c.message for c in req.checks]
@@ -179,5 +179,5 @@ def test_a_warning_without_values_reaches_the_runner_as_a_device_fault(tmp_path)
         demo.close()
     assert state == "finished"
     msg = seen["fault"][0]
-    assert "TMC_GetFace (RPC 2026)" in msg and "1283" in msg and "without values" in msg
+    assert "TMC_GetAngle5 (RPC 2107)" in msg and "1283" in msg and "without values" in msg
     assert {"repeat", "skip", "pause"} <= set(seen["actions"])
