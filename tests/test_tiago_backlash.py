@@ -51,6 +51,8 @@ def test_wrist_play_found_on_one_day_confirmed_on_three_others(capsys, tmp_path)
         assert g["refit"]["session"]["width_deg"] > 0 and g["refit"]["session"]["width_sigma_deg"] > 0
         assert c["final_rms_mm"] <= 0.8 * c["geometric_rms_mm"], c
     assert first["label"] in j["exported_model"]["findings"] and out.exists()
+    # the other sessions are the findings' held-out test: the training set's figure is the plain k-fold one, said
+    assert "not nested: the sessions of --confirm are the held-out test" in j["heldout_protocol"]
 
 
 def test_placebo_next_move_finds_no_play(capsys, tmp_path):

@@ -163,7 +163,10 @@ def run(args) -> int:
         implausible += _plausible(other, args)
     with progress_display("robocal diagnose") as update:
         diag = diagnose(data, level=args.geometry, n_folds=args.folds, alpha=args.alpha,
-                        max_effects=args.max_effects, outliers=args.outliers, loss=args.loss, progress=update)
+                        max_effects=args.max_effects, outliers=args.outliers, loss=args.loss, progress=update,
+                        # the sessions of --confirm test the findings on data no choice has seen: the training
+                        # set's own nested cross-validation (five times the cost) would add no held-out figure
+                        nested="the sessions of --confirm are the held-out test" if others else True)
     from calib.plausibility import check_fit, enforce
     implausible += enforce(check_fit(diag.geometric.all_fit.reduced_chi2, str(args.data)), args.force_implausible,
                            "diagnose")

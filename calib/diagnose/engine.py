@@ -196,11 +196,12 @@ def _geometric(data: DiagnosisData, model: MeasurementModel, level: str, folds,
 def diagnose(data: DiagnosisData, level: str = "auto", n_folds: int | None = None, alpha: float = 0.01,
              max_effects: int = 6, kinds: tuple[str, ...] = EFFECT_NAMES, te_orders=TE_ORDERS,
              flag_outliers: bool = True, progress: Callable[[str, float], None] | None = None,
-             outliers: str = "flag", loss: str = "linear", nested: bool = True) -> Diagnosis:
+             outliers: str = "flag", loss: str = "linear", nested: bool | str = True) -> Diagnosis:
     """Run the whole diagnosis on ``data`` (see the package docstring).  ``outliers``/``loss`` as identify's
     (``flag_outliers=False`` is ``outliers="off"``).  ``nested``: without a split, the held-out before/after come
     from nested cross-validation up to :data:`calib.diagnose.nested.NESTED_MAX_POSES` poses (False: the plain
-    k-fold figure, said in the protocol -- for the validation suites, which judge the findings only).
+    k-fold figure, said in the protocol -- for the validation suites, which judge the findings only; a text: why
+    not, said in the protocol -- ``diagnose --confirm``, whose other sessions are the findings' held-out test).
 
     BLAS runs on one thread meanwhile: the matrices are a few thousand rows by tens of columns, where threads cost
     more than they give (on a loaded 2-core machine, 3 s of CPU instead of 28 for 400 poses).  The limit covers only
@@ -271,14 +272,15 @@ def _diagnose(data, level, n_folds, alpha, max_effects, kinds, te_orders, flag_o
     from .ladder import build
     from .nested import NESTED_MAX_POSES, nested_heldout, n_poses
     inner = "leave-one-out" if len(folds) == data.n else f"{len(folds)}-fold"
-    nested = nest and test is None and n_poses(every) <= NESTED_MAX_POSES
+    nested = nest is True and test is None and n_poses(every) <= NESTED_MAX_POSES
     protocol = (f"the data's own split: test rows scored once at the end, every choice on the fit rows ({inner} "
                 f"inside them)" if test is not None else
                 f"{inner} cross-validation of the model chosen on every row (the before/after figures are nested: "
                 f"see heldout_protocol)" if nested else
                 f"{inner} cross-validation (the effects were chosen on these folds, not nested"
-                + (f" above {NESTED_MAX_POSES} poses" if nest else "") + ": a split column gives a figure no choice "
-                "has seen)")
+                + (f": {nest})" if isinstance(nest, str) else
+                   (f" above {NESTED_MAX_POSES} poses" if nest else "")
+                   + ": a split column gives a figure no choice has seen)"))
     lad = build(data, test, folds, level, geo, sel, loss, protocol, ch.unused_full)
     if nested:
         lad.heldout = nested_heldout(every, lambda d: _choices(d, model, level, n_folds, alpha, max_effects, kinds,
