@@ -2,8 +2,9 @@
 
 Why: ``robocal demo`` chooses its pose set from random candidates checked by the pre-flight (about 0.35 s of CPU of
 a run that should take 2.5 s), and the choice is a pure function of the robot, the set-up and the seed.  The result
-is kept under the user's cache folder, keyed by a hash of the inputs *and* of robocal's own source (``calib/`` and
-``acq/session/``), so any change of the code that computes it is a miss, never a stale answer.  A cache that cannot be
+is kept under the user's cache folder, keyed by a hash of the inputs *and* of robocal's own source (every package:
+the demo's pose choice runs code of ``app/``, ``sim/``, ``acq/`` and ``calib/``), so any change of the code that
+computes it is a miss, never a stale answer.  A cache that cannot be
 read or written is no cache (the value is computed); ``ROBOCAL_CACHE_DIR`` moves it, ``ROBOCAL_CACHE_DIR=off``
 turns it off.
 """
@@ -21,8 +22,10 @@ import numpy as np
 from calib.fileio import atomic_write_bytes
 
 _ROOT = Path(__file__).resolve().parents[1]
-#: the source folders whose code the cached computations run (a change of any file there is a miss)
-_SOURCES = ("calib", "acq/session")
+#: the source folders whose code the cached computations run (a change of any file there is a miss): every package,
+#: so that moving code between them can never leave a stale answer (the layout move put the demo's pose choice in
+#: app/ and its twin in sim/, outside the folders first listed here)
+_SOURCES = ("acq", "app", "calib", "offline", "sim")
 
 
 def cache_dir() -> Path | None:
@@ -36,7 +39,7 @@ def cache_dir() -> Path | None:
 
 @functools.cache
 def code_fingerprint() -> str:
-    """SHA-256 of the sources the cached computations depend on (~8 ms for ~150 files)."""
+    """SHA-256 of the sources the cached computations depend on (every package's ``.py`` files, ~15 ms)."""
     h = hashlib.sha256()
     for folder in _SOURCES:
         for p in sorted((_ROOT / folder).rglob("*.py")):

@@ -76,3 +76,12 @@ def test_a_damaged_entry_is_computed_again(calls, tmp_path):
     again = cache.cached_array("t", b"a", compute)
     assert len(made) == 2 and again.shape == first.shape
     assert np.array_equal(cache.cached_array("t", b"a", compute), again) and len(made) == 2
+
+
+def test_the_fingerprint_covers_the_code_the_demo_pose_choice_runs():
+    """The pose choice lives in app/demo.py and runs the twin of sim/: an edit there must be a miss."""
+    import app.demo as demo
+    import sim.twin as twin
+    covered = {p.split("/")[0] for p in cache._SOURCES}
+    for mod in (demo, twin, cache):
+        assert mod.__name__.split(".")[0] in covered, mod.__name__
