@@ -274,11 +274,21 @@ def test_diagnose_names_lateral_elasticity_beside_joint_elasticity(world, tmp_pa
 
 
 def test_the_urdf_pivot_of_every_joint_is_where_the_generator_bends(world):
-    """Robot.urdf_pivot_mm (read from the URDF) against the generator's own joint origins (tests.elastic_cases)."""
+    """Robot.urdf_pivot_mm (read from the URDF): the point it names on robocal's axis of each joint is the
+    generator's own joint origin, in 3-D, and that axis is the generator's joint axis (the generator's plain 4x4
+    products, not robocal's formula for the pivot)."""
+    from calib.kinematics import Kinematics
     _, tree, _, robot = world
+    fp = Kinematics(robot).forward(np.zeros((1, robot.n)))
+    poses = tr.link_poses(tree, {})
     for name in ec.LATERAL:
         k = robot.joint_names.index(name)
-        assert robot.urdf_pivot_mm[k] == pytest.approx(ec.pivot_mm(robot, tree, name), abs=1e-9)
+        uj = tree.joint(name)
+        T = poses[uj.parent] @ tr.hom(tr.rpy_matrix(*uj.rpy), uj.xyz_m)        # the joint's frame, metres
+        axis = T[:3, :3] @ (np.asarray(uj.axis, float) / np.linalg.norm(uj.axis))
+        np.testing.assert_allclose(abs(fp.joint_axis[0, k] @ axis), 1.0, atol=1e-9)
+        pivot = fp.joint_origin[0, k] + robot.urdf_pivot_mm[k] * fp.joint_axis[0, k]
+        np.testing.assert_allclose(pivot, T[:3, 3] * 1000.0, atol=1e-6)
     assert np.any(np.abs(robot.urdf_pivot_mm) > 100.0)           # the case the hook is for: pivots far from frames
 
 

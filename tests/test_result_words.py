@@ -184,7 +184,7 @@ def test_the_accuracy_floor_is_over_every_pose_of_the_set():
     """calib.accuracy states the floor of the whole pose set, the diagnosis's formula over the same points."""
     import numpy as np
 
-    from calib.accuracy import before_after, floor_mm
+    from calib.accuracy import before_after
     from calib.identify import PointObservations, default_free
     from calib.model import MeasurementModel
     from calib.loading import load_robot
@@ -194,7 +194,8 @@ def test_the_accuracy_floor_is_over_every_pose_of_the_set():
     cov[::2] *= 4.0                                 # every other pose twice as noisy: a subset would differ
     model = MeasurementModel(load_robot())
     acc = before_after(model, PointObservations(q, pts, cov_mm2=cov), default_free(model, effects=False))
-    assert acc.floor_mm == pytest.approx(floor_mm(cov), rel=1e-12)
+    # every pose's 3-D variance 3 sigma^2, half of them four times that: the RMS over all 40, written out
+    assert acc.floor_mm == pytest.approx(np.sqrt(3 * 0.02 ** 2 * (1 + 4) / 2), rel=1e-12)
 
 
 def held_result(result) -> dict:
