@@ -57,19 +57,19 @@ def describe(name: str, robot=None) -> str:
         j = int(m.group(1))
         what = (_WHAT_PRISMATIC if naming.is_prismatic(robot, j) else _WHAT)[tail]
         if naming.named(robot):
-            return f"{naming.joint_name(robot, j)} {what} ({naming.display(name, robot)})"
+            return f"{naming.joint_name(robot, j)} {what} ({naming.edge_name(name, robot)})"
         if name in THESIS_NAMES and not naming.is_prismatic(robot, j):
-            return f"{THESIS_NAMES[name]} ({name})"
-        return f"joint {j} {what} ({name})"
+            return f"{THESIS_NAMES[name]} ({naming.edge_name(name, robot)})"
+        return f"joint {j} {what} ({naming.edge_name(name, robot)})"
     if name == "B.x_mm":
-        return f"the baseline L, i.e. the overall scale ({name})"
+        return f"the baseline L, i.e. the overall scale ({naming.edge_name(name, robot)})"
     if head.isupper() and tail in _STATION:
-        return f"station {head} {_STATION[tail]} ({name})"
+        return f"station {head} {_STATION[tail]} ({naming.edge_name(name, robot)})"
     if head == "base" and tail in _BASE:
-        return f"{_BASE[tail]} ({name})"
+        return f"{_BASE[tail]} ({naming.edge_name(name, robot)})"
     if head == "tool" and tail in _TOOL:
-        return f"{_TOOL[tail]} ({name})"
-    return naming.display(name, robot)
+        return f"{_TOOL[tail]} ({naming.edge_name(name, robot)})"
+    return naming.edge_name(name, robot)
 
 
 @dataclass
@@ -130,7 +130,7 @@ class Identifiability:
         for c in self.weak:
             lines.append(f"weakly identifiable (singular value ratio {c.ratio:.1e}): " + c.words(robot))
         if self.fixed:
-            lines.append("held at their design values: " + ", ".join(naming.display(n, robot) for n in self.fixed))
+            lines.append("held at their design values: " + ", ".join(naming.edge_name(n, robot) for n in self.fixed))
             lines.append(f"remaining {len(self.kept)} parameters: condition number {self.kept_condition:.3g}")
         return lines
 

@@ -86,6 +86,15 @@ def edge_unit(unit: str) -> tuple[str, float]:
     return _EDGE.get(unit, (unit, 1.0))
 
 
+def quantity_words(key: str) -> tuple[str, str]:
+    """(words, unit) of an edge-unit parameter key as a JSON entry holds it: ``width_deg`` -> ("width", "deg"),
+    ``preload_nm`` -> ("preload", "N m"), ``tool_mass_kg`` -> ("tool mass", "kg"); a pure number has unit ""."""
+    for suffix, unit in (("_deg", "deg"),) + _UNITS:
+        if key.endswith(suffix) and len(key) > len(suffix):
+            return key[: -len(suffix)].replace("_", " "), unit
+    return key.replace("_", " "), ""
+
+
 def _tokens(name: str) -> list[str]:
     return name.split(".")
 

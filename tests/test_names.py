@@ -47,7 +47,7 @@ def test_display_and_back(tiago):
     from calib.identifiability import describe
     assert describe("j1.d_mm", tiago) == "torso_lift_joint zero offset (torso_lift_joint.d_mm)"
     assert describe("j1.theta_offset_rad", tiago) == \
-        "torso_lift_joint turn about its axis (torso_lift_joint.theta_offset_rad)"
+        "torso_lift_joint turn about its axis (torso_lift_joint.theta_offset_deg)"
 
 
 def test_a_robot_without_one_word_names_keeps_numbers():
@@ -101,3 +101,12 @@ def test_diagnose_names_joints(capsys):
     for f in doc["findings"]:
         assert names.joint_names(load_robot(str(EX / "tiago" / "tiago_mocap.toml")))[f["joint"] - 1] == \
             f["joint_name"]
+
+
+def test_a_parameter_key_reads_as_words_and_unit():
+    """A finding's parameters are printed as a quantity and its unit (``width 1.7 deg``), not as a JSON key."""
+    assert names.quantity_words("width_deg") == ("width", "deg")
+    assert names.quantity_words("preload_nm") == ("preload", "N m")
+    assert names.quantity_words("tool_mass_kg") == ("tool mass", "kg")
+    assert names.quantity_words("compliance1_rad_per_nm") == ("compliance1", "rad/(N m)")
+    assert names.quantity_words("sigma") == ("sigma", "")

@@ -276,7 +276,7 @@ def _diagnose(data, level, n_folds, alpha, max_effects, kinds, te_orders, flag_o
     protocol = (f"the data's own split: test rows scored once at the end, every choice on the fit rows ({inner} "
                 f"inside them)" if test is not None else
                 f"{inner} cross-validation of the model chosen on every row (the before/after figures are nested: "
-                f"see heldout_protocol)" if nested else
+                f"see the accuracy before and after)" if nested else
                 f"{inner} cross-validation (the effects were chosen on these folds, not nested"
                 + (f": {nest})" if isinstance(nest, str) else
                    (f" above {NESTED_MAX_POSES} poses" if nest else "")

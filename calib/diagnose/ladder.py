@@ -28,6 +28,7 @@ from calib.distributions import f_sf
 from calib.heldout import HeldOut, noise_scale, predicted_cov_mm2
 from calib.identify import identify
 from calib.model import MeasurementModel
+from calib.names import effect_label
 from calib.pruning import LinearFit
 
 from .data import DiagnosisData
@@ -289,7 +290,7 @@ def _logo(sc: _Scorer, level: str, final: CVResult, steps: list[Scored], base_ef
     for i, group in enumerate(groups):
         effects = m.effects[first:first + len(group)]
         first += len(group)
-        label = " + ".join(e.label for e in effects)
+        label = " + ".join(effect_label(m.robot, e) for e in effects)      # as the steps say them
         if i == len(groups) - 1:            # the final model without its last group: the step before
             out.append((_named(kept[-2], label), last))
             continue

@@ -1,7 +1,7 @@
 """The diagnosis as text tables for the terminal (what the operator reads first)."""
 from __future__ import annotations
 
-from ..names import prose
+from ..names import prose, quantity_words
 from .engine import Diagnosis
 from .findings import DOUBTFUL_SPREAD
 
@@ -45,7 +45,7 @@ def render(d: Diagnosis, max_factor_rows: int = 40) -> str:
     if not j["findings"]:
         out.append("   no unmodelled effect found")
     for i, f in enumerate(j["findings"], 1):
-        pars = ", ".join(f"{k} {v:.4g}" for k, v in f["parameters"].items()
+        pars = ", ".join(_quantity(k, v) for k, v in f["parameters"].items()
                          if isinstance(v, (int, float)) and "sigma_" not in k and not k.endswith("_sigma"))
         out.append(f"   {i}. {f['label']}: held-out RMS -> {f['rms_after_mm']:.4f} mm, p = {_p(f['p_value'])}; "
                    f"{pars}")
@@ -116,7 +116,9 @@ def _params(p: dict | None) -> str:
     for k in keys:
         sig = next((p[c] for c in [f"{k}_sigma"] + [k[:i] + "_sigma" + k[i:] for i in range(len(k)) if k[i] == "_"]
                     if c in p), None)
-        parts.append(f"{k} {p[k]:.4g}" + (f" +- {sig:.2g}" if isinstance(sig, (int, float)) else ""))
+        word, unit = quantity_words(k)
+        parts.append(f"{word} {p[k]:.4g}" + (f" +- {sig:.2g}" if isinstance(sig, (int, float)) else "")
+                     + (f" {unit}" if unit else ""))
     return ", ".join(parts)
 
 
@@ -143,3 +145,9 @@ def render_confirmation(sessions: list[dict]) -> list[str]:
                        f"{1000 * g['shrink_mm']:>+10.1f}  {'yes' if g['confirmed'] else 'NOT confirmed':<14}"
                        f"{_params(r['session'] if r else None)}{agree}")
     return out
+
+
+def _quantity(key: str, value: float) -> str:
+    """``width_deg``, 1.726 -> ``width 1.726 deg``: a parameter in words with its unit."""
+    word, unit = quantity_words(key)
+    return f"{word} {value:.4g}" + (f" {unit}" if unit else "")
