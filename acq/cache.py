@@ -48,16 +48,20 @@ def code_fingerprint() -> str:
     return h.hexdigest()
 
 
-def cached_array(kind: str, inputs: bytes, compute: Callable[[], np.ndarray]) -> np.ndarray:
+def cached_array(kind: str, inputs: bytes, compute: Callable[[], np.ndarray],
+                 shape: tuple[int, ...] | None = None) -> np.ndarray:
     """``compute()``'s array, from the cache when this ``kind`` was computed for the same ``inputs`` (bytes that
-    name them exactly) and the same source; computed and stored otherwise."""
+    name them exactly) and the same source; computed and stored otherwise.  ``shape``: what a stored entry must be
+    (a finite float array of it), else it is computed again -- a damaged or tampered file is never used."""
     folder = cache_dir()
     if folder is None:
         return compute()
     key = hashlib.sha256(b"\0".join([kind.encode(), code_fingerprint().encode(), inputs])).hexdigest()
     path = folder / f"{kind}-{key[:32]}.npy"
     try:
-        return np.load(path, allow_pickle=False)
+        kept = np.load(path, allow_pickle=False)
+        if shape is None or (kept.shape == tuple(shape) and kept.dtype.kind == "f" and np.all(np.isfinite(kept))):
+            return kept
     except (OSError, ValueError, EOFError):     # absent, or not a whole .npy (then computed and written again)
         pass
     value = np.asarray(compute())

@@ -93,7 +93,8 @@ def demo_poses(twin: Twin, seed: int, n_poses: int, quick: bool, setup: BenchSet
     tp = twin.true_parameters()
     inputs = pickle.dumps((twin.robot, json.dumps(dict(setup.doc), sort_keys=True, default=str),
                            [tp[f"base.{k}_mm"] for k in "xyz"], int(seed), int(n_poses), bool(quick)))
-    return cached_array("demo-poses", inputs, lambda: _choose_poses(twin, seed, n_poses, quick, setup))
+    return cached_array("demo-poses", inputs, lambda: _choose_poses(twin, seed, n_poses, quick, setup),
+                        shape=(n_poses, twin.robot.n))
 
 
 def _choose_poses(twin: Twin, seed: int, n_poses: int, quick: bool, setup: BenchSetup) -> np.ndarray:

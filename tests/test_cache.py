@@ -85,3 +85,15 @@ def test_the_fingerprint_covers_the_code_the_demo_pose_choice_runs():
     covered = {p.split("/")[0] for p in cache._SOURCES}
     for mod in (demo, twin, cache):
         assert mod.__name__.split(".")[0] in covered, mod.__name__
+
+
+@pytest.mark.parametrize("stored", [np.arange(3.0), np.zeros((2, 6)), np.full((4, 6), np.nan), np.zeros((4, 6), int)])
+def test_a_stored_entry_of_the_wrong_shape_or_kind_is_computed_again(calls, tmp_path, stored):
+    """A damaged or tampered entry (another shape, not finite, not floats) is never handed back: computed again."""
+    made, compute = calls
+    first = cache.cached_array("t", b"a", compute, shape=(4, 6))
+    (entry,) = tmp_path.glob("t-*.npy")
+    np.save(entry, stored)
+    again = cache.cached_array("t", b"a", compute, shape=(4, 6))
+    assert len(made) == 2 and again.shape == (4, 6) and np.all(np.isfinite(again))
+    assert not np.array_equal(again, stored) and first.shape == again.shape
