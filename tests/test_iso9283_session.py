@@ -197,3 +197,18 @@ def test_session_model_option_bad_file_is_one_line(tmp_path):
     assert r.returncode == 2 and r.stderr.strip().splitlines() == [
         "robocal: error: bad.json: not a robocal model file (format 'robocal-model/1' expected)"]
     assert not (tmp_path / "s.db").exists()
+
+
+def test_session_model_of_another_robot_is_one_line(tmp_path):
+    """A model calibrated for another robot (the shipped TIAGo set) given to a Puma session: refused before anything
+    is opened, not when the compensated run starts after the uncompensated one was recorded."""
+    assert _cli("identify", str(ROOT / "examples/tiago/qualysis_base_hand_calibration.csv"), "--robot",
+                str(ROOT / "examples/tiago/tiago_mocap.toml"), "--angle-unit", "rad", "--length-unit", "m",
+                "--noise-mm", "1", "--out", "tiago.json", cwd=tmp_path).returncode == 0
+    assert _cli("session", "--write-setup", "setup.json", cwd=tmp_path).returncode == 0
+    r = _cli("session", "--db", "s.db", "--theodolite", "A=geocom:loop://", "--theodolite", "B=geocom:loop://",
+             "--setup", "setup.json", "--model", "tiago.json", cwd=tmp_path)
+    assert r.returncode == 2, r.stderr
+    (line,) = r.stderr.strip().splitlines()
+    assert line.startswith("robocal: error: session: --model tiago.json: a model of tiago") and "(8 joints)" in line
+    assert "(6 joints)" in line and not (tmp_path / "s.db").exists()

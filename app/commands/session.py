@@ -179,7 +179,10 @@ def real_builder(db: str, theodolites: list[str], tap: str | None, setup_path: s
     if not resume:
         if model_path:
             from calib.compensate import load_model
-            load_model(model_path)                  # a bad model file is one line before anything is opened
+            given = load_model(model_path).nominal_robot   # a bad model file is one line before anything opens
+            if given.n != robot.n or tuple(given.reading_names) != tuple(robot.reading_names):
+                raise RobocalError(f"session: --model {model_path}: a model of {given.name} ({given.n} joints), "
+                                   f"not of this session's robot {robot.name} ({robot.n} joints)")
         plan = default_plan(q, te_joints, setup, robot, model_path)
     bench = setup_of(setup)
     want = sorted(station_names(bench))
