@@ -5,7 +5,8 @@ a run that should take 2.5 s), and the choice is a pure function of the robot, t
 is kept under the user's cache folder, keyed by a hash of the inputs *and* of robocal's own source (every package:
 the demo's pose choice runs code of ``app/``, ``sim/``, ``acq/`` and ``calib/``), so any change of the code that
 computes it is a miss, never a stale answer.  A cache that cannot be
-read or written is no cache (the value is computed); ``ROBOCAL_CACHE_DIR`` moves it, ``ROBOCAL_CACHE_DIR=off``
+read or written is no cache (the value is computed; a folder that cannot be written is said once, as a warning, so a
+slow run is explained); ``ROBOCAL_CACHE_DIR`` moves it, ``ROBOCAL_CACHE_DIR=off``
 turns it off.
 """
 from __future__ import annotations
@@ -14,6 +15,7 @@ import functools
 import hashlib
 import io
 import os
+import warnings
 from pathlib import Path
 from typing import Callable
 
@@ -70,6 +72,18 @@ def cached_array(kind: str, inputs: bytes, compute: Callable[[], np.ndarray],
         buf = io.BytesIO()
         np.save(buf, value, allow_pickle=False)
         atomic_write_bytes(path, buf.getvalue())
-    except Exception:           # a read-only or full disk: the value is still right, only not kept
-        pass
+    except Exception as exc:    # a read-only or full disk: the value is still right, only not kept -- and said once
+        _warn_unwritable(folder, exc)
     return value
+
+
+_WARNED: set[Path] = set()
+
+
+def _warn_unwritable(folder: Path, exc: Exception) -> None:
+    """One warning per folder and process (the operator learns why every run recomputes, and how to move it)."""
+    if folder in _WARNED:
+        return
+    _WARNED.add(folder)
+    warnings.warn(f"cache folder {folder} cannot be written ({type(exc).__name__}: {exc}); computing without a cache "
+                  "(ROBOCAL_CACHE_DIR=PATH moves it, ROBOCAL_CACHE_DIR=off turns it off)", stacklevel=3)

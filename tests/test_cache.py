@@ -49,7 +49,10 @@ def test_an_unwritable_cache_still_gives_the_value(tmp_path, monkeypatch):
     blocker = tmp_path / "file"
     blocker.write_text("not a folder")
     monkeypatch.setenv("ROBOCAL_CACHE_DIR", str(blocker / "sub"))
-    assert np.array_equal(cache.cached_array("t", b"a", lambda: np.arange(3.0)), np.arange(3.0))
+    with pytest.warns(UserWarning, match=r"cache folder .*sub cannot be written .*ROBOCAL_CACHE_DIR=off") as said:
+        assert np.array_equal(cache.cached_array("t", b"a", lambda: np.arange(3.0)), np.arange(3.0))
+        assert np.array_equal(cache.cached_array("t", b"b", lambda: np.arange(4.0)), np.arange(4.0))
+    assert len(said) == 1                       # said once per folder, not on every computation
 
 
 def test_the_demo_pose_set_from_the_cache_is_the_one_chosen_afresh(tmp_path, monkeypatch):

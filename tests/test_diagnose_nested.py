@@ -2,6 +2,7 @@
 errors, geometric set, floor, effects -- is made on its fit rows alone, so the values of a fold's test rows cannot
 change what predicts them.  Data from the independent generator (sim/independent.py)."""
 import numpy as np
+import pytest
 
 from calib.diagnose.data import from_arrays
 from calib.diagnose.engine import diagnose
@@ -40,5 +41,7 @@ def test_a_folds_test_rows_cannot_move_their_own_prediction():
     np.testing.assert_allclose(b[te] - a[te], np.tile([50.0, 0.0, 0.0], (len(te), 1)), atol=1e-6)
     np.testing.assert_allclose(first.ladder.heldout.before_res_mm[te] + [50.0, 0.0, 0.0],
                                second.ladder.heldout.before_res_mm[te], atol=1e-6)
-    # and the figure is an honest one: the nested after is no better than the plain k-fold of the chosen model
-    assert j["after"]["rms_mm"] >= 0.95 * first.final_rms_mm
+    # and the figure is the honest one: here every outer fold makes the whole set's choice (one strong compliance),
+    # so the nested after is exactly the plain k-fold figure of the chosen model -- neither better (a fold's test
+    # rows helping choose) nor worse (a fold choosing otherwise)
+    assert j["after"]["rms_mm"] == pytest.approx(first.final_rms_mm, rel=1e-9)

@@ -137,7 +137,17 @@ def test_a_fold_started_from_the_whole_set_makes_the_same_choices(offsets_only):
     fold = obs.subset(np.arange(obs.n)[np.arange(obs.n) % 5 != 2])
     free = default_free(model, effects=False)
     cold, _ = select(model, fold, free, theta0=theta0, outliers="off", explain=False)
-    warm, _ = select(model, fold, free, theta0=theta0, outliers="off", explain=False, warm=sel)
+    starts: list = []
+
+    def spy(*args, **kwargs):                  # what the fold's fits were started from
+        starts.append((tuple(kwargs["free"]), kwargs.get("warm")))
+        return identify(*args, **kwargs)
+    warm, _ = select(model, fold, free, theta0=theta0, outliers="off", explain=False, warm=sel, fit=spy)
+    # the warm start is used: every fit of a candidate the whole set also fitted starts at that candidate's fit
+    whole = {tuple(s.free): s.ident.theta for s in sel.steps}
+    started = [(f, w) for f, w in starts if f in whole]
+    assert started and all(w is not None and np.array_equal(w, whole[f]) for f, w in started), \
+        [(len(f), w is None) for f, w in started]
     assert [s.name for s in warm.steps] == [s.name for s in cold.steps]
     assert warm.steps[warm.chosen].name == cold.steps[cold.chosen].name
     for w, c in zip(warm.steps, cold.steps):
