@@ -7,6 +7,7 @@ import pytest
 from calib.estimators import EstimationError
 from calib.estimators.misalignment import compensate, compensation_matrix, misalignment_table
 from tests.fakes import thesis_procedures as tp
+from tests.fakes.oracle import scheme
 
 
 def test_compensation_undoes_a_small_rotation_of_the_frame():
@@ -61,12 +62,11 @@ def test_compensation_scheme_recovers_the_lengths_of_a_tilted_puma():
     res = _route(0.3 * np.pi / 180)
     for k, v in truth.items():
         assert res[k].value == pytest.approx(v, abs=0.05), k
-    from calib.estimators.dh import puma_formulas
-    from calib.estimators.misalignment import compensated_puma_inputs
     axes, P, zd = tp.puma_ready_axes(431.0, -29.7, 154.5, 432.2, 56.4, 150.0, [475.0, 2853.0, 185.0],
                                      [0.3, 1.0, 0.0], 0.3 * np.pi / 180)
-    raw = puma_formulas(compensated_puma_inputs(axes, axes[:, 3:], np.eye(3)[[0] * 6], P, 150.0))   # no compensation
-    assert np.max(np.abs(raw - np.array(list(truth.values())))) > 1.0
+    pairs = [(a[:3], a[3:]) for a in axes]        # the oracle's eq 4.3.15, the axes taken as designed: no compensation
+    raw = scheme.eq_4_3_15(pairs, axes[:, 3:], np.eye(3)[[0] * 6], P, 150.0)
+    assert max(abs(raw[k] - v) for k, v in truth.items()) > 1.0
 
 
 def test_compensation_scheme_errors_are_honest():
