@@ -136,6 +136,15 @@ def test_the_identified_robots_truths_are_the_twins_in_the_fits_gauge(session):
         else:
             assert "truth_raw" in p or p["name"].startswith("cross_coupling"), p
     assert len(z) >= 20 and np.median(z) < 1.5 and max(z) < 6.0, sorted(z)
+    # what makes them a gauge, on the independent chain: the truths with the held values give the twin's own points
+    from offline.reduction.session import load_session
+    from sim.emulate.truth import session_twin
+    from tests.test_truth_gauge import _points
+    twin = session_twin(load_session(str(db)))
+    geo = {p["name"]: p["truth"] if p["estimated"] else p["value"] for p in res["robot"]["parameters"]
+           if p["name"].startswith(("base.", "tool.", "j"))}
+    q = twin.random_poses(30)
+    assert np.abs(_points(geo, q) - _points(twin.true_parameters(), q)).max() < 2e-4
 
 
 def test_the_geometric_truths_are_the_oracles(session):

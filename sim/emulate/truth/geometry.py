@@ -106,7 +106,8 @@ def twins_own_lengths(truth: dict) -> dict[str, float]:
     if not all(k in truth for k in keys):
         return {}
     t = {k: float(truth[k]) for k in keys}
-    return {"a1_mm": t["j2.a_mm"], "a2_mm": -t["j3.a_mm"], "d1_mm": t["j2.d_mm"] + np.cos(t["j2.alpha_rad"]) * t["j3.d_mm"],
+    shoulder = t["j2.d_mm"] + np.cos(t["j2.alpha_rad"]) * t["j3.d_mm"]       # along axis 2: axis 3 antiparallel
+    return {"a1_mm": t["j2.a_mm"], "a2_mm": -t["j3.a_mm"], "d1_mm": float(shoulder),
             "d2_mm": float(np.hypot(t["j4.d_mm"], t["j3.a_mm"])), "d3_mm": t["j6.d_mm"]}
 
 
