@@ -151,7 +151,7 @@ def test_the_geometric_truths_are_the_oracles(session):
     """The truths beside the misalignment table and the compensation scheme are the thesis's formulas written out
     by the oracle (tests/fakes/oracle/scheme.py) on the twin's true parameters through the independent chain --
     not calib.estimators on exact data -- and the estimates land on them within 3 of their errors; the twin's own
-    link value rides along as truth_raw where the scheme reads it otherwise (d1: axis 2's tilt)."""
+    link value rides along as truth_raw where the scheme reads it otherwise (d1: the tilts between the axes)."""
     from offline.reduction.run import reduce_session
     from offline.reduction.session import load_session
     from sim.emulate.truth import score, session_twin

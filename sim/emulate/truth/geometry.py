@@ -120,8 +120,8 @@ def compensation_truth(sc: Scoring, trace: dict) -> None:
     """The thesis route on the twin's exact geometry at the reference pose (:mod:`sim.emulate.truth.scheme`, not the
     estimator): each sweep target's foot on its true axis as the centre, the true axis directions, P where the twin
     puts it; d3 the twin's flange offset itself.  Where the scheme's reading of the exact axes is not the twin's own
-    link value (a tilted axis 2 moves the wrist sideways, so d1 reads several mm off), the latter is kept as
-    ``truth_raw`` with a note."""
+    link value (the twists between the axes and link 2's beta move the wrist sideways, which d1 reads as shoulder
+    offset: +3.6 mm on the demo twin), the latter is kept as ``truth_raw`` with a note."""
     q0 = (sc.res.get("trace", {}).get("sweeps") or {}).get("q0_rad")
     if q0 is None or not trace:
         return
