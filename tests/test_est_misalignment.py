@@ -114,3 +114,27 @@ def test_parallel_wrist_axes_have_no_wrist_centre():
         wrist_point(np.zeros(3), n, np.array([10.0, 0.0, 0.0]), n)
     p = wrist_point(np.zeros(3), np.array([1.0, 0.0, 0.0]), np.array([0.0, 5.0, 7.0]), n)
     assert np.allclose(p, [0.0, 5.0, 0.0])          # the nearest point on axis 6 to axis 5 (the x axis)
+
+
+@pytest.mark.parametrize("seed", [0, 3])
+def test_the_estimators_read_the_oracles_misaligned_arm(seed):
+    """The production route (misalignment table, eqs 4.3.12-15) on exact axes of a misaligned arm of the independent
+    chain gives the oracle's own values (tests/fakes/oracle/scheme.py): the estimators against a truth they did not
+    make, to rounding."""
+    from calib.estimators.misalignment import thesis_route
+    from tests.test_truth_scheme import BASE, L_P, PUMA_TOML, READY, ROW, arm_axes, design_frames, misaligned
+    from tests.fakes.thesis_puma import ThesisPuma
+    design = ThesisPuma.from_toml(PUMA_TOML).with_parameters(BASE)
+    axes, P = arm_axes(design.with_parameters(misaligned(seed)), READY)
+    zd, xd = (np.array(v) for v in design_frames(design, READY))
+    dirs = np.array([n for _, n in axes])
+    table = misalignment_table(dirs, np.eye(18) * 1e-12, zd, xd)
+    for j, row in enumerate(scheme.misalignment_table(zd, dirs, xd)):
+        for k in ROW:
+            if f"j{j + 1}.{k}" in table.names:
+                assert table[f"j{j + 1}.{k}"].value == pytest.approx(row[k], abs=1e-12), (j, k)
+    V = np.concatenate([np.r_[c, n] for c, n in axes])
+    res = thesis_route(V, np.zeros((36, 36)), zd, xd, P, np.zeros((3, 3)), L_P, design.base[:3, :3])
+    want = scheme.eq_4_3_15(axes, zd, xd, P, L_P, design.base[:3, :3])
+    for k, v in want.items():
+        assert res[k].value == pytest.approx(v, abs=1e-9), k
