@@ -8,6 +8,8 @@ from importlib import resources
 import numpy as np
 import pytest
 
+from acq.session.procedures import sweep_target
+from acq.session.setup import point_p
 from sim.emulate.truth.scheme import misalignment_rows, puma_lengths
 from tests.fakes.oracle import scheme as oracle
 from tests.fakes.thesis_puma import DEG, ThesisPuma
@@ -101,8 +103,6 @@ def session_truths(twin, setup, q0) -> dict[str, float]:
     """The oracle's truths of a session's misalignment table and compensation scheme: the twin's true parameters
     (data, under robocal's names) on the independent chain at the twin's effective joint angles at the reference
     pose ``q0``, the design chain at the readings, the sweep targets and point P where the set-up puts them."""
-    from acq.session.procedures import sweep_target
-    from acq.session.setup import point_p
     design = ThesisPuma.from_toml(PUMA_TOML).with_parameters(
         {"base.x_mm": setup.base_xyz_mm[0], "base.y_mm": setup.base_xyz_mm[1], "base.z_mm": setup.base_xyz_mm[2],
          "base.roll_rad": setup.base_rpy_deg[0] * DEG, "base.pitch_rad": setup.base_rpy_deg[1] * DEG,
