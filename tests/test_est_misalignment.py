@@ -7,6 +7,7 @@ import pytest
 from calib.estimators import EstimationError
 from calib.estimators.misalignment import compensate, compensation_matrix, misalignment_table
 from tests.fakes import thesis_procedures as tp
+from tests.fakes.oracle import scheme
 
 
 def test_compensation_undoes_a_small_rotation_of_the_frame():
@@ -61,12 +62,11 @@ def test_compensation_scheme_recovers_the_lengths_of_a_tilted_puma():
     res = _route(0.3 * np.pi / 180)
     for k, v in truth.items():
         assert res[k].value == pytest.approx(v, abs=0.05), k
-    from calib.estimators.dh import puma_formulas
-    from calib.estimators.misalignment import compensated_puma_inputs
     axes, P, zd = tp.puma_ready_axes(431.0, -29.7, 154.5, 432.2, 56.4, 150.0, [475.0, 2853.0, 185.0],
                                      [0.3, 1.0, 0.0], 0.3 * np.pi / 180)
-    raw = puma_formulas(compensated_puma_inputs(axes, axes[:, 3:], np.eye(3)[[0] * 6], P, 150.0))   # no compensation
-    assert np.max(np.abs(raw - np.array(list(truth.values())))) > 1.0
+    pairs = [(a[:3], a[3:]) for a in axes]        # the oracle's eq 4.3.15, the axes taken as designed: no compensation
+    raw = scheme.eq_4_3_15(pairs, axes[:, 3:], np.eye(3)[[0] * 6], P, 150.0)
+    assert max(abs(raw[k] - v) for k, v in truth.items()) > 1.0
 
 
 def test_compensation_scheme_errors_are_honest():
@@ -114,3 +114,27 @@ def test_parallel_wrist_axes_have_no_wrist_centre():
         wrist_point(np.zeros(3), n, np.array([10.0, 0.0, 0.0]), n)
     p = wrist_point(np.zeros(3), np.array([1.0, 0.0, 0.0]), np.array([0.0, 5.0, 7.0]), n)
     assert np.allclose(p, [0.0, 5.0, 0.0])          # the nearest point on axis 6 to axis 5 (the x axis)
+
+
+@pytest.mark.parametrize("seed", [0, 3])
+def test_the_estimators_read_the_oracles_misaligned_arm(seed):
+    """The production route (misalignment table, eqs 4.3.12-15) on exact axes of a misaligned arm of the independent
+    chain gives the oracle's own values (tests/fakes/oracle/scheme.py): the estimators against a truth they did not
+    make, to rounding."""
+    from calib.estimators.misalignment import thesis_route
+    from tests.test_truth_scheme import BASE, L_P, PUMA_TOML, READY, ROW, arm_axes, design_frames, misaligned
+    from tests.fakes.thesis_puma import ThesisPuma
+    design = ThesisPuma.from_toml(PUMA_TOML).with_parameters(BASE)
+    axes, P = arm_axes(design.with_parameters(misaligned(seed)), READY)
+    zd, xd = (np.array(v) for v in design_frames(design, READY))
+    dirs = np.array([n for _, n in axes])
+    table = misalignment_table(dirs, np.eye(18) * 1e-12, zd, xd)
+    for j, row in enumerate(scheme.misalignment_table(zd, dirs, xd)):
+        for k in ROW:
+            if f"j{j + 1}.{k}" in table.names:
+                assert table[f"j{j + 1}.{k}"].value == pytest.approx(row[k], abs=1e-12), (j, k)
+    V = np.concatenate([np.r_[c, n] for c, n in axes])
+    res = thesis_route(V, np.zeros((36, 36)), zd, xd, P, np.zeros((3, 3)), L_P, design.base[:3, :3])
+    want = scheme.eq_4_3_15(axes, zd, xd, P, L_P, design.base[:3, :3])
+    for k, v in want.items():
+        assert res[k].value == pytest.approx(v, abs=1e-9), k

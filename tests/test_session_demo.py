@@ -136,6 +136,37 @@ def test_the_identified_robots_truths_are_the_twins_in_the_fits_gauge(session):
         else:
             assert "truth_raw" in p or p["name"].startswith("cross_coupling"), p
     assert len(z) >= 20 and np.median(z) < 1.5 and max(z) < 6.0, sorted(z)
+    # what makes them a gauge, on the independent chain: the truths with the held values give the twin's own points
+    from offline.reduction.session import load_session
+    from sim.emulate.truth import session_twin
+    from tests.test_truth_gauge import _points
+    twin = session_twin(load_session(str(db)))
+    geo = {p["name"]: p["truth"] if p["estimated"] else p["value"] for p in res["robot"]["parameters"]
+           if p["name"].startswith(("base.", "tool.", "j"))}
+    q = twin.random_poses(30)
+    assert np.abs(_points(geo, q) - _points(twin.true_parameters(), q)).max() < 2e-4
+
+
+def test_the_geometric_truths_are_the_oracles(session):
+    """The truths beside the misalignment table and the compensation scheme are the thesis's formulas written out
+    by the oracle (tests/fakes/oracle/scheme.py) on the twin's true parameters through the independent chain --
+    not calib.estimators on exact data -- and the estimates land on them within 3 of their errors; the twin's own
+    link value rides along as truth_raw where the scheme reads it otherwise (d1: the tilts between the axes)."""
+    from offline.reduction.run import reduce_session
+    from offline.reduction.session import load_session
+    from sim.emulate.truth import score, session_twin
+    from tests.test_truth_scheme import session_truths
+    db, _ = session
+    data = load_session(str(db))
+    res = score(reduce_session(data), data)
+    want = session_truths(session_twin(data), data.setup, res["trace"]["sweeps"]["q0_rad"])
+    est = {e["name"]: e for e in res["estimates"] if e["name"].startswith(("comp.", "misalign."))}
+    assert len(est) > 20 and {f"comp.{k}" for k in ("a1_mm", "a2_mm", "d1_mm", "d2_mm", "d3_mm")} <= set(est)
+    for name, e in est.items():
+        assert e["truth"] == pytest.approx(want[name], abs=1e-3 * e["error"]), (name, e, want[name])
+        assert abs(e["value"] - want[name]) <= 3.0 * e["error"], (name, e, want[name])
+    d1 = est["comp.d1_mm"]
+    assert d1["truth_raw"] == pytest.approx(154.5) and abs(d1["truth"] - d1["truth_raw"]) > 3 * d1["error"], d1
 
 
 def test_reprocess_is_read_only(session):

@@ -25,6 +25,7 @@ view): the torques that deflect the joints are those of the configuration given 
 """
 from __future__ import annotations
 
+import dataclasses
 import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -79,6 +80,21 @@ class ThesisPuma:
                    mass_kg=np.array([j.get("mass_kg", 0.0) for j in joints], float),
                    com_mm=np.array([j.get("com_mm", [0.0, 0.0, 0.0]) for j in joints], float),
                    gravity_m_s2=np.array(doc["robot"]["gravity_m_s2"], float))
+
+    def with_parameters(self, params: dict[str, float]) -> "ThesisPuma":
+        """A copy with the link values, zero offsets and base given under robocal's names (``j2.a_mm``,
+        ``j3.theta_offset_rad``, ``base.yaw_rad`` ...): a common vocabulary, not code; a name absent keeps this arm's
+        value, and the base is ``base_matrix(xyz, yaw, pitch, roll)`` when any ``base.*`` is given."""
+        arm = dataclasses.replace(self, alpha=self.alpha.copy(), a_mm=self.a_mm.copy(), d_mm=self.d_mm.copy(),
+                                  theta_offset=self.theta_offset.copy(), beta=self.beta.copy())
+        for j in range(6):
+            for key, values in (("alpha_rad", arm.alpha), ("a_mm", arm.a_mm), ("d_mm", arm.d_mm),
+                                ("theta_offset_rad", arm.theta_offset), ("beta_rad", arm.beta)):
+                values[j] = params.get(f"j{j + 1}.{key}", values[j])
+        if any(k.startswith("base.") for k in params):
+            g = {k: params.get(f"base.{k}", 0.0) for k in ("x_mm", "y_mm", "z_mm", "yaw_rad", "pitch_rad", "roll_rad")}
+            arm.base = base_matrix((g["x_mm"], g["y_mm"], g["z_mm"]), g["yaw_rad"], g["pitch_rad"], g["roll_rad"])
+        return arm
 
     def frames(self, q: np.ndarray) -> list[np.ndarray]:
         """Frames 0..6 in the measurement frame for one pose of joint angles ``q`` (6,)."""

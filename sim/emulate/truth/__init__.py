@@ -4,9 +4,11 @@ An emulated session records its twin (scenario and seed) in its metadata; :func:
 each estimate's ``truth`` -- what a perfect estimator would return from these very steps -- from the reduction's
 results document and its ``trace`` (what each stage computed its estimates from: the joint readings of the pose set,
 the torques of a loading series ...).  Where the twin's own value is not what the estimator estimates (a gauge held
-by the fit, a single slope over two), the truth is the same computation on the twin's noise-free data and the twin's
-own value is kept as ``truth_raw`` with a note.  One module per group of stages registers its truth functions by
-stage name (:data:`TRUTHS`).
+by the fit, a single slope over two, eq 4.3.15's reading of tilted axes), the truth is the twin's value carried into
+the estimator's terms by formulas written out here (exact gauge rules of the chain, a weighted line, the thesis's
+section 4.3.1 in :mod:`.scheme`) -- never the reduction's estimators run on the twin's noise-free data -- and the
+twin's own value is kept as ``truth_raw`` with a note.  One module per group of stages registers its truth functions
+by stage name (:data:`TRUTHS`).
 """
 from __future__ import annotations
 

@@ -12,7 +12,8 @@ reference chains take their formulas from here:
 * :mod:`.stations` -- theodolite readings from points by plain trigonometry (section 5.3.1) and eq 4.3.1 back;
 * :mod:`.effects` -- the thesis's running errors: transmission error, two-slope joint compliance, cross coupling,
   encoder quantisation, play in a drive;
-* :mod:`.beam` -- a cantilever's deflection by integrating ``EI y'' = M`` (not the closed form).
+* :mod:`.beam` -- a cantilever's deflection by integrating ``EI y'' = M`` (not the closed form);
+* :mod:`.scheme` -- section 4.3.1's misalignments, compensation into S_fj and the Puma lengths of eq 4.3.15.
 
 Units: mm, rad, N, kg unless a name says otherwise.
 """
