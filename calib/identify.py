@@ -416,9 +416,11 @@ def _check_enough_poses(model: MeasurementModel, st: _Setup, priors: dict) -> No
 
 
 def _identifiability(model: MeasurementModel, st: _Setup, priors: dict, start: bool,
-                     warm: np.ndarray | None = None) -> None:
+                     warm: np.ndarray | None = None, explain: bool = True) -> None:
     """Step 2 (and Chapter 6's linear step for the start): which free parameters the data determine.  ``warm``: the
-    free parameters start there (the analysis too); a parameter the analysis holds goes back to its start value."""
+    free parameters start there (the analysis too); a parameter the analysis holds goes back to its start value.
+    ``explain``: look for the joint whose wider range would determine a held or weak direction (a Jacobian per joint
+    that barely moves: only for a fit whose analysis is reported; the held set does not depend on it)."""
     prob, obs = st.prob, st.prob.obs
     theta = prob.theta0.copy()
     free_idx = [prob.names.index(n) for n in st.free]
@@ -434,7 +436,8 @@ def _identifiability(model: MeasurementModel, st: _Setup, priors: dict, start: b
         return _Problem(model, o2, theta, priors).residuals(theta)[1][:, free_idx]
 
     def run():
-        return analyse(prob.residuals(theta)[1][:, free_idx], st.free, rejac, ranges, fix_preference)
+        return analyse(prob.residuals(theta)[1][:, free_idx], st.free, rejac if explain else None, ranges,
+                       fix_preference)
 
     ident = run()
     if start and not prob.angles:
@@ -586,7 +589,7 @@ def identify(model: MeasurementModel, obs: PointObservations | AngleObservations
              priors: dict[str, tuple[float, float]] | None = None, start: bool = True,
              max_nfev: int = 200, outliers: str = "flag", loss: str = "linear",
              labels: dict[str, list] | None = None, error_scale: str = "inflate",
-             warm: np.ndarray | None = None, covariance: bool = True) -> Identification:
+             warm: np.ndarray | None = None, report: bool = True) -> Identification:
     """Identify the free parameters from the observations (see the module docstring for the pipeline).
 
     ``outliers``: ``flag`` (report, keep), ``reject`` (leave out flagged poses that do not cluster) or ``off``
@@ -597,17 +600,18 @@ def identify(model: MeasurementModel, obs: PointObservations | AngleObservations
     say the relative precision of the points); ``warm``: where the solver starts (all parameters, e.g. a fit of the
     same model on more rows: a cross-validation fold), instead of the rigid-fit and linear start -- ``theta0`` stays
     what a held parameter is held at, so the converged fit is the one this start would reach, sooner;
-    ``covariance=False``: the covariance left at zero and no undetermined directions (a cross-validation fold's fit:
-    its parameters only predict the held-out rows; the estimate is the same).
+    ``report=False``: a fit whose parameters only predict (a cross-validation fold): the covariance left at zero,
+    no undetermined directions, and the identifiability analysis does not look for the joint that would determine a
+    held direction (words nobody prints); the held set and the estimate are the same.
     """
-    st, kidx, prob, theta, report = _to_outliers(model, obs, free, theta0, robust, priors, start, max_nfev, outliers,
-                                                 loss, labels, warm)
+    st, kidx, prob, theta, out_rep = _to_outliers(model, obs, free, theta0, robust, priors, start, max_nfev,
+                                                  outliers, loss, labels, warm, explain=report)
     theta = _solve(prob, theta, kidx, loss, max_nfev)
-    cov, red, rms, n_obs, undetermined = _uncertainty(model, prob, theta, kidx, error_scale, covariance)
+    cov, red, rms, n_obs, undetermined = _uncertainty(model, prob, theta, kidx, error_scale, report)
     kept = st.ident.kept
     fixed = [n for n in prob.names if n not in kept]
-    return Identification(prob.names, theta, kept, fixed, cov, st.ident, rms, red, report.flagged, n_obs,
-                          prob.stations(theta), report, undetermined, error_scale, prob)
+    return Identification(prob.names, theta, kept, fixed, cov, st.ident, rms, red, out_rep.flagged, n_obs,
+                          prob.stations(theta), out_rep, undetermined, error_scale, prob)
 
 
 def outlier_report(model: MeasurementModel, obs: PointObservations | AngleObservations, free: list[str] | None = None,
@@ -616,11 +620,12 @@ def outlier_report(model: MeasurementModel, obs: PointObservations | AngleObserv
     """:func:`identify`'s outlier decision alone (its steps 1 to 3b: start, identifiability, the robust fit and the
     shared decision), without the final fit and covariance that only :func:`identify` needs: the report is that
     ``identify(model, obs, free=free, outliers=outliers, loss=loss, labels=labels).outlier_report`` gives."""
-    return _to_outliers(model, obs, free, None, True, None, True, max_nfev, outliers, loss, labels, None)[4]
+    return _to_outliers(model, obs, free, None, True, None, True, max_nfev, outliers, loss, labels, None,
+                        explain=False)[4]
 
 
 def _to_outliers(model: MeasurementModel, obs, free, theta0, robust, priors, start, max_nfev, outliers, loss, labels,
-                 warm) -> tuple[_Setup, np.ndarray, _Problem, np.ndarray, OutlierReport]:
+                 warm, explain: bool = True) -> tuple[_Setup, np.ndarray, _Problem, np.ndarray, OutlierReport]:
     """identify's steps 1 to 3b: the problem, start point, identifiability, and the outlier decision; returns the
     set-up, the kept columns, the problem the final fit runs on, its start point and the outlier report."""
     check_mode(outliers, loss)
@@ -638,7 +643,7 @@ def _to_outliers(model: MeasurementModel, obs, free, theta0, robust, priors, sta
     if start and not prob.angles:
         prob.theta0[: model.P] = initial_base(model, obs.q_rad, obs.points_mm, obs.ctx, theta0)
     _check_enough_poses(model, st, priors)
-    _identifiability(model, st, priors, start, warm)
+    _identifiability(model, st, priors, start, warm, explain)
     kept = st.ident.kept
     kidx = np.array([prob.names.index(n) for n in kept], int)
     st.theta = _bodies_start(model, prob, st.theta, kidx, max_nfev)
