@@ -624,8 +624,10 @@ def outlier_report(model: MeasurementModel, obs: PointObservations | AngleObserv
                         explain=False)[4]
 
 
-def _to_outliers(model: MeasurementModel, obs, free, theta0, robust, priors, start, max_nfev, outliers, loss, labels,
-                 warm, explain: bool = True) -> tuple[_Setup, np.ndarray, _Problem, np.ndarray, OutlierReport]:
+def _to_outliers(model: MeasurementModel, obs: PointObservations | AngleObservations, free: list[str] | None,
+                 theta0: np.ndarray | None, robust: bool, priors: dict | None, start: bool, max_nfev: int,
+                 outliers: str, loss: str, labels: dict | None, warm: np.ndarray | None,
+                 explain: bool = True) -> tuple[_Setup, np.ndarray, _Problem, np.ndarray, OutlierReport]:
     """identify's steps 1 to 3b: the problem, start point, identifiability, and the outlier decision; returns the
     set-up, the kept columns, the problem the final fit runs on, its start point and the outlier report."""
     check_mode(outliers, loss)
