@@ -69,7 +69,7 @@ def _files(tmp: Path, poses: int) -> dict[str, list[str]]:
 
 def _joint_names(description: Path) -> list[str]:
     env = {**os.environ, "PYTHONPATH": str(ROOT)}
-    code = "import sys; from calib.robot import load_robot; print('\\n'.join(load_robot(sys.argv[1]).joint_names))"
+    code = "import sys; from calib.loading import load_robot; print('\\n'.join(load_robot(sys.argv[1]).joint_names))"
     out = subprocess.run([sys.executable, "-c", code, str(description)], capture_output=True, text=True, env=env)
     return out.stdout.split()
 

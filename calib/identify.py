@@ -42,6 +42,10 @@ class PointObservations:
     cov_mm2: np.ndarray | None = None     # (N, 3, 3); default sigma_mm isotropic
     sigma_mm: float = 0.05
     ctx: PoseContext | None = None
+    #: the rows' whitening when the caller has it already (W with W^T W = cov^-1, as computed below): a diagnosis
+    #: builds observations of its rows for every fold fit, and the per-row inverse and Cholesky cost more than the fit
+    #: of a small fold
+    white: np.ndarray | None = field(default=None, repr=False, compare=False)
 
     def __post_init__(self):
         self.q_rad = np.atleast_2d(np.asarray(self.q_rad, float))
@@ -57,7 +61,7 @@ class PointObservations:
         if self.cov_mm2 is None:
             self.cov_mm2 = np.broadcast_to(np.eye(3) * self.sigma_mm ** 2, (N, 3, 3)).copy()
         # whitening: W = L L^T with L from the inverse covariance
-        self._white = np.linalg.cholesky(np.linalg.inv(self.cov_mm2)).transpose(0, 2, 1)
+        self._white = whitening(self.cov_mm2) if self.white is None else self.white
 
     @property
     def n(self) -> int:
@@ -65,7 +69,13 @@ class PointObservations:
 
     def subset(self, idx) -> "PointObservations":
         return PointObservations(self.q_rad[idx], self.points_mm[idx], self.cov_mm2[idx], self.sigma_mm,
-                                 self.ctx.subset(idx) if self.ctx is not None else None)
+                                 self.ctx.subset(idx) if self.ctx is not None else None, white=self._white[idx])
+
+
+def whitening(cov_mm2: np.ndarray) -> np.ndarray:
+    """(N, 3, 3) W with W^T W = cov^-1 per row (whitened residual = W r): row by row, so a subset's whitening is
+    the same rows of the whole set's."""
+    return np.linalg.cholesky(np.linalg.inv(cov_mm2)).transpose(0, 2, 1)
 
 
 @dataclass
@@ -236,6 +246,14 @@ class _Problem:
             last[3] = J
         return last[1].copy(), (last[3] if jac else None)
 
+    def last_points(self, theta) -> np.ndarray:
+        """The model's points (N, 3) at ``theta``: the kept evaluation's when it was at ``theta`` (the same call)."""
+        theta = np.asarray(theta, float)
+        last = getattr(self, "_last", None)
+        if last is not None and last[0].shape == theta.shape and np.array_equal(last[0], theta):
+            return last[2].point_mm
+        return self.model.points(self.obs.q_rad, self.ctx, theta[: self.model.P])
+
     def _evaluate(self, theta):
         P = self.model.P
         ev = self.model.evaluate(self.obs.q_rad, self.ctx, theta[:P])
@@ -398,9 +416,11 @@ def _check_enough_poses(model: MeasurementModel, st: _Setup, priors: dict) -> No
 
 
 def _identifiability(model: MeasurementModel, st: _Setup, priors: dict, start: bool,
-                     warm: np.ndarray | None = None) -> None:
+                     warm: np.ndarray | None = None, explain: bool = True) -> None:
     """Step 2 (and Chapter 6's linear step for the start): which free parameters the data determine.  ``warm``: the
-    free parameters start there (the analysis too); a parameter the analysis holds goes back to its start value."""
+    free parameters start there (the analysis too); a parameter the analysis holds goes back to its start value.
+    ``explain``: look for the joint whose wider range would determine a held or weak direction (a Jacobian per joint
+    that barely moves: only for a fit whose analysis is reported; the held set does not depend on it)."""
     prob, obs = st.prob, st.prob.obs
     theta = prob.theta0.copy()
     free_idx = [prob.names.index(n) for n in st.free]
@@ -416,7 +436,8 @@ def _identifiability(model: MeasurementModel, st: _Setup, priors: dict, start: b
         return _Problem(model, o2, theta, priors).residuals(theta)[1][:, free_idx]
 
     def run():
-        return analyse(prob.residuals(theta)[1][:, free_idx], st.free, rejac, ranges, fix_preference)
+        return analyse(prob.residuals(theta)[1][:, free_idx], st.free, rejac if explain else None, ranges,
+                       fix_preference)
 
     ident = run()
     if start and not prob.angles:
@@ -537,27 +558,30 @@ def _outlier_step(model: MeasurementModel, st: _Setup, kidx, theta, mode: str, l
 
 
 def _uncertainty(model: MeasurementModel, prob: _Problem, theta: np.ndarray, kidx: np.ndarray,
-                 error_scale: str = "inflate"):
+                 error_scale: str = "inflate", covariance: bool = True):
     """Step 4: covariance (inflated by the reduced chi-square above 1, or scaled by it either way with
     ``error_scale="residual"``), reduced chi-square, unweighted RMS, undetermined directions
-    (:func:`calib.covariance.from_jacobian`: column-scaled SVD, never ``pinv(J^T J)``)."""
+    (:func:`calib.covariance.from_jacobian`: column-scaled SVD, never ``pinv(J^T J)``).  ``covariance=False``:
+    zeros and no directions (a cross-validation fold's fit, whose parameters only predict its held-out rows)."""
     from .covariance import from_jacobian
-    r, J = prob.residuals(theta)
-    Jk = J[:, kidx]
+    r, J = prob.residuals(theta, jac=covariance)
     dof = max(1, len(r) - len(kidx))
     red = float(r @ r / dof)
     cov = np.zeros((len(prob.names), len(prob.names)))
-    c = from_jacobian(Jk, [prob.names[i] for i in kidx])
-    cov[np.ix_(kidx, kidx)] = c.matrix * (red if error_scale == "residual" else max(1.0, red))
+    undetermined = []
+    if covariance:
+        c = from_jacobian(J[:, kidx], [prob.names[i] for i in kidx])
+        cov[np.ix_(kidx, kidx)] = c.matrix * (red if error_scale == "residual" else max(1.0, red))
+        undetermined = c.undetermined
     # unweighted residual RMS (mm for points, rad for angles)
     if not prob.angles:
-        pred = model.points(prob.obs.q_rad, prob.obs.ctx, theta[: model.P])
+        pred = prob.last_points(theta)
         rms = float(np.sqrt(np.mean(np.sum((prob.obs.points_mm - pred) ** 2, axis=1))))
     else:
         sig = np.concatenate([[s.sigma_hz_rad, s.sigma_v_rad] for s in prob.stations(theta)])
         raw = r[: prob.obs.n * len(sig)].reshape(prob.obs.n, -1) * sig
         rms = float(np.sqrt(np.mean(raw ** 2)))
-    return cov, red, rms, len(r), c.undetermined
+    return cov, red, rms, len(r), undetermined
 
 
 def identify(model: MeasurementModel, obs: PointObservations | AngleObservations, free: list[str] | None = None,
@@ -565,7 +589,7 @@ def identify(model: MeasurementModel, obs: PointObservations | AngleObservations
              priors: dict[str, tuple[float, float]] | None = None, start: bool = True,
              max_nfev: int = 200, outliers: str = "flag", loss: str = "linear",
              labels: dict[str, list] | None = None, error_scale: str = "inflate",
-             warm: np.ndarray | None = None) -> Identification:
+             warm: np.ndarray | None = None, report: bool = True) -> Identification:
     """Identify the free parameters from the observations (see the module docstring for the pipeline).
 
     ``outliers``: ``flag`` (report, keep), ``reject`` (leave out flagged poses that do not cluster) or ``off``
@@ -575,8 +599,37 @@ def identify(model: MeasurementModel, obs: PointObservations | AngleObservations
     exceeds 1) or ``residual`` (scaled by the reduced chi-square either way: the noise was not given, the weights only
     say the relative precision of the points); ``warm``: where the solver starts (all parameters, e.g. a fit of the
     same model on more rows: a cross-validation fold), instead of the rigid-fit and linear start -- ``theta0`` stays
-    what a held parameter is held at, so the converged fit is the one this start would reach, sooner.
+    what a held parameter is held at, so the converged fit is the one this start would reach, sooner;
+    ``report=False``: a fit whose parameters only predict (a cross-validation fold): the covariance left at zero,
+    no undetermined directions, and the identifiability analysis does not look for the joint that would determine a
+    held direction (words nobody prints); the held set and the estimate are the same.
     """
+    st, kidx, prob, theta, out_rep = _to_outliers(model, obs, free, theta0, robust, priors, start, max_nfev,
+                                                  outliers, loss, labels, warm, explain=report)
+    theta = _solve(prob, theta, kidx, loss, max_nfev)
+    cov, red, rms, n_obs, undetermined = _uncertainty(model, prob, theta, kidx, error_scale, report)
+    kept = st.ident.kept
+    fixed = [n for n in prob.names if n not in kept]
+    return Identification(prob.names, theta, kept, fixed, cov, st.ident, rms, red, out_rep.flagged, n_obs,
+                          prob.stations(theta), out_rep, undetermined, error_scale, prob)
+
+
+def outlier_report(model: MeasurementModel, obs: PointObservations | AngleObservations, free: list[str] | None = None,
+                   outliers: str = "flag", loss: str = "linear", labels: dict[str, list] | None = None,
+                   max_nfev: int = 200) -> OutlierReport:
+    """:func:`identify`'s outlier decision alone (its steps 1 to 3b: start, identifiability, the robust fit and the
+    shared decision), without the final fit and covariance that only :func:`identify` needs: the report is that
+    ``identify(model, obs, free=free, outliers=outliers, loss=loss, labels=labels).outlier_report`` gives."""
+    return _to_outliers(model, obs, free, None, True, None, True, max_nfev, outliers, loss, labels, None,
+                        explain=False)[4]
+
+
+def _to_outliers(model: MeasurementModel, obs: PointObservations | AngleObservations, free: list[str] | None,
+                 theta0: np.ndarray | None, robust: bool, priors: dict | None, start: bool, max_nfev: int,
+                 outliers: str, loss: str, labels: dict | None, warm: np.ndarray | None,
+                 explain: bool = True) -> tuple[_Setup, np.ndarray, _Problem, np.ndarray, OutlierReport]:
+    """identify's steps 1 to 3b: the problem, start point, identifiability, and the outlier decision; returns the
+    set-up, the kept columns, the problem the final fit runs on, its start point and the outlier report."""
     check_mode(outliers, loss)
     priors = priors or {}
     theta0 = np.array(model.nominal if theta0 is None else theta0, float)
@@ -592,14 +645,10 @@ def identify(model: MeasurementModel, obs: PointObservations | AngleObservations
     if start and not prob.angles:
         prob.theta0[: model.P] = initial_base(model, obs.q_rad, obs.points_mm, obs.ctx, theta0)
     _check_enough_poses(model, st, priors)
-    _identifiability(model, st, priors, start, warm)
+    _identifiability(model, st, priors, start, warm, explain)
     kept = st.ident.kept
     kidx = np.array([prob.names.index(n) for n in kept], int)
     st.theta = _bodies_start(model, prob, st.theta, kidx, max_nfev)
     prob, theta, report = _outlier_step(model, st, kidx, st.theta, outliers if robust else "off", labels, priors,
                                         max_nfev)
-    theta = _solve(prob, theta, kidx, loss, max_nfev)
-    cov, red, rms, n_obs, undetermined = _uncertainty(model, prob, theta, kidx, error_scale)
-    fixed = [n for n in prob.names if n not in kept]
-    return Identification(prob.names, theta, kept, fixed, cov, st.ident, rms, red, report.flagged, n_obs,
-                          prob.stations(theta), report, undetermined, error_scale, prob)
+    return st, kidx, prob, theta, report

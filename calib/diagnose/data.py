@@ -18,7 +18,7 @@ import numpy as np
 
 from calib.effects import PoseContext
 from calib.errors import RobocalError
-from calib.identify import PointObservations
+from calib.identify import PointObservations, whitening
 from calib.model import MeasurementModel
 from calib.noise import Sightings
 from calib.robot import Robot
@@ -61,21 +61,28 @@ class DiagnosisData:
 
     def observations(self, idx=None) -> PointObservations:
         """The points as :class:`calib.identify.PointObservations` (all poses or a subset)."""
-        obs = PointObservations(self.q_rad, self.points_mm, self.cov_mm2, ctx=self.ctx)
-        return obs if idx is None else obs.subset(np.asarray(idx))
+        if idx is None:
+            return PointObservations(self.q_rad, self.points_mm, self.cov_mm2, ctx=self.ctx, white=self.whitening)
+        idx = np.asarray(idx)
+        return PointObservations(self.q_rad[idx], self.points_mm[idx], self.cov_mm2[idx],
+                                 ctx=self.ctx.subset(idx) if self.ctx is not None else None, white=self.whitening[idx])
 
     def subset(self, idx) -> "DiagnosisData":
         """The same data on the poses ``idx`` (conditions, labels and ids follow)."""
         idx = np.asarray(idx)
-        return DiagnosisData(self.robot, self.q_rad[idx], self.points_mm[idx], self.cov_mm2[idx],
-                             self.ctx.subset(idx), self.source, self.noise_from, dict(self.has),
-                             {k: [v[i] for i in idx] for k, v in self.labels.items()},
-                             {k: np.asarray(v)[idx] for k, v in self.numeric.items()}, self.raw_angles,
-                             [self.pose_id[i] for i in idx] if self.pose_id else [], list(self.notes),
-                             [self.split[i] for i in idx] if self.split else None,
-                             list(self.ignored_columns),
-                             sightings=self.sightings.subset(idx) if self.sightings is not None else None,
-                             geometry_effects=list(self.geometry_effects), direction_note=self.direction_note)
+        out = DiagnosisData(self.robot, self.q_rad[idx], self.points_mm[idx], self.cov_mm2[idx],
+                            self.ctx.subset(idx), self.source, self.noise_from, dict(self.has),
+                            {k: [v[i] for i in idx] for k, v in self.labels.items()},
+                            {k: np.asarray(v)[idx] for k, v in self.numeric.items()}, self.raw_angles,
+                            [self.pose_id[i] for i in idx] if self.pose_id else [], list(self.notes),
+                            [self.split[i] for i in idx] if self.split else None,
+                            list(self.ignored_columns),
+                            sightings=self.sightings.subset(idx) if self.sightings is not None else None,
+                            geometry_effects=list(self.geometry_effects), direction_note=self.direction_note)
+        W = self.whitening[idx]                  # the same rows of this set's whitening (computed row by row)
+        W.flags.writeable = False
+        out.__dict__["_whitening"] = (out.cov_mm2, W)
+        return out
 
     def joint_name(self, joint: int | None) -> str | None:
         """The description's name of a 1-based joint (a URDF's joint name; the DH table's names otherwise)."""
@@ -86,8 +93,14 @@ class DiagnosisData:
 
     @property
     def whitening(self) -> np.ndarray:
-        """(N, 3, 3) W with W^T W = cov^-1: whitened residual = W r."""
-        return np.linalg.cholesky(np.linalg.inv(self.cov_mm2)).transpose(0, 2, 1)
+        """(N, 3, 3) W with W^T W = cov^-1: whitened residual = W r (:func:`calib.identify.whitening`, computed once
+        for this covariance array: every fold fit and score of a diagnosis asks for it)."""
+        cached = self.__dict__.get("_whitening")
+        if cached is None or cached[0] is not self.cov_mm2:
+            W = whitening(self.cov_mm2)
+            W.flags.writeable = False           # shared by every caller: read-only
+            cached = self.__dict__["_whitening"] = (self.cov_mm2, W)
+        return cached[1]
 
 
 def _varies(a: np.ndarray | None) -> bool:

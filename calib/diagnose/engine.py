@@ -11,7 +11,7 @@ from typing import Callable
 import numpy as np
 
 from calib.errors import RobocalError
-from calib.identify import identify
+from calib.identify import outlier_report
 from calib.model import MeasurementModel
 from calib.outliers import OutlierReport, check_mode
 
@@ -165,8 +165,8 @@ def _outlier_step(data: DiagnosisData, model: MeasurementModel, level: str, mode
     if level == "auto":         # the set the baseline will most likely use (full needs 3 observations a parameter)
         level = "full" if data.n >= len(geometric_free(model, "full")) else "offsets"
     free = geometric_free(model, level)
-    rep = identify(model, data.observations(), free=free, outliers=mode, loss=loss,
-                   labels=data.labels or None).outlier_report.numbered(rows, data.pose_id)
+    rep = outlier_report(model, data.observations(), free=free, outliers=mode, loss=loss,
+                         labels=data.labels or None).numbered(rows, data.pose_id)
     if rep.rejected:
         data = data.subset(np.setdiff1d(np.arange(data.n), rep.rejected))
     return data, rep

@@ -132,12 +132,15 @@ def whitened_chi2(data: DiagnosisData, res: np.ndarray, idx=None) -> float:
 
 
 def cv_fit(model: MeasurementModel, data: DiagnosisData, free: list[str], folds, theta0: list[np.ndarray] | None = None,
-           theta0_all: np.ndarray | None = None, start: bool = True, loss: str = "linear") -> CVResult:
+           theta0_all: np.ndarray | None = None, start: bool = True, loss: str = "linear",
+           report: bool = True) -> CVResult:
     """Fit ``model`` on each fold's training poses with :func:`calib.identify.identify` and predict its test poses.
 
     ``theta0`` (one per fold) warm-starts refits after an effect was added; ``start`` runs identify's own start
     (rigid base fit and the linear step of Chapter 6) for the first, geometric fit.  ``loss``: the least-squares
-    loss (as identify's ``--loss``), so the diagnosis fits exactly as identify does.
+    loss (as identify's ``--loss``), so the diagnosis fits exactly as identify does.  The folds' fits report nothing
+    (identify's ``report=False``: they only predict); ``report=False`` asks the same of the all-pose fit (a ladder
+    step, scored by its residual sum of squares).
     """
     check_folds(folds, len(free), data.source)
     res = np.full_like(data.points_mm, np.nan)
@@ -145,12 +148,12 @@ def cv_fit(model: MeasurementModel, data: DiagnosisData, free: list[str], folds,
     for i, (tr, te) in enumerate(folds):
         obs = data.observations(tr)
         idn = identify(model, obs, free=free, theta0=None if theta0 is None else theta0[i], outliers="off",
-                       start=start, loss=loss)
+                       start=start, loss=loss, report=False)       # a fold's fit only predicts its test rows
         th = idn.theta[: model.P]
         res[te] = data.points_mm[te] - model.points(data.q_rad[te], data.ctx.subset(te), th)
         fits.append(FoldFit(tr, te, th, list(idn.free)))
     all_fit = identify(model, data.observations(), free=free, theta0=theta0_all, outliers="off", start=start,
-                       loss=loss)
+                       loss=loss, report=report)
     return CVResult(model, fits, res, whitened_chi2(data, res), all_fit)
 
 

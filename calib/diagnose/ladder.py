@@ -139,11 +139,11 @@ class _Scorer:
         if self.test is None:
             cv = cv_fit(model, self.data, free, [(f.train, f.test) for f in cur.folds],
                         theta0=[_start(model, free, f.theta) for f in cur.folds], theta0_all=th_all, start=False,
-                        loss=self.loss)
+                        loss=self.loss, report=False)
             return Scored(name, added, model, list(cv.all_fit.free), cv.residual_mm, _rss(cv.all_fit),
                           cv.all_fit.n_obs)
         idn = identify(model, self.data.observations(), free=free, theta0=th_all, outliers="off", start=False,
-                       loss=self.loss)
+                       loss=self.loss, report=False)            # scored on the test rows and by its rss
         return Scored(name, added, model, list(idn.free), self._test_res(model, idn.theta), _rss(idn), idn.n_obs)
 
     def linear(self, name: str, added: str, cur: CVResult, hold: list[str], accepted=True) -> Scored:

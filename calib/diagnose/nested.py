@@ -57,7 +57,7 @@ def nested_heldout(data: DiagnosisData, choose: Callable[[DiagnosisData], object
         cov[te] = predicted_cov_mm2(m, fit, test.q_rad, test.ctx, np.zeros_like(test.cov_mm2)) \
             + noise_scale(fit) * test.cov_mm2
         loc = identify(m, fit_rows.observations(), free=[q for q in locate_free(m) if q in fit.free],
-                       theta0=m.nominal, outliers="off", start=True)
+                       theta0=m.nominal, outliers="off", start=True, report=False)
         before[te] = test.points_mm - m.points(test.q_rad, test.ctx, loc.theta[: m.P])
     return HeldOut(before, after, cov, f"nested {len(folds)}-fold cross-validation: in each fold every choice (gross "
                                        f"errors, geometric set, noise floor, effects) made on its fit rows alone")
