@@ -12,6 +12,7 @@ def progress_display(title: str, after_s: float = 1.0):
     if not sys.stderr.isatty():
         yield lambda stage, fraction: None
         return
+    # rich costs ~0.1 s at start-up (robocal plan loads this module); only a bar on a terminal needs it
     from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 
     start = time.monotonic()

@@ -24,7 +24,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .effects.station_offset import StationOffset
+from .effects.target_offset import TargetOffset
 from .errors import RobocalError
+from .identify import identify
 
 
 #: how robocal measures a position error (stated in the JSON of every command that reports accuracy)
@@ -140,8 +143,6 @@ def floor_mm(cov_mm2: np.ndarray) -> float:
 def locate_free(model) -> list[str]:
     """Where the robot stands and its tool point: what 'before calibration' may still fit -- the base, the tool
     point, the other targets' offsets from it and the other instrument set-ups (station offsets)."""
-    from .effects.station_offset import StationOffset
-    from .effects.target_offset import TargetOffset
     names = [n for n in model.kin.names if n.startswith(("base.", "tool."))]
     for e in model.effects:
         if isinstance(e, (TargetOffset, StationOffset)):
@@ -159,7 +160,6 @@ def before_after(model, obs, free: list[str], theta0: np.ndarray | None = None, 
     calibrated model fitted on every pose, where the fit on the fit poses starts (a start point only: it converges
     to the fit poses' own minimum).  Neither fit flags gross errors: flagging reports them and changes no fit.
     """
-    from .identify import identify
     identify_fn = identify_fn or identify
     fit, test = split if split is not None else holdout(obs.n)
     o_fit, o_test = obs.subset(fit), obs.subset(test)

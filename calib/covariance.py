@@ -18,6 +18,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .identifiability import Combination, small_factor
+
 #: singular value ratio (column-scaled Jacobian) below which a direction is reported as not determined
 UNDETERMINED_RTOL = 1e-7
 
@@ -32,8 +34,6 @@ class Covariance:
 
 def from_jacobian(J: np.ndarray, names: list[str], rtol: float = UNDETERMINED_RTOL) -> Covariance:
     """``(J^T J)^-1`` of a whitened Jacobian ``J (m, p)`` over the determined directions (see the module docstring)."""
-    from .identifiability import Combination, small_factor
-
     p = J.shape[1]
     if p == 0:
         return Covariance(np.zeros((0, 0)))

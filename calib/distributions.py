@@ -14,6 +14,7 @@ import numpy as np
 
 def chi2_isf(p, dof):
     """The chi-square value exceeded with probability ``p`` at ``dof`` degrees of freedom (``stats.chi2.isf``)."""
+    # scipy.special costs ~0.2 s at start-up (identify, diagnose and plan load this module)
     from scipy.special import chdtri
     return chdtri(dof, p)
 
@@ -25,12 +26,14 @@ def chi2_median(dof):
 
 def chi2_sf(x, dof):
     """P(chi-square at ``dof`` degrees of freedom > ``x``) (``stats.chi2.sf``; 1 for x <= 0)."""
+    # scipy.special: lazy for start-up, as in chi2_isf
     from scipy.special import chdtrc
     return chdtrc(dof, np.maximum(x, 0.0))
 
 
 def f_sf(x, dfn, dfd):
     """P(F(``dfn``, ``dfd``) > ``x``) (``stats.f.sf``; 1 for x <= 0, NaN for NaN)."""
+    # scipy.special: lazy for start-up, as in chi2_isf
     from scipy.special import fdtrc
     return fdtrc(dfn, dfd, np.maximum(x, 0.0))
 
@@ -66,6 +69,7 @@ def mann_whitney_p(x, y) -> float:
     """Two-sided p-value of the Mann-Whitney U test (``stats.mannwhitneyu(x, y).pvalue``, its default method: the
     exact distribution of U when a sample has at most 8 values and there are no ties, else the normal approximation with
     the tie and continuity corrections)."""
+    # scipy.special: lazy for start-up, as in chi2_isf
     from scipy.special import ndtr
     x, y = np.asarray(x, float).ravel(), np.asarray(y, float).ravel()
     n1, n2 = len(x), len(y)
@@ -103,6 +107,7 @@ def _u_sf(u: int, n1: int, n2: int) -> float:
 
 def hypergeom_sf(k: int, total: int, successes: int, draws: int) -> float:
     """P(X > k) for X hypergeometric (``stats.hypergeom.sf(k, total, successes, draws)``)."""
+    # scipy.special: lazy for start-up, as in chi2_isf
     from scipy.special import gammaln
 
     def lcomb(a, b):

@@ -17,12 +17,14 @@ import numpy as np
 
 from . import orientation as ori
 from .accuracy import error_stats
-from .angles import rigid_fit, wrap_angle
+from .angles import rigid_fit, rpy_from_matrix, wrap_angle
 from .errors import RobocalError
 from .heldout import HeldOut
 from .model import MeasurementModel
 from .posecsv import PoseTable
 from .angles import rpy_from_matrix
+from .effects.station_offset import StationOffset
+from .polar import PolarNoise, polar_points
 from .rows import context_of, point_covariance, predict_rows
 from .units import DEG
 from .targets import station_effects, station_index, with_targets
@@ -31,7 +33,6 @@ from .targets import station_effects, station_index, with_targets
 def with_polar_points(table: PoseTable, noise=None) -> PoseTable:
     """A table whose polar readings (hz_deg, v_deg, dist_mm) are turned into points with their covariance
     (:mod:`calib.polar`) when it has no x, y, z; the table itself otherwise."""
-    from .polar import PolarNoise, polar_points
     if table.points_mm is None and table.polar is not None:
         table.points_mm, table.cov_mm2 = polar_points(table.polar, noise or PolarNoise())
     return table
@@ -227,9 +228,6 @@ def station_names(table: PoseTable) -> list[str]:
 def station_start(model: MeasurementModel, table: PoseTable) -> np.ndarray:
     """Start parameters for several stations: each station's base by a rigid fit of the nominal chain to its rows;
     the first station's is the chain's base, the others' offsets are their differences from it."""
-    from .effects.station_offset import StationOffset
-    from .angles import rpy_from_matrix
-
     th = model.nominal.copy()
     th[:6] = 0.0
     ctx = context_of(model, table)

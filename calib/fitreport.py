@@ -16,6 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .distributions import chi2_median, chi2_sf
+from .identify import PointObservations, identify, pose_chi2
 from .noise import combine, given_sigma_mm, model_free
 from .rows import point_covariance
 
@@ -97,7 +98,6 @@ class Weights:
 
 
 def _rescaled(obs, factor: float):
-    from .identify import PointObservations
     return PointObservations(obs.q_rad, obs.points_mm, obs.cov_mm2 * factor ** 2, obs.sigma_mm * factor, obs.ctx)
 
 
@@ -105,7 +105,6 @@ def _robust_scale(obs, fit, warm: np.ndarray | None = None) -> tuple[float, np.n
     """The factor taking the points' relative weights to the scatter a plain fit of the full free set shows, on a
     robust scale (the median pose's chi-square: a few gross errors do not inflate it, so the outlier test that follows
     still sees them), and that fit's parameters.  ``warm``: where the fit starts (a fold: the whole set's fit)."""
-    from .identify import identify, pose_chi2
     idn = identify(fit.model, obs, free=fit.free, priors=fit.priors, theta0=fit.theta0, start=fit.start,
                    outliers="off", error_scale="residual", warm=warm)
     chi = pose_chi2(idn.problem, idn.theta, 3)          # the fit's last evaluation: its rows, priors apart

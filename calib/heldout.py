@@ -16,6 +16,7 @@ distance over its sigma has no such simple target; the convention is stated in t
 """
 from __future__ import annotations
 
+import inspect
 from dataclasses import dataclass
 
 import numpy as np
@@ -127,7 +128,6 @@ def crossval(model, obs, choose, k: int = 5, pose_id: list | None = None) -> Hel
 
 
 def _takes_test(choose) -> bool:
-    import inspect
     try:
         return len(inspect.signature(choose).parameters) >= 2
     except (TypeError, ValueError):

@@ -23,13 +23,16 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .angles import rigid_fit, wrap_angle
+from calib.effects.drivers import undriven
+
+from .angles import rigid_fit, rpy_from_matrix, wrap_angle
 from .effects import PoseContext
 from .errors import RobocalError
 from .identifiability import Identifiability, analyse
 from .model import MeasurementModel
 from .outliers import OutlierReport, check_mode, decide, pose_conditions
-from .angles import rpy_from_matrix
+from .covariance import correlation, from_jacobian, involved
+from .names import effect_label, prose
 from .theodolite import Station
 
 
@@ -150,13 +153,11 @@ class Identification:
 
     def correlation_matrix(self) -> np.ndarray:
         """Correlations of the estimated parameters (order of ``free``), within [-1, 1] (:mod:`calib.covariance`)."""
-        from .covariance import correlation
         idx = [self.names.index(n) for n in self.free]
         return correlation(self.cov[np.ix_(idx, idx)])
 
     def undetermined_names(self) -> set[str]:
         """Estimated parameters carrying a direction the data do not determine (their sigma means nothing)."""
-        from .covariance import involved
         return involved(self.undetermined)
 
     def correlations(self, threshold: float = 0.9) -> list[tuple[str, str, float]]:
@@ -318,8 +319,6 @@ def check_drivers(model: MeasurementModel, obs, where: str) -> None:
     be a column of zeros, held silently by the guard, or (a constant condition: one temperature) a constant the
     geometry absorbs, estimated from noise: one line instead, naming the effect and the condition that does not vary
     (the same words the diagnosis gives under "not tested": :func:`calib.effects.drivers.undriven`)."""
-    from calib.effects.drivers import undriven
-    from .names import effect_label, prose
     bodies = any(e.adds_bodies for e in model.effects)       # identified masses load what the description lacks
     for e in model.effects:
         why = None if bodies and e.driven_by == "load" else undriven(e, obs.q_rad, obs.ctx, model.robot)
@@ -492,6 +491,7 @@ def _gauss_newton(problem: _Problem, theta_full: np.ndarray, kidx: np.ndarray, m
     identifiable by construction (the guard held the rest), so from a start near the minimum (a warm start, the
     robust fit) the full steps converge and the trust region's SVD per step (a third of a 19-joint tree's fold
     fits) buys nothing."""
+    # scipy.linalg costs ~0.3 s at start-up (robocal plan loads this module and fits nothing)
     from scipy.linalg import solve_triangular
     th = theta_full.copy()
     r, J = problem.residuals(th)
@@ -563,7 +563,6 @@ def _uncertainty(model: MeasurementModel, prob: _Problem, theta: np.ndarray, kid
     ``error_scale="residual"``), reduced chi-square, unweighted RMS, undetermined directions
     (:func:`calib.covariance.from_jacobian`: column-scaled SVD, never ``pinv(J^T J)``).  ``covariance=False``:
     zeros and no directions (a cross-validation fold's fit, whose parameters only predict its held-out rows)."""
-    from .covariance import from_jacobian
     r, J = prob.residuals(theta, jac=covariance)
     dof = max(1, len(r) - len(kidx))
     red = float(r @ r / dof)

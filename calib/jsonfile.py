@@ -55,6 +55,7 @@ def json_path(parts) -> str:
 def _validator_class():
     """Draft 2020-12 with two more keywords, ``"finite": true`` and ``"notNaN": true`` (JSON Schema's ``number``
     lets NaN and Infinity through)."""
+    # jsonschema costs ~0.1-0.2 s at import; only a document being checked needs it
     import jsonschema
 
     def finite(validator, wanted, instance, schema):
@@ -100,6 +101,7 @@ def check_schema(doc: Any, schema: dict, src: str) -> Any:
     key = _memo_key(doc, schema)
     if key is not None and _VALID.get(key) is schema:
         return doc
+    # jsonschema: lazy, as in _validator_class (only reached when a document is checked)
     import jsonschema
     validator = _validator_class()(schema)
     error = jsonschema.exceptions.best_match(validator.iter_errors(doc))

@@ -41,6 +41,7 @@ import numpy as np
 from .angles import wrap_angle
 from .distributions import chi2_isf
 from .errors import GeometryError, RobocalError
+from .estimators.points import StationFit, locate_targets
 from .rows import point_covariance
 from .units import ARCSEC
 
@@ -313,8 +314,6 @@ def from_faces(s: Sightings | None, cov_mm2: np.ndarray | None = None) -> Sample
 
 def _reading_cov(s: Sightings, stations: dict) -> dict[int, np.ndarray]:
     """Pose index -> the reading part of its point's covariance, intersected with ``stations`` (their sigmas)."""
-    from .estimators.points import StationFit, locate_targets
-
     readings = [{**r, "target": f"{i}\x00{r['target']}"} for i, (rs, tg) in enumerate(zip(s.readings, s.target))
                 for r in rs if r["target"] == tg and r["station"] in stations]
     pts = locate_targets(readings, StationFit.exact(stations)) if readings else {}

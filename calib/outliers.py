@@ -20,6 +20,7 @@ import numpy as np
 
 from .distributions import chi2_isf, chi2_median
 from .errors import RobocalError
+from .names import joint_label
 
 OUTLIER_MODES = ("flag", "reject", "off")
 #: scipy least_squares losses offered for the final fit (linear: plain least squares)
@@ -112,7 +113,6 @@ def pose_conditions(q_rad: np.ndarray, ctx=None, labels: dict[str, list] | None 
                     robot=None) -> dict[str, np.ndarray]:
     """The conditions a systematic effect could follow: each joint (named as :mod:`calib.names` shows it), time
     (else the measurement order), payload, temperature, and any per-pose labels (station, target, procedure)."""
-    from .names import joint_label
     q = np.atleast_2d(q_rad)
     out: dict[str, np.ndarray] = {}
     for j in range(q.shape[1]):

@@ -17,6 +17,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .errors import RobocalError
 from .units import ARCSEC
 
 
@@ -31,7 +32,6 @@ class PolarNoise:
     @classmethod
     def from_text(cls, text: str) -> "PolarNoise":
         """``ANGLE_ARCSEC,DIST_MM[,PPM]`` as given on the command line."""
-        from .errors import RobocalError
         try:
             vals = [float(v) for v in text.split(",")]
         except ValueError:

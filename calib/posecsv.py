@@ -45,6 +45,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .approach import infer, time_column as find_time_column
 from .errors import RobocalError
 from .fileio import atomic_write_text
 from .textin import read_text
@@ -355,8 +356,6 @@ def _measurement_order(table: PoseTable, R: _Rows, cols, header_line, prismatic,
                        threshold) -> None:
     """The time column (``--time-column`` or a recognised name) as the rows' time, and the approach directions
     inferred from the measurement order when ``order`` asks for them (:func:`calib.approach.infer`)."""
-    from .approach import infer, time_column as find_time_column
-
     tcol = find_time_column(cols, time_column, R.src, header_line) if (order != "none" or time_column) else None
     if tcol is not None and tcol != "time":
         t = R.column(tcol)

@@ -21,6 +21,7 @@ _SHIPPED = {"default_robot": "puma560.toml", "default_scenario": "twin_default.t
 def robocal_version() -> str:
     """The installed robocal version ("0+unknown" when running from a source tree without package metadata)."""
     try:
+        # importlib.metadata costs ~30-60 ms at import; only a written record asks the version
         from importlib.metadata import version
         return version("robocal")
     except Exception:          # pragma: no cover - no metadata

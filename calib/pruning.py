@@ -131,6 +131,7 @@ def _inverse(A: np.ndarray) -> tuple[np.ndarray, int]:
     directions, and their number.  Positive definite (the usual case: the full fit's parameters are determined): by
     its Cholesky factor, a tenth of the eigendecomposition's cost on the hundreds of refits an elimination makes;
     otherwise the pseudo-inverse over eigenvalues above 1e-20 of the largest."""
+    # scipy.linalg costs ~0.3 s; diagnose loads this module before it reads its data (a bad file is refused sooner)
     from scipy.linalg import lapack
     if A.size:
         c, info = lapack.dpotrf(A, lower=False)

@@ -29,11 +29,13 @@ from typing import Callable
 
 import numpy as np
 
-from .accuracy import locate_free
+from .accuracy import locate_free, make_folds
+from .covariance import from_jacobian
 from .errors import RobocalError
 from .identify import Identification, PointObservations, _Problem, identify
 from .model import MeasurementModel
-from .pruning import SIGNIFICANT        # |estimate - design| / sigma below which a parameter is held
+from .names import edge_name
+from .pruning import SIGNIFICANT, linearise        # |estimate - design| / sigma below which a parameter is held
 
 #: inner prediction errors within this share of the lowest are a tie, won by the model with fewer parameters
 TIE = 0.02
@@ -126,7 +128,6 @@ class Selection:
 
 def _edge(name: str, robot=None) -> tuple[str, float]:
     """A parameter's printed name (joint name, ``_deg`` for an angle) and the factor from internal units."""
-    from .names import edge_name
     return edge_name(name, robot), (np.pi / 180.0 if name.endswith("_rad") else 1.0)
 
 
@@ -280,9 +281,6 @@ def _significant(fitter: _Fitter, full: Identification, location: set[str],
     """The significant set (backward elimination, :mod:`calib.pruning`) fitted, the held parameters with their
     (estimate, sigma) where they were last free, and the elimination's honest inner prediction error: the procedure
     repeated without each left-out pose (leave-one-out up to :data:`LOO_POSES` poses, else 10-fold)."""
-    from .accuracy import make_folds
-    from .pruning import linearise
-
     model, obs = fitter.model, fitter.obs
     pri = {n: v for n, v in fitter.priors.items() if n in full.free}
     lin = linearise(problem_at(model, obs, full, pri), full,
@@ -374,7 +372,6 @@ def _spread_gain(fitter: _Fitter, full: Identification) -> dict[str, str]:
         o = obs.subset(np.arange(obs.n))
         o.q_rad = q
         J = _Problem(model, o, full.theta[: model.P], pri).residuals(full.theta)[1][:, kidx]
-        from .covariance import from_jacobian
         return np.sqrt(np.clip(np.diag(from_jacobian(J, list(full.free)).matrix), 0.0, None))
 
     base = sigmas(obs.q_rad)

@@ -18,6 +18,7 @@ instruments' minimum focus distance, 500 < R, L < 3000 mm, 100 < R_j < 1200 mm.
 """
 from __future__ import annotations
 
+import json
 from dataclasses import dataclass, field
 from typing import Callable
 
@@ -25,7 +26,7 @@ import numpy as np
 
 from .errors import GeometryError, RobocalError
 from .estimators import axes, ruler, transmission
-from .theodolite import intersect, thesis_point, thesis_stations
+from .theodolite import intersect, thesis_point, thesis_readings, thesis_stations
 from .units import ARCSEC, DEG
 
 
@@ -59,7 +60,6 @@ def ruler_errors(L_mm: float, R_mm: float, r1_mm: float, X1_mm: float, Y1_mm: fl
     # what it costs at the robot: d(point)/d(L, g1, g2) of eq 4.3.1 at the joint centre
     a, b = thesis_stations(L_mm, gamma1_rad, gamma2_rad)
     p = np.array([[robot_xy_mm[0], robot_xy_mm[1], 0.0]])
-    from .theodolite import thesis_readings
     al, be, ph = thesis_readings(a, b, p)
     base = np.array([L_mm, gamma1_rad, gamma2_rad])
     Jp = np.empty((3, 3))
@@ -310,7 +310,6 @@ INTO_SETUP: dict[str, Callable[[dict, dict], None]] = {"ruler": _ruler_into, "sw
 
 def into_setup(plans: list[SetupPlan], setup: dict) -> dict:
     """A copy of the session ``setup`` with the designed variables of ``plans`` written in."""
-    import json
     out = json.loads(json.dumps(setup))
     for p in plans:
         INTO_SETUP[p.procedure](p.variables, out)

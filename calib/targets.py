@@ -12,6 +12,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .effects.base import PoseContext
+from .effects.station_offset import StationOffset
 from .effects.target_offset import TargetOffset
 
 
@@ -86,7 +87,6 @@ def station_index(station: list[str] | None, n: int, names: list[str] | None = N
 
 def station_effects(names: list[str]) -> list:
     """One base-offset effect per station after the first (fitted jointly with the chain)."""
-    from .effects.station_offset import StationOffset
     return [StationOffset(k) for k in range(1, len(names))]
 
 

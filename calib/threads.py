@@ -74,6 +74,7 @@ def limit(n: int | None) -> AbstractContextManager:
     if n is None or "numpy" not in sys.modules:
         return nullcontext()
     try:
+        # optional (a speed-up only), and needed only once numpy is loaded: not on every start-up
         from threadpoolctl import threadpool_limits
         import scipy.linalg  # noqa: F401  (scipy's own BLAS, loaded now so that the limit covers it)
     except ImportError:                         # a speed-up only

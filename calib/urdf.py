@@ -115,7 +115,7 @@ def read_urdf(path: str | Path) -> UrdfTree:
     scipy) or warn on every vendor tag, and cost a command over a second of start-up; the elements calibration reads
     -- links, inertial mass and centre, joints with origin, axis, limits, mimic -- are few and fixed by the URDF
     specification, and lxml gives each its source line for the error messages."""
-    from lxml import etree
+    from lxml import etree      # ~20 ms at start-up (robocal fk loads this module): only a URDF file needs it
 
     path = Path(path)
     src = str(path)

@@ -33,6 +33,9 @@ from pathlib import Path
 
 import numpy as np
 
+from acq.session.imported import imported_conditions, imported_labels, imported_point, pose_steps
+from acq.session.setup import setup_robot, setup_stations, standard_setup, station_names
+from acq.session.setup_file import read_setup, setup_from_text
 from calib.errors import RobocalError
 from calib.fileio import atomic_write_text
 from calib.textin import read_text
@@ -42,6 +45,10 @@ from offline.reduction.session import load_session
 
 from acq.session.setup_types import BenchSetup, mark_index, setup_of
 from acq.session.store import SessionStore, StepRecord, connect_readonly, json_column
+from calib.estimators.points import StationFit, locate_targets
+from calib.posecsv import csv_fields, raw_rows, read_pose_csv, write_pose_csv
+from offline.reduction.joints import reading_q
+from offline.reduction.stages.ruler import fitted_stations
 
 READING_COLUMNS = ["step", "procedure", "station", "target", "face", "hz_deg", "v_deg", "q1_deg", "q2_deg", "q3_deg",
                    "q4_deg", "q5_deg", "q6_deg", "raw_hex"]
@@ -85,7 +92,6 @@ def export_json(db: str, out: str) -> None:
 
 def stored_plan_setup(db: str) -> tuple[dict, dict]:
     """The plan and set-up a session database was created with (read-only: nothing is touched)."""
-    from acq.session.setup_file import setup_from_text
     conn = connect_readonly(db)
     try:
         row = conn.execute("SELECT plan_json, setup_json FROM session ORDER BY session_id LIMIT 1").fetchone()
@@ -98,7 +104,6 @@ def stored_plan_setup(db: str) -> tuple[dict, dict]:
 
 def session_robot(db: str):
     """The robot a session database was recorded with: its set-up's ``robot`` and chain cut."""
-    from acq.session.setup import setup_robot
     return setup_robot(BenchSetup.of(stored_plan_setup(db)[1]))        # checked as it was read
 
 
@@ -108,13 +113,6 @@ def pose_arrays(db: str) -> dict:
     imported pose CSV also the conditions, split, station and pose labels its rows carried; the raw readings behind
     each intersected point (``readings``, the target they sight ``readings_target``) and the ``stations`` they were
     intersected with (the both-faces noise estimate)."""
-    from calib.estimators.points import StationFit, locate_targets
-
-    from acq.session.imported import imported_conditions, imported_labels, imported_point
-    from offline.reduction.joints import reading_q
-    from offline.reduction.stages.ruler import fitted_stations
-
-    from acq.session.setup import setup_robot, setup_stations
     d = load_session(db)
     robot = setup_robot(d.setup)
     ruler = [s for s in d.steps if s["procedure"] == "ruler"]
@@ -155,8 +153,6 @@ def pose_arrays(db: str) -> dict:
 
 def export_poses_csv(db: str, out: str) -> int:
     """Pose-set steps as a pose CSV: encoder joint readings and the intersected tool-target positions."""
-    from calib.posecsv import write_pose_csv
-
     a = pose_arrays(db)
     sig = np.sqrt(np.diagonal(a["cov_mm2"], axis1=1, axis2=2))
     extra = {f"sigma_{c}_mm": sig[:, i] for i, c in enumerate("xyz")}
@@ -195,7 +191,6 @@ def import_file(path: str, db: str, setup_json: str | None = None, resume: bool 
     Nothing half-made: the whole input is read and checked first, the database is built in ``DB.importing`` and
     renamed to ``db`` only when every step is in.  An interrupted import leaves ``DB.importing``; ``resume`` continues
     it (steps already in are kept), a new import without ``resume`` starts it afresh."""
-    from acq.session.setup_file import read_setup
     if Path(db).exists():
         raise RobocalError(f"{db}: exists already: import writes a new session database (choose another --db)")
     kind = _detect(path)
@@ -240,16 +235,11 @@ def import_file(path: str, db: str, setup_json: str | None = None, resume: bool 
 
 
 def _default_setup() -> dict:
-    from acq.session.setup import standard_setup
     return standard_setup()
 
 
 def _pose_steps(path: str, setup: BenchSetup) -> list[StepRecord]:
     """Every row of a pose CSV as a ``poses`` step, each measured column kept (:mod:`acq.session.imported`)."""
-    from calib.posecsv import raw_rows, read_pose_csv
-
-    from acq.session.imported import pose_steps
-    from acq.session.setup import setup_robot
     # a set-up naming a description reads the file as identify does with it (joint names, conventions, tool points)
     robot = setup_robot(setup)
     with warnings.catch_warnings(record=True) as caught:
@@ -287,9 +277,6 @@ def _finite(text: str, what: str) -> float:
 def _reading_steps(path: str, setup: BenchSetup | None = None) -> list[StepRecord]:
     """The readings of a raw-readings CSV grouped into steps; ``station`` must name one of the set-up's stations
     (default set-up: A and B)."""
-    from calib.posecsv import csv_fields
-
-    from acq.session.setup import station_names
     stations = station_names(setup or setup_of(_default_setup()))
     steps: dict[str, dict] = {}
     lines = [(n, ln) for n, ln in enumerate(read_text(path).splitlines(), 1) if not ln.startswith("#")]

@@ -20,6 +20,8 @@ from calib.effects import PoseContext
 from calib.errors import RobocalError
 
 from acq.session.steps import Step
+from offline.reduction.run import reduce_for
+from offline.reduction.session import load_session
 
 #: the compensated command must put the calibrated model's target this close to the cube point (mm)
 COMMAND_TOL_MM = 0.01
@@ -59,8 +61,6 @@ class CompensatedCommands:
 
     def _identified(self) -> IdentifiedModel:
         """The model the calibration core identifies from the session's pose set as recorded so far."""
-        from offline.reduction.run import reduce_for
-        from offline.reduction.session import load_session
         if self.store is None:
             raise RobocalError("iso9283: no calibrated model: the session has no store to identify one from")
         ctx = reduce_for(load_session(str(self.store.path)), "identified")
@@ -98,8 +98,6 @@ def iso_after_compensated_run(res: dict, db: str) -> None:
     """``res`` (a reduction's results, before the compensated run was recorded) with the ISO 9283 figures of both runs
     and the step counts as the database now holds them: the ruler's stations and the ISO 9283 stage reduced again
     (:func:`offline.reduction.run.reduce_for`), nothing else -- the other stages' steps did not change."""
-    from offline.reduction.run import reduce_for
-    from offline.reduction.session import load_session
     data = load_session(db, ("ruler", "iso9283"))
     ctx = reduce_for(data, "iso9283")
     res["iso9283"] = ctx.outputs.get("iso9283")

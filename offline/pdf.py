@@ -62,6 +62,7 @@ def _chromium(exe: str) -> Renderer:
 
 def _weasyprint() -> Renderer:
     def render(html: Path, pdf: Path) -> None:
+        # optional renderer, not a dependency: imported only when it is the one chosen
         import weasyprint
         weasyprint.HTML(filename=str(html)).write_pdf(str(pdf))
     return Renderer("WeasyPrint", render)

@@ -19,15 +19,18 @@ from typing import Callable
 
 import numpy as np
 
+from acq.session.records import session_record
 from calib.fileio import atomic_write_text
 from calib.kinds import describe
 from calib.units import DEG
 
 from offline.iso_report import iso_html
 from offline.numbers import legend, below_floor_sentence, same_floor, value_pm, when
+from offline.pdf import html_to_pdf
 from offline.sections import DETERMINED, HELD, NEGLIGIBLE, SECTIONS, UNDETERMINED, WEAK, Section, beside_the_thesis, \
     bound_text, needs_action, section_bounds, section_estimates, section_problems, section_verdict, shown, shows, \
     thesis_rows
+from offline.summary import finding_flags
 
 STYLE = """
 body { font-family: system-ui, -apple-system, "Segoe UI", sans-serif; max-width: 60rem; margin: 1.5rem auto;
@@ -64,9 +67,10 @@ def figure(key: str):
 
 
 def _plt():
+    # matplotlib costs ~0.5-1 s at import; only the report's figures need it
     import matplotlib
     matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    import matplotlib.pyplot as plt  # after the backend is chosen
     return plt
 
 
@@ -455,7 +459,6 @@ def _diagnosis_html(diag: dict | None, acc: dict | None = None) -> str:
     same = same_floor(acc, diag)
     floor = "the instrument floor stated above" if same else \
         f"an instrument floor of {diag['noise_floor_mm']:.3f} mm"
-    from offline.summary import finding_flags
     rows = "".join(
         f"<tr><td class='name'>{html.escape(f['label'])}</td><td>{f['rms_after_mm']:.3f}</td>"
         f"<td>{f.get('p_value', float('nan')):.2g}</td><td>{100 * (f.get('excess_share') or 0):.0f} %</td>"
@@ -551,7 +554,6 @@ def report_html(res: dict, tolerance_mm: float | None = None, record=None) -> st
 def write_report(result: dict, out_dir: str | Path, tolerance_mm: float | None = None, pdf: bool = False) -> Path:
     """Write ``report.html``, ``results.json`` and ``robot.json`` (identified description) into ``out_dir``; with
     ``pdf`` also ``report.pdf``: the same HTML printed (:mod:`offline.pdf`), so both are one document."""
-    from acq.session.records import session_record
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     record = None
@@ -567,6 +569,5 @@ def write_report(result: dict, out_dir: str | Path, tolerance_mm: float | None =
     if result.get("robot"):
         atomic_write_text(out / "robot.json", json.dumps(result["robot"], indent=1))
     if pdf:
-        from offline.pdf import html_to_pdf
         html_to_pdf(path, out / "report.pdf")
     return path

@@ -22,8 +22,11 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from calib.diagnose.data import from_arrays
+from calib.diagnose.engine import diagnose
 from sim.independent import Spec, generate
 from calib.diagnose.parallel import map_cases
+from calib.loading import load_robot
 
 FAMILIES = ("single", "two", "near_floor", "outside", "heavy_tails", "poses", "wrong_noise", "clean")
 SIGMA_MM = 0.05
@@ -124,11 +127,6 @@ def judge(expected: set, findings: list[tuple[tuple, bool]]) -> str:
 
 
 def run_family_case(case: FamilyCase) -> FamilyResult:
-    from calib.loading import load_robot
-
-    from calib.diagnose.data import from_arrays
-    from calib.diagnose.engine import diagnose
-
     t = time.perf_counter()
     _, _, specs, expected, opt = case.spec
     robot = load_robot()

@@ -21,6 +21,7 @@ from pathlib import Path
 import numpy as np
 
 from calib.effects import EFFECTS, Effect, PoseContext, effect_from_table
+from calib.kinematics import Kinematics
 from calib.model import MeasurementModel
 from calib.robot import Robot
 from calib.loading import load_robot
@@ -122,8 +123,6 @@ def _scenario(chk: Checker, data: dict) -> Scenario:
 def _true_geometry(chk: Checker, top: dict, robot: Robot, rng: np.random.Generator) -> np.ndarray:
     """The true geometric parameter vector: seeded random deviations first, explicit values override them, then the
     base and the tool."""
-    from calib.kinematics import Kinematics
-
     kin = Kinematics(robot)
     truth = kin.nominal.copy()
     geo = chk.table(top["geometry"], GEOMETRY, "geometry")

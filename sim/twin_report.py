@@ -11,6 +11,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from calib.model import MeasurementModel
+from calib.posecsv import write_pose_csv
 from calib.theodolite import intersect
 from sim.twin import Twin
 from calib.units import DEG
@@ -61,7 +62,6 @@ def summarise(twin: Twin, n_poses: int = 200, export: str | None = None) -> dict
                                       for i in range(k)])
     err = inter.point_mm - meas.point_true_mm
     if export:
-        from calib.posecsv import write_pose_csv
         extra = {f"dir{j + 1}": ctx.direction[:, j] for j in range(robot.n)}
         extra.update({f"sigma_{c}_mm": inter.sigma_mm[:, i] for i, c in enumerate("xyz")})
         write_pose_csv(export, meas.q_read_rad, inter.point_mm, extra)

@@ -28,6 +28,7 @@ from sim.twin import Twin, load_scenario
 
 from calib.diagnose.candidates import EFFECT_NAMES
 from calib.diagnose.data import DiagnosisData, from_arrays
+from calib.diagnose.engine import diagnose
 from calib.diagnose.parallel import map_cases
 
 #: (kind, joint, source) of the withheld effects: the thesis's wrist joints and the big arm joints
@@ -156,8 +157,6 @@ def _floor(tw: Twin, q_read, ctx) -> float:
 
 
 def run_case(case: Case) -> CaseResult:
-    from calib.diagnose.engine import diagnose
-
     t = time.perf_counter()
     data, desc = make_case_data(case)
     diag = diagnose(data, level="full", flag_outliers=False, nested=False)

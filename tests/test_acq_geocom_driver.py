@@ -162,14 +162,17 @@ def test_silent_device_times_out_with_a_clear_error(rig):
     t0 = time.monotonic()
     with pytest.raises(DeviceTimeout) as ei:
         drv.request(2107, ["1"], timeout_s=0.2)
-    assert time.monotonic() - t0 < 2.0
+    # the driver's deadline is a real serial timeout on the host clock (a real port has no other), so this one bound
+    # stays on the wall clock: it only tells a give-up (2 x 0.2 s) from a hang, hence generous for a loaded machine
+    assert time.monotonic() - t0 < 30.0
+    assert sum(1 for sent in faulty.swallowed if sent.startswith(b"%R1Q,2107")) == 2      # both attempts, no more
     msg = str(ei.value)
     assert "theodolite A" in msg and "TMC_GetAngle5" in msg and "no reply" in msg and "2 attempts" in msg
 
 
 def test_dropped_reply_is_retried_and_stale_reply_discarded(rig):
     drv, _, faulty, _ = rig
-    faulty.delay_next_reply(0.35)             # first reply arrives after the first attempt gave up
+    faulty.hold_next_reply()                  # the first reply arrives with the second request: after the give-up
     r = drv.request(2107, ["1"], timeout_s=0.2, attempts=3)
     assert len(r.values) == 2 and drv.retries == 1 and drv.stale_replies == 1
 
@@ -234,8 +237,9 @@ def test_unplug_mid_frame_then_reconnect(rig):
 
 
 def test_latency_within_timeout_is_fine(rig):
-    drv, _, faulty, _ = rig
+    drv, dev, faulty, _ = rig
     faulty.latency_s = 0.05
     t0 = time.monotonic()
-    drv.angles()
-    assert 0.05 <= time.monotonic() - t0 < 1.0
+    r = drv.angles()
+    assert time.monotonic() - t0 >= 0.05      # the latency was applied (a lower bound: no load can break it)
+    assert drv.retries == 0 and drv.stale_replies == 0 and abs(r.hz_rad - dev.world.true_sight("A", 1)[0]) < 1e-12

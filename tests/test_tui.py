@@ -225,37 +225,35 @@ def test_real_terminal_under_tmux(tmp_path):
 
 
 def test_interface_stays_responsive_under_a_flood_and_keeps_every_record():
-    """A bus at its limit (8 kHz live updates) and 200 readings per step: prompts and records all arrive, keys work."""
+    """A bus at its limit (8 kHz live updates) and 200 readings per step: prompts and records all arrive, keys work.
+    The k-th question waits for k x 300 tap updates (an event count, not a time), so the flood runs while the keys
+    are pressed on any machine; how fast a key is answered is measured in ``benchmarks/bench_tui_keys.py``."""
     from app.tui.app import SessionHandle
     from tests.fakes.fake_runner import FakeRunner
 
     holder = {}
 
     def build(operator):
-        r = FakeRunner(operator, n_steps=5, readings_per_step=200, rate_hz=8000.0)
+        r = FakeRunner(operator, n_steps=5, readings_per_step=200, rate_hz=8000.0, updates_per_step=300)
         holder["runner"] = r
         return SessionHandle(r, lambda: None, "flood", "", identities=[])
 
     async def main():
         app = RobocalApp(build, clock=False)
         async with app.run_test(size=(160, 45)) as pilot:
-            waits = []
             t0 = time.monotonic()
-            while app.finished is None and time.monotonic() - t0 < 30:
+            while app.finished is None and time.monotonic() - t0 < 120:      # a guard against a hang, not a bound
                 await pilot.pause(0.05)
                 if app.pending is not None and not app.pending.future.done():
-                    t1 = time.monotonic()
                     await pilot.press("a")
-                    waits.append(time.monotonic() - t1)
             runner = holder["runner"]
             assert app.finished == {"exit_status": "success", "error": None}
             assert runner.asked == 5
             assert sum(len(d.readings) for d in app.data.values()) == 5 * 200      # no record dropped
             assert sum(d.status == "accepted" for d in app.data.values()) == 5
-            assert runner.rig.tap.updates > 1000                                   # the flood really ran
+            assert runner.rig.tap.updates >= 5 * 300                               # the flood really ran
             live = str(app.query_one("#live").render())
             assert "counts" in live                                                # coalesced latest value shown
-            assert max(waits) < 5.0
             await pilot.press("q")
 
     run(main())

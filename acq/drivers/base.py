@@ -9,6 +9,8 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Protocol, runtime_checkable
 
+from ..errors import DeviceError
+
 if TYPE_CHECKING:
     from ..link import SerialLink
 
@@ -69,8 +71,6 @@ class SerialInstrument:
 
     @classmethod
     def _open_on(cls, link, handshake: bool, **options):
-        from ..errors import DeviceError
-
         dev = cls(link, **options)
         if handshake:
             try:

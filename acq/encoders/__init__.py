@@ -20,11 +20,13 @@ from .sample import EncoderSample, JointConverter, TapStats
 
 
 def _can(**kw):
+    # python-can and cantools cost ~0.3 s at import; only a CAN tap needs them
     from .can_tap import open_can_tap
     return open_can_tap(kw.pop("interface"), kw.pop("channel"), **kw)
 
 
 def _serial(**kw):
+    # a transport loads only when its tap opens (pyserial and acq.link here), as CAN's does
     from .serial_tap import open_serial_tap
     return open_serial_tap(kw.pop("url"), **kw)
 

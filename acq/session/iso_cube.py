@@ -23,8 +23,10 @@ from calib.iso9283 import CYCLES, cube_points
 from calib.model import MeasurementModel
 
 from .preflight import PREFLIGHT_LIMITS, Preflight, arm_reach_mm
+from .procedures import tool_target
 from .setup import nominal_theta, reference_pose_deg
 from .setup_types import BenchSetup, IsoSetup
+from .steps import Step
 
 #: cube sides tried, as fractions of the arm's reach (largest first)
 SIDE_FRACTIONS = (0.4, 0.3, 0.25, 0.2, 0.15, 0.1, 0.05)
@@ -128,8 +130,6 @@ class _Cube:
 
     def _in_sight(self, r: np.ndarray) -> bool:
         """The pre-flight passes the cube's measurement steps (the arm clear of the sight lines, in range)."""
-        from .procedures import tool_target
-        from .steps import Step
         target = tool_target(self.setup)
         steps = [Step(f"iso9283/P{i + 1}", "iso9283", "", "", pose_deg=tuple(ri / self.robot.reading_edge_scale),
                       targets=(target,)) for i, ri in enumerate(r)]

@@ -18,6 +18,7 @@ from calib.profile import RobotProfile, profile_of
 from calib.robot import Robot
 from calib.loading import load_robot
 
+from .iso_cube import iso_plan
 from .preflight import Preflight
 from .procedures import transmission
 from .setup_types import BenchSetup, setup_of
@@ -108,7 +109,6 @@ def add_iso9283(plan: dict, robot: Robot, setup: BenchSetup, preset: dict, seed:
     compensated commands come from the model it identifies) or a calibrated model file (``model_path``), the
     uncompensated one alone otherwise.  A robot with
     no cube in sight of the stations gets none, unless the set-up asks for it (then the reason is the error)."""
-    from .iso_cube import iso_plan
     if preset.get("iso9283") is None and setup.iso9283 is None:
         return
     runs = ("off", "on") if "poses" in plan["procedures"] or model_path else ("off",)

@@ -33,6 +33,7 @@ from typing import Callable
 import numpy as np
 
 from calib.model import MeasurementModel
+from calib.names import joint_label
 from calib.units import DEG
 
 from .setup import nominal_theta, setup_stations
@@ -196,7 +197,6 @@ def _joint_limits(pf: Preflight, geo: StepGeometry) -> list[Finding]:
     q = geo.step.pose_deg
     if q is None:
         return []
-    from calib.names import joint_label
     r = pf.robot
     margin = pf.limits["joint_margin_deg"]
     out = []

@@ -14,6 +14,8 @@ from dataclasses import replace
 import numpy as np
 
 from calib.errors import RobocalError
+from calib.estimators.points import StationFit
+from calib.estimators.ruler import RulerSightings, ruler_lsq
 from calib.theodolite import Station, thesis_stations
 from calib.units import ARCSEC
 
@@ -52,7 +54,6 @@ def fit_ruler(rows: np.ndarray, setup: BenchSetup):
 
 
 def _fit_ruler(rows: np.ndarray, setup: BenchSetup):
-    from calib.estimators.ruler import RulerSightings, ruler_lsq
     if len(rows) == 0:
         raise RobocalError("ruler: no sightings")
     sigma = setup.stations.sigma_arcsec * ARCSEC
@@ -69,7 +70,6 @@ def _fit_ruler(rows: np.ndarray, setup: BenchSetup):
 def ruler_station_fit(res, stations: dict[str, Station]):
     """The fitted stations with the covariance of L, gamma1, gamma2 and B's height from the ruler fit
     (:class:`calib.estimators.points.StationFit`), so every point carries the stations' uncertainty."""
-    from calib.estimators.points import StationFit
     names = ["L_mm", "gamma1_rad", "gamma2_rad", "hB_mm"]
     keys = list(stations)                           # the set-up's names, the first at the origin
     sigma = stations[keys[0]].sigma_hz_rad

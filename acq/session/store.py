@@ -30,6 +30,8 @@ from typing import Callable, Iterator
 import numpy as np
 
 from calib.errors import RobocalError
+from calib.jsonfile import parse_json
+from calib.provenance import robocal_version
 
 APPLICATION_ID = 0x52424331          # "RBC1"
 SCHEMA_VERSION = 2
@@ -176,7 +178,6 @@ class StoreError(RobocalError):
 
 def code_version() -> str:
     """The robocal version stored with sessions and results (one definition: :mod:`calib.provenance`)."""
-    from calib.provenance import robocal_version
     return robocal_version()
 
 
@@ -201,7 +202,6 @@ def from_npy(b: bytes, where: str = "array blob") -> np.ndarray:
 
 def json_column(text, where: str):
     """A JSON object column (plan, set-up, metadata, step spec); damaged JSON is one line naming ``where``."""
-    from calib.jsonfile import parse_json
     if not isinstance(text, str):
         raise StoreError(f"{where}: damaged: not JSON text")
     doc = parse_json(text, where)

@@ -18,6 +18,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from calib.effects.drivers import MIN_RANGE_RAD, undriven
+from calib.model import MeasurementModel
 from calib.units import DEG
 
 from .candidate import Candidate
@@ -140,7 +141,6 @@ def _bending_axes(data: DiagnosisData, joints: list[int]) -> list[tuple[int, tup
     zeros."""
     if not joints:
         return []
-    from calib.model import MeasurementModel
     robot = data.robot
     model = MeasurementModel(robot)
     fp = model.kin.forward(data.q_rad)

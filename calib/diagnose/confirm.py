@@ -20,8 +20,11 @@ import numpy as np
 
 from calib.errors import RobocalError
 from calib.identify import identify
+from calib.targets import TargetContext, target_index
+from calib.threads import limit
 
 from .data import DiagnosisData
+from .export import exported_model
 from .gap import CVResult, geometric_free, noise_floor_mm, rms_mm
 from .findings import MATERIAL_SHARE
 
@@ -127,7 +130,6 @@ def _targets_of(data: DiagnosisData, other: DiagnosisData) -> DiagnosisData:
     names = other.labels.get("target")
     if names is None:
         return other
-    from calib.targets import TargetContext, target_index
     known = list(dict.fromkeys(data.labels.get("target", [])))
     missing = sorted(set(names) - set(known))
     if missing:
@@ -232,15 +234,11 @@ def confirm(diag, other: DiagnosisData, keep: list[int] | None = None) -> Confir
 def confirm_all(diag, others: list[DiagnosisData]) -> Confirmations:
     """:func:`confirm` on every OTHER session, in order; then the exported model (the findings confirmed on at
     least one session, :func:`calib.diagnose.export.exported_model`) and its RMS on each session."""
-    from calib.threads import limit
-
     with limit(1):              # small matrices: BLAS threads cost more than they give (as in the diagnosis)
         return _confirm_all(diag, others)
 
 
 def _confirm_all(diag, others: list[DiagnosisData]) -> Confirmations:
-    from .export import exported_model
-
     out = Confirmations([confirm(diag, o) for o in others])
     out.exported = exported_model(diag, [f["confirmed"] for f in out.findings()])
     m = out.exported.model

@@ -11,6 +11,7 @@ rest with a note instead of fitting a column of zeros.
 """
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -19,9 +20,13 @@ import numpy as np
 from calib.effects import PoseContext
 from calib.errors import RobocalError
 from calib.identify import PointObservations, whitening
+from calib.loading import load_robot
 from calib.model import MeasurementModel
 from calib.noise import Sightings
+from calib.orientation import dropped_note
+from calib.posecsv import read_pose_csv
 from calib.robot import Robot
+from calib.targets import TargetContext, target_index, with_targets
 
 SQLITE_MAGIC = b"SQLite format 3\x00"
 
@@ -150,8 +155,6 @@ def from_arrays(robot: Robot, q_rad, points_mm, cov_mm2=None, noise_mm: float | 
 def _targets(robot: Robot, target: list[str], n: int, source: str, conditions: dict):
     """The robot with a tool point per target (reference first), the other targets' offset effects and the pose
     context that says which tool point each row measures."""
-    from calib.targets import TargetContext, target_index, with_targets
-
     if len(target) != n:
         raise RobocalError(f"{source}: {n} rows but {len(target)} target labels")
     unknown = sorted(set(target) - set(robot.tool_points_mm))
@@ -202,9 +205,6 @@ def load_data(path: str | Path, robot: Robot | None = None, noise_mm: float | No
     through the session layer as arrays: :func:`from_session_arrays`.)  ``order``, ``time_column``,
     ``direction_threshold``: approach directions from the measurement order (:mod:`calib.approach`); how they were
     inferred is a note of the data."""
-    from calib.posecsv import read_pose_csv
-    from calib.loading import load_robot
-
     path = Path(path)
     if not path.exists():
         raise RobocalError(f"{path}: file not found")
@@ -212,7 +212,6 @@ def load_data(path: str | Path, robot: Robot | None = None, noise_mm: float | No
         raise RobocalError(f"{path}: a session database reaches the diagnosis through the session layer "
                            f"(robocal diagnose reads it); load_data reads pose CSVs")
     robot = robot or load_robot()
-    import warnings
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         table = read_pose_csv(path, robot.n, robot.prismatic, robot=robot, angle_unit=angle_unit,
@@ -233,7 +232,6 @@ def load_data(path: str | Path, robot: Robot | None = None, noise_mm: float | No
     d.ignored_columns = [str(c) for c in getattr(table, "ignored_columns", None) or ()]
     d.notes += [str(w.message) for w in caught]
     if table.orientation_rad is not None:
-        from calib.orientation import dropped_note
         d.notes.append(dropped_note(path))
     if table.direction_note:
         d.notes.append(table.direction_note)

@@ -11,15 +11,19 @@ from typing import Callable
 import numpy as np
 
 from calib.errors import RobocalError
+from calib.fitreport import chi2_words
 from calib.identify import outlier_report
 from calib.model import MeasurementModel
 from calib.outliers import OutlierReport, check_mode
+from calib.threads import limit
 
 from .breakdown import Factor, breakdown
 from .candidates import EFFECT_NAMES, TE_ORDERS, build_library
 from . import noise
 from .data import DiagnosisData
 from .gap import CVResult, auto_level, cv_fit, data_folds, geometric_free, heldout_floor_mm, noise_floor_mm
+from .ladder import build
+from .nested import NESTED_MAX_POSES, n_poses, nested_heldout
 from .select import MATERIAL_SHARE, Selection, forward_select, leftover_structure
 from .standins import resolve as resolve_standins
 
@@ -149,7 +153,6 @@ class Diagnosis:
     def chi2_words(self) -> str:
         """The final fit's reduced chi-square in words when far from 1, with its likely cause
         (:func:`calib.fitreport.chi2_words`)."""
-        from calib.fitreport import chi2_words
         return chi2_words(self.selection.final.all_fit, True, self.noise)
 
     def warning(self) -> str:
@@ -211,7 +214,6 @@ def diagnose(data: DiagnosisData, level: str = "auto", n_folds: int | None = Non
     """
     import numpy  # noqa: F401  (loaded, so that the cap applies now)
 
-    from calib.threads import limit
     with limit(1):
         return _diagnose(data, level, n_folds, alpha, max_effects, kinds, te_orders, flag_outliers, progress,
                          outliers, loss, nested)
@@ -269,8 +271,6 @@ def _diagnose(data, level, n_folds, alpha, max_effects, kinds, te_orders, flag_o
     ch = _choices(data, model, level, n_folds, alpha, max_effects, kinds, te_orders, mode, loss, rows, prog)
     data, folds, level, geo, sel, judged = ch.data, ch.folds, ch.level, ch.geo, ch.sel, ch.judged
     prog("ladder", 0.95)
-    from .ladder import build
-    from .nested import NESTED_MAX_POSES, nested_heldout, n_poses
     inner = "leave-one-out" if len(folds) == data.n else f"{len(folds)}-fold"
     nested = nest is True and test is None and n_poses(every) <= NESTED_MAX_POSES
     protocol = (f"the data's own split: test rows scored once at the end, every choice on the fit rows ({inner} "

@@ -31,7 +31,7 @@ from calib.model import MeasurementModel
 
 from .data import DiagnosisData
 
-from calib.accuracy import grouped_folds, make_folds
+from calib.accuracy import floor_mm, grouped_folds, make_folds
 
 #: the diagnosis's folds unless told (see the module docstring: not leave-one-out for small sets)
 DIAGNOSE_FOLDS = 5
@@ -122,7 +122,6 @@ def rms_mm(res: np.ndarray) -> float:
 
 def noise_floor_mm(data: DiagnosisData) -> float:
     """RMS 3-D error the instruments alone explain (one formula: :func:`calib.accuracy.floor_mm`)."""
-    from calib.accuracy import floor_mm
     return floor_mm(data.cov_mm2)
 
 

@@ -4,6 +4,7 @@ Why a module of its own: both suites map a case function over many cases, report
 per worker (the workers are the parallelism; spawned processes read the setting when they start)."""
 from __future__ import annotations
 
+import multiprocessing
 import os
 from concurrent.futures import ProcessPoolExecutor
 from typing import Callable, Sequence, TypeVar
@@ -29,7 +30,6 @@ def map_cases(fn: Callable[[C], R], cases: Sequence[C], workers: int | None = No
         for c in cases:
             done(fn(c))
         return results
-    import multiprocessing
     saved = {k: os.environ.get(k) for k in _BLAS}
     os.environ.update({k: "1" for k in _BLAS})
     try:

@@ -5,6 +5,8 @@ from ..names import prose, quantity_words
 from .engine import Diagnosis
 from .findings import DOUBTFUL_SPREAD
 
+from calib.accuracy import before_after_line
+
 
 def _p(p: float) -> str:
     return f"{p:.2g}" if p == p else "-"
@@ -14,7 +16,6 @@ def render(d: Diagnosis, max_factor_rows: int = 40) -> str:
     j = d.to_json()
     first = f"robocal diagnose {j['source']}: "
     if "before" in j:
-        from calib.accuracy import before_after_line
         first += before_after_line(j)
     rows = f" ({j['rows']} measured points)" if j.get("rows", j["poses"]) != j["poses"] else ""
     out = [first, f"{j['poses']} poses{rows}, robot {j['robot']}; held-out test: {j['heldout']}; geometric parameter set: "

@@ -9,12 +9,16 @@ import numpy as np
 
 from calib.errors import RobocalError
 from calib.names import joint_label, prose, with_joint_names
+from .render import render
+from calib.provenance import provenance_html
+from calib.units import DEG
 
 
 def _plt():
+    # matplotlib costs ~0.5-1 s at import; only the HTML report's figures need it
     import matplotlib
     matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    import matplotlib.pyplot as plt  # after the backend is chosen
     return plt
 
 
@@ -30,8 +34,6 @@ def _dir(path) -> Path:
 def write_report(d, out_dir, provenance: dict | None = None) -> Path:
     """index.html + PNGs: residual vs each joint, the breakdown factors, the shrink curve; ``provenance``
     (:func:`calib.provenance.provenance`) goes into the JSON and a footer."""
-    from calib.units import DEG
-
     plt = _plt()
     out = _dir(out_dir)
     j = d.to_json()
@@ -97,12 +99,10 @@ def write_report(d, out_dir, provenance: dict | None = None) -> Path:
         figs.insert(0, ("The model step by step: held-out error at each step (mean, RMS, max)",
                         _ladder_png(plt, j, out)))
 
-    from .render import render
     body = [f"<h1>robocal diagnose: {html.escape(j['source'])}</h1>", *_ladder_html(j),
             "<pre>" + html.escape(render(d)) + "</pre>"]
     body += [f"<h2>{html.escape(t)}</h2><img src='{f}'>" for t, f in figs]
     if provenance is not None:
-        from calib.provenance import provenance_html
         body.append(provenance_html(provenance))
         j["provenance"] = provenance
     (out / "index.html").write_text("<!doctype html><meta charset='utf-8'><title>robocal diagnose</title>"

@@ -42,7 +42,7 @@ from .candidate import Candidate
 from .data import DiagnosisData
 from .findings import (MATERIAL_SHARE, STABLE_MAX, Finding, NearMiss, param_report, project, refit, stability,
                        stated_spread)
-from .gap import CVResult, cv_fit
+from .gap import CVResult, cv_fit, heldout_floor_mm
 from .jointly import joint_group
 
 #: a candidate must keep at least this share of its whitened signature once the current model's columns are
@@ -420,8 +420,6 @@ def forward_select(data: DiagnosisData, base: CVResult, geo_free: list[str], can
                    loss: str = "linear") -> Selection:
     """Greedy forward selection from the geometric fit ``base`` (see the module docstring).  ``floor_mm``: the
     held-out RMS a perfect model would reach (default: :func:`calib.diagnose.gap.heldout_floor_mm`)."""
-    from .gap import heldout_floor_mm
-
     floor = heldout_floor_mm(base, data) if floor_mm is None else floor_mm
     cx = _Context(data, geo_free, alpha, floor, base.rms_mm - floor, loss)
     cur, findings, rounds = base, [], []

@@ -14,6 +14,7 @@ from typing import Any
 from ..errors import RobocalError
 from ..tomlspec import Checker, Field
 from .base import EFFECTS, Effect, JointNumber
+from ..names import joint_names, joint_number
 
 #: keys every ``[[effect]]`` table has besides the kind's own
 COMMON_FIELDS = {"type": Field("str", required=True), "enabled": Field("bool", default=True)}
@@ -74,7 +75,6 @@ def _field(text: str, key: str, raw: str, is_joint: bool, robot) -> float:
     except ValueError:
         pass
     if is_joint and robot is not None:
-        from ..names import joint_names, joint_number
         j = joint_number(robot, raw)
         if j is None:
             raise RobocalError(f"effect {text!r}: {key} {raw!r} is not a joint of the robot (joints: "

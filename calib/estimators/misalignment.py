@@ -20,7 +20,7 @@ import numpy as np
 
 from ..uncertainty import EstimateSet, propagate
 from ._common import EstimationError, finite
-from .dh import misalignments
+from .dh import PUMA_NAMES, misalignments, puma_formulas
 
 PROC = "misalignment"
 ROW = ["dtheta_x_rad", "dtheta_y_rad", "dtheta_z_rad", "delta_alpha_rad", "delta_beta_rad", "delta_theta_rad"]
@@ -114,7 +114,6 @@ def thesis_route(axes_value, axes_cov, z_design, x_frames, p_mm=None, p_cov=None
     ``L_p_mm``).  Errors propagated from the axes' ``(36, 36)`` and P's ``(3, 3)`` covariances (GUM; Monte Carlo on
     request).  Why beside the sweeps' DH: it is the thesis's own reduction, so its numbers are the ones Fig 5.10
     prints; the general DH from successive axes does not assume the READY pose's parallel/perpendicular axes."""
-    from .dh import PUMA_NAMES, puma_formulas
     step = "compensation scheme (eqs 4.3.12-15)"
     V = np.asarray(axes_value, float).ravel()
     if V.size != 36:

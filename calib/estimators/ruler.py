@@ -25,12 +25,12 @@ Units: mm and radians.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
 from ..angles import wrap_angle
-from ..theodolite import observe_params
+from ..theodolite import observe_params, thesis_point, thesis_stations
 from ..uncertainty import EstimateSet, propagate
 from ._common import EstimationError, angles_in_range, at_least, finite
 from ._lsq import gauss_newton
@@ -277,8 +277,6 @@ def _align(a: np.ndarray, p: np.ndarray) -> np.ndarray:
 
 def _initial_guess(model: _RulerModel, s: RulerSightings, marks: np.ndarray) -> np.ndarray:
     """Start from the closed form on placement 0 (face I, marks 0, mid, last) and the intersected ruler ends."""
-    from ..theodolite import thesis_point
-
     def read(pl, mk, st):
         sel = (s.placement == pl) & (s.mark == mk) & (s.station == st)
         if not np.any(sel):
@@ -389,10 +387,6 @@ def simulate_sightings(L_mm: float, gamma1_rad: float, gamma2_rad: float, placem
                        collimation_rad=(0.0, 0.0), index_rad=(0.0, 0.0)) -> RulerSightings:
     """Readings of ruler marks for given placements ``[(C_xyz_mm, azimuth_rad, tilt_rad), ...]`` using the station
     model of :mod:`calib.theodolite` (so the estimator is checked against independent forward code)."""
-    from dataclasses import replace
-
-    from ..theodolite import thesis_stations
-
     a, b = thesis_stations(L_mm, gamma1_rad, gamma2_rad, height_b_mm=hB_mm)
     a = replace(a, collimation_rad=collimation_rad[0], index_rad=index_rad[0])
     b = replace(b, collimation_rad=collimation_rad[1], index_rad=index_rad[1])

@@ -11,6 +11,7 @@ from pathlib import Path
 import numpy as np
 
 from ..kinematics import Kinematics
+from ..urdf import analyse_tree, read_urdf, robot_from_analysis
 
 #: the agreement the check demands (mm): far below any measurement, far above double-precision rounding
 TOLERANCE_MM = 1e-6
@@ -20,8 +21,6 @@ def reload_max_mm(path: Path, base_link: str, point_links: dict[str, str], tool_
                   base_in_measurement: np.ndarray, calibrated, q: np.ndarray) -> float:
     """Largest distance (mm) between every tool point of the reloaded file (each on its link, placed with the side
     file's base) and the calibrated model's, over the joint values ``q`` (N, n) of the calibrated robot."""
-    from ..urdf import robot_from_analysis
-    from ..urdf import analyse_tree, read_urdf
     tree = read_urdf(path)
     back = robot_from_analysis(analyse_tree(tree, base_link, list(dict.fromkeys(point_links.values()))),
                                {k: (point_links[k], v) for k, v in tool_on_links.items()}, source=str(path))

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from .. import names as naming
 from ..units import DEG
 from .frames import rpy_of
 
@@ -22,7 +23,6 @@ def side_document(model, theta: np.ndarray, sigma: np.ndarray, corr, urdf_name: 
                   base_link: str, check: dict, urdf_readings: np.ndarray | None = None) -> dict:
     """The side file's content (see the module docstring); ``sigma`` is the 1-sigma error per model parameter;
     ``urdf_readings`` the reading map the URDF's own mimic joints make (the written file holds that one)."""
-    from .. import names as naming
     robot = model.robot
     B = corr.base_in_measurement
     doc: dict = {

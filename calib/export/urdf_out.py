@@ -29,6 +29,7 @@ import numpy as np
 
 from ..errors import RobocalError
 from .frames import axis_frame, frames_at_zero, homogeneous, moving_frame, rotation_taking, rpy_of
+from ..names import joint_names
 
 REVOLUTE = ("revolute", "continuous")
 #: how far the description's chain may sit from its URDF before the export refuses (a different file was given)
@@ -182,6 +183,7 @@ def _num(x: float) -> str:
 
 def rewrite(urdf_path: Path, origins: dict[str, np.ndarray], comment: str | None = None) -> str:
     """The URDF text with the ``<origin>`` of the named joints replaced (xyz in m, rpy in rad), all else kept."""
+    # lxml (~20 ms) is loaded only when a URDF is rewritten
     from lxml import etree
     try:
         doc = etree.parse(str(urdf_path), etree.XMLParser(remove_blank_text=False, remove_comments=False))
@@ -220,8 +222,8 @@ def dh_urdf(robot, name: str | None = None) -> tuple[str, Corrections]:
     """A URDF of a DH description (the calibrated one), made from its frames at zero: link ``k`` hangs from joint
     ``k`` (z axis), the flange link is frame n; masses with their centres, limits from the description (no drive
     limits are known: effort and velocity 0).  Returns the text and what the side file needs (base, tool points)."""
+    # xml.sax.saxutils loads urllib.request (~40-80 ms); only writing a URDF needs it
     from xml.sax.saxutils import quoteattr
-    from ..names import joint_names
     W = frames_at_zero(robot)
     F0 = np.asarray(robot.frame0_in_base, float)
     D = np.linalg.inv(W[0] @ np.linalg.inv(F0)) @ W                    # in the description's base frame

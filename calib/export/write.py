@@ -13,6 +13,8 @@ from ..fileio import atomic_path, atomic_write_text
 from .check import TOLERANCE_MM, check_poses, reload_max_mm
 from .side import not_in_urdf, side_document
 from .urdf_out import UrdfSource, corrected_origins, dh_urdf, rewrite
+from ..compensate import robot_from_theta
+from ..urdf import analyse_chain, analyse_tree, read_urdf
 
 
 @dataclass
@@ -42,12 +44,10 @@ def write_calibrated_urdf(out: str | Path, source: UrdfSource | None, model, the
                           q_check: np.ndarray | None = None, made_by: str = "robocal") -> UrdfExport:
     """Write ``out`` (the calibrated URDF) and its side file from the model's geometric parameters ``theta[:P]``;
     refuse (one line, nothing written) when the file read back does not reproduce the model."""
-    from ..compensate import robot_from_theta
     nominal = model.robot
     calibrated = robot_from_theta(model, np.asarray(theta, float))
     readings = None
     if source is not None:
-        from ..urdf import analyse_chain, analyse_tree, read_urdf
         tree = read_urdf(source.path)
         if source.point_links and not source.tip_link:      # a tree: the paths to every point's link
             links = {k: source.point_links.get(k) for k in nominal.tool_points_mm}

@@ -16,9 +16,16 @@ import threading
 from pathlib import Path
 from typing import Callable
 
+from acq import argtypes as at
 from calib.errors import RobocalError
+from sim.emulate.geocom_device import GeoComDevice
+from sim.emulate.gsi_device import GsiDevice, MAX_STREAM_HZ
+from sim.emulate.slcan_device import SlcanTapDevice
+from sim.emulate.tap_device import MAX_RATE_HZ, SerialTapDevice
+from sim.emulate.twin_world import TwinWorld
 
 from sim.emulate.world import World
+from sim.twin import Twin, load_scenario
 
 _TRUE, _FALSE = ("1", "true", "yes", "on"), ("0", "false", "no", "off")
 
@@ -33,10 +40,6 @@ def parse_bool(raw: str) -> bool:
 
 def _types() -> dict[str, Callable[[str], object]]:
     """Option name -> checking converter (the command line's own types, so both say the same)."""
-    from acq import argtypes as at
-
-    from sim.emulate.gsi_device import MAX_STREAM_HZ
-    from sim.emulate.tap_device import MAX_RATE_HZ
     return {
         "seed": at.seed_int, "station": str, "noise": parse_bool, "motorised": parse_bool, "name": str,
         "serial": at.int_range(0, 2 ** 31 - 1), "scenario": str, "wordlen": at.int_range(8, 16),
@@ -67,9 +70,6 @@ def make_world(scenario: str | None = None, seed: int = 0, noise: bool = True, q
     ``noise=False`` gives the same scenario without reading noise and gross errors (tests compare readings with
     ``true_sight``); ``q0_deg`` is the pose the robot holds (default READY).
     """
-    from sim.twin import Twin, load_scenario
-
-    from sim.emulate.twin_world import TwinWorld
     sc = load_scenario(scenario or None)
     if not noise:
         sc = dataclasses.replace(sc, angle_noise=False, gross_rate=0.0)
@@ -104,7 +104,6 @@ def _world(o: dict, world: World | None) -> World:
 
 
 def geocom(options: dict[str, str], world: World | None = None):
-    from sim.emulate.geocom_device import GeoComDevice
     o = _take(options, _WORLD + ("station", "motorised", "name", "serial"), "geocom")
     kw = {}
     if "name" in o:
@@ -116,7 +115,6 @@ def geocom(options: dict[str, str], world: World | None = None):
 
 
 def gsi(options: dict[str, str], world: World | None = None):
-    from sim.emulate.gsi_device import GsiDevice
     o = _take(options, _WORLD + ("station", "wordlen", "unit", "stream_hz", "serial"), "gsi")
     if o.get("wordlen", 16) not in (8, 16):
         raise RobocalError(f"emulator gsi: option wordlen must be 8 or 16, got {options['wordlen']!r}")
@@ -128,14 +126,12 @@ def gsi(options: dict[str, str], world: World | None = None):
 
 
 def serial_tap(options: dict[str, str], world: World | None = None):
-    from sim.emulate.tap_device import SerialTapDevice
     o = _take(options, _WORLD + ("rate_hz",), "serialtap")
     w = _world(o, world)
     return SerialTapDevice(w, w.robot, rate_hz=o.get("rate_hz", 500.0))
 
 
 def slcan_tap(options: dict[str, str], world: World | None = None):
-    from sim.emulate.slcan_device import SlcanTapDevice
     o = _take(options, _WORLD + ("rate_hz",), "slcan")
     w = _world(o, world)
     return SlcanTapDevice(w, w.robot, rate_hz=o.get("rate_hz", 100.0))

@@ -26,6 +26,7 @@ class FloodTap:
         self.updates = 0
         self._latest = None
         self._stop = threading.Event()
+        self._counted = threading.Condition()
         self.stats = type("S", (), {"frames": 0, "bad_frames": 0, "reconnects": 0, "last_error": ""})()
         self._thread = threading.Thread(target=self._run, daemon=True)
 
@@ -33,10 +34,12 @@ class FloodTap:
         period = 1.0 / self.rate_hz
         nxt = time.perf_counter()
         while not self._stop.is_set():
-            self.updates += 1
-            self.stats.frames += 4
-            c = tuple(int(self.updates * k) for k in range(1, 7))
+            c = tuple(int((self.updates + 1) * k) for k in range(1, 7))
             self._latest = FakeSample(c, tuple(np.radians([0.0, -90.0, 90.0, 0.0, 0.0, 0.0])))
+            self.stats.frames += 4
+            with self._counted:
+                self.updates += 1
+                self._counted.notify_all()
             nxt += period
             delay = nxt - time.perf_counter()
             if delay > 0:
@@ -44,6 +47,12 @@ class FloodTap:
 
     def latest(self):
         return self._latest
+
+    def wait_updates(self, n: int, timeout_s: float = 60.0) -> bool:
+        """Block until the tap has made ``n`` updates in all (an event, not a time: however loaded the machine);
+        False if the guard ``timeout_s`` ran out first."""
+        with self._counted:
+            return self._counted.wait_for(lambda: self.updates >= n, timeout_s)
 
     def start(self):
         self._thread.start()
@@ -58,14 +67,18 @@ class FakeRig:
 
 
 class FakeRunner:
-    """Emits ``n_steps`` steps of events, asks the operator once per step, and floods readings in between."""
+    """Emits ``n_steps`` steps of events, asks the operator once per step, and floods readings in between.
+    ``updates_per_step``: the k-th question waits until the tap has made k times this many updates (the flood is
+    seen to run by its count, not by a time it was given)."""
 
-    def __init__(self, operator, n_steps: int = 5, readings_per_step: int = 200, rate_hz: float = 8000.0):
+    def __init__(self, operator, n_steps: int = 5, readings_per_step: int = 200, rate_hz: float = 8000.0,
+                 updates_per_step: int = 0):
         self.operator = operator
         self.steps = [Step(key=f"fake/{i:02d}", procedure="poses", title=f"Fake pose {i + 1}",
                            instruction="Hold still.", targets=(TargetSpec("P", tool_mm=(0.0, 0.0, 0.0)),))
                       for i in range(n_steps)]
         self.readings_per_step = readings_per_step
+        self.updates_per_step = updates_per_step
         self.rig = FakeRig(FloodTap(rate_hz))
         self.stations = {}
         self._subs = []
@@ -93,6 +106,8 @@ class FakeRunner:
             for r in range(self.readings_per_step):
                 self._emit("reading", key=s.key, station="AB"[r % 2], target="P", face=1, repeat=r,
                            hz_deg=10.0 + r * 1e-4, v_deg=90.0)
+            if self.updates_per_step:
+                self.rig.tap.wait_updates((i + 1) * self.updates_per_step)
             ans = self.operator.ask(Request("decision", s, 1, ("accept", "repeat", "skip", "pause", "abort")))
             self.asked += 1
             if ans.action == "abort" or self._abort.is_set():

@@ -32,11 +32,12 @@ class FaultyDevice:
         self.drop_byte_prob = 0.0
         self.garble_byte_prob = 0.0
         self.silent = False                     # swallows requests: nothing ever comes back
+        self.swallowed: list[bytes] = []        # what a silent device was sent (the attempts, counted by the tests)
+        self._held: bytes | None = None         # a reply held back until the next request (hold_next_reply)
         self._delayed: deque[tuple[float, bytes]] = deque()
         self._once: deque[tuple] = deque()
         self._pending_unplug: tuple[float, Callable[[], None]] | None = None
         self._lock = threading.RLock()
-        self._extra_delay = 0.0
         self.log: list[str] = []
 
     # -- one-shot faults, applied to the next non-empty output chunk -------------------------------------------------
@@ -49,9 +50,11 @@ class FaultyDevice:
     def wrong_crc_next_reply(self) -> None:
         self._once.append(("crc",))
 
-    def delay_next_reply(self, seconds: float) -> None:
-        """The next reply arrives ``seconds`` late (after the caller gave up: a stale reply)."""
-        self._once.append(("delay", seconds))
+    def hold_next_reply(self) -> None:
+        """The next reply is held back until the caller sends its next request: it arrives after the caller gave up
+        on it, a stale reply ahead of the fresh one.  Ordered by that event, not by a delay on the host clock, so a
+        loaded machine cannot reorder it."""
+        self._once.append(("hold",))
 
     def unplug_mid_frame(self, after_bytes: int, unplug: Callable[[], None], delay_s: float = 0.05) -> None:
         """Deliver only the first ``after_bytes`` of the next reply, then call ``unplug`` (pull the cable)."""
@@ -63,8 +66,14 @@ class FaultyDevice:
         return self.inner.tick_period_s
 
     def feed(self, data: bytes) -> None:
-        if not self.silent:
-            self.inner.feed(data)
+        if self.silent:
+            self.swallowed.append(data)
+            return
+        if self._held is not None and data.strip(b"\r\n"):      # a request (not the resync's bare LF)
+            with self._lock:
+                self._delayed.append((time.monotonic(), self._held))
+                self._held = None
+        self.inner.feed(data)
 
     def tick(self, now: float | None = None) -> None:
         self.inner.tick(now)
@@ -76,9 +85,9 @@ class FaultyDevice:
             self.log.append(kind)
             if kind == "drop":
                 return b""
-            if kind == "delay":
-                self._extra_delay = action[1]
-                return chunk
+            if kind == "hold":
+                self._held = chunk
+                return b""
             if kind == "garble":
                 b = bytearray(chunk)
                 pos = action[1] if action[1] is not None else self.rng.randrange(max(1, len(b) - 2))
@@ -113,9 +122,7 @@ class FaultyDevice:
             if chunk:
                 chunk = self._mangle(chunk)
                 if chunk:
-                    delay = self.latency_s + self._extra_delay
-                    self._extra_delay = 0.0
-                    self._delayed.append((time.monotonic() + delay, chunk))
+                    self._delayed.append((time.monotonic() + self.latency_s, chunk))
 
     def read_output(self) -> bytes:
         self._pump()
