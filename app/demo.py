@@ -28,6 +28,7 @@ from acq.cache import cached_array
 from acq.clock import Clock, SimClock
 from sim.emulate.scenario import STATIONS, scenario_text
 from acq.errors import DeviceTimeout
+from calib.jsonfile import vouch
 from calib.model import MeasurementModel
 from calib.profile import profile_of
 from calib.loading import RobotPath
@@ -37,6 +38,7 @@ from calib.units import ARCSEC, DEG
 
 from acq.session.headless import ScriptedOperator
 from offline.iso_commands import CompensatedCommands
+from acq.session.plan_doc import PLAN_SCHEMA
 from acq.session.plans import DEMO, session_plan, transmission_plan  # noqa: F401 (transmission_plan: for callers)
 from acq.session.preflight import Preflight
 from acq.session.bench import robot_setup
@@ -194,6 +196,7 @@ def build_demo(db: str | Path, seed: int = 0, resume: bool = False, script: dict
 
     db = str(db)
     clock = SimClock() if clock is None else clock
+    own = False
     if resume:
         store = SessionStore.open(db, durable=not clock.simulated)
         meta = store.session_row()
@@ -216,8 +219,10 @@ def build_demo(db: str | Path, seed: int = 0, resume: bool = False, script: dict
                                                  **{k: base[k] for k in ("robot", "base_link", "tip_link") if k in base}}
         else:
             twin = Twin(load_scenario(scenario or None), seed=seed)
-        setup = session_setup(demo_setup(twin, setup), twin.robot)
-        plan_d = plan or demo_plan(twin, seed, te_joints=te_joints, setup=setup)
+        own = setup is None         # the bench robocal made itself (a user's --setup was checked as it was read)
+        setup = session_setup(demo_setup(twin, setup), twin.robot, own=own)
+        # the plan robocal chose (a plan given by the caller is checked as the steps are made)
+        plan_d = plan or vouch(demo_plan(twin, seed, te_joints=te_joints, setup=setup), PLAN_SCHEMA)
         title = DEMO_TITLE if profile_of(twin.robot).thesis else \
             f"robocal demo: emulated {twin.robot.name} (twin) and two GeoCOM theodolites"
         kind = "generated" if text else ("file" if scenario else "default")
@@ -226,7 +231,8 @@ def build_demo(db: str | Path, seed: int = 0, resume: bool = False, script: dict
                                               "scenario_path": str(Path(scenario).resolve()) if scenario else None,
                                               "seed": seed},
                                     durable=not clock.simulated)       # a simulated session can be recorded again
-    setup = setup_of(session_setup(setup, twin.robot))     # a resumed session's set-up may use the old keys
+    # a resumed session's set-up may use the old keys
+    setup = setup_of(session_setup(setup, twin.robot, own=not resume and own))
     world = TwinWorld(twin, seed=seed * 1000 + seed_offset,       # the gauges read with the set-up's noise
                       gauge_sigma_mm=(setup.link and setup.link.gauge_sigma_mm) or GAUGE_SIGMA_MM)
     tag = uuid.uuid4().hex[:8]
