@@ -28,6 +28,7 @@ from acq.cache import cached_array
 from acq.clock import Clock, SimClock
 from sim.emulate.scenario import STATIONS, scenario_text
 from acq.errors import DeviceTimeout
+from calib.jsonfile import vouch
 from calib.model import MeasurementModel
 from calib.profile import profile_of
 from calib.loading import RobotPath
@@ -37,6 +38,7 @@ from calib.units import ARCSEC, DEG
 
 from acq.session.headless import ScriptedOperator
 from offline.iso_commands import CompensatedCommands
+from acq.session.plan_doc import PLAN_SCHEMA
 from acq.session.plans import DEMO, session_plan, transmission_plan  # noqa: F401 (transmission_plan: for callers)
 from acq.session.preflight import Preflight
 from acq.session.bench import robot_setup
@@ -194,6 +196,7 @@ def build_demo(db: str | Path, seed: int = 0, resume: bool = False, script: dict
 
     db = str(db)
     clock = SimClock() if clock is None else clock
+    own = False
     if resume:
         store = SessionStore.open(db, durable=not clock.simulated)
         meta = store.session_row()
@@ -216,8 +219,10 @@ def build_demo(db: str | Path, seed: int = 0, resume: bool = False, script: dict
                                                  **{k: base[k] for k in ("robot", "base_link", "tip_link") if k in base}}
         else:
             twin = Twin(load_scenario(scenario or None), seed=seed)
-        setup = session_setup(demo_setup(twin, setup), twin.robot)
-        plan_d = plan or demo_plan(twin, seed, te_joints=te_joints, setup=setup)
+        own = setup is None         # the bench robocal made itself (a user's --setup was checked as it was read)
+        setup = session_setup(demo_setup(twin, setup), twin.robot, own=own)
+        # the plan robocal chose (a plan given by the caller is checked as the steps are made)
+        plan_d = plan or vouch(demo_plan(twin, seed, te_joints=te_joints, setup=setup), PLAN_SCHEMA)
         title = DEMO_TITLE if profile_of(twin.robot).thesis else \
             f"robocal demo: emulated {twin.robot.name} (twin) and two GeoCOM theodolites"
         kind = "generated" if text else ("file" if scenario else "default")
@@ -226,7 +231,8 @@ def build_demo(db: str | Path, seed: int = 0, resume: bool = False, script: dict
                                               "scenario_path": str(Path(scenario).resolve()) if scenario else None,
                                               "seed": seed},
                                     durable=not clock.simulated)       # a simulated session can be recorded again
-    setup = setup_of(session_setup(setup, twin.robot))     # a resumed session's set-up may use the old keys
+    # a resumed session's set-up may use the old keys
+    setup = setup_of(session_setup(setup, twin.robot, own=not resume and own))
     world = TwinWorld(twin, seed=seed * 1000 + seed_offset,       # the gauges read with the set-up's noise
                       gauge_sigma_mm=(setup.link and setup.link.gauge_sigma_mm) or GAUGE_SIGMA_MM)
     tag = uuid.uuid4().hex[:8]
@@ -294,13 +300,19 @@ def _tap_drain(rig: Rig, node, timeout_s: float = 10.0):
     The virtual bus loses nothing, it can only be late (a busy machine): a sample is never written off, since a late
     one would then land in the next window, stamped before its move, and bias that reading silently.  A reader
     still behind after ``timeout_s`` of real time fails the attempt as a device timeout (the runner repeats it);
-    the next wait, at the start of the repeated capture, waits for the stragglers again before its window opens."""
+    the next wait, at the start of the repeated capture, waits for the stragglers again before its window opens.
+    A reader the rig polls (:meth:`acq.session.rig.Rig.poll_tap`: on the simulated clock, no reader thread) is
+    handed the frames now, in this thread; one still short then is short of frames the bus lost, and fails at once."""
 
     def drain() -> None:
         sent = node.samples_sent
-        if not rig.wait_received(sent, timeout_s):
+        polled = getattr(getattr(rig, "tap", None), "polled", False)
+        if polled:                  # a reader without its thread (the simulated clock's): handed what was sent
+            rig.poll_tap()
+        wait = 0.0 if polled else timeout_s           # polled, nothing more can come until the node sends again
+        if not rig.wait_received(sent, wait):
             raise DeviceTimeout("encoder tap", "read", f"the reader has {rig.received} of the {sent} samples the "
-                                f"emulated tap sent after {timeout_s:g} s")
+                                f"emulated tap sent" + (f" after {wait:g} s" if wait else ""))
     return drain
 
 

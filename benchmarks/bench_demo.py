@@ -39,7 +39,8 @@ TARGET_S = 2.5
 BASELINE = ("17-20 s wall, ~9.7 s CPU, ~9 s asleep (2026-11-23, before the simulated clock); "
             "wall median 4.7 s, CPU median 4.0 s at load 4 (2026-11-23, commit 0907691, before the CPU round); "
             "main at ddaea42 (ISO 9283 added, 285 steps): CPU median 5.1-6.0 s, wall 6.0-6.9 s at load 3-5 "
-            "(2026-11-26, --compare runs of docs/demo-speed.md)")
+            "(2026-11-26, --compare runs of docs/demo-speed.md); main at df8f16a: CPU median 4.44 s, wall 5.03 s at "
+            "load 1.6-2.5 against 3.40 / 3.71 s after the second round (2026-11-26 07:33 UTC, --runs 5 --compare)")
 _SIM = re.compile(r"([0-9.]+) s of instrument time simulated")
 _REC = re.compile(r"steps saved in ([0-9.]+) s")
 

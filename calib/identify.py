@@ -458,10 +458,12 @@ def _identifiability(model: MeasurementModel, st: _Setup, priors: dict, start: b
 
 def _solve(problem: _Problem, theta_full: np.ndarray, kidx: np.ndarray, loss: str, max_nfev: int) -> np.ndarray:
     """Step 3: least squares over the kept parameters (the rest held in ``theta_full``): Gauss-Newton
-    (:func:`_gauss_newton`) for the plain loss when its full steps keep lowering the cost, else scipy's trust region
-    from the same start."""
-    if loss == "linear":
-        done = _gauss_newton(problem, theta_full, kidx, max_nfev)
+    (:func:`_gauss_newton`) for the plain and the soft L1 loss when its full steps keep lowering the cost, else
+    scipy's trust region from the same start."""
+    if loss in _GN_LOSSES:
+        # a robust fit starts from the plain fit's minimum (the usual start of reweighted least squares)
+        start = theta_full if loss == "linear" else _gauss_newton(problem, theta_full, kidx, max_nfev)
+        done = None if start is None else _gauss_newton(problem, start, kidx, max_nfev, loss=loss)
         if done is not None:
             return done
     from scipy import optimize      # 0.3-0.5 s to import: only the commands that fit pay it (not plan, compensate)
@@ -477,48 +479,75 @@ def _solve(problem: _Problem, theta_full: np.ndarray, kidx: np.ndarray, loss: st
         return problem.residuals(th)[1][:, kidx]
 
     res = optimize.least_squares(fun, theta_full[kidx], jac=jac, method="trf", x_scale="jac", loss=loss,
-                                 f_scale=3.0, max_nfev=max_nfev)
+                                 f_scale=_F_SCALE, max_nfev=max_nfev)
     out = theta_full.copy()
     out[kidx] = res.x
     return out
 
 
+#: the losses :func:`_gauss_newton` minimises itself (scipy's ``least_squares`` with ``f_scale`` :data:`_F_SCALE`
+#: for the rest, and as the fallback)
+_GN_LOSSES = ("linear", "soft_l1")
+_F_SCALE = 3.0
+
+
+def _robust_weights(r: np.ndarray, loss: str) -> tuple[float, np.ndarray, np.ndarray]:
+    """``(cost, r', w')``: the cost (twice scipy's ``least_squares`` cost: the sum of squares for ``linear``) and the
+    residuals and Jacobian rows scaled by ``w' = sqrt(rho')`` for the next step.  ``soft_l1`` (``f_scale``
+    :data:`_F_SCALE`): iteratively reweighted least squares -- rho(z) = 2 (sqrt(1 + z) - 1) is concave in z = (r /
+    f_scale)^2, so the weighted sum of squares with the weights rho' at the current point bounds the cost from
+    above, and a step lowering it lowers the cost; the fixed point is where scipy's trust region ends (the same
+    gradient, J^T rho' r = 0).  Not scipy's own second-order scaling: its full steps overshoot from a start with
+    gross errors."""
+    if loss == "linear":
+        return float(r @ r), r, np.ones_like(r)
+    s = np.sqrt(1.0 + (r / _F_SCALE) ** 2)
+    w = 1.0 / np.sqrt(s)                        # sqrt(rho') = (1 + z)^-1/4
+    return float(_F_SCALE ** 2 * np.sum(2.0 * (s - 1.0))), r * w, w
+
+
 def _gauss_newton(problem: _Problem, theta_full: np.ndarray, kidx: np.ndarray, max_nfev: int,
-                  ftol: float = 1e-8) -> np.ndarray | None:
+                  ftol: float = 1e-8, loss: str = "linear") -> np.ndarray | None:
     """Gauss-Newton with one QR of the column-scaled Jacobian per step, stopping where scipy's ``least_squares``
     does (a step lowering the cost by less than ``ftol`` of it), or ``None`` -- a step that does not lower the cost, a
     nearly singular R, too many evaluations -- and the caller's trust region starts over.  Why: the kept set is
     identifiable by construction (the guard held the rest), so from a start near the minimum (a warm start, the
     robust fit) the full steps converge and the trust region's SVD per step (a third of a 19-joint tree's fold
-    fits) buys nothing."""
-    # scipy.linalg costs ~0.3 s at start-up (robocal plan loads this module and fits nothing)
-    from scipy.linalg import solve_triangular
+    fits) buys nothing.  ``loss`` ``soft_l1`` (the outlier step's robust fit): reweighted steps
+    (:func:`_robust_weights`) to scipy's minimum; the demo's one robust fit then needs no ``scipy.optimize``, whose
+    import (0.3-0.5 s, with ``scipy.spatial`` and ``scipy.sparse``) was a tenth of the whole ``robocal demo``.  The
+    triangular solve is numpy's (an LU of a triangular R pivots nothing), for the same reason: ``scipy.linalg`` alone
+    is 0.1-0.3 s to import."""
     th = theta_full.copy()
     r, J = problem.residuals(th)
-    cost = float(r @ r)
+    cost, rs, js = _robust_weights(r, loss)
+    # reweighting converges linearly: a step's decrease understates the way left, so it stops at a smaller one
+    stop = ftol if loss == "linear" else 1e-3 * ftol
     for _ in range(max_nfev):
-        Jk = J[:, kidx]
+        Jk = J[:, kidx] * js[:, None] if loss != "linear" else J[:, kidx]
         norms = np.linalg.norm(Jk, axis=0)
         if not np.all(norms > 0):
             return None
-        Ra = np.linalg.qr(np.column_stack([Jk / norms, r]), mode="r")    # [R | Q^T r]: Q is never formed
+        Ra = np.linalg.qr(np.column_stack([Jk / norms, rs]), mode="r")    # [R | Q^T r]: Q is never formed
         R, qtr = Ra[:-1, :-1], Ra[:-1, -1]
         diag = np.abs(np.diag(R))
         if diag.min() <= 1e-10 * diag.max():
             return None
         trial = th.copy()
-        trial[kidx] -= solve_triangular(R, qtr) / norms
+        trial[kidx] -= np.linalg.solve(R, qtr) / norms
         r_new = problem.residuals(trial, jac=False)[0]
-        cost_new = float(r_new @ r_new)
+        cost_new, rs_new, js_new = _robust_weights(r_new, loss)
         if not np.isfinite(cost_new) or cost_new > (1.0 + ftol) * cost:
-            return None
+            # at the minimum already, the model promising less than ftol of the cost: what the step added is the
+            # rounding of the residuals (noise-free data); else a step too long, for the trust region
+            return th if np.isfinite(cost_new) and qtr @ qtr <= ftol * cost else None
         if cost_new >= cost:
             return th                   # at the minimum already: the step only moved the rounding
         th = trial
-        if cost - cost_new <= ftol * cost:
+        if cost - cost_new <= stop * cost:
             return th
         r, J = problem.residuals(th)
-        cost = cost_new
+        cost, rs, js = cost_new, rs_new, js_new
     return None
 
 

@@ -141,14 +141,20 @@ class Station:
         sv = np.sin(v0)
         face2 = np.asarray(face) == 2
         r2 = rho2 + dz * dz
-        dhz_dd = np.stack([dy / rho2, -dx / rho2, np.zeros_like(dx)], -1)
-        dv_dd = np.stack([dz * dx / (rho * r2), dz * dy / (rho * r2), -rho / r2], -1)
+        # filled in place: np.stack per component cost more than the arithmetic on the one-point arrays of the
+        # session's checks and the emulators (same values)
+        dhz_dd = np.zeros(d.shape)
+        dhz_dd[..., 0], dhz_dd[..., 1] = dy / rho2, -dx / rho2
+        dv_dd = np.empty(d.shape)
+        rr2 = rho * r2
+        dv_dd[..., 0], dv_dd[..., 1], dv_dd[..., 2] = dz * dx / rr2, dz * dy / rr2, -rho / r2
         dcorr_dv = -(self.collimation_rad * np.cos(v0) + self.trunnion_rad) / (sv * sv)
         sgn = np.where(face2, -1.0, 1.0)
         dhz = dhz_dd + (sgn * dcorr_dv)[..., None] * dv_dd
         dv = np.where(face2[..., None], -dv_dd, dv_dd)
         Rt = self.rotation.T          # d(local)/d(point) = R^T
-        J = np.stack([dhz @ Rt, dv @ Rt], axis=-2)
+        J = np.empty(d.shape[:-1] + (2, 3))
+        J[..., 0, :], J[..., 1, :] = dhz @ Rt, dv @ Rt
         return hz, v, J
 
     def direction(self, hz_rad, v_rad, face: int | np.ndarray = 1) -> np.ndarray:

@@ -128,3 +128,27 @@ def test_targets_on_a_link_ride_with_that_link_only(bench):
     np.testing.assert_allclose(w.target_mm(), p0, atol=1e-3)
     bench.prepare(_step((0.0, -90.0, 80.0, 40.0, -30.0, 70.0), {}), {})
     assert np.linalg.norm(w.target_mm() - p0) > 10.0
+
+
+def test_a_steps_targets_evaluated_together_are_the_points_one_by_one():
+    """The bench evaluates a step's flange targets (A1, A2) in one pass of the twin's model when it prepares the
+    step: each point must be exactly what the world computes for that target alone at the same state, and a move
+    must forget them."""
+    tw = Twin(seed=4)
+    world = TwinWorld(tw, seed=4)
+    bench = EmulatedBench(world)
+    a1, a2 = TargetSpec("A1", tool_mm=(80.0, 0.0, 150.0)), TargetSpec("A2", tool_mm=(-80.0, 10.0, 150.0))
+    step = Step("te/x", "transmission", "", "", pose_deg=(10.0, -40.0, 170.0, 30.0, 20.0, 40.0), targets=(a1, a2))
+    bench.prepare(step, {})
+    assert len(world._ahead) == 2
+    together = {}
+    for t in (a1, a2):
+        bench.aim(t)
+        together[t.name] = world.target_mm()
+    for t in (a1, a2):
+        alone = world._point(None, t.tool_mm)
+        np.testing.assert_array_equal(together[t.name], alone)
+    world.command(np.asarray(step.pose_deg) * DEG + 0.01)
+    assert world._ahead == {}
+    bench.aim(a1)
+    assert not np.array_equal(world.target_mm(), together["A1"])

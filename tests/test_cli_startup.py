@@ -1,5 +1,6 @@
 """Start-up (issue 18, item 2): each command imports its own code only when it runs, and no path imports a heavy
-library it does not use (scipy.stats is never needed; scipy.optimize only by the fits and the set-up search).
+library it does not use (scipy.stats is never needed; scipy.optimize only by the set-up search and by a fit its
+Gauss-Newton steps cannot finish).
 
 These check which modules are loaded, in fresh processes; the times are in ``benchmarks/bench_startup.py``.
 """
@@ -87,10 +88,10 @@ def test_light_commands_run_without_scipy():
     assert not any(m.startswith("scipy") for m in loaded), loaded
 
 
-def test_fits_load_scipy_optimize_but_never_scipy_stats(tmp_path):
+def test_fits_never_load_scipy_stats(tmp_path):
     csv = str(tmp_path / "twin.csv")
     loaded = _loaded_after([["twin", "--poses", "60", "--seed", "1", "--export", csv], ["identify", csv]])
-    assert "scipy.optimize" in loaded           # the check sees what is loaded
+    assert "scipy" in loaded                    # the check sees what is loaded (the fit's linear algebra)
     assert not any(m.startswith("scipy.stats") for m in loaded), sorted(loaded)
 
 

@@ -18,6 +18,16 @@ def test_chi2_quantiles_and_tails(p, dof):
     np.testing.assert_allclose(d.chi2_sf(x, dof), stats.chi2.sf(x, dof), rtol=1e-9)
 
 
+def test_chi2_closed_form_tail_against_scipy():
+    """The whole-dof quantiles solved without scipy (the outlier flags' test) against scipy.stats, wide grid."""
+    for dof in [*range(1, 41), 41, 99, 100, 157, 200]:
+        for p in (1e-12, 1e-9, 1e-6, 1e-4, 1e-3, 0.01, 0.05, 0.1, 0.5, 0.9, 0.99):
+            assert d._chi2_isf_int(p, dof) == pytest.approx(stats.chi2.isf(p, dof), rel=1e-12), (p, dof)
+            x = stats.chi2.isf(p, dof)
+            assert d._chi2_sf_int(x, dof) == pytest.approx(p, rel=1e-9), (p, dof)
+    assert d._chi2_sf_int(0.0, 3) == 1.0 and d._chi2_sf_int(-2.0, 4) == 1.0
+
+
 @pytest.mark.parametrize("x", [-1.0, 0.0, 0.3, 1.0, 4.5, 40.0, np.inf, np.nan])
 @pytest.mark.parametrize("dfn, dfd", [(1, 5), (3, 100), (2.5, 7.5), (12, 3000)])
 def test_f_tail(x, dfn, dfd):

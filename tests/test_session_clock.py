@@ -49,6 +49,7 @@ def test_simulated_capture_holds_its_window_through_the_real_reader():
     clock, node, rig = _sim_rig(500.0)
     try:
         assert node._thread.ident is None              # no sender thread: the clock drives the node
+        assert rig.tap.polled and rig.tap._thread is None   # no reader thread: the clock's thread hands it the frames
         cap = rig.capture(0.02, settle_s=0.02)
         # settle 20 ms then a 20 ms window at 500 samples/s: the window's 10 samples, none of the settle's
         assert clock.now() == 0.04
@@ -91,6 +92,23 @@ def test_a_late_reader_fails_the_attempt_and_is_waited_for_again_never_written_o
         drain()
     rig.received = 5                                # the stragglers arrive: the next window opens after them
     drain()
+
+
+def test_a_polled_reader_short_of_what_the_node_sent_fails_at_once():
+    """Polled (the simulated clock: no reader thread), every frame the node sent is on the bus when the drain runs;
+    a reader still short then is short of frames the bus lost: a device timeout at once, not a wait for frames that
+    cannot come.  The real reader still decodes every frame (the counts are the bus's)."""
+    from acq.errors import DeviceTimeout
+    clock, node, rig = _sim_rig(500.0)
+    try:
+        clock.sleep(0.01)
+        assert rig.received == node.samples_sent == 6
+        node.samples_sent += 1                      # one sample the bus "lost"
+        with pytest.raises(DeviceTimeout, match="7 of the 8 samples"):
+            clock.sleep(0.002)                      # one more sample sent and read: still one short
+    finally:
+        rig.close()
+        node.stop()
 
 
 def test_demo_is_simulated_and_the_tui_emulation_real(tmp_path, monkeypatch):

@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import sqlite3
 
+import numpy as np
 import pytest
 
 from acq.session import store as st
@@ -88,3 +89,20 @@ def test_create_refuses_existing(tmp_path):
     _new(tmp_path).close()
     with pytest.raises(st.StoreError, match="exists already"):
         _new(tmp_path)
+
+
+def test_arrays_are_stored_as_np_save_writes_them():
+    """to_npy keeps np.save's header per dtype and shape: the stored bytes must stay exactly np.save's (other tools
+    read the blobs with np.load), for C-ordered arrays and everything that goes through np.save itself."""
+    import io
+    from acq.session.store import from_npy, to_npy
+    rng = np.random.default_rng(0)
+    cases = [np.arange(10, dtype=np.int64), rng.random(7), rng.random((3, 6)), np.zeros(0), np.zeros((0, 6), np.int64),
+             np.array(3.5), rng.random((4, 3)).T, np.arange(12, dtype=np.int32).reshape(3, 4)[:, ::2], [1, 2, 3],
+             np.array([True, False]), rng.random((2, 3)).astype(">f8")]
+    for a in cases + cases:                                     # twice: the kept header serves the second time
+        buf = io.BytesIO()
+        np.save(buf, np.asarray(a), allow_pickle=False)
+        assert to_npy(a) == buf.getvalue(), a
+        if np.asarray(a).dtype.kind in "iuf":                   # what the store keeps (it refuses the rest)
+            np.testing.assert_array_equal(from_npy(to_npy(a)), np.asarray(a))

@@ -23,6 +23,7 @@ class CanTap(TapReader):
     """Samples from the tap's CAN frames.  ``bus_factory`` (re)opens the bus, so a bus-off can be recovered from."""
 
     thread_prefix = "can-tap"
+    pollable = True
     #: longest a receive waits before the loop looks at the stop flag again: how long ``stop()`` can take (python-can
     #: has no way to wake a waiting ``recv``); 20 ms keeps a session's shutdown quick at 50 idle wake-ups a second
     poll_s = 0.02
@@ -67,18 +68,35 @@ class CanTap(TapReader):
                 if self._bus is None:
                     if not self._reconnect():
                         continue
-                try:
-                    msg = self._bus.recv(self.poll_s)
-                except (can.CanError, OSError, ValueError) as exc:
-                    self.stats.bus_errors += 1
-                    self.stats.last_error = _why(exc)
-                    self._close_bus()
-                    continue
-                if msg is not None:
-                    self._handle(msg)
+                self._receive(self.poll_s)
                 self.cpu_s = time.thread_time() - t0
         finally:
             self.cpu_s = time.thread_time() - t0
+
+    def poll(self) -> int:
+        """Handle every frame waiting on the bus now, in the caller's thread (a reader started without its thread:
+        :meth:`TapReader.start`); returns how many were received.  Why: on a simulated clock the emulated node has
+        sent a window's frames before anyone waits for them, so the reader thread only added two thread hand-offs
+        per encoder window -- under other processes' load each one a scheduler slice, most of a demo's wall time."""
+        n = 0
+        while self._bus is not None and self._receive(0.0):
+            n += 1
+        return n
+
+    def _receive(self, timeout_s: float) -> bool:
+        """One frame from the bus (waiting up to ``timeout_s``) through :meth:`_handle`; False when none came (or
+        the bus failed: counted, closed for the thread's reconnect)."""
+        try:
+            msg = self._bus.recv(timeout_s)
+        except (can.CanError, OSError, ValueError) as exc:
+            self.stats.bus_errors += 1
+            self.stats.last_error = _why(exc)
+            self._close_bus()
+            return False
+        if msg is None:
+            return False
+        self._handle(msg)
+        return True
 
     def _reconnect(self) -> bool:
         if self._stop.wait(self.reconnect_delay_s):

@@ -17,6 +17,8 @@ from .sample import EncoderSample, JointConverter, TapStats
 
 class TapReader:
     thread_prefix = "tap"
+    #: whether the reader can run without its thread, its caller handing it the waiting frames (``poll()``)
+    pollable = False
 
     def __init__(self, name: str, converter: JointConverter | None = None, queue_size: int = 100_000,
                  reconnect_delay_s: float = 0.2):
@@ -31,13 +33,19 @@ class TapReader:
         self._thread: threading.Thread | None = None
         self.cpu_s = 0.0                                   # reader thread CPU time (benchmarks)
         self.overflow = 0                                  # samples dropped from the queue (sink still saw them)
+        self.polled = False                                # started without its thread: fed by poll()
 
     # -- control ------------------------------------------------------------------------------------------------------
-    def start(self, sink: Callable[[EncoderSample], None] | None = None):
-        """Start the reader thread; ``sink`` (optional) is called in that thread for every sample."""
-        if self._thread is None:
+    def start(self, sink: Callable[[EncoderSample], None] | None = None, thread: bool = True):
+        """Start the reader thread; ``sink`` (optional) is called in that thread for every sample.  ``thread=False``
+        (a :attr:`pollable` reader): open the link only, the caller hands the reader what arrived with ``poll()``
+        (the sink then runs in the caller's thread)."""
+        if self._thread is None and not self.polled:
             self._sink = sink
             self._prepare()
+            if not thread and self.pollable:
+                self.polled = True
+                return self
             self._thread = threading.Thread(target=self._run, name=f"{self.thread_prefix}-{self.name}", daemon=True)
             self._thread.start()
         return self
@@ -47,6 +55,7 @@ class TapReader:
         if self._thread is not None:
             self._thread.join(2.0)
             self._thread = None
+        self.polled = False
         self._shutdown()
 
     def __enter__(self):

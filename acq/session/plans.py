@@ -14,11 +14,13 @@ from pathlib import Path
 import numpy as np
 
 from calib.errors import RobocalError
+from calib.jsonfile import vouch
 from calib.profile import RobotProfile, profile_of
 from calib.robot import Robot
 from calib.loading import load_robot
 
 from .iso_cube import iso_plan
+from .plan_doc import PLAN_SCHEMA
 from .preflight import Preflight
 from .procedures import transmission
 from .setup_types import BenchSetup, setup_of
@@ -58,8 +60,10 @@ def runs_in_sight(plan: dict, setup: BenchSetup, preflight: Preflight, rounds: i
     the pre-flight (a joint turned far enough puts the arm between a station and a target on some robots): the
     profile's range is what the joint's limits allow, the window what the cell can see."""
     te = plan["transmission"]
-    for _ in range(rounds):                  # the plan as JSON data: the procedure checks it on entry
-        failed = {f.key for f in preflight.check(list(transmission(plan, setup)))}
+    for _ in range(rounds):
+        # the runs as a plan of their own, which this module built from checked joints: vouched for, not checked
+        runs = vouch({"procedures": ["transmission"], "seed": plan.get("seed", 0), "transmission": te}, PLAN_SCHEMA)
+        failed = {f.key for f in preflight.check(list(transmission(runs, setup)))}
         if not failed:
             return
         for j in te["joints"]:

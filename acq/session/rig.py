@@ -69,8 +69,15 @@ class Rig:
         self._arrived = threading.Condition(self._lock)
 
     def start(self) -> None:
+        """Start the tap's reader: in its own thread, or -- on a simulated clock, with a reader that can be polled --
+        fed from the clock's thread by :meth:`poll_tap` (the emulated node sends in that thread too)."""
         if self.tap is not None:
-            self.tap.start(self._sink)
+            self.tap.start(self._sink, thread=not (self.clock.simulated and getattr(self.tap, "pollable", False)))
+
+    def poll_tap(self) -> None:
+        """Hand a reader started without its thread what arrived on its bus (nothing to do for a threaded one)."""
+        if self.tap is not None and getattr(self.tap, "polled", False):
+            self.tap.poll()
 
     def _sink(self, sample) -> None:
         with self._lock:

@@ -11,6 +11,7 @@ from dataclasses import replace
 import numpy as np
 
 from calib.errors import RobocalError
+from calib.jsonfile import vouch
 from calib.model import MeasurementModel
 from calib.profile import THESIS_READY_DEG, profile_of
 from calib.loading import load_robot
@@ -18,7 +19,7 @@ from calib.setup_plan import sweep_targets
 from calib.theodolite import thesis_stations
 from calib.units import ARCSEC, DEG
 
-from .setup_file import default_of
+from .setup_file import SETUP_SCHEMA, default_of
 from .setup_types import BenchSetup, PointP, mark_index, mark_names, setup_of
 from .steps import Step
 
@@ -350,7 +351,7 @@ def _link_entry(link: dict, robot, chain, g: float, ready) -> None:
     link.setdefault("gauges_x_mm", [gg["point_mm"][0] + a for gg in link["gauges"]])
 
 
-def session_setup(setup: dict, robot) -> dict:
+def session_setup(setup: dict, robot, own: bool = False) -> dict:
     """The set-up with every old key mapped onto the step vocabulary's (contract C3), old keys kept.
 
     Old set-up files describe a compliance load as ``lever_mm`` from the joint's centre at ``theta_i_deg`` above the
@@ -358,6 +359,8 @@ def session_setup(setup: dict, robot) -> dict:
     link ``joint``.  The steps speak of masses at points on links (``link``, ``point_mm`` in frame j, ``masses_kg``)
     and gauges as points with an axis; this adds those (and the old keys for set-ups that give only the new ones),
     and designs the per-joint sweep targets when the set-up has none.  A malformed entry is one line naming it.
+    ``own``: robocal made ``setup`` itself (the demo's bench), so the typed set-up is vouched for
+    (:func:`calib.jsonfile.vouch`) instead of checked against the schema again.
     """
     out = json.loads(json.dumps(setup))
     m = MeasurementModel(robot)
@@ -379,7 +382,7 @@ def session_setup(setup: dict, robot) -> dict:
     if out.get("link"):
         with _section("link"):
             _link_entry(out["link"], robot, chain, g, ready)
-    typed = setup_of(out)
+    typed = setup_of(vouch(out, SETUP_SCHEMA) if own else out)
     point_p(typed, robot.n)                                  # a bad point P is one line here, not a crash later
     for k, pl in enumerate(out.get("ruler", {}).get("placements", [])):
         with _section(f"ruler.placements[{k}].marks"):
@@ -387,4 +390,4 @@ def session_setup(setup: dict, robot) -> dict:
     if "sweep_targets" not in out:
         with _section("sweep_radius_mm"):
             out["sweep_targets"] = design_sweep_targets(m, typed, robot)
-    return out
+    return vouch(out, SETUP_SCHEMA) if own else out

@@ -23,6 +23,7 @@ import sqlite3
 import time
 import uuid
 from contextlib import contextmanager
+from functools import lru_cache
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable, Iterator
@@ -183,9 +184,25 @@ def code_version() -> str:
 
 # -- npy blobs ---------------------------------------------------------------------------------------------------
 def to_npy(a: np.ndarray) -> bytes:
+    """The bytes ``np.save`` writes for ``a``.  A C-ordered array of a plain dtype: its header, kept per dtype and
+    shape (a session stores five arrays per encoder window, and np.save formatted the same header each time), then
+    its data; anything else through ``np.save`` itself."""
+    a = np.asarray(a)
+    if a.flags.c_contiguous and a.dtype.fields is None and not a.dtype.hasobject:
+        return _npy_header(a.dtype.str, a.shape) + a.tobytes()
     buf = io.BytesIO()
-    np.save(buf, np.asarray(a), allow_pickle=False)
+    np.save(buf, a, allow_pickle=False)
     return buf.getvalue()
+
+
+@lru_cache(maxsize=64)
+def _npy_header(dtype: str, shape: tuple) -> bytes:
+    """np.save's header for a C-ordered array of ``dtype`` (its ``str``) and ``shape``: np.save's own output for such
+    an array, less its data."""
+    probe = np.zeros(shape, np.dtype(dtype))
+    buf = io.BytesIO()
+    np.save(buf, probe, allow_pickle=False)
+    return buf.getvalue()[: len(buf.getvalue()) - probe.nbytes]
 
 
 def from_npy(b: bytes, where: str = "array blob") -> np.ndarray:

@@ -148,7 +148,9 @@ def _compensated_run(demo, every: list, db: str) -> tuple[dict, str]:
     if res.get("robot") is None:                # no model: the problems say why
         say("ISO 9283: the compensated run was not recorded: the session's pose set gave no calibrated model")
         return res, "finished"
-    demo.runner.command.use(res["robot"])
+    from calib.compensate import MODEL_SCHEMA
+    from calib.jsonfile import vouch
+    demo.runner.command.use(vouch(res["robot"], MODEL_SCHEMA))      # the model this process's reduction made
     demo.runner.steps = every
     state = demo.runner.run()
     if state == "finished":

@@ -27,9 +27,9 @@ class StepLoads:
     q_rad: np.ndarray
     torque_nm: np.ndarray
     axes: np.ndarray
-    dtau_dgeo: np.ndarray
-    dtau_dpoint: np.ndarray
-    hung_nm_per_kg: np.ndarray
+    dtau_dgeo: np.ndarray | None            # None: not computed (:func:`step_loads` ``errors=False``)
+    dtau_dpoint: np.ndarray | None
+    hung_nm_per_kg: np.ndarray | None
 
 
 def swept_geometry(ctx: Reduction) -> tuple[MeasurementModel, np.ndarray, np.ndarray]:
@@ -49,8 +49,11 @@ def swept_geometry(ctx: Reduction) -> tuple[MeasurementModel, np.ndarray, np.nda
     return model, theta, sig
 
 
-def step_loads(step: dict, ctx: Reduction, model: MeasurementModel, theta: np.ndarray) -> StepLoads:
-    """The loads of one step (see :class:`StepLoads`)."""
+def step_loads(step: dict, ctx: Reduction, model: MeasurementModel, theta: np.ndarray,
+               errors: bool = True) -> StepLoads:
+    """The loads of one step (see :class:`StepLoads`).  ``errors=False``: the torques and axes only (what
+    :func:`compliance_deflection` uses), the derivatives the torques' errors come from left as None -- the torque
+    derivative is most of the cost, and the transmission stage's correction for the loaded joints needs none."""
     robot = ctx.robot
     spec = step["spec"]
     q = reading_q(step, robot)
@@ -58,7 +61,9 @@ def step_loads(step: dict, ctx: Reduction, model: MeasurementModel, theta: np.nd
     masses = hung_masses(spec["setup"].get("loads", []))           # in the step vocabulary since reading
     forces = point_force_context(masses, g)
     fp = model.kin.forward(q[None], theta[: model.n_geometric])
-    ld = model.loads(fp, model.context(1, **forces), derivative=True)
+    ld = model.loads(fp, model.context(1, **forces), derivative=errors)
+    if not errors:
+        return StepLoads(q, ld.joint_torque_nm[0], fp.joint_axis[0], None, None, None)
     hung_nm = ld.joint_torque_nm[0] - model.loads(fp, model.context(1)).joint_torque_nm[0]
     mass_kg = float(sum(m.mass_kg for m in masses))
     # moving a load's point by e_c in its frame j adds (R_j e_c x F) . z_i to joint i's torque (i <= j)

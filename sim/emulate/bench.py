@@ -39,10 +39,18 @@ class EmulatedBench(Bench):
             w.command(np.asarray(step.pose_deg, float) * DEG)
         s = c3_setup(step.setup, step.pose_deg, inputs, self._kin)
         w.hang(hung_masses(s.get("loads", [])), load_directions(s, w.robot.n))
+        prefetch = getattr(w, "prefetch", None)
+        if prefetch is not None:
+            prefetch([self._target(t) for t in step.targets])    # the step's targets, at the state it sights them
+
+    def _target(self, target: TargetSpec):
+        def tup(v):
+            return None if v is None else tuple(float(x) for x in v)
+        return self._Target(target.name, tool_mm=tup(target.tool_mm), point_mm=tup(target.point_mm),
+                            link=getattr(target, "link", None))
 
     def aim(self, target: TargetSpec) -> None:
-        self.world.aim(self._Target(target.name, tool_mm=target.tool_mm, point_mm=target.point_mm,
-                                    link=getattr(target, "link", None)))
+        self.world.aim(self._target(target))
 
     def read_inputs(self, step: Step) -> dict:
         """What an operator reads off this bench for the step's inputs, by name: the mass it hangs (``load_kg``), the

@@ -71,6 +71,7 @@ class TwinWorld:
         self._default_tool = tuple(float(tool[f"tool.{k}_mm"]) for k in "xyz")
         self._target = Target("P", tool_mm=self._default_tool)
         self._cache: np.ndarray | None = None
+        self._ahead: dict[Target, np.ndarray] = {}  # targets evaluated together at the present state (prefetch)
         self._faults: dict[str, list] = {}          # station -> [hz_rad, v_rad, readings left]
         self._exact: dict[tuple, np.ndarray] = {}   # (station, face, target point) -> readings before noise
 
@@ -91,6 +92,7 @@ class TwinWorld:
             self._q = np.where(moved, q + scatter, self._q)
             if moved.any():                 # a command to where the joints are changes nothing the target depends on
                 self._cache = None
+                self._ahead.clear()
 
     def set_load(self, joint_torque_nm=None, load_direction=None, payload_kg: float = 0.0) -> None:
         """Torques applied directly to the joints (N m; kept for old callers -- the bench hangs masses instead),
@@ -101,6 +103,7 @@ class TwinWorld:
             self._load_dir = np.zeros(n) if load_direction is None else np.asarray(load_direction, float).copy()
             self._payload = float(payload_kg)
             self._cache = None
+            self._ahead.clear()
 
     def hang(self, masses=(), load_direction=None) -> None:
         """Replace the hung masses (:class:`HungMass`) and the loading direction per joint (+1 / -1 / 0)."""
@@ -118,6 +121,7 @@ class TwinWorld:
             self._masses = masses
             self._load_dir = load_dir
             self._cache = None
+            self._ahead.clear()
 
     def aim(self, target: Target) -> None:
         """Make ``target`` the one the theodolites read."""
@@ -152,13 +156,31 @@ class TwinWorld:
                                       tool_mm=np.asarray(point_mm, float), link=link)
         return ev.point_mm[0]
 
+    def prefetch(self, targets) -> None:
+        """The true positions of ``targets`` (:class:`Target`) on the flange at the robot's present state, in one
+        evaluation of the twin's model for them all (a step sights its targets in turn at one state: the extended
+        tool's A1 and A2); kept until the state changes or the target is aimed at.  The same model at the same state:
+        the points are those :meth:`target_mm` would compute one by one."""
+        todo = [t for t in targets if t.point_mm is None and t.tool_mm is not None and t.link is None]
+        with self._lock:
+            todo = [t for t in dict.fromkeys(todo) if t not in self._ahead]
+            if len(todo) < 2:
+                return
+            _, q_read = self.twin.encoder(self._q[None])
+            rows = np.zeros(len(todo), int)
+            ev = self.twin.model.evaluate(q_read[rows], self.context(True).subset(rows), self.twin.theta,
+                                          tool_mm=np.array([t.tool_mm for t in todo], float))
+            self._ahead.update(zip(todo, ev.point_mm))
+
     def target_mm(self) -> np.ndarray:
         """The current target's true position in the measurement frame (mm)."""
         with self._lock:
             if self._cache is not None:
                 return self._cache.copy()
             t = self._target
-            p = np.asarray(t.point_mm, float) if t.point_mm is not None else self._point(t.link, t.tool_mm)
+            p = self._ahead.get(t)
+            if p is None:
+                p = np.asarray(t.point_mm, float) if t.point_mm is not None else self._point(t.link, t.tool_mm)
             self._cache = p
             return p.copy()
 

@@ -65,7 +65,8 @@ def reduce_transmission(ctx: Reduction, steps: list[dict]) -> dict | None:
         err = relative_error(meas, enc)
         cov = cov + reference_quantisation(sts, ctx, j)
         if stiffness:                       # the gravity deflection of the measured joints, as the joint turns
-            bent, bcov = compliance_deflection([step_loads(s, ctx, model, theta) for s in sts], stiffness, j)
+            bent, bcov = compliance_deflection([step_loads(s, ctx, model, theta, errors=False) for s in sts],
+                                                 stiffness, j)
             err, cov = err - bent, cov + bcov
         ok = np.isfinite(err)
         try:
