@@ -43,6 +43,8 @@ def joint_group(cx, cur, lin, ok, tests, chi2, n_tested: int):
             if len(keep) == len(cands) or len(keep) < 2:
                 break
             cands = keep
+        else:
+            keep = []           # a member still left after the refit: the last fit is not of these members
         gain = cur.rms_mm - new.rms_mm
         label = " + ".join(c.label for c in cands)
         why = "" if new.chi2 < cur.chi2 else "does not shrink the held-out gap"
