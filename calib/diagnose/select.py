@@ -18,9 +18,10 @@ Each round:
    same (correlation above :data:`ALIAS_CORR`) and explains nearly as much (:data:`ALIAS_SHARE`).
 5. **Refit and accept** the best few significant candidates (:data:`REFIT_BEST`), in rank order, fully with
    :func:`calib.identify.identify` in every fold (warm start) and on all poses.  A candidate is accepted only when
-   it shrinks the held-out gap by at least :data:`MATERIAL_SHARE` of the baseline's excess over the floor (the same
-   share for a second effect on the same joint or the next link) *and* its parameters are stable across the folds
-   (jackknife relative spread below :data:`STABLE_MAX`).  Otherwise the next is tried; when none passes, selection
+   its held-out gain is material (:func:`calib.diagnose.findings.material_reason`: :data:`MATERIAL_SHARE` of the
+   baseline's excess over the floor, or of the excess still open for a confident candidate whose held-out gain is
+   significant; the same for a second effect on the same joint or the next link) *and* its parameters are stable
+   across the folds (jackknife relative spread below :data:`STABLE_MAX`).  Otherwise the next is tried; when none passes, selection
    stops and what is left is the unexplained gap, with the candidates that came closest.  A finding's parameters
    must also lie 2 sigma or more from zero (the rule identify holds parameters by).
 6. **Jointly**: when no single candidate passes, the candidates of one kind on several joints are tried together
