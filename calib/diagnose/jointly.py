@@ -5,8 +5,10 @@ gap and falls under the acceptance rule's material share, so the greedy selectio
 (DLR's ladder on Agile Justin: joint elasticity was the largest single group, as a group).  So when no single
 candidate is accepted in a round, the candidates of one kind on different joints that each improve the linearised
 held-out score are tried **together**: one nested F-test for the group (Bonferroni over the kinds tried), one full
-refit in every fold, the material-share rule on the group's gain, and the rule identify holds parameters by for
-each member (its value 2 sigma or more from zero, else it leaves the group and the group is refitted once).
+refit in every fold, the material rule on the group's gain (:func:`calib.diagnose.findings.material_reason`, as
+for one effect: a tenth of the baseline's excess, or of the gap still open when every member is 4 sigma from zero
+and the group's held-out gain is significant), and the rule identify holds parameters by for each member (its value
+2 sigma or more from zero, else it leaves the group and the group is refitted once).
 Each member becomes a finding that names the others it was found with.
 """
 from __future__ import annotations
@@ -16,7 +18,8 @@ import numpy as np
 from calib.distributions import f_sf
 from calib.pruning import SIGNIFICANT
 
-from .findings import MATERIAL_SHARE, Finding, NearMiss, param_report, project, refit, stability, stated_spread
+from .findings import (DOUBTFUL_SPREAD, Finding, NearMiss, heldout_gain_p, material_reason, param_report, project,
+                       refit, stability, stated_spread)
 
 #: most members a group may have (the strongest by linearised score)
 MAX_MEMBERS = 8
@@ -40,9 +43,15 @@ def joint_group(cx, cur, lin, ok, tests, chi2, n_tested: int):
             if len(keep) == len(cands) or len(keep) < 2:
                 break
             cands = keep
+        else:
+            keep = []           # a member still left after the refit: the last fit is not of these members
         gain = cur.rms_mm - new.rms_mm
         label = " + ".join(c.label for c in cands)
-        if len(keep) < 2 or len(keep) != len(cands) or new.chi2 >= cur.chi2 or gain < MATERIAL_SHARE * cx.excess_mm:
+        why = "" if new.chi2 < cur.chi2 else "does not shrink the held-out gap"
+        if not why and len(keep) >= 2 and len(keep) == len(cands):
+            why = material_reason(gain, cx.excess_mm, cx.open_mm(cur), max(spreads) <= DOUBTFUL_SPREAD,
+                                  min(1.0, heldout_gain_p(cx.data, cur, new) * len(kinds)), cx.alpha)
+        if len(keep) < 2 or len(keep) != len(cands) or why:
             cx.near.append(NearMiss(label, new.rms_mm, p, f"together (a joint group) they shrink the held-out RMS by "
                                     f"{1000 * gain:.1f} um, or a member is not significant", cands[0].group))
             continue

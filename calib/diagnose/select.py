@@ -18,9 +18,10 @@ Each round:
    same (correlation above :data:`ALIAS_CORR`) and explains nearly as much (:data:`ALIAS_SHARE`).
 5. **Refit and accept** the best few significant candidates (:data:`REFIT_BEST`), in rank order, fully with
    :func:`calib.identify.identify` in every fold (warm start) and on all poses.  A candidate is accepted only when
-   it shrinks the held-out gap by at least :data:`MATERIAL_SHARE` of the baseline's excess over the floor (the same
-   share for a second effect on the same joint or the next link) *and* its parameters are stable across the folds
-   (jackknife relative spread below :data:`STABLE_MAX`).  Otherwise the next is tried; when none passes, selection
+   its held-out gain is material (:func:`calib.diagnose.findings.material_reason`: :data:`MATERIAL_SHARE` of the
+   baseline's excess over the floor, or of the excess still open for a confident candidate whose held-out gain is
+   significant; the same for a second effect on the same joint or the next link) *and* its parameters are stable
+   across the folds (jackknife relative spread below :data:`STABLE_MAX`).  Otherwise the next is tried; when none passes, selection
    stops and what is left is the unexplained gap, with the candidates that came closest.  A finding's parameters
    must also lie 2 sigma or more from zero (the rule identify holds parameters by).
 6. **Jointly**: when no single candidate passes, the candidates of one kind on several joints are tried together
@@ -40,8 +41,8 @@ from calib.pruning import SIGNIFICANT
 
 from .candidate import Candidate
 from .data import DiagnosisData
-from .findings import (MATERIAL_SHARE, STABLE_MAX, Finding, NearMiss, param_report, project, refit, stability,
-                       stated_spread)
+from .findings import (DOUBTFUL_SPREAD, MATERIAL_SHARE, STABLE_MAX, Finding, NearMiss, heldout_gain_p,
+                       material_reason, param_report, project, refit, stability, stated_spread)
 from .gap import CVResult, cv_fit, heldout_floor_mm
 from .jointly import joint_group
 
@@ -315,10 +316,24 @@ class _Context:
     noted: set[str] = field(default_factory=set)
     near: list[NearMiss] = field(default_factory=list)
 
+    def open_mm(self, cur: CVResult) -> float:
+        """The excess still open: the current model's held-out RMS above the floor."""
+        return max(0.0, cur.rms_mm - self.floor_mm)
+
     def note(self, text: str) -> None:
         if text not in self.noted:
             self.notes.append(text)
             self.noted.add(text)
+
+
+def _immaterial(cx: _Context, cur: CVResult, predicted_gain: float, doubtful: Callable[[], bool]) -> bool:
+    """The screen before a refit: the linearised held-out gain is below :data:`LINEAR_SLACK` of the least
+    :func:`calib.diagnose.findings.material_reason` could accept -- the baseline's share, or the open gap's share for
+    a candidate without the signs of a stand-in it can see before the refit (``doubtful()``: an alias, the edge of
+    its order grid)."""
+    if predicted_gain >= LINEAR_SLACK * MATERIAL_SHARE * cx.excess_mm:
+        return False
+    return predicted_gain < LINEAR_SLACK * MATERIAL_SHARE * cx.open_mm(cur) or doubtful()
 
 
 def _try_accept(cx: _Context, cur: CVResult, lin: _Linear, ok, tests: _Tests, k: int,
@@ -328,15 +343,17 @@ def _try_accept(cx: _Context, cur: CVResult, lin: _Linear, ok, tests: _Tests, k:
     model, new = refit(cx.data, cur, cand, cx.geo_free, cx.loss)
     gain = cur.rms_mm - new.rms_mm
     spread, fold_sigma = stability(model, new, cand)
+    stated = stated_spread(model, new, cand, fold_sigma)
+    aliases, edge = _aliases(k, ok, tests, lin, cx.alpha), _grid_edge(cand, ok)
     why = ""
     if new.chi2 >= cur.chi2:
         why = "does not shrink the held-out gap once refitted fully"
-    elif gain < MATERIAL_SHARE * cx.excess_mm:
-        why = (f"shrinks the held-out RMS by {1000 * gain:.1f} um only, less than {100 * MATERIAL_SHARE:.0f} % "
-               f"of the excess gap ({1000 * cx.excess_mm:.1f} um)")
-    elif spread > STABLE_MAX:
+    else:
+        confident = not aliases and not edge and stated <= DOUBTFUL_SPREAD
+        why = material_reason(gain, cx.excess_mm, cx.open_mm(cur), confident,
+                              min(1.0, heldout_gain_p(cx.data, cur, new) * n_tested), cx.alpha)
+    if not why and spread > STABLE_MAX:
         why = f"its parameters are not stable across the folds (relative spread {spread:.2f})"
-    stated = stated_spread(model, new, cand, fold_sigma)
     if not why and stated > 1.0 / SIGNIFICANT:
         why = (f"not significant: its value is within {SIGNIFICANT:g} sigma of zero (stated error "
                f"{100 * stated:.0f} % of it), the rule identify holds parameters by")
@@ -344,11 +361,10 @@ def _try_accept(cx: _Context, cur: CVResult, lin: _Linear, ok, tests: _Tests, k:
         cx.near.append(NearMiss(cand.label, new.rms_mm, float(tests.p[k]), why, cand.group))
         return why
     f = Finding(cand, new.rms_mm, new.max_mm, float(tests.p[k]), float(tests.F[k]), float(tests.dbic[k]), new.chi2,
-                param_report(cand, model, new, fold_sigma), n_tested, spread,
-                _aliases(k, ok, tests, lin, cx.alpha),
+                param_report(cand, model, new, fold_sigma), n_tested, spread, aliases,
                 gain / cx.excess_mm if cx.excess_mm > 0 else float("nan"), new,
                 stated_spread=stated)
-    f.leftover = _grid_edge(cand, ok)
+    f.leftover = edge
     return f, new
 
 
@@ -386,7 +402,8 @@ def _round(cx: _Context, cur: CVResult, remaining: list[Candidate], rounds: list
             why = why or f"best remaining candidate {cand.label} is not significant (corrected p = {tests.p[k]:.3g})"
             continue
         predicted = float(np.sqrt(sse[k] / cx.data.n))
-        if cur.rms_mm - predicted < LINEAR_SLACK * MATERIAL_SHARE * cx.excess_mm:
+        if _immaterial(cx, cur, cur.rms_mm - predicted,
+                       lambda: bool(_aliases(k, ok, tests, lin, cx.alpha) or _grid_edge(cand, ok))):
             gain = cur.rms_mm - predicted
             cx.near.append(NearMiss(cand.label, predicted, float(tests.p[k]),
                                     f"shrinks the held-out RMS by {1000 * gain:.1f} um only (linearised), less than "
