@@ -20,6 +20,7 @@ The thesis's own parameterisation (L, gamma1, gamma2; section 4.2 and eq 4.3.1) 
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, replace
 from functools import cached_property
 
@@ -109,6 +110,12 @@ class Station:
         R = station_rotation(self.yaw_rad, self.tilt_x_rad, self.tilt_y_rad)
         R.flags.writeable = False
         return R
+
+    @cached_property
+    def _plain(self) -> tuple:
+        """(name, position, rotation rows, c, i, k) in plain floats, for :func:`_refine_few`."""
+        return (self.name, (self.x_mm, self.y_mm, self.z_mm), self.rotation.tolist(), self.collimation_rad,
+                self.trunnion_rad, self.index_rad)
 
     def params(self) -> np.ndarray:
         return np.array([getattr(self, k) for k in self.PARAMS])
@@ -234,6 +241,10 @@ def intersect(stations: list[Station], readings: list[tuple], faces: list | None
     faces = faces or [1] * len(stations)
     hz = [np.atleast_1d(np.asarray(r[0], float)) for r in readings]
     vv = [np.atleast_1d(np.asarray(r[1], float)) for r in readings]
+    if len(hz[0]) * len(stations) <= SMALL_SIGHTINGS:
+        small = _intersect_few(stations, faces, hz, vv, iterations)
+        if small is not None:
+            return small
     dirs = [s.direction(h, v, f) for s, (h, v), f in zip(stations, zip(hz, vv), faces)]
     p, miss, angle = closest_point(stations[0].position, dirs[0], stations[1].position, dirs[1],
                                    (stations[0].name, stations[1].name))
@@ -258,6 +269,165 @@ def intersect(stations: list[Station], readings: list[tuple], faces: list | None
         A = np.einsum("nki,nkj->nij", J * w[None, :, None], J)
     cov = np.linalg.inv(A)
     return Intersection(point_mm=p, cov_mm2=cov, miss_mm=miss, angle_rad=angle, residual_rad=-res)
+
+
+#: at most this many sightings (points x stations) go through :func:`_refine_few`
+SMALL_SIGHTINGS = 12
+
+
+def _intersect_few(stations, faces, hz, vv, iterations) -> Intersection | None:
+    """:func:`intersect` for a few points, in plain floats; None leaves it to the vectorised code (readings that are
+    not finite, a singular normal matrix: its errors are the ones raised).
+
+    Why: the session checks every step's one or two targets as it is recorded; on one-point arrays the numpy calls
+    of :meth:`Station.direction`, :func:`closest_point` and :meth:`Station.observe` cost far more than their
+    arithmetic.  The same model and derivatives, the same start (the closest point of the first two sight lines, with
+    the same refusals), weights, iterations and stopping rule (every point steps until the largest step is below
+    1e-10 mm): equal to the vectorised code's to rounding (a test holds them together)."""
+    n, k = len(hz[0]), len(stations)
+    obs = [(s._plain, np.broadcast_to(np.asarray(f), (n,)).tolist(), h.tolist(), v.tolist(),
+            1.0 / s.sigma_hz_rad ** 2, 1.0 / s.sigma_v_rad ** 2) for s, f, h, v in zip(stations, faces, hz, vv)]
+    if not all(math.isfinite(x) for o in obs for x in o[2] + o[3]):
+        return None
+    try:
+        pts, miss, angle = _closest_few(obs[0], obs[1], n)
+        pts, res, A = _refine_few(obs, pts, iterations)
+    except ZeroDivisionError:
+        return None
+    return Intersection(point_mm=np.array(pts), cov_mm2=np.linalg.inv(np.array(A)), miss_mm=np.array(miss),
+                        angle_rad=np.array(angle), residual_rad=-np.array(res).reshape(n, 2 * k))
+
+
+def _direction_one(plain, face2: bool, hz: float, v: float) -> list[float]:
+    """:meth:`Station.direction` of one reading in plain floats."""
+    _, _, R, c, t, idx = plain
+    v = v - idx
+    v0 = TWO_PI - v if face2 else v
+    sv = math.sin(v0)
+    corr = c / sv + t * math.cos(v0) / sv
+    hz0 = hz - math.pi + corr if face2 else hz - corr
+    d = (sv * math.cos(hz0), -sv * math.sin(hz0), math.cos(v0))
+    return [d[0] * Ri[0] + d[1] * Ri[1] + d[2] * Ri[2] for Ri in R]
+
+
+def _closest_few(o1, o2, n: int):
+    """:func:`closest_point` of the first two stations' sight lines for ``n`` points in plain floats (the same
+    refusals, in the same order): (points, miss distances, angles)."""
+    (name1, c1, *_), (name2, c2, *_) = o1[0], o2[0]
+    w = [a - b for a, b in zip(c1, c2)]
+    lines = []
+    for i in range(n):
+        u1 = _direction_one(o1[0], o1[1][i] == 2, o1[2][i], o1[3][i])
+        u2 = _direction_one(o2[0], o2[1][i] == 2, o2[2][i], o2[3][i])
+        b = u1[0] * u2[0] + u1[1] * u2[1] + u1[2] * u2[2]
+        lines.append((u1, u2, b, math.acos(min(max(abs(b), 0.0), 1.0))))
+    for i, (_, _, _, angle) in enumerate(lines):
+        if angle < 1e-4:
+            raise GeometryError(f"sight lines from {name1} and {name2} are parallel for point {i} "
+                                f"(intersection angle {math.degrees(angle):.4f} deg); the point cannot be located")
+    ts = []
+    for u1, u2, b, _ in lines:
+        d = u1[0] * w[0] + u1[1] * w[1] + u1[2] * w[2]
+        e = u2[0] * w[0] + u2[1] * w[1] + u2[2] * w[2]
+        denom = 1.0 - b * b
+        ts.append(((b * e - d) / denom, (e - b * d) / denom))
+    for col, nm in ((0, name1), (1, name2)):
+        for i, t in enumerate(ts):
+            if t[col] <= 0:
+                raise GeometryError(f"point {i} would lie behind station {nm} (range {t[col]:.1f} mm along its "
+                                    f"sight line)")
+    pts, miss = [], []
+    for (u1, u2, _, _), (t1, t2) in zip(lines, ts):
+        p1 = [c + t1 * u for c, u in zip(c1, u1)]
+        p2 = [c + t2 * u for c, u in zip(c2, u2)]
+        pts.append([0.5 * (a + b) for a, b in zip(p1, p2)])
+        miss.append(math.sqrt(sum((a - b) ** 2 for a, b in zip(p1, p2))))
+    return pts, miss, [line[3] for line in lines]
+
+
+def _refine_few(obs, pts, iterations):
+    """The Gauss-Newton loop of :func:`intersect` in plain floats from the start points ``pts``: (points, residuals,
+    normal matrices J^T W J) per point."""
+    n = len(pts)
+    converged = False
+    for _ in range(iterations):
+        rows = [_normal_equations(obs, i, pts[i]) for i in range(n)]
+        steps = [_solve3(A, g) for _, _, A, g in rows]
+        pts = [[x + dx for x, dx in zip(pt, st)] for pt, st in zip(pts, steps)]
+        if max(abs(d) for st in steps for d in st) < 1e-10:
+            converged = True
+            break
+    if converged:       # as the vectorised loop: the last residuals less the step's first-order change
+        res = [[r - sum(jc * dc for jc, dc in zip(jr, st)) for r, jr in zip(rs, J)]
+               for (rs, J, _, _), st in zip(rows, steps)]
+    else:
+        rows = [_normal_equations(obs, i, pts[i]) for i in range(n)]
+        res = [rs for rs, _, _, _ in rows]
+    return pts, res, [A for _, _, A, _ in rows]
+
+
+def _normal_equations(obs, i, p):
+    """Point ``i`` at ``p``: its residuals (2k,), Jacobian rows (2k, 3), J^T W J (3, 3) and J^T W r (3,)."""
+    res, J = [], []
+    A = [[0.0] * 3 for _ in range(3)]
+    g = [0.0] * 3
+    for (name, pos, R, c, t, idx), faces, hz, vv, w_hz, w_v in obs:
+        ch, cv, jh, jv = _observe_one(name, pos, R, c, t, idx, faces[i] == 2, p, i)
+        for r, row, w in ((_wrap(hz[i] - ch), jh, w_hz), (vv[i] - cv, jv, w_v)):
+            res.append(r)
+            J.append(row)
+            for a in range(3):
+                wa = w * row[a]
+                g[a] += wa * r
+                for b in range(3):
+                    A[a][b] += wa * row[b]
+    return res, J, A, g
+
+
+def _observe_one(name, pos, R, c, t, idx, face2, p, i):
+    """:meth:`Station.observe` with its Jacobian for one point in plain floats: (Hz, V, dHz/dp, dV/dp)."""
+    e = [p[0] - pos[0], p[1] - pos[1], p[2] - pos[2]]
+    dx, dy, dz = (e[0] * R[0][j] + e[1] * R[1][j] + e[2] * R[2][j] for j in range(3))
+    rho2 = dx * dx + dy * dy
+    rho = math.sqrt(rho2)
+    if rho < 1e-9:
+        raise GeometryError(f"station {name}: point {i} is at the station or on its vertical axis; "
+                            f"no horizontal direction")
+    hz0 = math.atan2(-dy, dx)
+    v0 = math.atan2(math.hypot(dx, dy), dz)
+    sv, cv0 = math.sin(v0), math.cos(v0)
+    corr = c / sv + t * cv0 / sv
+    hz = (hz0 + math.pi - corr if face2 else hz0 + corr) % TWO_PI
+    v = (TWO_PI - v0 if face2 else v0) + idx
+    r2 = rho2 + dz * dz
+    rr2 = rho * r2
+    dv_dd = (dz * dx / rr2, dz * dy / rr2, -rho / r2)
+    k = (-1.0 if face2 else 1.0) * (-(c * cv0 + t) / (sv * sv))
+    dhz = (dy / rho2 + k * dv_dd[0], -dx / rho2 + k * dv_dd[1], k * dv_dd[2])
+    dv = tuple(-x for x in dv_dd) if face2 else dv_dd
+    return (hz, v, [dhz[0] * Ri[0] + dhz[1] * Ri[1] + dhz[2] * Ri[2] for Ri in R],
+            [dv[0] * Ri[0] + dv[1] * Ri[1] + dv[2] * Ri[2] for Ri in R])
+
+
+def _wrap(a: float) -> float:
+    """:func:`calib.angles.wrap_angle` of one float: (-pi, pi]."""
+    return math.atan2(math.sin(a), math.cos(a))
+
+
+def _solve3(A, g):
+    """``A x = g`` for a 3 x 3 ``A`` by Gaussian elimination with partial pivoting (ZeroDivisionError: singular)."""
+    M = [list(A[r]) + [g[r]] for r in range(3)]
+    for col in range(3):
+        piv = max(range(col, 3), key=lambda r: abs(M[r][col]))
+        M[col], M[piv] = M[piv], M[col]
+        for r in range(col + 1, 3):
+            f = M[r][col] / M[col][col]
+            for c in range(col, 4):
+                M[r][c] -= f * M[col][c]
+    x = [0.0] * 3
+    for r in (2, 1, 0):
+        x[r] = (M[r][3] - sum(M[r][c] * x[c] for c in range(r + 1, 3))) / M[r][r]
+    return x
 
 
 def _residuals(stations, faces, hz, vv, p):

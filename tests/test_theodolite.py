@@ -115,3 +115,48 @@ def test_point_on_vertical_axis_is_refused():
     a, _ = thesis_stations(1600.0, 0.0, 0.0)
     with pytest.raises(GeometryError, match="vertical axis"):
         a.observe(np.array([[0.0, 0.0, 500.0]]))
+
+
+@pytest.mark.parametrize("n", [1, 2, 4])
+def test_few_points_in_plain_floats_equal_the_vectorised_intersection(rng, monkeypatch, n):
+    """A few points (the session's per-step checks) are intersected in plain floats: the same start, model,
+    derivatives, weights and stopping rule as the vectorised loop, so the same point, residuals and covariance to
+    rounding, with faces per station or per point, two or three stations."""
+    import calib.theodolite as theo
+    a, b = imperfect_stations()
+    c = Station("C", 800, -900, 300, yaw_rad=1.2, sigma_v_rad=2 * ARCSEC)
+    for trial in range(40):
+        sts = [a, b, c][: 2 + trial % 2] if n < 4 else [a, b]
+        pts = random_points(rng, n)
+        faces = [int(rng.integers(1, 3)) for _ in sts]
+        if trial % 5 == 0:
+            faces[0] = rng.integers(1, 3, n)
+        readings = [tuple(x + rng.normal(0, 5 * ARCSEC, n) for x in s.observe(pts, f)) for s, f in zip(sts, faces)]
+        few = intersect(sts, readings, faces=faces)
+        monkeypatch.setattr(theo, "SMALL_SIGHTINGS", 0)
+        full = intersect(sts, readings, faces=faces)
+        monkeypatch.undo()
+        np.testing.assert_allclose(few.point_mm, full.point_mm, rtol=0, atol=1e-9)
+        np.testing.assert_allclose(few.residual_rad, full.residual_rad, rtol=0, atol=1e-13)
+        np.testing.assert_allclose(few.cov_mm2, full.cov_mm2, rtol=1e-10, atol=1e-12 * np.abs(full.cov_mm2).max())
+        np.testing.assert_allclose(few.miss_mm, full.miss_mm, rtol=1e-10, atol=1e-10)
+        np.testing.assert_allclose(few.angle_rad, full.angle_rad, rtol=0, atol=1e-13)
+
+
+def test_few_points_refuse_as_the_vectorised_intersection(monkeypatch):
+    """The plain-float path refuses what closest_point refuses, with the same words; non-finite readings go to the
+    vectorised code."""
+    import calib.theodolite as theo
+    a, b = imperfect_stations()
+    p = np.array([[800.0, 2800.0, 200.0]])
+    (ha, va), rb = a.observe(p), b.observe(p)
+    cases = [[(ha + np.pi, va), rb], [(ha, va), (ha, va)], [(np.array([np.nan]), va), rb]]
+    for readings in cases:
+        got = []
+        for small in (12, 0):
+            monkeypatch.setattr(theo, "SMALL_SIGHTINGS", small)
+            try:
+                got.append(np.round(intersect([a, b], readings).point_mm, 6).tolist())
+            except GeometryError as exc:
+                got.append(str(exc))
+        assert got[0] == got[1] or np.all(np.isnan(got[0])) and np.all(np.isnan(got[1]))
