@@ -106,3 +106,18 @@ def test_arrays_are_stored_as_np_save_writes_them():
         assert to_npy(a) == buf.getvalue(), a
         if np.asarray(a).dtype.kind in "iuf":                   # what the store keeps (it refuses the rest)
             np.testing.assert_array_equal(from_npy(to_npy(a)), np.asarray(a))
+            # read back as np.load reads it (its header parsed once per distinct header): dtype, shape, order, a
+            # writable copy
+            got, ref = from_npy(buf.getvalue()), np.load(io.BytesIO(buf.getvalue()))
+            assert (got.dtype, got.shape, got.flags.f_contiguous, got.flags.writeable) == \
+                (ref.dtype, ref.shape, ref.flags.f_contiguous, True), a
+            np.testing.assert_array_equal(got, ref)
+
+
+def test_damaged_arrays_are_named_as_np_load_finds_them():
+    """A blob cut short or with a damaged header is one line naming where it is, as np.load's checks find it."""
+    from acq.session.store import StoreError, from_npy, to_npy
+    good = to_npy(np.arange(6.0))
+    for bad in (good[:-3], b"\x93NUMPY\x01\x00garbage", b"junk", b""):
+        with pytest.raises(StoreError, match="^cap 3: damaged array data"):
+            from_npy(bad, "cap 3")

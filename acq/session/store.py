@@ -206,7 +206,14 @@ def _npy_header(dtype: str, shape: tuple) -> bytes:
 
 
 def from_npy(b: bytes, where: str = "array blob") -> np.ndarray:
-    """An array stored by :func:`to_npy`; a damaged blob is one line naming ``where`` (file, table, row)."""
+    """An array stored by :func:`to_npy`; a damaged blob is one line naming ``where`` (file, table, row).
+
+    A version 1.0 header of a C-ordered numeric array is parsed once per distinct header (a session's encoder windows
+    share a few: np.load parsed each one's text with ``ast.literal_eval``) and the data copied out after it; any other
+    blob, and one whose data is not the header's size, goes through ``np.load`` -- and its errors."""
+    fast = _from_npy_v1(b)
+    if fast is not None:
+        return fast
     try:
         a = np.load(io.BytesIO(b), allow_pickle=False)
     except Exception as exc:  # noqa: BLE001 -- numpy raises ValueError, EOFError, OSError, TypeError ... on garbage
@@ -215,6 +222,33 @@ def from_npy(b: bytes, where: str = "array blob") -> np.ndarray:
     if not isinstance(a, np.ndarray) or a.dtype.kind not in "iuf":
         raise StoreError(f"{where}: damaged array data (not a numeric array)")
     return a
+
+
+def _from_npy_v1(b: bytes) -> np.ndarray | None:
+    if len(b) < 10 or b[:8] != b"\x93NUMPY\x01\x00":
+        return None
+    end = 10 + int.from_bytes(b[8:10], "little")
+    meta = _npy_v1_header(bytes(b[:end]))
+    if meta is None:
+        return None
+    dtype, shape, nbytes = meta
+    if len(b) - end != nbytes:
+        return None
+    return np.frombuffer(b, dtype, offset=end).reshape(shape).copy()
+
+
+@lru_cache(maxsize=64)
+def _npy_v1_header(head: bytes) -> tuple | None:
+    """(dtype, shape, data bytes) of a version 1.0 npy header of a C-ordered numeric array, else None."""
+    try:
+        buf = io.BytesIO(head)
+        np.lib.format.read_magic(buf)
+        shape, fortran, dtype = np.lib.format.read_array_header_1_0(buf)
+    except Exception:  # noqa: BLE001 -- a damaged header: np.load says what is wrong
+        return None
+    if fortran or dtype.kind not in "iuf" or dtype.fields is not None:
+        return None
+    return dtype, shape, int(np.prod(shape, dtype=np.int64)) * dtype.itemsize
 
 
 def json_column(text, where: str):
