@@ -54,27 +54,52 @@ def step_loads(step: dict, ctx: Reduction, model: MeasurementModel, theta: np.nd
     """The loads of one step (see :class:`StepLoads`).  ``errors=False``: the torques and axes only (what
     :func:`compliance_deflection` uses), the derivatives the torques' errors come from left as None -- the torque
     derivative is most of the cost, and the transmission stage's correction for the loaded joints needs none."""
-    robot = ctx.robot
-    spec = step["spec"]
-    q = reading_q(step, robot)
+    return series_loads([step], ctx, model, theta, errors)[0]
+
+
+def series_loads(steps: list[dict], ctx: Reduction, model: MeasurementModel, theta: np.ndarray,
+                 errors: bool = True) -> list[StepLoads]:
+    """:func:`step_loads` of every step of a series, in order: the steps whose masses hang on the same links go
+    through the model together (one chain pass and one load computation for a loading series instead of one per
+    step; each pose's loads are its own, the model being vectorised over poses)."""
     g = model.gravity_n_per_kg(theta)
-    masses = hung_masses(spec["setup"].get("loads", []))           # in the step vocabulary since reading
-    forces = point_force_context(masses, g)
-    fp = model.kin.forward(q[None], theta[: model.n_geometric])
-    ld = model.loads(fp, model.context(1, **forces), derivative=errors)
+    masses = [hung_masses(s["spec"]["setup"].get("loads", [])) for s in steps]   # in the step vocabulary
+    groups: dict[tuple, list[int]] = {}
+    for i, ms in enumerate(masses):
+        groups.setdefault(tuple(m.link for m in ms), []).append(i)
+    out: list[StepLoads | None] = [None] * len(steps)
+    for idx in groups.values():
+        for i, sl in zip(idx, _group_loads([steps[i] for i in idx], [masses[i] for i in idx], ctx, model, theta, g,
+                                           errors)):
+            out[i] = sl
+    return out
+
+
+def _group_loads(steps, masses, ctx, model, theta, g, errors) -> list[StepLoads]:
+    """:func:`series_loads` of steps whose masses hang on the same links."""
+    robot = ctx.robot
+    q = np.array([reading_q(s, robot) for s in steps])
+    forces = [point_force_context(ms, g) for ms in masses]
+    both = {"point_force_link": forces[0]["point_force_link"],
+            **{k: np.concatenate([f[k] for f in forces]) for k in ("point_force_mm", "point_force_n")}}
+    fp = model.kin.forward(q, theta[: model.n_geometric])
+    ld = model.loads(fp, model.context(len(steps), **both), derivative=errors)
     if not errors:
-        return StepLoads(q, ld.joint_torque_nm[0], fp.joint_axis[0], None, None, None)
-    hung_nm = ld.joint_torque_nm[0] - model.loads(fp, model.context(1)).joint_torque_nm[0]
-    mass_kg = float(sum(m.mass_kg for m in masses))
-    # moving a load's point by e_c in its frame j adds (R_j e_c x F) . z_i to joint i's torque (i <= j)
-    z = fp.joint_axis[0]
-    dpoint = np.zeros((robot.n, 3))
-    for m, f in zip(masses, forces["point_force_n"][0]):
-        R = fp.frame_R[0, m.link]
-        for i in range(min(m.link, robot.n)):
-            dpoint[i] += np.cross(R.T, f * 1e-3) @ z[i]
-    return StepLoads(q, ld.joint_torque_nm[0], z, ld.dtau_dgeo[0], dpoint,
-                     hung_nm / mass_kg if mass_kg > 0 else 0 * hung_nm)
+        return [StepLoads(q[s], ld.joint_torque_nm[s], fp.joint_axis[s], None, None, None) for s in range(len(steps))]
+    hung = ld.joint_torque_nm - model.loads(fp, model.context(len(steps))).joint_torque_nm
+    out = []
+    for s, (ms, f) in enumerate(zip(masses, forces)):
+        mass_kg = float(sum(m.mass_kg for m in ms))
+        # moving a load's point by e_c in its frame j adds (R_j e_c x F) . z_i to joint i's torque (i <= j)
+        z = fp.joint_axis[s]
+        dpoint = np.zeros((robot.n, 3))
+        for m, fn in zip(ms, f["point_force_n"][0]):
+            R = fp.frame_R[s, m.link]
+            for i in range(min(m.link, robot.n)):
+                dpoint[i] += np.cross(R.T, fn * 1e-3) @ z[i]
+        out.append(StepLoads(q[s], ld.joint_torque_nm[s], z, ld.dtau_dgeo[s], dpoint,
+                             hung[s] / mass_kg if mass_kg > 0 else 0 * hung[s]))
+    return out
 
 
 def torque_covariance(per_step: list[StepLoads], j: int, sig_geo: np.ndarray) -> np.ndarray:

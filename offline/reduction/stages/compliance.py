@@ -16,7 +16,7 @@ from calib.units import DEG
 from offline.reduction.context import Reduction
 from offline.reduction.joints import angles_about, by_joint
 from offline.reduction.registry import Stage
-from offline.reduction.torques import compliance_deflection, step_loads, swept_geometry, torque_covariance
+from offline.reduction.torques import compliance_deflection, series_loads, swept_geometry, torque_covariance
 
 REPORTED = ("K1_Nm_per_rad", "K2_Nm_per_rad", "breakpoint_Nm", "offset_rad")
 #: torque range (N m) below which the loads did not turn the joint
@@ -31,7 +31,7 @@ def reduce_compliance(ctx: Reduction, steps: list[dict]) -> dict | None:
     ctx.trace["compliance"] = {}
     fits = {}
     for j, sts in sorted(by_joint(steps).items()):
-        per_step = [step_loads(s, ctx, model, theta) for s in sts]
+        per_step = series_loads(sts, ctx, model, theta)
         T = np.array([p.torque_nm[j - 1] for p in per_step])
         axis = per_step[0].axes[j - 1]      # the joint's axis at the loading pose (not the swept one's pose)
         applied = np.ptp(T)

@@ -18,7 +18,7 @@ from calib.units import DEG
 from offline.reduction.context import Reduction
 from offline.reduction.joints import angles_about, angles_about_own_axis, by_joint, encoder_q, reading_q, relative_error
 from offline.reduction.registry import Stage
-from offline.reduction.torques import compliance_deflection, step_loads, swept_geometry
+from offline.reduction.torques import compliance_deflection, series_loads, swept_geometry
 
 
 def reference_quantisation(steps: list[dict], ctx: Reduction, j: int) -> np.ndarray:
@@ -65,7 +65,7 @@ def reduce_transmission(ctx: Reduction, steps: list[dict]) -> dict | None:
         err = relative_error(meas, enc)
         cov = cov + reference_quantisation(sts, ctx, j)
         if stiffness:                       # the gravity deflection of the measured joints, as the joint turns
-            bent, bcov = compliance_deflection([step_loads(s, ctx, model, theta, errors=False) for s in sts],
+            bent, bcov = compliance_deflection(series_loads(sts, ctx, model, theta, errors=False),
                                                  stiffness, j)
             err, cov = err - bent, cov + bcov
         ok = np.isfinite(err)
