@@ -1,6 +1,8 @@
 """The pose set's errors beyond the identification's own covariance: what the stations' uncertainty and the
 transmission-error run's order add, and the floor of the total.  Both terms re-solve the identification from its own
-estimate with one input moved (a small step from a converged fit: no linear start and no outlier search)."""
+estimate with one input moved (a small step from a converged fit: no linear start and no outlier search) and read only
+its estimate (``report=False``: no covariance, no search for the joint that would determine a held direction; the
+held set and the estimate are the same)."""
 from __future__ import annotations
 
 import numpy as np
@@ -35,7 +37,7 @@ def station_variance(model, obs, D, ident, priors, fit, problems: list[str] | No
         moved = PointObservations(obs.q_rad, obs.points_mm + Dk[:, :, k] * sd, cov_mm2=obs.cov_mm2)
         try:
             g = identify(model, moved, free=list(ident.free), theta0=ident.theta, priors=priors, robust=False,
-                         start=False)
+                         start=False, report=False)       # its estimate only: no covariance, no explanations
         except RobocalError as exc:
             said.append(f"poses: the stations' uncertainty is left out of the errors (re-solve with station "
                         f"parameter {k} moved by 1 sigma failed: {exc})")
@@ -107,7 +109,7 @@ def te_run_variance(robot, running: dict, specs: list[str], obs, ident, priors,
             model, _, _ = pose_model(robot, running, [], sp)
             try:        # a small step from the converged fit, as in station_variance: no linear start or outlier search
                 moved.append(identify(model, obs, free=list(ident.free), theta0=ident.theta, priors=priors,
-                                      robust=False, start=False).theta)
+                                      robust=False, start=False, report=False).theta)
             except RobocalError:
                 break
         step = written[0] - written[-1]
