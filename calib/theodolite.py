@@ -133,6 +133,9 @@ class Station:
 
         A point at the station's centre or straight above it has no horizontal direction: GeometryError.
         """
+        if not with_jacobian and isinstance(points_mm, np.ndarray) and points_mm.shape == (1, 3) \
+                and np.ndim(face) == 0:
+            return self._observe_one(points_mm[0].tolist(), face == 2)
         d = self.local(points_mm)
         dx, dy, dz = d[..., 0], d[..., 1], d[..., 2]
         rho2 = dx * dx + dy * dy
@@ -163,6 +166,23 @@ class Station:
         J = np.empty(d.shape[:-1] + (2, 3))
         J[..., 0, :], J[..., 1, :] = dhz @ Rt, dv @ Rt
         return hz, v, J
+
+    def _observe_one(self, p: list[float], face2: bool) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`observe` of one point (a (1, 3) array) in plain floats, the same operations in the same order (the
+        emulated theodolites read one target at a time, and numpy's calls on one-point arrays cost more than their
+        arithmetic): bit for bit the vectorised readings (a test holds them equal)."""
+        _, pos, R, c, t, idx = self._plain
+        e = (p[0] - pos[0], p[1] - pos[1], p[2] - pos[2])
+        dx, dy, dz = (e[0] * R[0][j] + e[1] * R[1][j] + e[2] * R[2][j] for j in range(3))
+        if math.sqrt(dx * dx + dy * dy) < 1e-9:
+            raise GeometryError(f"station {self.name}: point 0 is at the station or on its vertical axis; "
+                                f"no horizontal direction")
+        hz0 = math.atan2(-dy, dx)
+        v0 = math.atan2(float(np.hypot(dx, dy)), dz)        # numpy's hypot: math.hypot rounds differently
+        sv = math.sin(v0)
+        corr = c / sv + t * math.cos(v0) / sv
+        hz = (hz0 + math.pi - corr if face2 else hz0 + corr) % TWO_PI
+        return np.array([hz]), np.array([(TWO_PI - v0 if face2 else v0) + idx])
 
     def direction(self, hz_rad, v_rad, face: int | np.ndarray = 1) -> np.ndarray:
         """World unit vectors (N, 3) of sight lines from readings, with the instrument errors removed."""

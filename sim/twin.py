@@ -262,15 +262,16 @@ class Twin:
         :meth:`observe`, then Hz wrapped."""
         stations = self.stations if stations is None else stations
         rng = self.rng if rng is None else rng
-        out = np.array(exact, float)
-        sig = np.concatenate([[s.sigma_hz_rad, s.sigma_v_rad] for s in stations])
-        if self.scenario.angle_noise:
-            out = out + rng.normal(size=out.shape) * sig
+        exact = np.asarray(exact, float)
+        if self.scenario.angle_noise:       # (few calls: an emulated theodolite asks for one reading at a time)
+            sig = np.array([v for s in stations for v in (s.sigma_hz_rad, s.sigma_v_rad)])
+            out = exact + rng.normal(size=exact.shape) * sig
+        else:
+            out = exact.copy()
         gross = rng.random(out.shape) < self.scenario.gross_rate
         if gross.any():
             out = out + gross * rng.choice([-1.0, 1.0], out.shape) * self.scenario.gross_rad
-        hz_cols = np.arange(0, out.shape[1], 2)
-        out[:, hz_cols] = np.mod(out[:, hz_cols], 2 * np.pi)
+        out[:, 0::2] = np.mod(out[:, 0::2], 2 * np.pi)        # Hz wrapped
         return out, gross
 
     def sight(self, points_mm: np.ndarray, faces: list[int] | None = None):

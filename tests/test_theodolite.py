@@ -160,3 +160,19 @@ def test_few_points_refuse_as_the_vectorised_intersection(monkeypatch):
             except GeometryError as exc:
                 got.append(str(exc))
         assert got[0] == got[1] or np.all(np.isnan(got[0])) and np.all(np.isnan(got[1]))
+
+
+def test_one_point_readings_are_the_vectorised_ones_bit_for_bit(rng):
+    """One point (an emulated theodolite's target) is observed in plain floats: the same readings, bit for bit, as
+    the vectorised code gives for a one-point list; the refusal of a point on the vertical axis stays."""
+    for _ in range(300):
+        st = Station("S", *rng.normal(size=3) * 500, yaw_rad=rng.uniform(-4, 4), tilt_x_rad=rng.normal() * 1e-4,
+                     tilt_y_rad=rng.normal() * 1e-4, collimation_rad=rng.normal() * 20 * ARCSEC,
+                     trunnion_rad=rng.normal() * 10 * ARCSEC, index_rad=rng.normal() * 20 * ARCSEC)
+        p = rng.normal(size=(1, 3)) * 2000
+        face = int(rng.integers(1, 3))
+        one, ref = st.observe(p, face), st.observe(p.tolist(), face)
+        assert one[0].shape == one[1].shape == (1,)
+        assert one[0][0] == ref[0][0] and one[1][0] == ref[1][0]
+    with pytest.raises(GeometryError, match="on its vertical axis"):
+        Station("A", 10.0, 20.0, 0.0).observe(np.array([[10.0, 20.0, 500.0]]))
