@@ -152,3 +152,28 @@ def test_a_steps_targets_evaluated_together_are_the_points_one_by_one():
     assert world._ahead == {}
     bench.aim(a1)
     assert not np.array_equal(world.target_mm(), together["A1"])
+
+
+def test_the_kept_readings_and_context_follow_every_change_of_state():
+    """The world keeps the encoder's readings and the pose context of the present state for its evaluations; after
+    a move, a hung mass, a changed payload, each point is exactly what a world built fresh at that state computes
+    (the same model, nothing stale)."""
+    from calib.loads import HungMass
+    tw = Twin(seed=5)
+    world = TwinWorld(tw, seed=5)
+    tool = world.default_tool_mm
+    q = np.radians([10.0, -40.0, 170.0, 30.0, 20.0, 40.0])
+    changes = [lambda w: w.command(q), lambda w: w.hang([HungMass(6, (0.0, 0.0, 120.0), 2.0)], np.ones(6)),
+               lambda w: w.command(q + 0.02), lambda w: w.set_load(payload_kg=1.5),
+               lambda w: w.hang([HungMass(3, (20.0, 0.0, 300.0), 5.0)], -np.ones(6))]
+    done = []
+    for change in changes:
+        world._point(None, tool), world._point(3, (0.0, 50.0, 100.0), loaded=False)      # fill what it keeps
+        change(world)
+        done.append(change)
+        fresh = TwinWorld(tw, seed=5)
+        for c in done:
+            c(fresh)
+        for args in ((None, tool), (3, (0.0, 50.0, 100.0))):
+            for loaded in (True, False):
+                np.testing.assert_array_equal(world._point(*args, loaded=loaded), fresh._point(*args, loaded=loaded))

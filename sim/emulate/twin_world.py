@@ -74,6 +74,9 @@ class TwinWorld:
         self._ahead: dict[Target, np.ndarray] = {}  # targets evaluated together at the present state (prefetch)
         self._faults: dict[str, list] = {}          # station -> [hz_rad, v_rad, readings left]
         self._exact: dict[tuple, np.ndarray] = {}   # (station, face, target point) -> readings before noise
+        # what the twin's model is evaluated with at the present state: the encoder's readings, the pose context
+        # (loaded or not); forgotten with the targets' cache when the joints move or the loads change
+        self._at: dict = {}
 
     # -- what the session's physical layer sets -------------------------------------------------------------------
     def command(self, q_rad) -> None:
@@ -93,6 +96,7 @@ class TwinWorld:
             if moved.any():                 # a command to where the joints are changes nothing the target depends on
                 self._cache = None
                 self._ahead.clear()
+                self._at.clear()
 
     def set_load(self, joint_torque_nm=None, load_direction=None, payload_kg: float = 0.0) -> None:
         """Torques applied directly to the joints (N m; kept for old callers -- the bench hangs masses instead),
@@ -104,6 +108,7 @@ class TwinWorld:
             self._payload = float(payload_kg)
             self._cache = None
             self._ahead.clear()
+            self._at.clear()
 
     def hang(self, masses=(), load_direction=None) -> None:
         """Replace the hung masses (:class:`HungMass`) and the loading direction per joint (+1 / -1 / 0)."""
@@ -122,6 +127,7 @@ class TwinWorld:
             self._load_dir = load_dir
             self._cache = None
             self._ahead.clear()
+            self._at.clear()
 
     def aim(self, target: Target) -> None:
         """Make ``target`` the one the theodolites read."""
@@ -151,10 +157,24 @@ class TwinWorld:
     def _point(self, link: int | None, point_mm, loaded: bool = True) -> np.ndarray:
         """True position (3,) of a point fixed in frame ``link`` (None: the flange tool point ``point_mm``) at the
         encoder's joint readings, through the twin's one model."""
-        _, q_read = self.twin.encoder(self._q[None])
-        ev = self.twin.model.evaluate(q_read, self.context(loaded), self.twin.theta,
+        ev = self.twin.model.evaluate(self._reading(), self._context_now(loaded), self.twin.theta,
                                       tool_mm=np.asarray(point_mm, float), link=link)
         return ev.point_mm[0]
+
+    def _reading(self) -> np.ndarray:
+        """(1, n) the joint readings the controller derives from the encoder counts at the present state (kept
+        until the joints move: a step evaluates its targets and gauge points at one state)."""
+        q = self._at.get("q")
+        if q is None:
+            q = self._at["q"] = self.twin.encoder(self._q[None])[1]
+        return q
+
+    def _context_now(self, loaded: bool) -> PoseContext:
+        """:meth:`context` kept until the state changes (the model reads it, never writes it)."""
+        ctx = self._at.get(loaded)
+        if ctx is None:
+            ctx = self._at[loaded] = self.context(loaded)
+        return ctx
 
     def prefetch(self, targets) -> None:
         """The true positions of ``targets`` (:class:`Target`) on the flange at the robot's present state, in one
@@ -166,9 +186,8 @@ class TwinWorld:
             todo = [t for t in dict.fromkeys(todo) if t not in self._ahead]
             if len(todo) < 2:
                 return
-            _, q_read = self.twin.encoder(self._q[None])
             rows = np.zeros(len(todo), int)
-            ev = self.twin.model.evaluate(q_read[rows], self.context(True).subset(rows), self.twin.theta,
+            ev = self.twin.model.evaluate(self._reading()[rows], self._context_now(True).subset(rows), self.twin.theta,
                                           tool_mm=np.array([t.tool_mm for t in todo], float))
             self._ahead.update(zip(todo, ev.point_mm))
 
