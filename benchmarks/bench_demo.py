@@ -122,6 +122,12 @@ def main(argv=None) -> int:
         print(f"median{name}: wall {med['wall']:.2f} s, cpu {med['cpu']:.2f} s, waiting "
               f"{max(med['wall'] - med['cpu'], 0):.2f} s, simulated (not slept) {med['simulated']:.1f} s -- {verdict} "
               f"the target {TARGET_S:g} s wall")
+    if len(trees) == 2:
+        # each round ran both trees back to back: their difference is less exposed to the load than either median
+        diff = sorted(o["cpu"] - m["cpu"] for m, o in zip(rows[trees[0]], rows[trees[1]]))
+        print(f"paired CPU difference per round ({trees[1].name} less this tree): median "
+              f"{statistics.median(diff):.2f} s, min {diff[0]:.2f} s, max {diff[-1]:.2f} s; CPU min "
+              f"{min(m['cpu'] for m in rows[trees[0]]):.2f} s against {min(o['cpu'] for o in rows[trees[1]]):.2f} s")
     print(f"baseline: {BASELINE}")
     print(_load())
     return 0
