@@ -40,7 +40,9 @@ BASELINE = ("17-20 s wall, ~9.7 s CPU, ~9 s asleep (2026-11-23, before the simul
             "wall median 4.7 s, CPU median 4.0 s at load 4 (2026-11-23, commit 0907691, before the CPU round); "
             "main at ddaea42 (ISO 9283 added, 285 steps): CPU median 5.1-6.0 s, wall 6.0-6.9 s at load 3-5 "
             "(2026-11-26, --compare runs of docs/demo-speed.md); main at df8f16a: CPU median 4.44 s, wall 5.03 s at "
-            "load 1.6-2.5 against 3.40 / 3.71 s after the second round (2026-11-26 07:33 UTC, --runs 5 --compare)")
+            "load 1.6-2.5 against 3.40 / 3.71 s after the second round (2026-11-26 07:33 UTC, --runs 5 --compare); "
+            "main at 4701447: CPU median 4.36 s, wall 6.07 s at load 3.7-4.1 against 3.76 / 5.57 s after the third "
+            "round, paired CPU difference median 0.60 s (2026-11-26 08:09 UTC, --runs 9 --compare)")
 _SIM = re.compile(r"([0-9.]+) s of instrument time simulated")
 _REC = re.compile(r"steps saved in ([0-9.]+) s")
 
