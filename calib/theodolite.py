@@ -291,7 +291,7 @@ def intersect(stations: list[Station], readings: list[tuple], faces: list | None
     return Intersection(point_mm=p, cov_mm2=cov, miss_mm=miss, angle_rad=angle, residual_rad=-res)
 
 
-#: at most this many sightings (points x stations) go through :func:`_refine_few`
+#: at most this many sightings (points x stations) go through :func:`_intersect_few` (plain floats)
 SMALL_SIGHTINGS = 12
 
 
