@@ -198,12 +198,28 @@ class Station:
 
 
 def face_mean(hz: np.ndarray, v: np.ndarray, face: np.ndarray) -> tuple[float, float]:
-    """Face-I-equivalent mean of readings (face II reduced: Hz - 180 deg, 360 deg - V): removes c, i and k."""
+    """Face-I-equivalent mean of readings (face II reduced: Hz - 180 deg, 360 deg - V): removes c, i and k.
+
+    One or two readings (a target read in both faces: every session check and reduction asks for it) in plain floats,
+    the same operations as numpy's below -- the same floats (a test holds them equal)."""
+    if len(hz) <= 2:
+        return _face_mean_few([float(x) for x in hz], [float(x) for x in v], [float(f) == 2 for f in face])
     hz, v, face = (np.asarray(a, float) for a in (hz, v, face))
     hz1 = np.where(face == 2, hz - np.pi, hz)
     v1 = np.where(face == 2, 2 * np.pi - v, v)
     ref = hz1[0]
     return float(np.mod(ref + np.mean(wrap_angle(hz1 - ref)), 2 * np.pi)), float(np.mean(v1))
+
+
+def _face_mean_few(hz: list[float], v: list[float], face2: list[bool]) -> tuple[float, float]:
+    """:func:`face_mean` of one or two readings: a mean of two is their sum halved, as numpy's; the wrap is
+    ``atan2(sin, cos)``, as :func:`calib.angles.wrap_angle`'s complex exponential."""
+    hz1 = [h - math.pi if f else h for h, f in zip(hz, face2)]
+    v1 = [2 * math.pi - x if f else x for x, f in zip(v, face2)]
+    ref = hz1[0]
+    d = [math.atan2(math.sin(h - ref), math.cos(h - ref)) for h in hz1]
+    n = len(d)
+    return (ref + sum(d[1:], d[0]) / n) % TWO_PI, sum(v1[1:], v1[0]) / n
 
 
 @dataclass

@@ -176,3 +176,25 @@ def test_one_point_readings_are_the_vectorised_ones_bit_for_bit(rng):
         assert one[0][0] == ref[0][0] and one[1][0] == ref[1][0]
     with pytest.raises(GeometryError, match="on its vertical axis"):
         Station("A", 10.0, 20.0, 0.0).observe(np.array([[10.0, 20.0, 500.0]]))
+
+
+def test_face_mean_of_one_or_two_readings_is_numpys_bit_for_bit(rng):
+    """One or two readings (a target in both faces) are averaged in plain floats: the very floats of the numpy
+    code (Hz wrapped about the first reading, face II reduced), also across the 0/360 deg seam."""
+    from calib.angles import wrap_angle
+    from calib.theodolite import face_mean
+
+    def numpy_mean(hz, v, face):
+        hz, v, face = (np.asarray(a, float) for a in (hz, v, face))
+        hz1 = np.where(face == 2, hz - np.pi, hz)
+        v1 = np.where(face == 2, 2 * np.pi - v, v)
+        return float(np.mod(hz1[0] + np.mean(wrap_angle(hz1 - hz1[0])), 2 * np.pi)), float(np.mean(v1))
+
+    for i in range(3000):
+        n = 1 + i % 2
+        hz, v, face = rng.uniform(0, 2 * np.pi, n), rng.uniform(0.5, 5.5, n), rng.integers(1, 3, n)
+        if n == 2 and i % 3 == 0:       # the same direction read in both faces, near the seam
+            hz[0] = rng.uniform(-1e-5, 1e-5) % (2 * np.pi)
+            hz[1] = (hz[0] + np.pi * (face[1] != face[0]) + rng.normal() * 1e-5) % (2 * np.pi)
+        assert face_mean(hz, v, face) == numpy_mean(hz, v, face)
+        assert face_mean(hz.tolist(), v.tolist(), face.tolist()) == numpy_mean(hz, v, face)
