@@ -5,12 +5,20 @@ URDF reader.
 """
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 
 def wrap_angle(a):
     """Angles wrapped to (-pi, pi] (radians; arrays keep their shape)."""
     return np.angle(np.exp(1j * np.asarray(a, float)))
+
+
+def wrap_float(a: float) -> float:
+    """:func:`wrap_angle` of one float, the same float (``atan2(sin, cos)``, which numpy's complex exponential and
+    angle compute), without numpy's per-call cost: for code that wraps one reading at a time."""
+    return math.atan2(math.sin(a), math.cos(a))
 
 
 def rigid_fit(source: np.ndarray, target: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

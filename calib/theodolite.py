@@ -26,7 +26,7 @@ from functools import cached_property
 
 import numpy as np
 
-from .angles import wrap_angle
+from .angles import wrap_angle, wrap_float
 from .errors import GeometryError
 from .units import ARCSEC
 
@@ -217,7 +217,7 @@ def _face_mean_few(hz: list[float], v: list[float], face2: list[bool]) -> tuple[
     hz1 = [h - math.pi if f else h for h, f in zip(hz, face2)]
     v1 = [2 * math.pi - x if f else x for x, f in zip(v, face2)]
     ref = hz1[0]
-    d = [math.atan2(math.sin(h - ref), math.cos(h - ref)) for h in hz1]
+    d = [wrap_float(h - ref) for h in hz1]
     n = len(d)
     return (ref + sum(d[1:], d[0]) / n) % TWO_PI, sum(v1[1:], v1[0]) / n
 
@@ -409,7 +409,7 @@ def _normal_equations(obs, i, p):
     g = [0.0] * 3
     for (name, pos, R, c, t, idx), faces, hz, vv, w_hz, w_v in obs:
         ch, cv, jh, jv = _observe_one(name, pos, R, c, t, idx, faces[i] == 2, p, i)
-        for r, row, w in ((_wrap(hz[i] - ch), jh, w_hz), (vv[i] - cv, jv, w_v)):
+        for r, row, w in ((wrap_float(hz[i] - ch), jh, w_hz), (vv[i] - cv, jv, w_v)):
             res.append(r)
             J.append(row)
             for a in range(3):
@@ -443,11 +443,6 @@ def _observe_one(name, pos, R, c, t, idx, face2, p, i):
     dv = tuple(-x for x in dv_dd) if face2 else dv_dd
     return (hz, v, [dhz[0] * Ri[0] + dhz[1] * Ri[1] + dhz[2] * Ri[2] for Ri in R],
             [dv[0] * Ri[0] + dv[1] * Ri[1] + dv[2] * Ri[2] for Ri in R])
-
-
-def _wrap(a: float) -> float:
-    """:func:`calib.angles.wrap_angle` of one float: (-pi, pi]."""
-    return math.atan2(math.sin(a), math.cos(a))
 
 
 def _solve3(A, g):

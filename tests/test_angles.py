@@ -35,3 +35,13 @@ def test_rigid_fit_of_a_mirrored_set_is_still_a_rotation():
     ref, _ = Rotation.align_vectors(tgt - tgt.mean(0), src - src.mean(0))
     assert np.isclose(np.linalg.det(R), 1.0)
     assert np.allclose(R, ref.as_matrix(), atol=1e-9)
+
+
+def test_wrap_float_is_wrap_angles_float():
+    """One float wrapped without numpy is the float wrap_angle gives, in (-pi, pi], over many turns either way."""
+    from calib.angles import wrap_angle, wrap_float
+    x = np.random.default_rng(0).uniform(-40.0, 40.0, 20000)
+    got = np.array([wrap_float(float(a)) for a in x])
+    np.testing.assert_array_equal(got, wrap_angle(x))
+    assert np.all((got > -np.pi) & (got <= np.pi))
+    np.testing.assert_allclose(np.cos(got), np.cos(x), atol=1e-12)

@@ -23,7 +23,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from calib.angles import wrap_angle
+from calib.angles import wrap_angle, wrap_float
 from calib.errors import RobocalError
 from calib.theodolite import Station, face_mean, intersect  # noqa: F401 (face_mean: re-exported)
 from calib.units import ARCSEC, DEG
@@ -59,6 +59,12 @@ class Check:
 
 
 
+def _mean(xs: list[float]) -> float:
+    """np.mean's float of a list: one or two readings (a face's, in a step) in plain floats -- a sum of two halved is
+    numpy's mean of two -- more through numpy (its pairwise sum)."""
+    return float(np.mean(xs)) if len(xs) > 2 else sum(xs[1:], xs[0]) / len(xs)
+
+
 def face_agreement(readings: list[dict], limit_arcsec: float) -> list[Check]:
     out = []
     for (st, tg) in sorted({(r["station"], r["target"]) for r in readings}):
@@ -67,9 +73,9 @@ def face_agreement(readings: list[dict], limit_arcsec: float) -> list[Check]:
         f2 = [r for r in rs if r["face"] == 2]
         if not f1 or not f2:
             continue
-        hz1, v1 = np.mean([r["hz_rad"] for r in f1]), np.mean([r["v_rad"] for r in f1])
-        hz2, v2 = np.mean([r["hz_rad"] for r in f2]), np.mean([r["v_rad"] for r in f2])
-        two_c = abs(float(wrap_angle(hz1 - (hz2 - np.pi)))) / ARCSEC
+        hz1, v1 = _mean([r["hz_rad"] for r in f1]), _mean([r["v_rad"] for r in f1])
+        hz2, v2 = _mean([r["hz_rad"] for r in f2]), _mean([r["v_rad"] for r in f2])
+        two_c = abs(wrap_float(hz1 - (hz2 - np.pi))) / ARCSEC
         two_k = abs(float(v1 + v2 - 2 * np.pi)) / ARCSEC
         worst = max(two_c, two_k)
         ok = worst <= limit_arcsec
