@@ -432,7 +432,7 @@ def _round(cx: _Context, cur: CVResult, remaining: list[Candidate], rounds: list
 
 
 def forward_select(data: DiagnosisData, base: CVResult, geo_free: list[str], candidates: list[Candidate],
-                   alpha: float = 0.01, max_effects: int = 6,
+                   alpha: float = 0.01, max_effects: int = 8,
                    progress: Callable[[str, float], None] | None = None, floor_mm: float | None = None,
                    loss: str = "linear") -> Selection:
     """Greedy forward selection from the geometric fit ``base`` (see the module docstring).  ``floor_mm``: the
