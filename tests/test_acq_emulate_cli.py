@@ -27,7 +27,7 @@ def _start(*argv):
 def _stop(p):
     p.send_signal(signal.SIGINT)
     try:
-        rc = p.wait(5)
+        rc = p.wait(30)         # a guard against a hang, not a bound: it exits in ~0.1 s on a quiet machine
     except subprocess.TimeoutExpired:
         p.kill()
         raise

@@ -266,9 +266,9 @@ def test_diagnose_names_lateral_elasticity_beside_joint_elasticity(world, tmp_pa
     still open (calib.diagnose.findings.material_reason).  Room for 8 steps: on the way, greedy selection takes
     torso_3's joint compliance and the right shoulder pitch's lateral compliance (a near tie with the shoulder's own,
     0.3178 against 0.3183 mm), which the shoulders' lateral compliances then supersede and the backward step drops;
-    with the default 6 it stops with them at 3x the floor."""
+    with a limit of 6 it stopped with them at 3x the floor, so the default is 8."""
     robot = world[3]
-    doc = _diagnose_case(world, tmp_path, "joint+lateral", n=400, test_every=4, extra=("--max-effects", "8"))
+    doc = _diagnose_case(world, tmp_path, "joint+lateral", n=400, test_every=4)
     want = {f"{kind} j{robot.joint_names.index(k) + 1}" for kind, names in
             (("joint_compliance", ec.JOINT), ("lateral_compliance", ec.LATERAL)) for k in names}
     assert {f["label"] for f in doc["findings"]} == want, sorted(f["label"] for f in doc["findings"])

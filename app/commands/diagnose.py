@@ -50,7 +50,9 @@ def add_arguments(p):
                         "leave-one-out)")
     p.add_argument("--alpha", type=float_range(0, 1, low_open=True, high_open=True), default=0.01,
                    help="family-wise significance level of the nested F-test (default 0.01)")
-    p.add_argument("--max-effects", type=nonneg_int, default=6, metavar="N", help="stop after N accepted effects")
+    p.add_argument("--max-effects", type=nonneg_int, default=8, metavar="N",
+                   help="stop after N accepted effects (default 8: room for a stand-in that a later effect supersedes and "
+                        "the backward step drops)")
     add_outlier_arguments(p)
     add_force_argument(p)
     p.add_argument("--confirm", metavar="OTHER.csv", action="append",

@@ -197,7 +197,7 @@ def _geometric(data: DiagnosisData, model: MeasurementModel, level: str, folds,
 
 
 def diagnose(data: DiagnosisData, level: str = "auto", n_folds: int | None = None, alpha: float = 0.01,
-             max_effects: int = 6, kinds: tuple[str, ...] = EFFECT_NAMES, te_orders=TE_ORDERS,
+             max_effects: int = 8, kinds: tuple[str, ...] = EFFECT_NAMES, te_orders=TE_ORDERS,
              flag_outliers: bool = True, progress: Callable[[str, float], None] | None = None,
              outliers: str = "flag", loss: str = "linear", nested: bool | str = True) -> Diagnosis:
     """Run the whole diagnosis on ``data`` (see the package docstring).  ``outliers``/``loss`` as identify's

@@ -178,7 +178,8 @@ def _heldout_scores(data: DiagnosisData, cur: CVResult, lin: _Linear, ok) -> tup
             H = Jb @ G - J[np.ix_(te, allcols)]
             pred = (r[te] - Jb @ g0)[:, None] + np.add.reduceat(H * dc, starts, axis=1)
             out += np.einsum("ij,ij->j", pred, pred)
-    return chi2, sse
+    # a candidate absorbed on some fold's fit rows (NaN coefficients) improves nothing there: never ranked a winner
+    return np.where(np.isfinite(chi2), chi2, np.inf), np.where(np.isfinite(sse), sse, np.inf)
 
 
 def _diagonal_blocks(C: np.ndarray, QtC: np.ndarray, starts: np.ndarray) -> list[tuple[np.ndarray, np.ndarray]]:
@@ -217,9 +218,12 @@ def _block_normal_equations(C: np.ndarray, QtC: np.ndarray, rhs: np.ndarray, sta
     dc = np.zeros(C.shape[1])
     for first, Gk in _diagonal_blocks(C, QtC, starts):
         cols = first[:, None] + np.arange(Gk.shape[1])
-        d = np.sqrt(np.einsum("kii->ki", Gk))
-        x = np.linalg.solve(Gk / (d[:, :, None] * d[:, None, :]), (rhs[cols] / d)[..., None])[..., 0]
-        dc[cols] = x / d
+        # on a fold's fit rows a candidate the guard passed on all rows can be absorbed: its projected diagonal rounds
+        # to <= 0 and its coefficients come out NaN, which the caller scores as no improvement
+        with np.errstate(invalid="ignore", divide="ignore"):
+            d = np.sqrt(np.einsum("kii->ki", Gk))
+            x = np.linalg.solve(Gk / (d[:, :, None] * d[:, None, :]), (rhs[cols] / d)[..., None])[..., 0]
+            dc[cols] = x / d
     return dc
 
 
@@ -432,7 +436,7 @@ def _round(cx: _Context, cur: CVResult, remaining: list[Candidate], rounds: list
 
 
 def forward_select(data: DiagnosisData, base: CVResult, geo_free: list[str], candidates: list[Candidate],
-                   alpha: float = 0.01, max_effects: int = 6,
+                   alpha: float = 0.01, max_effects: int = 8,
                    progress: Callable[[str, float], None] | None = None, floor_mm: float | None = None,
                    loss: str = "linear") -> Selection:
     """Greedy forward selection from the geometric fit ``base`` (see the module docstring).  ``floor_mm``: the
