@@ -1,11 +1,12 @@
 """The few test distributions robocal needs (chi-square and F tails, the Kruskal-Wallis and Mann-Whitney tests, the
-hypergeometric tail), from scipy.special.
+hypergeometric tail), without scipy.stats.
 
 Why not ``scipy.stats``: importing it takes 0.3-1 s (it builds every distribution object at import), more than a
-400-pose identification spends computing; scipy.special's functions are the same numerics underneath
-(``stats.chi2.isf`` is ``special.chdtri``, ``stats.f.sf`` is ``special.fdtrc``) and cost nothing more once
-scipy.optimize is loaded.  The import is inside each function, so a module using these loads no scipy until a test
-is actually made.  Checked against scipy.stats in ``tests/test_distributions.py``.
+400-pose identification spends computing.  The tests robocal makes have whole degrees of freedom, whose chi-square
+and F tails are computed here (closed form; the incomplete beta function's continued fraction), so a diagnosis
+imports no scipy at all (``scipy.special`` alone is 0.3 s of import); anything else goes to scipy.special's functions,
+the same numerics as scipy.stats (``stats.chi2.isf`` is ``special.chdtri``, ``stats.f.sf`` is ``special.fdtrc``),
+imported inside the function that needs them.  Checked against scipy in ``tests/test_distributions.py``.
 """
 from __future__ import annotations
 
@@ -76,17 +77,133 @@ def chi2_median(dof):
 
 
 def chi2_sf(x, dof):
-    """P(chi-square at ``dof`` degrees of freedom > ``x``) (``stats.chi2.sf``; 1 for x <= 0)."""
+    """P(chi-square at ``dof`` degrees of freedom > ``x``) (``stats.chi2.sf``; 1 for x <= 0).
+
+    Whole ``dof`` up to :data:`_CLOSED_FORM_DOF` in closed form (:func:`_chi2_sf_int`), anything else by
+    ``scipy.special.chdtrc`` (0.2-0.3 s of import a diagnosis need not pay)."""
+    x, dof = np.broadcast_arrays(np.asarray(x, float), np.asarray(dof, float))
+    if np.all(np.isfinite(x)) and np.all((dof == np.round(dof)) & (dof >= 1) & (dof <= _CLOSED_FORM_DOF)):
+        out = np.array([_chi2_sf_int(float(a), int(k)) for a, k in zip(x.ravel(), dof.ravel())]).reshape(x.shape)
+        return out if out.ndim else out[()]
     # scipy.special: lazy for start-up, as in chi2_isf
     from scipy.special import chdtrc
     return chdtrc(dof, np.maximum(x, 0.0))
 
 
 def f_sf(x, dfn, dfd):
-    """P(F(``dfn``, ``dfd``) > ``x``) (``stats.f.sf``; 1 for x <= 0, NaN for NaN)."""
-    # scipy.special: lazy for start-up, as in chi2_isf
-    from scipy.special import fdtrc
-    return fdtrc(dfn, dfd, np.maximum(x, 0.0))
+    """P(F(``dfn``, ``dfd``) > ``x``) (``stats.f.sf``; 1 for x <= 0, NaN for NaN).
+
+    Whole degrees of freedom (every test robocal makes) by the regularized incomplete beta function here
+    (:func:`_f_sf_int`, checked against ``scipy.special.fdtrc`` in tests/test_distributions.py); anything else by
+    ``fdtrc``, whose import (0.2-0.3 s) a diagnosis then need not pay."""
+    x, dfn, dfd = np.broadcast_arrays(np.asarray(x, float), np.asarray(dfn, float), np.asarray(dfd, float))
+    whole = np.all((dfn == np.round(dfn)) & (dfd == np.round(dfd)) & (dfn >= 1) & (dfd >= 1)
+                   & (dfn <= _CLOSED_FORM_F) & (dfd <= _CLOSED_FORM_F))
+    out = None
+    if whole:
+        vals = [_f_sf_int(float(a), float(m), float(n)) for a, m, n in zip(x.ravel(), dfn.ravel(), dfd.ravel())]
+        if not any(v is None for v in vals):
+            out = np.array(vals, float).reshape(x.shape)
+    if out is None:
+        # scipy.special: lazy for start-up, as in chi2_isf
+        from scipy.special import fdtrc
+        out = np.asarray(fdtrc(dfn, dfd, np.maximum(x, 0.0)), float)
+    return out if out.ndim else out[()]
+
+
+#: whole degrees of freedom up to this have their F tail computed here (:func:`_f_sf_int`)
+_CLOSED_FORM_F = 1e6
+
+
+def _f_sf_int(x: float, dfn: float, dfd: float) -> float | None:
+    """P(F(dfn, dfd) > x) = I_w(dfd/2, dfn/2), w = dfd / (dfd + dfn x) (Abramowitz and Stegun 26.6.2); None when the
+    continued fraction does not converge (the caller then asks scipy)."""
+    if math.isnan(x):
+        return float("nan")
+    if x <= 0.0:
+        return 1.0
+    if math.isinf(x):
+        return 0.0
+    den = dfd + dfn * x
+    return _beta_inc(0.5 * dfd, 0.5 * dfn, dfd / den, dfn * x / den)
+
+
+def _beta_inc(a: float, b: float, w: float, wc: float) -> float | None:
+    """The regularized incomplete beta function I_w(a, b), ``wc`` = 1 - w given apart (no cancellation): the
+    continued fraction on the side where it converges fast (Numerical Recipes' ``betai``), so a small tail comes from
+    the fraction itself, not from 1 minus something; its front factor by :func:`_log_beta_front`."""
+    if w <= 0.0:
+        return 0.0
+    if wc <= 0.0:
+        return 1.0
+    if w < (a + 1.0) / (a + b + 2.0):
+        cf = _beta_cf(a, b, w)
+        return None if cf is None else math.exp(_log_beta_front(a, b, w, wc) + math.log(cf / a))
+    cf = _beta_cf(b, a, wc)
+    return None if cf is None else 1.0 - math.exp(_log_beta_front(a, b, w, wc) + math.log(cf / b))
+
+
+_HALF_LOG_2PI = 0.5 * math.log(2.0 * math.pi)
+
+
+def _log_beta_front(a: float, b: float, w: float, wc: float) -> float:
+    """log(w^a wc^b / B(a, b)) without the cancellation of ``lgamma(a + b) - lgamma(a) - lgamma(b) + a log w + ...``
+    (terms of 1e5 for 1e5 degrees of freedom, whose rounding alone is 1e-11 of the result): by Stirling's formula,
+    ``0.5 log(ab / (2 pi (a+b))) - a phi(w/x0 - 1) - b phi(wc/y0 - 1) + corrections``, x0 = a/(a+b), y0 = b/(a+b),
+    phi(e) = e - log(1+e) >= 0 (as TOMS 708's ``brcomp``)."""
+    n = a + b
+    e1 = (w - a / n) / (a / n)
+    e2 = (wc - b / n) / (b / n)
+    return (0.5 * math.log(a * b / n) - _HALF_LOG_2PI - a * _phi(e1) - b * _phi(e2)
+            + _stirling_rest(n) - _stirling_rest(a) - _stirling_rest(b))
+
+
+def _phi(e: float) -> float:
+    """e - log(1 + e), by its series where the difference would cancel."""
+    if abs(e) >= 0.25:
+        return e - math.log1p(e)
+    total, term = 0.0, -e
+    for k in range(2, 60):              # |e| < 1/4: 30 terms reach 1e-17 of the sum
+        term *= -e
+        total += term / k
+    return total
+
+
+def _stirling_rest(x: float) -> float:
+    """lgamma(x) - ((x - 1/2) log x - x + log(2 pi)/2): by its asymptotic series for x >= 15 (the next term under
+    3e-14), else from lgamma itself (small terms there, no cancellation to speak of)."""
+    if x < 15.0:
+        return math.lgamma(x) - ((x - 0.5) * math.log(x) - x + _HALF_LOG_2PI)
+    x2 = 1.0 / (x * x)
+    return (1.0 / 12.0 - x2 * (1.0 / 360.0 - x2 * (1.0 / 1260.0 - x2 * (1.0 / 1680.0 - x2 / 1188.0)))) / x
+
+
+def _beta_cf(a: float, b: float, w: float, tol: float = 1e-16, max_iter: int = 100000) -> float | None:
+    """The continued fraction of the incomplete beta function, evaluated by the modified Lentz method (Numerical
+    Recipes' ``betacf``); None when it has not converged after ``max_iter`` terms."""
+    tiny = 1e-300
+    qab, qap, qam = a + b, a + 1.0, a - 1.0
+    c, d = 1.0, 1.0 - qab * w / qap
+    d = 1.0 / (d if abs(d) > tiny else tiny)
+    h = d
+    for m in range(1, max_iter + 1):
+        m2 = 2 * m
+        aa = m * (b - m) * w / ((qam + m2) * (a + m2))
+        d = 1.0 + aa * d
+        d = 1.0 / (d if abs(d) > tiny else tiny)
+        c = 1.0 + aa / c
+        c = c if abs(c) > tiny else tiny
+        h *= d * c
+        aa = -(a + m) * (qab + m) * w / ((a + m2) * (qap + m2))
+        d = 1.0 + aa * d
+        d = 1.0 / (d if abs(d) > tiny else tiny)
+        c = 1.0 + aa / c
+        c = c if abs(c) > tiny else tiny
+        delta = d * c
+        h *= delta
+        if abs(delta - 1.0) <= tol:
+            return h
+    return None
 
 
 def average_ranks(values: np.ndarray) -> np.ndarray:
@@ -120,8 +237,6 @@ def mann_whitney_p(x, y) -> float:
     """Two-sided p-value of the Mann-Whitney U test (``stats.mannwhitneyu(x, y).pvalue``, its default method: the
     exact distribution of U when a sample has at most 8 values and there are no ties, else the normal approximation with
     the tie and continuity corrections)."""
-    # scipy.special: lazy for start-up, as in chi2_isf
-    from scipy.special import ndtr
     x, y = np.asarray(x, float).ravel(), np.asarray(y, float).ravel()
     n1, n2 = len(x), len(y)
     if n1 == 0 or n2 == 0:
@@ -139,7 +254,17 @@ def mann_whitney_p(x, y) -> float:
     if sd <= 0:
         return 1.0
     z = (u - n1 * n2 / 2.0 - 0.5) / sd
-    return float(min(1.0, 2.0 * ndtr(-z)))
+    return float(min(1.0, 2.0 * _normal_cdf(-z)))
+
+
+def _normal_cdf(z: float) -> float:
+    """P(N(0, 1) < z) by the error function, as cephes' ``ndtr`` (scipy.special) computes it: erf near zero, erfc in
+    the tails (no 1 minus a small number)."""
+    x = z / math.sqrt(2.0)
+    if abs(x) < 1.0 / math.sqrt(2.0):
+        return 0.5 + 0.5 * math.erf(x)
+    y = 0.5 * math.erfc(abs(x))
+    return 1.0 - y if x > 0 else y
 
 
 def _u_sf(u: int, n1: int, n2: int) -> float:

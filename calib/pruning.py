@@ -131,14 +131,15 @@ def _inverse(A: np.ndarray) -> tuple[np.ndarray, int]:
     directions, and their number.  Positive definite (the usual case: the full fit's parameters are determined): by
     its Cholesky factor, a tenth of the eigendecomposition's cost on the hundreds of refits an elimination makes;
     otherwise the pseudo-inverse over eigenvalues above 1e-20 of the largest."""
-    # scipy.linalg costs ~0.3 s; diagnose loads this module before it reads its data (a bad file is refused sooner)
-    from scipy.linalg import lapack
+    # numpy's Cholesky, not LAPACK's dpotrf/dpotri through scipy.linalg: that import cost every diagnosis 0.3 s
     if A.size:
-        c, info = lapack.dpotrf(A, lower=False)
-        if info == 0:
-            inv, info = lapack.dpotri(c, lower=False)
-            if info == 0:
-                return np.triu(inv) + np.triu(inv, 1).T, len(A)
+        try:
+            L = np.linalg.cholesky(A)
+        except np.linalg.LinAlgError:           # not positive definite: the eigendecomposition below
+            pass
+        else:
+            Linv = np.linalg.solve(L, np.eye(len(A)))         # A^-1 = L^-T L^-1
+            return Linv.T @ Linv, len(A)
     w, V = np.linalg.eigh(A)
     keep = w > 1e-20 * (w[-1] if w.size else 1.0)
     return (V[:, keep] / w[keep]) @ V[:, keep].T, int(keep.sum())

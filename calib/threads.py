@@ -13,8 +13,8 @@ from __future__ import annotations
 
 import os
 import sys
-from collections.abc import MutableMapping
-from contextlib import AbstractContextManager, nullcontext
+from collections.abc import Iterator, MutableMapping
+from contextlib import AbstractContextManager, contextmanager, nullcontext
 
 #: the variables BLAS and OpenMP runtimes read for their thread count (OpenBLAS also reads OMP_NUM_THREADS)
 BLAS_ENV_VARS = ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS", "VECLIB_MAXIMUM_THREADS",
@@ -65,18 +65,42 @@ def configure(requested: int | None = None, environ: MutableMapping[str, str] | 
 
 
 def limit(n: int | None) -> AbstractContextManager:
-    """A context capping the BLAS libraries loaded in this process at ``n`` threads (nothing for None or when numpy
-    is not loaded: then :func:`configure`'s variables act when it loads).
+    """A context capping the BLAS libraries at ``n`` threads for its duration (nothing for None or when numpy is not
+    loaded: then :func:`configure`'s variables act when it loads).
 
     threadpoolctl caps only the libraries loaded when it starts, and scipy brings its own OpenBLAS, which a command
-    would load lazily and then run threaded: scipy.linalg is loaded first so that the cap covers it too (a command
-    that reaches this path has numpy loaded already, and every fit uses scipy.linalg)."""
+    may load lazily inside the context and which reads its thread count once, when it loads: so the BLAS variables
+    are also set to ``n`` for the duration (and restored after), and a library loaded meanwhile keeps ``n`` threads.
+    Importing scipy.linalg here instead (so that the cap covered it) cost 0.3 s of every diagnosis that needs no
+    scipy at all."""
     if n is None or "numpy" not in sys.modules:
         return nullcontext()
     try:
         # optional (a speed-up only), and needed only once numpy is loaded: not on every start-up
         from threadpoolctl import threadpool_limits
-        import scipy.linalg  # noqa: F401  (scipy's own BLAS, loaded now so that the limit covers it)
     except ImportError:                         # a speed-up only
         return nullcontext()
-    return threadpool_limits(n, user_api="blas")
+    return _capped(n, threadpool_limits)
+
+
+@contextmanager
+def _capped(n: int, threadpool_limits) -> Iterator[None]:
+    """The loaded libraries capped by threadpoolctl, and the variables set for those loaded meanwhile."""
+    with blas_environment(n), threadpool_limits(n, user_api="blas"):
+        yield
+
+
+@contextmanager
+def blas_environment(n: int) -> Iterator[None]:
+    """This process's BLAS variables set to ``n`` for the duration, restored after (read by a BLAS library loaded
+    meanwhile, and by child processes started meanwhile)."""
+    saved = {k: os.environ.get(k) for k in BLAS_ENV_VARS}
+    os.environ.update({k: str(n) for k in BLAS_ENV_VARS})
+    try:
+        yield
+    finally:
+        for k, v in saved.items():
+            if v is None:
+                os.environ.pop(k, None)
+            else:
+                os.environ[k] = v

@@ -89,9 +89,13 @@ def test_light_commands_run_without_scipy():
 
 
 def test_fits_never_load_scipy_stats(tmp_path):
+    """A plain fit loads no scipy at all (Gauss-Newton, the tests' tails and the thread cap are robocal's own); a
+    fit with a loss only scipy's trust region minimises loads scipy.optimize, never scipy.stats."""
     csv = str(tmp_path / "twin.csv")
     loaded = _loaded_after([["twin", "--poses", "60", "--seed", "1", "--export", csv], ["identify", csv]])
-    assert "scipy" in loaded                    # the check sees what is loaded (the fit's linear algebra)
+    assert not any(m.startswith("scipy") for m in loaded), sorted(loaded)
+    loaded = _loaded_after([["identify", csv, "--loss", "huber"]])
+    assert "scipy" in loaded                    # the check sees what is loaded (the trust region's scipy.optimize)
     assert not any(m.startswith("scipy.stats") for m in loaded), sorted(loaded)
 
 

@@ -1,9 +1,10 @@
-"""A diagnosis called from Python runs every BLAS on one thread, scipy's own OpenBLAS included.
+"""A diagnosis called from Python runs every BLAS on one thread, scipy's own OpenBLAS included if it loads.
 
-Why: threadpoolctl caps only the BLAS libraries loaded when the cap starts; scipy ships its own OpenBLAS and the
-diagnosis loads scipy lazily, so without care its fits ran threaded (10 s of CPU instead of 1.7 for 400 poses on the
-2-core machine).  The check runs in a fresh process (here scipy is long loaded) with no thread variables set, and
-reads every loaded BLAS's thread count at each progress report of the diagnosis.
+Why: threadpoolctl caps only the BLAS libraries loaded when the cap starts; scipy ships its own OpenBLAS, which a
+diagnosis may load lazily (a robust fit, a test with fractional degrees of freedom), so without care its fits ran
+threaded (10 s of CPU instead of 1.7 for 400 poses on the 2-core machine).  The check runs in a fresh process (here
+scipy is long loaded) with no thread variables set, and reads every loaded BLAS's thread count at each progress
+report of the diagnosis; tests/test_cli_threads.py checks a scipy loaded inside the cap.
 """
 from __future__ import annotations
 
@@ -39,6 +40,6 @@ def test_diagnose_runs_every_blas_on_one_thread():
     r = subprocess.run([sys.executable, "-c", _CODE], capture_output=True, text=True, timeout=300, env=env)
     assert r.returncode == 0, r.stderr
     out = json.loads(r.stdout.strip().splitlines()[-1])
-    assert any("scipy" in path for path in out["during"]), out        # scipy's own BLAS was loaded meanwhile
+    assert out["during"], out
     assert set(out["during"].values()) == {1}, out
     assert max(out["after"].values()) > 1, out                        # the cap ends with the call (the check can fail)

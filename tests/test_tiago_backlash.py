@@ -92,7 +92,7 @@ def test_a_scale_standing_in_for_the_play_becomes_its_alias():
     (f,) = x.selection.findings
     assert f.candidate.kind == "joint_scale" and d.joint_name(f.candidate.joint) == "arm_6_joint"
     lib = build_library(x.data, PLAY, theta=x.geometric.all_fit.theta)
-    resolve(x.data, x.selection, lib.candidates, x.judged_floor_mm, x.baseline_rms_mm)
+    resolve(x.data, x.selection, lib.candidates, x.judged_floor_mm, x.geometric)
     (g,) = x.selection.findings
     assert g.candidate.kind in PLAY and g.candidate.joint == f.candidate.joint
     assert g.aliases[0].startswith("joint_scale j7") and g.rms_after_mm < f.rms_after_mm

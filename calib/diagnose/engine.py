@@ -250,7 +250,7 @@ def _choices(data: DiagnosisData, model: MeasurementModel, level, n_folds, alpha
     prog("effect selection", 0.2)
     sel = forward_select(data, geo, geo_free, lib.candidates, alpha, max_effects,
                          (lambda s, f: prog(s, 0.2 + 0.75 * f)), floor_mm=judged, loss=loss)
-    resolve_standins(data, sel, lib.candidates, judged, geo.rms_mm, loss)     # scale/harmonic imitating play
+    resolve_standins(data, sel, lib.candidates, judged, geo, loss)     # scale/harmonic imitating play
     leftover_structure(data, sel.final, sel.findings, alpha,
                        material_mm=MATERIAL_SHARE * max(0.0, geo.rms_mm - judged))
     return _Choices(data, out_rep, folds, level, geo, note, unused_full, lib, hfloor, free_noise, judged, sel)

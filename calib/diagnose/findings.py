@@ -147,12 +147,18 @@ def heldout_gain_p(data: DiagnosisData, cur: CVResult, new: CVResult) -> float:
     F(1, n - 1)).  Both fits saw the same training rows in every fold, so the drops are paired; the poses are
     independent.  Only held-out rows enter: no fit row can make the step look better than it predicts.
     """
-    t = cur.tested & new.tested
+    return paired_gain_p(data, cur.tested & new.tested, cur.residual_mm, new.residual_mm)
+
+
+def paired_gain_p(data: DiagnosisData, tested: np.ndarray, before_mm: np.ndarray, after_mm: np.ndarray) -> float:
+    """:func:`heldout_gain_p` on held-out residuals (N, 3) given as arrays (``tested``: the rows that have one):
+    also a linearised prediction's, to screen a step before its refit."""
+    t = tested
     if not np.any(t):
         return 1.0
     W = data.whitening[t]
-    d = np.sum(np.einsum("nij,nj->ni", W, cur.residual_mm[t]) ** 2, axis=1) - \
-        np.sum(np.einsum("nij,nj->ni", W, new.residual_mm[t]) ** 2, axis=1)
+    d = np.sum(np.einsum("nij,nj->ni", W, before_mm[t]) ** 2, axis=1) - \
+        np.sum(np.einsum("nij,nj->ni", W, after_mm[t]) ** 2, axis=1)
     if data.pose_id:
         _, inv = np.unique(np.asarray(data.pose_id)[t], return_inverse=True)
         d = np.bincount(inv, weights=d)

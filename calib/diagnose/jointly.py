@@ -4,8 +4,8 @@ Why: a real arm bends at every joint at once.  One by one, each joint's complian
 gap and falls under the acceptance rule's material share, so the greedy selection stops with all of them left out
 (DLR's ladder on Agile Justin: joint elasticity was the largest single group, as a group).  So when no single
 candidate is accepted in a round, the candidates of one kind on different joints that each improve the linearised
-held-out score are tried **together**: one nested F-test for the group (Bonferroni over the kinds tried), one full
-refit in every fold, the material rule on the group's gain (:func:`calib.diagnose.findings.material_reason`, as
+held-out score are tried **together**: one nested F-test for the group (Bonferroni over the kinds tried), the
+screen of its linearised held-out gain (the refit's material rule with a margin), one full refit in every fold, the material rule on the group's gain (:func:`calib.diagnose.findings.material_reason`, as
 for one effect: a tenth of the baseline's excess, or of the gap still open when every member is 4 sigma from zero
 and the group's held-out gain is significant), and the rule identify holds parameters by for each member (its value
 2 sigma or more from zero, else it leaves the group and the group is refitted once).
@@ -25,8 +25,13 @@ from .findings import (DOUBTFUL_SPREAD, Finding, NearMiss, heldout_gain_p, mater
 MAX_MEMBERS = 8
 
 
-def joint_group(cx, cur, lin, ok, tests, chi2, n_tested: int):
-    """The best group of one kind that passes (a list of Findings and the new fit), or "" with nothing found."""
+def joint_group(cx, cur, lin, ok, tests, chi2, n_tested: int, screen):
+    """The best group of one kind that passes (a list of Findings and the new fit), or "" with nothing found.
+
+    ``screen(columns, n_tests)``: the group's linearised held-out RMS (mm) and why it is not worth a refit ("" when
+    it is), as single candidates are screened before theirs (:data:`calib.diagnose.select.LINEAR_SLACK`): a group's
+    refit is one fit per fold with up to eight more effects, and most groups tried are not accepted (the nested
+    TIAGo diagnosis refitted seven or eight groups in each of its six diagnoses and accepted none: 24 of 41 s)."""
     kinds = _groups(ok, chi2, cur.chi2)
     for kind, members in kinds.items():
         p, F = _group_test(lin, tests, ok, members)
@@ -34,6 +39,10 @@ def joint_group(cx, cur, lin, ok, tests, chi2, n_tested: int):
         if p >= cx.alpha:
             continue
         cands = [ok[k][0] for k in members]
+        predicted, why = screen([c for k in members for c in ok[k][1]], len(kinds))
+        if why:
+            cx.near.append(NearMiss(" + ".join(c.label for c in cands), predicted, p, why, cands[0].group))
+            continue
         for _ in range(2):
             model, new = refit(cx.data, cur, cands, cx.geo_free, cx.loss)
             first = len(model.effects) - len(cands)

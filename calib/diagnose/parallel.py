@@ -9,7 +9,7 @@ import os
 from concurrent.futures import ProcessPoolExecutor
 from typing import Callable, Sequence, TypeVar
 
-from calib.threads import BLAS_ENV_VARS as _BLAS
+from calib.threads import blas_environment
 
 C = TypeVar("C")
 R = TypeVar("R")
@@ -30,16 +30,8 @@ def map_cases(fn: Callable[[C], R], cases: Sequence[C], workers: int | None = No
         for c in cases:
             done(fn(c))
         return results
-    saved = {k: os.environ.get(k) for k in _BLAS}
-    os.environ.update({k: "1" for k in _BLAS})
-    try:
+    with blas_environment(1):
         ex = ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("spawn"))
-    finally:
-        for k, v in saved.items():
-            if v is None:
-                os.environ.pop(k, None)
-            else:
-                os.environ[k] = v
     with ex:
         for r in ex.map(fn, cases, chunksize=1):
             done(r)

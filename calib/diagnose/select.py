@@ -25,7 +25,9 @@ Each round:
    stops and what is left is the unexplained gap, with the candidates that came closest.  A finding's parameters
    must also lie 2 sigma or more from zero (the rule identify holds parameters by).
 6. **Jointly**: when no single candidate passes, the candidates of one kind on several joints are tried together
-   (:mod:`calib.diagnose.jointly`): several joint elasticities at once.
+   (:mod:`calib.diagnose.jointly`): several joint elasticities at once.  A group is refitted only when its
+   linearised held-out score (its columns together, as step 3) passes the screen single candidates pass before
+   their refit (:func:`_group_screen`).
 """
 from __future__ import annotations
 
@@ -42,7 +44,7 @@ from calib.pruning import SIGNIFICANT
 from .candidate import Candidate
 from .data import DiagnosisData
 from .findings import (DOUBTFUL_SPREAD, MATERIAL_SHARE, STABLE_MAX, Finding, NearMiss, heldout_gain_p,
-                       material_reason, param_report, project, refit, stability, stated_spread)
+                       material_reason, paired_gain_p, param_report, project, refit, stability, stated_spread)
 from .gap import CVResult, cv_fit, heldout_floor_mm
 from .jointly import joint_group
 
@@ -59,6 +61,8 @@ SCAN_BEST = 10
 #: a candidate whose linearised held-out gain is below this share of the material gain is not refitted (the
 #: one-step prediction from the current fit is close to the refit: the effects enter nearly linearly)
 LINEAR_SLACK = 0.5
+#: a joint group whose linearised held-out gain is not significant at this many times the level is not refitted
+LINEAR_P_SLACK = 10.0
 
 
 @dataclass
@@ -145,7 +149,8 @@ def _guard(lin: _Linear, remaining: list[Candidate], note: Callable[[str], None]
     return ok
 
 
-def _heldout_scores(data: DiagnosisData, cur: CVResult, lin: _Linear, ok) -> tuple[np.ndarray, np.ndarray]:
+def _heldout_scores(data: DiagnosisData, cur: CVResult, lin: _Linear, ok,
+                    rows_mm: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Step 3: linearised held-out chi-square and sum of squares (mm^2) per candidate, all folds.
 
     Per fold, each candidate's columns C_k are fitted to the training residual with the current model's columns B
@@ -153,6 +158,7 @@ def _heldout_scores(data: DiagnosisData, cur: CVResult, lin: _Linear, ok) -> tup
     held-out poses are predicted.  All candidates at once: the small normal equations of every candidate come from
     the diagonals of C^T C and (Q^T C)^T (Q^T C) (:func:`_block_normal_equations`), and the predictions from one
     product -- a loop of one least-squares call per candidate and fold took most of the diagnosis's selection.
+    ``rows_mm`` ((N, 3, candidates), optional) receives the predicted held-out residuals themselves.
     """
     W = data.whitening
     allcols = [k for _, cols in ok for k in cols]
@@ -178,6 +184,8 @@ def _heldout_scores(data: DiagnosisData, cur: CVResult, lin: _Linear, ok) -> tup
             H = Jb @ G - J[np.ix_(te, allcols)]
             pred = (r[te] - Jb @ g0)[:, None] + np.add.reduceat(H * dc, starts, axis=1)
             out += np.einsum("ij,ij->j", pred, pred)
+            if rows_mm is not None and out is sse:
+                rows_mm.reshape(3 * data.n, -1)[te] = pred
     # a candidate absorbed on some fold's fit rows (NaN coefficients) improves nothing there: never ranked a winner
     return np.where(np.isfinite(chi2), chi2, np.inf), np.where(np.isfinite(sse), sse, np.inf)
 
@@ -340,6 +348,31 @@ def _immaterial(cx: _Context, cur: CVResult, predicted_gain: float, doubtful: Ca
     return predicted_gain < LINEAR_SLACK * MATERIAL_SHARE * cx.open_mm(cur) or doubtful()
 
 
+def _group_screen(cx: _Context, cur: CVResult, lin: _Linear, cols: list[int], n_tests: int) -> tuple[float, str]:
+    """A joint group's linearised held-out RMS (mm: its columns fitted together, :func:`_heldout_scores`) and why it
+    is not refitted ("" to refit): no linearised gain, or one that the acceptance rule would refuse by a margin --
+    under :data:`LINEAR_SLACK` of the baseline's material share and either under that of the open gap's or, for the
+    open gap's share, not significant on the held-out poses at :data:`LINEAR_P_SLACK` times the level (the paired
+    test of :func:`calib.diagnose.findings.heldout_gain_p` on the linearised prediction, Bonferroni over
+    ``n_tests``).  Whether the group is confident shows only after the refit: the screen assumes it is."""
+    rows = np.full((cx.data.n, 3, 1), np.nan)
+    chi2, sse = _heldout_scores(cx.data, cur, lin, [(None, cols)], rows)
+    predicted = float(np.sqrt(sse[0] / cx.data.n))
+    gain = cur.rms_mm - predicted
+    if not chi2[0] < cur.chi2:
+        return predicted, "together (a joint group) they do not shrink the held-out gap (linearised)"
+    if gain >= LINEAR_SLACK * MATERIAL_SHARE * cx.excess_mm:
+        return predicted, ""
+    why = (f"together (a joint group) they shrink the held-out RMS by {1000 * gain:.1f} um only (linearised), less "
+           f"than {100 * MATERIAL_SHARE:.0f} % of the excess gap ({1000 * cx.excess_mm:.1f} um)")
+    if gain < LINEAR_SLACK * MATERIAL_SHARE * cx.open_mm(cur):
+        return predicted, why
+    p = min(1.0, paired_gain_p(cx.data, cur.tested, cur.residual_mm, rows[:, :, 0]) * n_tests)
+    if p >= LINEAR_P_SLACK * cx.alpha:
+        return predicted, why + f" and not significant on the held-out poses (linearised p = {p:.2g})"
+    return predicted, ""
+
+
 def _try_accept(cx: _Context, cur: CVResult, lin: _Linear, ok, tests: _Tests, k: int,
                 n_tested: int) -> tuple[Finding, CVResult] | str:
     """Refit candidate ``k`` and apply the acceptance rule; a Finding and the new fit, or why not."""
@@ -428,7 +461,8 @@ def _round(cx: _Context, cur: CVResult, remaining: list[Candidate], rounds: list
             rnd.accepted = cand.label
             return res, held
         why = why or f"best remaining candidate {cand.label} {res}"
-    res = joint_group(cx, cur, lin, ok, tests, chi2, len(ok))
+    res = joint_group(cx, cur, lin, ok, tests, chi2, len(ok),
+                      lambda cols, n_tests: _group_screen(cx, cur, lin, cols, n_tests))
     if isinstance(res, tuple):
         rnd.accepted = " + ".join(f.candidate.label for f in res[0])
         return res, held

@@ -63,10 +63,11 @@ def _index(model: MeasurementModel, f: Finding) -> int:
     return [i for i, e in enumerate(model.effects) if e.finding_label() == f.candidate.label][-1]
 
 
-def resolve(data: DiagnosisData, sel: Selection, candidates: list[Candidate], floor_mm: float, base_rms_mm: float,
+def resolve(data: DiagnosisData, sel: Selection, candidates: list[Candidate], floor_mm: float, base: CVResult,
             loss: str = "linear") -> None:
-    """Apply the two rules of the module docstring to ``sel`` in place."""
-    excess = max(0.0, base_rms_mm - floor_mm)
+    """Apply the two rules of the module docstring to ``sel`` in place (``base``: the geometric fit the selection
+    started from)."""
+    excess = max(0.0, base.rms_mm - floor_mm)
     for f in list(sel.findings):
         c = f.candidate
         if c.kind not in STAND_INS or f not in sel.findings:
@@ -75,7 +76,8 @@ def resolve(data: DiagnosisData, sel: Selection, candidates: list[Candidate], fl
         if play is not None:
             _drop(data, sel, f, play, excess, loss)
         elif f is sel.findings[-1]:
-            _swap(data, sel, f, [p for p in candidates if p.kind in PLAY and p.joint == c.joint], excess, loss)
+            _swap(data, sel, f, [p for p in candidates if p.kind in PLAY and p.joint == c.joint], excess, loss,
+                  _before_last(sel, base))
     last = sel.findings[-1] if sel.findings else None
     if last is not None and last.candidate.kind == "backlash_gravity" and \
             any(p.kind == "backlash" and p.joint == last.candidate.joint for p in candidates):
@@ -118,8 +120,26 @@ def _screen(data: DiagnosisData, without: CVResult, plays: list[Candidate]) -> l
     return [plays[k] for k in np.argsort(rss)]
 
 
-def _swap(data, sel: Selection, f: Finding, plays: list[Candidate], excess: float, loss: str) -> None:
-    _replace(data, sel, f, plays, excess, loss, f"{f.candidate.label} (stands in for the play)")
+def _swap(data, sel: Selection, f: Finding, plays: list[Candidate], excess: float, loss: str,
+          before: CVResult | None) -> None:
+    _replace(data, sel, f, plays, excess, loss, f"{f.candidate.label} (stands in for the play)", before=before)
+
+
+def _before_last(sel: Selection, base: CVResult) -> CVResult:
+    """The selection's fit before its last finding was accepted: the previous finding's, or the geometric fit."""
+    return sel.findings[-2].fit if len(sel.findings) > 1 else base
+
+
+def _same_fit(fit: CVResult | None, cur: CVResult, effects) -> bool:
+    """Whether ``fit`` is already :func:`_refit_with` (cur, effects): the same effects, the same folds, and its kept
+    free set the one that refit would ask for (then it is the same fit from another start, and one refit in every
+    fold is saved)."""
+    if fit is None or [e.label for e in fit.model.effects] != [e.label for e in effects]:
+        return False
+    if len(fit.folds) != len(cur.folds) or not all(np.array_equal(a.train, b.train) and np.array_equal(a.test, b.test)
+                                                   for a, b in zip(fit.folds, cur.folds)):
+        return False
+    return set(fit.all_fit.free) == {n for n in cur.all_fit.free if n in fit.model.index}
 
 
 def _simplify(data, sel: Selection, f: Finding, n_grid: int, excess: float, loss: str) -> None:
@@ -142,16 +162,17 @@ def _simplify(data, sel: Selection, f: Finding, n_grid: int, excess: float, loss
 
 
 def _replace(data, sel: Selection, f: Finding, plays: list[Candidate], excess: float, loss: str,
-             alias: str, accept=None) -> bool:
+             alias: str, accept=None, before: CVResult | None = None) -> bool:
     """Replace the last finding ``f`` by the best of ``plays`` when it explains the held-out gap as well (not worse
     by more than half the material share; or when ``accept(fit)`` says so); ``alias`` names ``f`` among the new
-    finding's aliases."""
+    finding's aliases.  ``before``: the selection's fit without ``f``, used as it is when it is that model
+    (:func:`_same_fit`)."""
     if not plays:
         return False
     cur = sel.final
     i = _index(cur.model, f)
     base_effects = [e for k, e in enumerate(cur.model.effects) if k != i]
-    without = _refit_with(data, cur, base_effects, loss)
+    without = before if _same_fit(before, cur, base_effects) else _refit_with(data, cur, base_effects, loss)
     best = None
     for p in _screen(data, without, plays)[:REFIT_PLAYS]:
         fit = _refit_with(data, without, base_effects + [p.make()], loss)
