@@ -43,3 +43,14 @@ def test_diagnose_runs_every_blas_on_one_thread():
     assert out["during"], out
     assert set(out["during"].values()) == {1}, out
     assert max(out["after"].values()) > 1, out                        # the cap ends with the call (the check can fail)
+
+
+def test_validation_workers_start_with_one_blas_thread(monkeypatch):
+    """The pool spawns its workers at the first submit, not when it is built: the BLAS variables must still be set
+    then (they were restored too early, and the workers ran the user's threading), and restored after."""
+    import os
+
+    from calib.diagnose.parallel import map_cases
+    monkeypatch.delenv("OPENBLAS_NUM_THREADS", raising=False)
+    assert map_cases(os.getenv, ["OPENBLAS_NUM_THREADS"] * 2, workers=2) == ["1", "1"]
+    assert "OPENBLAS_NUM_THREADS" not in os.environ

@@ -30,9 +30,8 @@ def map_cases(fn: Callable[[C], R], cases: Sequence[C], workers: int | None = No
         for c in cases:
             done(fn(c))
         return results
-    with blas_environment(1):
-        ex = ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("spawn"))
-    with ex:
+    # the variables stay set while the pool runs: it spawns its workers at the first submit, not when it is built
+    with blas_environment(1), ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("spawn")) as ex:
         for r in ex.map(fn, cases, chunksize=1):
             done(r)
     return results
