@@ -140,9 +140,15 @@ def chi2_words(ident, given: bool, noise=None) -> str:
         why = ("either the noise given is too small or the model misses something systematic (robocal diagnose looks "
                "for what)")
         if noise is not None and noise.estimated_mm is not None and not noise.upper_bound:
-            why = ("the noise given is too small: the data show it without a model" if noise.given_too_small else
-                   "the model misses something systematic: the data's own noise estimate agrees with the given one "
-                   "(robocal diagnose looks for what)") + f" ({noise.estimated_mm:.3g} mm from {noise.how})"
+            if noise.given_too_small:
+                why = "the noise given is too small: the data show it without a model"
+            elif noise.given_too_large:     # the data's own scatter is smaller still: the noise is not the cause
+                why = ("the model misses something systematic: the data's own noise estimate is smaller than the given "
+                       "one, so a noise given too small is not the cause (robocal diagnose looks for what)")
+            else:
+                why = ("the model misses something systematic: the data's own noise estimate agrees with the given "
+                       "one (robocal diagnose looks for what)")
+            why += f" ({noise.estimated_mm:.3g} mm from {noise.how})"
         return (f"reduced chi-square {red:.3g} is far above 1: the residual is {ratio:.3g}x the given noise; {why}; "
                 f"the errors are inflated by it")
     return (f"reduced chi-square {red:.3g} is far below 1: the residual is {1 / ratio:.3g}x smaller than the given "
