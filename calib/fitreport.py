@@ -11,7 +11,7 @@ instrument (a theodolite's 0.05 mm for motion-capture data) made a reduced chi-s
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -36,6 +36,7 @@ class Weights:
     fit: object = None
     raw: object = None                # the observations with their relative weights, before the decision
     warm: np.ndarray | None = None    # the whole set's plain fit (unknown noise): where a fold's own fit starts
+    set_aside: list[str] = field(default_factory=list)   # model-free sources the data gave that do not measure it
 
     @property
     def error_scale(self) -> str:
@@ -52,15 +53,15 @@ class Weights:
             w = cls(obs, True, how, given_sigma_mm(obs.cov_mm2), table, fit)
         else:
             found = model_free(table.q_rad, table.points_mm, obs.cov_mm2, pose_id=table.pose_id or None,
-                               target=table.target, body=fit.model.robot.tool_point_frames or None)
-            if found:
+                               target=table.target, body=fit.model.robot.tool_point_frames or None, given=False)
+            if any(not s.set_aside for s in found):
                 est = combine(given_sigma_mm(obs.cov_mm2), found)
                 w = cls(_rescaled(obs, est.estimated_mm / given_sigma_mm(obs.cov_mm2)), False, est.how,
                         est.estimated_mm, table, fit)
             else:
                 scale, theta = _robust_scale(obs, fit)
                 w = cls(_rescaled(obs, scale), False, "unknown", given_sigma_mm(obs.cov_mm2) * scale, table, fit,
-                        warm=theta)
+                        warm=theta, set_aside=[f"the {s.how}: {s.set_aside}" for s in found])
         fit.error_scale = w.error_scale
         w.raw = obs
         return w
@@ -82,8 +83,8 @@ class Weights:
         if self.how != "unknown":
             t = self.table.subset(train)
             found = model_free(t.q_rad, t.points_mm, raw_tr.cov_mm2, pose_id=t.pose_id or None, target=t.target,
-                               body=self.fit.model.robot.tool_point_frames or None)
-            if found:
+                               body=self.fit.model.robot.tool_point_frames or None, given=False)
+            if any(not s.set_aside for s in found):
                 f = combine(given_sigma_mm(raw_tr.cov_mm2), found).estimated_mm / given_sigma_mm(raw_tr.cov_mm2)
                 return _rescaled(raw_tr, f), _rescaled(raw_te, f)
         f = _robust_scale(raw_tr, self.fit, self.warm)[0]
@@ -91,7 +92,7 @@ class Weights:
 
     def as_dict(self, ident=None) -> dict:
         out = {"given": self.given, "from": self.how, "sigma_mm": self.sigma_mm,
-               "errors_scaled_by_residual": self.error_scale == "residual"}
+               "errors_scaled_by_residual": self.error_scale == "residual", "set_aside": self.set_aside}
         if ident is not None:
             out["residual_sigma_mm"] = float(self.sigma_mm * np.sqrt(max(ident.reduced_chi2, 0.0)))
         return out
@@ -119,8 +120,9 @@ def noise_line(doc: dict) -> str:
     if not doc["errors_scaled_by_residual"]:
         return f"noise: {doc['sigma_mm']:.4g} mm per coordinate, estimated from the data without a model ({doc['from']})"
     res = doc.get("residual_sigma_mm")
-    return ("noise: not given (--noise-mm, sigma columns) and not measurable without a model (no repeats, one target "
-            "per pose): the parameters' errors are scaled by the fit's residual"
+    why = ("; ".join(doc["set_aside"]) if doc.get("set_aside") else "no repeats, one target per pose")
+    return (f"noise: not given (--noise-mm, sigma columns) and not measurable without a model ({why}): the "
+            "parameters' errors are scaled by the fit's residual"
             + (f" ({res:.4g} mm per coordinate)" if res is not None else ""))
 
 

@@ -49,6 +49,13 @@ from .units import ARCSEC
 DISAGREE = 1.5
 #: targets closer than this multiple of the noise are not used for distances (the first-order variance fails)
 MIN_DISTANCE_SIGMAS = 20.0
+#: a target-distance scatter this many times below the given noise is not believed as the instrument's noise: the
+#: targets move as one rigid body (motion capture that solves a marker set as a body and exports its virtual points,
+#: or points derived from one measured frame), so their noise is shared and the distances cannot see it
+RIGID_SET_RATIO = 100.0
+#: ... nor a scatter below this share of the distances themselves (0.1 um on 100 mm: no instrument that measures a
+#: robot's tool in space resolves it), which holds also when no noise is given
+RIGID_SET_RELATIVE = 1e-6
 
 
 @dataclass
@@ -58,9 +65,11 @@ class Sample:
     how: str
     var_mm2: float
     dof: int
+    set_aside: str = ""             # why this source is not pooled ("" when it is)
 
     def as_dict(self) -> dict:
-        return {"from": self.how, "estimated_mm": float(np.sqrt(self.var_mm2)), "dof": self.dof}
+        out = {"from": self.how, "estimated_mm": float(np.sqrt(self.var_mm2)), "dof": self.dof}
+        return out | ({"set_aside": self.set_aside} if self.set_aside else {})
 
 
 @dataclass
@@ -70,6 +79,7 @@ class NoiseEstimate:
     how: str                        # the sources used, e.g. "repeats (4 poses, 8 rows) + target distances (...)"
     upper_bound: bool
     sources: list[Sample] = field(default_factory=list)
+    set_aside: list[Sample] = field(default_factory=list)   # sources the data gave but that do not measure the noise
 
     @property
     def ratio(self) -> float:
@@ -105,7 +115,12 @@ class NoiseEstimate:
 
     def as_dict(self) -> dict:
         return {"given_mm": self.given_mm, "estimated_mm": self.estimated_mm, "from": self.how,
-                "upper_bound": self.upper_bound, "sources": [s.as_dict() for s in self.sources]}
+                "upper_bound": self.upper_bound, "sources": [s.as_dict() for s in self.sources],
+                "set_aside": [s.as_dict() for s in self.set_aside]}
+
+    def set_aside_lines(self) -> list[str]:
+        """One line per source left out of the estimate, with its reason."""
+        return [f"noise from the {s.how} ({np.sqrt(s.var_mm2):.3g} mm) not used: {s.set_aside}" for s in self.set_aside]
 
 
 @dataclass
@@ -211,11 +226,13 @@ def _clipped_chi2(P: np.ndarray, C: np.ndarray, p_blunder: float = 1e-3) -> tupl
 
 
 def from_target_distances(keys: list, target, points_mm: np.ndarray, cov_mm2: np.ndarray,
-                          body: dict[str, int] | None = None) -> Sample | None:
-    """Several targets per pose on one body: the scatter of their distances (see the module docstring)."""
+                          body: dict[str, int] | None = None, given: bool = True) -> Sample | None:
+    """Several targets per pose on one body: the scatter of their distances (see the module docstring).  A scatter
+    no instrument shows (:data:`RIGID_SET_RATIO` below the given noise when ``given``, or :data:`RIGID_SET_RELATIVE`
+    of the distances) is returned set aside: those targets move as one rigid body."""
     if target is None:
         return None
-    var, dof, poses, dropped, used = 0.0, 0, 0, 0, set()
+    var, dof, poses, dropped, used, g_var, dist = 0.0, 0, 0, 0, set(), 0.0, []
     for names, idx in target_sets(keys, list(target), body).items():
         if len(idx) < 3:
             continue
@@ -226,10 +243,12 @@ def from_target_distances(keys: list, target, points_mm: np.ndarray, cov_mm2: np
                    for j in range(i + 1, len(names)))
         if not dmin > MIN_DISTANCE_SIGMAS * np.sqrt(g2):
             continue
+        dist.append(dmin)
         chi2, f, out = _clipped_chi2(P, C)
         if not (f > 0 and np.isfinite(chi2)):
             continue
         var += chi2 * g2                                        # k_hat * g2, weighted by f
+        g_var += f * g2
         dof += f
         poses += len(idx) - out
         dropped += out
@@ -237,7 +256,18 @@ def from_target_distances(keys: list, target, points_mm: np.ndarray, cov_mm2: np
     if dof == 0:
         return None
     blunders = f", {dropped} left out as blunders" if dropped else ""
-    return Sample(f"target distances ({poses} poses{blunders}, targets {', '.join(sorted(used))})", var / dof, dof)
+    sigma, rel = float(np.sqrt(var / dof)), float(np.sqrt(var / dof)) / float(np.median(dist))
+    ratio = float(np.sqrt(g_var / var)) if var > 0 else float("inf")
+    if given and ratio > RIGID_SET_RATIO:
+        why = f"the distances between the targets scatter {ratio:,.0f}x less than the given noise"
+    elif rel < RIGID_SET_RELATIVE:
+        why = f"the distances between the targets scatter {rel:.1e} of their length, which no instrument resolves"
+    else:
+        why = ""
+    rigid = (why + ": the targets move as one rigid body (virtual points of a solved marker set, or points derived "
+             "from one measured frame), so their noise is shared and the distances cannot see it") if why else ""
+    return Sample(f"target distances ({poses} poses{blunders}, targets {', '.join(sorted(used))})", sigma ** 2, dof,
+                  rigid)
 
 
 def _face_differences(s: Sightings) -> dict[str, list[tuple]]:
@@ -322,16 +352,19 @@ def _reading_cov(s: Sightings, stations: dict) -> dict[int, np.ndarray]:
 
 # -- together -------------------------------------------------------------------------------------------------------
 def model_free(q_rad: np.ndarray, points_mm: np.ndarray, cov_mm2: np.ndarray, *, pose_id=None, target=None,
-               sightings: Sightings | None = None, body: dict[str, int] | None = None) -> list[Sample]:
+               sightings: Sightings | None = None, body: dict[str, int] | None = None,
+               given: bool = True) -> list[Sample]:
     """Every source the data allow; a source the data cannot feed (inconsistent targets, a degenerate geometry) is
-    left out rather than stopping the caller.  ``body``: the frame each target is fixed on (a branched robot's
-    points on different arms keep no distance; :attr:`calib.robot.Robot.tool_point_frames`)."""
+    left out rather than stopping the caller; one that does not measure the noise is returned set aside
+    (:attr:`Sample.set_aside`).  ``body``: the frame each target is fixed on (a branched robot's points on different
+    arms keep no distance; :attr:`calib.robot.Robot.tool_point_frames`).  ``given``: ``cov_mm2`` is a noise someone
+    gave (False: relative weights only)."""
     out = []
     if target is not None and len(target) != len(q_rad):        # labels that do not match the rows: not used
         target = None
     keys = pose_keys(q_rad, pose_id)
     for make in (lambda: from_repeats(q_rad, points_mm, target),
-                 lambda: from_target_distances(keys, target, points_mm, cov_mm2, body),
+                 lambda: from_target_distances(keys, target, points_mm, cov_mm2, body, given),
                  lambda: from_faces(sightings, cov_mm2)):
         try:
             s = make()
@@ -345,18 +378,22 @@ def model_free(q_rad: np.ndarray, points_mm: np.ndarray, cov_mm2: np.ndarray, *,
 def combine(given_mm: float, sources: list[Sample], bound_mm: float | None = None,
             bound_how: str = "held-out residual (upper bound)") -> NoiseEstimate:
     """The model-free sources pooled by degrees of freedom; without any, ``bound_mm`` (per-coordinate, from a
-    residual) as an upper bound; without that either, no estimate."""
+    residual) as an upper bound; without that either, no estimate.  Sources set aside (:attr:`Sample.set_aside`) are
+    kept for the words, never pooled."""
+    aside = [s for s in sources if s.set_aside]
+    sources = [s for s in sources if not s.set_aside]
     if sources:
         dof = sum(s.dof for s in sources)
         var = sum(s.var_mm2 * s.dof for s in sources) / dof
-        return NoiseEstimate(given_mm, float(np.sqrt(var)), " + ".join(s.how for s in sources), False, sources)
+        return NoiseEstimate(given_mm, float(np.sqrt(var)), " + ".join(s.how for s in sources), False, sources, aside)
     if bound_mm is None or not np.isfinite(bound_mm):
-        return NoiseEstimate(given_mm, None, "", True)
-    return NoiseEstimate(given_mm, float(bound_mm), bound_how, True)
+        return NoiseEstimate(given_mm, None, "", True, set_aside=aside)
+    return NoiseEstimate(given_mm, float(bound_mm), bound_how, True, set_aside=aside)
 
 
 def for_rows(table, noise_mm: float, bound_mm: float | None = None,
-             bound_how: str = "fit residual (upper bound)", body: dict[str, int] | None = None) -> NoiseEstimate:
+             bound_how: str = "fit residual (upper bound)", body: dict[str, int] | None = None,
+             given: bool = True) -> NoiseEstimate:
     """The estimate for the rows of a pose table (:class:`calib.posecsv.PoseTable`, as identify reads it): the points'
     covariances (sigma columns, polar noise) or ``noise_mm`` are the given noise; pose ids and targets group the
     rows."""
@@ -364,5 +401,5 @@ def for_rows(table, noise_mm: float, bound_mm: float | None = None,
     if cov is None:
         cov = np.broadcast_to(np.eye(3) * noise_mm ** 2, (table.n, 3, 3))
     found = model_free(table.q_rad, table.points_mm, cov, pose_id=table.pose_id or None, target=table.target,
-                       body=body)
+                       body=body, given=given)
     return combine(given_sigma_mm(cov), found, bound_mm, bound_how)

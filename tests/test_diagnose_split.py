@@ -77,3 +77,29 @@ def test_ladder_steps_and_leave_one_group_out(diag):
     assert logo["the rest of the geometry"]["loss_rms_mm"] > logo["joint_compliance j3"]["loss_rms_mm"]
     u = j["uncertainty"]
     assert 0.4 < u["median_abs_z"] < 1.0 and u["within_2sigma"] > 0.85
+
+
+def test_ladder_lines_wrap_long_labels_at_words_and_keep_the_columns():
+    """A step named by a long effect label (TIAGo: 'backlash_gravity arm_6_joint (preload 0.145 N m, tool mass 0
+    kg)') wraps at its words below the numbers: nothing cut mid-word, every number in its column."""
+    from calib.diagnose.ladder import Ladder, Scored
+
+    long = "+ backlash_gravity joint 6 (preload 0.145 N m, tool mass 0 kg) and a second long clause"
+
+    def step(name, k, err):
+        return Scored(name, name, None, [f"p{i}" for i in range(k)], np.full((4, 3), err), 1.0, 12)
+
+    steps = [step("located nominal", 18, 3.0), step(long, 43, 1.0)]
+    lad = Ladder(steps, [(step("without " + long, 42, 2.0), steps[-1])], "k-fold", p_values=[(None, None),
+                                                                                           (5.0, 1e-9)])
+    lines = lad.lines()
+    words = " ".join(" ".join(ln.split()) for ln in lines)
+    for w in long.split():
+        assert w in words.split(), w                          # every word whole
+    head = lines[0]
+    rows = [ln for ln in lines[1:3 + 1] if ln.rstrip().endswith(("-", "1e-09"))]
+    assert len(rows) == 2
+    for ln in rows:                                           # the RMS column ends where its header ends
+        col_end = head.index("RMS") + len("RMS")
+        assert ln[col_end - 6:col_end].strip().replace(".", "").isdigit(), (head, ln)
+    assert all(len(ln) <= 110 for ln in lines)

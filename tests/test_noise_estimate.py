@@ -293,3 +293,60 @@ def test_a_folds_noise_comes_from_its_own_rows(tmp_path):
         np.testing.assert_allclose(a.cov_mm2, b.cov_mm2, rtol=1e-9)
     sigma = np.sqrt(w_clean.fold(rows(train), rows(test))[0].cov_mm2[0, 0, 0])
     assert abs(sigma / 0.03 - 1) < 0.35
+
+
+def _rigid(P: np.ndarray, sigma: float, seed: int) -> np.ndarray:
+    """The targets of each pose moved as one rigid body by a random rotation (sigma / 100 mm rad) and translation
+    (sigma mm): a marker set solved as a body, whose virtual points share all their noise (plain numpy: Rodrigues)."""
+    rng = np.random.default_rng(seed)
+    out = np.empty_like(P)
+    for i, pts in enumerate(P):
+        w = rng.normal(0.0, sigma / 100.0, 3)
+        a = np.linalg.norm(w)
+        K = np.array([[0, -w[2], w[1]], [w[2], 0, -w[0]], [-w[1], w[0], 0]]) / a
+        R = np.eye(3) + np.sin(a) * K + (1 - np.cos(a)) * K @ K
+        c = pts.mean(0)
+        out[i] = (pts - c) @ R.T + c + rng.normal(0.0, sigma, 3)
+    return out
+
+
+@pytest.mark.parametrize("given", [True, False])
+def test_targets_moving_as_one_rigid_body_are_set_aside_not_read_as_noise(given):
+    """Virtual points of a solved marker set (motion capture's rigid bodies; TIAGo's Qualisys export) keep their
+    distances to the last digit whatever the noise: the distances say nothing about it, and an estimate of 1e-5 mm
+    would put the floor at zero.  With a given noise (0.2 mm, 21,000x the scatter) or without one (the scatter is
+    1e-8 of the distances), the source is set aside with its reason; the estimate falls back to the bound."""
+    sigma = 0.2
+    _, P = _measured(21, 40, 3, 0.0)
+    pts, pose, tgt = _rows(_rigid(P, sigma, 21))
+    cov = np.broadcast_to(np.eye(3) * (sigma if given else 1.0) ** 2, (len(pts), 3, 3))
+    q = np.repeat(np.arange(40.0), 3)[:, None] * np.ones(6)
+    found = noise.model_free(q, pts, cov, pose_id=pose, target=tgt, given=given)
+    assert [s.how.split(" (")[0] for s in found] == ["target distances"]
+    assert np.sqrt(found[0].var_mm2) < 1e-3 * sigma and "rigid body" in found[0].set_aside
+    e = noise.combine(sigma, found, 0.5)
+    assert e.upper_bound and e.estimated_mm == 0.5 and e.sources == [] and e.set_aside == found
+    assert "rigid body" in e.set_aside_lines()[0] and e.as_dict()["set_aside"][0]["set_aside"]
+    assert e.floor_scale() == 1.0                           # 0.2 given < 0.5 bound: the given floor stands
+
+
+def test_independent_targets_are_not_set_aside_even_when_the_given_noise_is_10x_off():
+    _, P = _measured(22, 40, 2, 0.02)
+    pts, pose, tgt = _rows(P)
+    cov = np.broadcast_to(np.eye(3) * 0.2 ** 2, (len(pts), 3, 3))
+    s = noise.from_target_distances(pose, tgt, pts, cov)
+    assert s.set_aside == "" and abs(np.sqrt(s.var_mm2) / 0.02 - 1) < 0.3
+    e = noise.combine(0.2, [s])
+    assert not e.upper_bound and e.given_too_large and e.set_aside == []
+
+
+def test_identify_without_a_noise_on_a_rigid_marker_set_says_so(tmp_path, capsys):
+    """No --noise-mm, targets from one rigid body: the errors are scaled by the residual, and the noise line names
+    the set-aside source instead of "one target per pose"."""
+    q, P = _measured(23, 40, 3, 0.0)
+    csv = _wide_csv(tmp_path / "rigid.csv", q, _rigid(P, 0.2, 23))
+    rc = main(["identify", csv, "--robot", _description(tmp_path), "--json"])
+    out = capsys.readouterr()
+    assert rc == 0, out.err
+    j = json.loads(out.out)
+    assert j["noise"]["errors_scaled_by_residual"] and "rigid body" in j["noise"]["set_aside"][0]

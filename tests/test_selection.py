@@ -157,3 +157,29 @@ def test_a_fold_started_from_the_whole_set_makes_the_same_choices(offsets_only):
         assert w.press_rms_mm == pytest.approx(c.press_rms_mm, rel=1e-4), w.name
     held = [model.index[n] for n in free if n not in warm.ident.free]
     assert np.array_equal(warm.ident.theta[held], cold.ident.theta[held])
+
+
+def test_rows_of_one_pose_are_left_out_together():
+    """Each pose read twice (two rows, the same joint readings: as several targets of one pose are): the inner score
+    leaves both rows out together, and equals real refits without the pose's rows; row by row it would predict a row
+    from its twin and be optimistic (TIAGo's four markers per pose: the full geometry chosen, worse than nominal)."""
+    model, obs1, theta0 = _data(_arm(7), 30, 8)
+    rng = np.random.default_rng(9)
+    q = np.repeat(obs1.q_rad, 2, axis=0)
+    pts = np.repeat(obs1.points_mm, 2, axis=0) + rng.normal(0.0, NOISE, (60, 3))
+    obs = PointObservations(q, pts, sigma_mm=NOISE)
+    groups = np.repeat(np.arange(30), 2)
+    sel, full = select(model, obs, default_free(model, effects=False), theta0=theta0, groups=groups, explain=False)
+    assert sel.n_poses == 30
+    idn = full
+    grouped = loo_residuals_mm(model, obs, idn, groups=groups)
+    rowwise = loo_residuals_mm(model, obs, idn)
+    err_g, err_r = [], []
+    for i in (0, 7, 23):
+        keep = np.setdiff1d(np.arange(obs.n), [2 * i, 2 * i + 1])
+        refit = identify(model, obs.subset(keep), free=list(idn.free), theta0=idn.theta, start=False, outliers="off")
+        true = obs.points_mm[2 * i:2 * i + 2] - model.points(obs.q_rad[2 * i:2 * i + 2], None, refit.theta)
+        np.testing.assert_allclose(grouped[2 * i:2 * i + 2], true, atol=2e-3 * np.linalg.norm(true) + 1e-4)
+        err_g.append(np.abs(grouped[2 * i:2 * i + 2] - true).max())
+        err_r.append(np.abs(rowwise[2 * i:2 * i + 2] - true).max())
+    assert max(err_r) > 20 * max(err_g), (err_r, err_g)

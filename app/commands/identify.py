@@ -68,6 +68,7 @@ def add_arguments(p):
 
 
 def run(args) -> int:
+    import numpy as np
     from calib.compensate import model_document, save_model
     from calib.effects import THESIS_RUNNING_ERRORS, effect_from_text
     from calib.effects.mass_moment import check_scale
@@ -114,7 +115,8 @@ def run(args) -> int:
     theta0 = None
     if table.station is not None and len(set(table.station)) > 1:
         theta0, start = station_start(model, table), False        # each set-up placed by its own rigid fit
-    fit = _Fit(model, free or default_free(model), priors, theta0, start, args.outliers, args.loss, args.select)
+    fit = _Fit(model, free or default_free(model), priors, theta0, start, args.outliers, args.loss, args.select,
+               table.pose_id)
     weights = _weights(args, table, obs, fit, measured)
     obs = weights.obs
     sel, first = fit.select(obs)
@@ -131,7 +133,9 @@ def run(args) -> int:
     implausible += enforce(check_fit(ident.reduced_chi2, args.data), args.force_implausible, "identify")
     noise = _noise(args, measured, obs, ident, weights, model.robot.tool_point_frames or None)
     orientation = _orientation(args, model, ident.theta[:model.P], measured)
-    n_rows = int(measured.split_mask("fit").sum()) if measured.split is not None else measured.n
+    fit_mask = measured.split_mask("fit") if measured.split is not None else np.ones(measured.n, bool)
+    n_rows = int(fit_mask.sum())
+    n_poses = len(set(np.asarray(measured.pose_id)[fit_mask])) if measured.pose_id else n_rows
     checks = _checks(args, model, obs, ident, priors)
     prov = provenance(args.robot)
     from calib.heldout import noise_scale
@@ -153,7 +157,7 @@ def run(args) -> int:
         if orientation:
             warn["orientation"] = orientation
         print(json.dumps({**model_document(model, ident, provenance=prov, extra=extra), **held_out,
-                          **heldout, **warn, "n_poses": n_rows,
+                          **heldout, **warn, "n_poses": n_poses, "n_points": n_rows,
                           "selection": sel.as_dict(), "noise": weights.as_dict(ident),
                           "reduced_chi2_words": chi2_words(ident, weights.given, noise),
                           "noise_estimated_mm": noise.estimated_mm, "noise_estimate": noise.as_dict(),
@@ -162,7 +166,7 @@ def run(args) -> int:
     from calib.accuracy import before_after_line
     print(f"robocal identify {args.data}: " + (before_after_line(heldout) if heldout["after"] else
                                                  f"accuracy on held-out rows {heldout['heldout_protocol']}"))
-    print(f"  {n_rows} poses, {len(ident.free)} parameters estimated, residual RMS {ident.residual_rms:.4f} mm "
+    print(f"  {n_poses} poses" + (f" ({n_rows} points)" if n_rows != n_poses else "") + f", {len(ident.free)} parameters estimated, residual RMS {ident.residual_rms:.4f} mm "
           f"(a fit residual, not the accuracy), reduced chi-square {ident.reduced_chi2:.2f}")
     print("  " + noise_line(weights.as_dict(ident)))
     words = chi2_words(ident, weights.given, noise)
@@ -184,6 +188,9 @@ def run(args) -> int:
     if noise.estimated_mm is not None and weights.given:
         print(f"  noise per coordinate: given {noise.given_mm:.4f} mm, from the data {noise.estimated_mm:.4f} mm "
               f"({noise.how})")
+    if weights.given:               # (not given: the noise line above already says why a source was set aside)
+        for line in noise.set_aside_lines():
+            print("  " + line)
     for line in sel.lines(robot):
         print("  " + line)
     for line in first.identifiability.report(robot):
@@ -261,15 +268,18 @@ class _Fit:
     """How this identify call fits any set of rows: the same free set, priors, start, outlier mode, loss and
     selection rule for the final fit and for every cross-validation fold (so each fold repeats every choice)."""
 
-    def __init__(self, model, free, priors, theta0, start, outliers, loss, rule):
+    def __init__(self, model, free, priors, theta0, start, outliers, loss, rule, pose_id=None):
         self.model, self.free, self.priors, self.theta0 = model, free, priors, theta0
         self.start, self.outliers, self.loss, self.rule = start, outliers, loss, rule
         self.error_scale = "inflate"
+        self.pose_id = list(pose_id) if pose_id else None      # rows of one pose: held out together
 
-    def select(self, obs, explain: bool = True, warm=None):
+    def select(self, obs, explain: bool = True, warm=None, rows=None):
+        """The selection on ``obs``: every row, or the rows ``rows`` of the fitted table (a fold)."""
         from calib.selection import select
+        groups = None if self.pose_id is None else (self.pose_id if rows is None else [self.pose_id[i] for i in rows])
         return select(self.model, obs, self.free, self.priors, self.theta0, self.start, self.outliers, self.loss,
-                      rule=self.rule, error_scale=self.error_scale, explain=explain, warm=warm)
+                      rule=self.rule, error_scale=self.error_scale, explain=explain, warm=warm, groups=groups)
 
 
 def _heldout(fit: _Fit, sel, measured, obs, weights, table):
@@ -300,7 +310,7 @@ def _heldout(fit: _Fit, sel, measured, obs, weights, table):
 
     def choose(rows, test):
         train_obs, test_obs = weights.fold(rows, test)      # the noise decided again on the fold's rows
-        s, _ = fold.select(train_obs, explain=False, warm=sel)
+        s, _ = fold.select(train_obs, explain=False, warm=sel, rows=rows)
         return s.located.ident.theta, s.ident, test_obs
     return crossval(fit.model, obs, choose, 5, table.pose_id or None)
 
@@ -346,7 +356,7 @@ def _noise(args, measured, obs, ident, weights, body: dict | None = None):
 
     bound, how = est.given_sigma_mm(obs.cov_mm2) * np.sqrt(ident.reduced_chi2), "fit residual (upper bound)"
     fit_rows = measured.subset(measured.split_mask("fit")) if measured.split is not None else measured
-    n = est.for_rows(fit_rows, weights.sigma_mm, bound, how, body=body)
+    n = est.for_rows(fit_rows, weights.sigma_mm, bound, how, body=body, given=weights.given)
     if weights.given:
         line = n.warning(f"robocal identify {args.data}", "the parameters' error bars assume the given noise: give "
                                                            "--noise-mm (or the sigma columns) as the data show it")

@@ -106,7 +106,10 @@ class Diagnosis:
             if m.group not in seen and len(near) < 3:
                 near.append(m)
                 seen.add(m.group)
-        return {"rms_mm": final, "floor_mm": floor, "excess_mm": final - floor,
+        floor_is = ("the held-out floor with parameter noise" if not self.judged_floor_mm > 0
+                    or abs(self.judged_floor_mm - self.heldout_floor_mm) <= 1e-9 * self.heldout_floor_mm else
+                    "the held-out floor rescaled to the data's own noise estimate")
+        return {"rms_mm": final, "floor_mm": floor, "floor_is": floor_is, "excess_mm": final - floor,
                 "share_of_baseline_excess": (final - floor) / base_excess if base_excess > 0 else None,
                 "where": [{"factor": f.name, "p_value": f.p_value, "statistic": f.statistic} for f in where],
                 "closest_candidates": [m.as_dict() for m in near], "stand_in": stand_in,

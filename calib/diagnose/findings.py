@@ -199,10 +199,10 @@ def material_reason(gain_mm: float, baseline_excess_mm: float, open_excess_mm: f
     """
     if gain_mm >= MATERIAL_SHARE * baseline_excess_mm:
         return ""
-    base = (f"shrinks the held-out RMS by {1000 * gain_mm:.1f} um only, less than {100 * MATERIAL_SHARE:.0f} % of "
-            f"the excess gap ({1000 * baseline_excess_mm:.1f} um)")
+    base = (f"shrinks the held-out RMS by {gain_mm:.4f} mm only, less than {100 * MATERIAL_SHARE:.0f} % of "
+            f"the excess gap ({baseline_excess_mm:.4f} mm)")
     if gain_mm < MATERIAL_SHARE * open_excess_mm:
-        return base + f" and of the gap still open ({1000 * open_excess_mm:.1f} um)"
+        return base + f" and of the gap still open ({open_excess_mm:.4f} mm)"
     if not confident:
         return base + " (a doubtful step is judged against the whole gap)"
     if not heldout_p < alpha:

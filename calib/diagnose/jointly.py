@@ -62,7 +62,7 @@ def joint_group(cx, cur, lin, ok, tests, chi2, n_tested: int, screen):
                                   min(1.0, heldout_gain_p(cx.data, cur, new) * len(kinds)), cx.alpha)
         if len(keep) < 2 or len(keep) != len(cands) or why:
             cx.near.append(NearMiss(label, new.rms_mm, p, f"together (a joint group) they shrink the held-out RMS by "
-                                    f"{1000 * gain:.1f} um, or a member is not significant", cands[0].group))
+                                    f"{gain:.4f} mm, or a member is not significant", cands[0].group))
             continue
         out = []
         for i, c in enumerate(cands):

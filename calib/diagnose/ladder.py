@@ -19,6 +19,7 @@ calibration are nearly linear there; ``refit`` says which).
 """
 from __future__ import annotations
 
+import textwrap
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -28,7 +29,7 @@ from calib.distributions import f_sf
 from calib.heldout import HeldOut, noise_scale, predicted_cov_mm2
 from calib.identify import identify
 from calib.model import MeasurementModel
-from calib.names import effect_label
+from calib.names import effect_label, prose
 from calib.pruning import LinearFit
 
 from .data import DiagnosisData
@@ -80,20 +81,41 @@ class Ladder:
                         "loss_mean_mm": _diff(a["test_mean_mm"], b["test_mean_mm"]), "refit": without.refit})
         return out
 
-    def lines(self) -> list[str]:
-        """The ladder and the leave-one-group-out table as terminal lines."""
-        out = [f"   {'step':<46}{'params':>7}{'mean':>9}{'RMS':>9}{'max':>9}  significance"]
+    def lines(self, robot=None) -> list[str]:
+        """The ladder and the leave-one-group-out table as terminal lines: a label longer than its column wraps at
+        its words onto lines of its own below the numbers, so the columns stay aligned and nothing is cut.
+        ``robot``: joints named as its description names them (before the wrapping, which counts their length)."""
+        out = [f"   {'step':<{LABEL_WIDTH + 1}}{'params':>7}{'mean':>9}{'RMS':>9}{'max':>9}  significance"]
         for row in self.as_json():
-            out.append(f"   {row['model'][:45]:<46}{row['n_params']:>7}{_f(row['test_mean_mm'])}"
+            first, *rest = _wrapped(prose(row["model"], robot) if robot else row["model"], LABEL_WIDTH)
+            out.append(f"   {first:<{LABEL_WIDTH + 1}}{row['n_params']:>7}{_f(row['test_mean_mm'])}"
                        f"{_f(row['test_rms_mm'])}{_f(row['test_max_mm'])}  {row['significance']}"
                        + ("" if row["accepted"] else " (not in the final model)"))
+            out += [f"       {r}" for r in rest]
         if self.logo:
             out.append("   leave one group out (the final model without it, refitted): held-out RMS and what the "
                        "group is worth")
             for row in self.logo_json():
-                out.append(f"     without {row['without'][:40]:<41}{_f(row['test_rms_mm'])} mm RMS, "
+                label = "without " + row["without"]
+                first, *rest = _wrapped(prose(label, robot) if robot else label, LABEL_WIDTH - 2)
+                out.append(f"     {first:<{LABEL_WIDTH - 1}}{_f(row['test_rms_mm'])} mm RMS, "
                            f"{_f(row['test_mean_mm'])} mm mean: loss {row['loss_rms_mm']:+.4f} mm RMS")
+                out += [f"         {r}" for r in rest]
         return out
+
+
+#: characters of a step's label on the line of its numbers (longer labels wrap at their words)
+LABEL_WIDTH = 45
+
+
+def _wrapped(label: str, width: int) -> list[str]:
+    """``label`` in lines of at most ``width`` characters, broken between words (the continuation lines are indented
+    by the caller, so they are 4 characters shorter)."""
+    first = textwrap.wrap(label, width, break_on_hyphens=False) or [""]
+    if len(first) == 1:
+        return first
+    rest = textwrap.wrap(label[len(first[0]):].strip(), width - 4, break_on_hyphens=False)
+    return [first[0]] + rest
 
 
 def _f(v) -> str:

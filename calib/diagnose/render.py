@@ -73,7 +73,7 @@ def render(d: Diagnosis, max_factor_rows: int = 40) -> str:
     if d.ladder is not None:
         out.append(f"   the model step by step, each step refitted and scored on the held-out rows ("
                    f"{d.ladder.protocol}; mm)")
-        out += d.ladder.lines()
+        out += d.ladder.lines(d.data.robot)
         u = j.get("uncertainty") or {}
         if u.get("median_abs_z") is not None:
             out.append(f"   predicted sigma of the held-out points: median |error|/sigma {u['median_abs_z']:.2f} "
@@ -81,12 +81,12 @@ def render(d: Diagnosis, max_factor_rows: int = 40) -> str:
     out.append(f"   geometric {j['baseline_rms_mm']:.4f} mm" + "".join(
         f" -> +{f['label']} {f['rms_after_mm']:.4f} mm" for f in j["findings"]))
     shrink = j["excess_gap_shrink"]
-    out.append(f"   final held-out RMS {j['final_rms_mm']:.4f} mm (max {j['final_max_mm']:.4f}) against the floor "
-               f"{j['noise_floor_mm']:.4f} mm" + (f"; {100 * shrink:.0f} % of the excess gap removed"
+    out.append(f"   final held-out RMS {j['final_rms_mm']:.4f} mm (max {j['final_max_mm']:.4f}) against the "
+               f"instruments' floor {j['noise_floor_mm']:.4f} mm" + (f"; {100 * shrink:.0f} % of the excess gap removed"
                                                   if shrink == shrink else ""))
     u = j["unexplained"]
     if u and u["gap_left"]:
-        out.append(f"   unexplained: {u['excess_mm']:.4f} mm above the floor {u['floor_mm']:.4f} mm -- something none "
+        out.append(f"   unexplained: {u['excess_mm']:.4f} mm above {u['floor_is']} {u['floor_mm']:.4f} mm -- something none "
                    f"of the accepted effects describes is left (or the noise model is optimistic)")
     elif u:
         out.append("   unexplained cause: the gap is closed, but by " + ", ".join(x["finding"] for x in u["stand_in"])
@@ -100,6 +100,8 @@ def render(d: Diagnosis, max_factor_rows: int = 40) -> str:
         ne = j["noise_estimate"]
         out.append(f"   noise per coordinate: given {ne['given_mm']:.4f} mm, from the data {ne['estimated_mm']:.4f} mm "
                    f"({ne['from']})")
+    if d.noise is not None:
+        out += [f"   note: {line}" for line in d.noise.set_aside_lines()]
     out += [f"   note: {line}" for line in d.outlier_report.lines()]
     if j.get("confirmation"):
         out += [""] + render_confirmation(j["confirmation"])
@@ -136,14 +138,14 @@ def render_confirmation(sessions: list[dict]) -> list[str]:
         name = f" ({f['joint_name']})" if f.get("joint_name") else ""
         train = (f.get("refit") or {}).get("training")
         out += ["", f"   {f['label']}{name}: fitted on the data {_params(train)}",
-                f"     {'session':<40}{'before':>9}{'with it':>9}{'shrink um':>10}  {'confirmed':<14}"
+                f"     {'session':<40}{'before':>9}{'with it':>9}{'shrink mm':>10}  {'confirmed':<14}"
                 f"refitted on the session alone"]
         for c in sessions:
             g = c["findings"][k]
             r = g.get("refit")
             agree = "" if not r else ("  agrees" if r["agree"] else "  DISAGREES")
             out.append(f"     {c['source'][-40:]:<40}{g['rms_before_mm']:>9.4f}{g['rms_after_mm']:>9.4f}"
-                       f"{1000 * g['shrink_mm']:>+10.1f}  {'yes' if g['confirmed'] else 'NOT confirmed':<14}"
+                       f"{g['shrink_mm']:>+10.4f}  {'yes' if g['confirmed'] else 'NOT confirmed':<14}"
                        f"{_params(r['session'] if r else None)}{agree}")
     return out
 

@@ -363,8 +363,8 @@ def _group_screen(cx: _Context, cur: CVResult, lin: _Linear, cols: list[int], n_
         return predicted, "together (a joint group) they do not shrink the held-out gap (linearised)"
     if gain >= LINEAR_SLACK * MATERIAL_SHARE * cx.excess_mm:
         return predicted, ""
-    why = (f"together (a joint group) they shrink the held-out RMS by {1000 * gain:.1f} um only (linearised), less "
-           f"than {100 * MATERIAL_SHARE:.0f} % of the excess gap ({1000 * cx.excess_mm:.1f} um)")
+    why = (f"together (a joint group) they shrink the held-out RMS by {gain:.4f} mm only (linearised), less "
+           f"than {100 * MATERIAL_SHARE:.0f} % of the excess gap ({cx.excess_mm:.4f} mm)")
     if gain < LINEAR_SLACK * MATERIAL_SHARE * cx.open_mm(cur):
         return predicted, why
     p = min(1.0, paired_gain_p(cx.data, cur.tested, cur.residual_mm, rows[:, :, 0]) * n_tests)
@@ -443,8 +443,8 @@ def _round(cx: _Context, cur: CVResult, remaining: list[Candidate], rounds: list
                        lambda: bool(_aliases(k, ok, tests, lin, cx.alpha) or _grid_edge(cand, ok))):
             gain = cur.rms_mm - predicted
             cx.near.append(NearMiss(cand.label, predicted, float(tests.p[k]),
-                                    f"shrinks the held-out RMS by {1000 * gain:.1f} um only (linearised), less than "
-                                    f"{100 * MATERIAL_SHARE:.0f} % of the excess gap ({1000 * cx.excess_mm:.1f} um)",
+                                    f"shrinks the held-out RMS by {gain:.4f} mm only (linearised), less than "
+                                    f"{100 * MATERIAL_SHARE:.0f} % of the excess gap ({cx.excess_mm:.4f} mm)",
                                     cand.group))
             why = why or f"best remaining candidate {cand.label} {cx.near[-1].reason}"
             continue
@@ -618,7 +618,7 @@ def leftover_structure(data: DiagnosisData, final: CVResult, findings: list[Find
         p = min(1.0, p * n_tests)
         if p < alpha and size >= material_mm:
             f.leftover = "; ".join(filter(None, [f.leftover, f"the residual left still depends on {what} "
-                                                 f"(p = {p:.2g}, {1000 * size:.1f} um RMS between its quartiles)"]))
+                                                 f"(p = {p:.2g}, {size:.4f} mm RMS between its quartiles)"]))
 
 
 def _group_dependence(res_w: np.ndarray, res_mm: np.ndarray, groups: list[np.ndarray]) -> tuple[float, float]:
