@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import re
 from dataclasses import dataclass
+from functools import lru_cache
 
 from .names import edge_unit, unit_of
 from .units import ARCSEC, DEG
@@ -175,7 +176,14 @@ def _fill(text: str, groups: dict, labels) -> str:
 
 def describe(code: str, labels=None) -> Described:
     """The code name ``code`` (a results document's estimate or bound name) as a person reads it; ``labels``: the
-    joints as the session names them (``joint_labels`` of the results document)."""
+    joints as the session names them (``joint_labels`` of the results document).  Kept per (code, labels): a
+    summary asks for each estimate's words about five times (its section, verdict, name, unit, meaning), and the
+    answer depends on nothing else (the kinds are this module's constants; :class:`Described` is frozen)."""
+    return _describe(code, None if labels is None else tuple(labels))
+
+
+@lru_cache(maxsize=4096)
+def _describe(code: str, labels: tuple | None) -> Described:
     for rx, kind in _COMPILED:
         m = rx.match(code)
         if m:

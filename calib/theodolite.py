@@ -200,9 +200,10 @@ class Station:
 def face_mean(hz: np.ndarray, v: np.ndarray, face: np.ndarray) -> tuple[float, float]:
     """Face-I-equivalent mean of readings (face II reduced: Hz - 180 deg, 360 deg - V): removes c, i and k.
 
-    One or two readings (a target read in both faces: every session check and reduction asks for it) in plain floats,
-    the same operations as numpy's below -- the same floats (a test holds them equal)."""
-    if len(hz) <= 2:
+    Fewer than :data:`PLAIN_MEAN_BELOW` readings (a target read in both faces, or both faces twice: every session
+    check and reduction asks for it) in plain floats, the same operations as numpy's below -- the same floats (a test
+    holds them equal)."""
+    if len(hz) < PLAIN_MEAN_BELOW:
         return _face_mean_few([float(x) for x in hz], [float(x) for x in v], [float(f) == 2 for f in face])
     hz, v, face = (np.asarray(a, float) for a in (hz, v, face))
     hz1 = np.where(face == 2, hz - np.pi, hz)
@@ -211,9 +212,14 @@ def face_mean(hz: np.ndarray, v: np.ndarray, face: np.ndarray) -> tuple[float, f
     return float(np.mod(ref + np.mean(wrap_angle(hz1 - ref)), 2 * np.pi)), float(np.mean(v1))
 
 
+#: numpy's mean adds fewer than 8 values one after the other (its pairwise summation starts at 8), so a plain
+#: float sum in the same order is its very float below that
+PLAIN_MEAN_BELOW = 8
+
+
 def _face_mean_few(hz: list[float], v: list[float], face2: list[bool]) -> tuple[float, float]:
-    """:func:`face_mean` of one or two readings: a mean of two is their sum halved, as numpy's; the wrap is
-    ``atan2(sin, cos)``, as :func:`calib.angles.wrap_angle`'s complex exponential."""
+    """:func:`face_mean` of fewer than :data:`PLAIN_MEAN_BELOW` readings: the sum in order, divided by the count, as
+    numpy's mean; the wrap is ``atan2(sin, cos)``, as :func:`calib.angles.wrap_angle`'s complex exponential."""
     hz1 = [h - math.pi if f else h for h, f in zip(hz, face2)]
     v1 = [2 * math.pi - x if f else x for x, f in zip(v, face2)]
     ref = hz1[0]

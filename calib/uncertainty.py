@@ -225,9 +225,7 @@ def propagate(f: VecFn, x: np.ndarray, cov_x: np.ndarray, names: Sequence[str], 
     if x.ndim != 1 or cov_x.shape != (x.size, x.size):
         raise UncertaintyError(f"inputs must be a vector with a matching covariance (got {x.shape}, {cov_x.shape})")
     y0 = np.asarray(f(x[None]), float)[0] if value is None else np.asarray(value, float)
-    if not np.all(np.isfinite(y0)):
-        raise UncertaintyError("the estimate itself is not finite: " + ", ".join(
-            n for n, v in zip(names, y0) if not np.isfinite(v)))
+    require_finite(y0, names)
     if jac is None:
         jac = jacobian(f, x, default_steps(x, cov_x) if steps is None else steps)
     cov_gum = gum_covariance(jac, cov_x)
@@ -236,6 +234,13 @@ def propagate(f: VecFn, x: np.ndarray, cov_x: np.ndarray, names: Sequence[str], 
         g = rng if isinstance(rng, np.random.Generator) else np.random.default_rng(rng)
         _, cov_mc, iv = mc_summary(f(sample_inputs(x, cov_x, n_mc, g)))
     return EstimateSet(list(names), y0, list(units), cov_gum, cov_mc, first_order_cov, iv)
+
+
+def require_finite(value: np.ndarray, names: Sequence[str]) -> None:
+    """Refuse an estimate with a non-finite entry (naming them): nothing can be propagated from it."""
+    if not np.all(np.isfinite(value)):
+        raise UncertaintyError("the estimate itself is not finite: " + ", ".join(
+            n for n, v in zip(names, value) if not np.isfinite(v)))
 
 
 def spread_sd(f: VecFn, x: np.ndarray, cov_x: np.ndarray, n: int, rng) -> np.ndarray:

@@ -3,8 +3,9 @@ names, degrees for angles, a verdict), so an operator on an 80-column terminal r
 table of every estimate goes to the JSON and the report, or to the terminal with ``--verbose``."""
 from __future__ import annotations
 
-from rich.console import Console
-from rich.table import Table
+import os
+import sys
+from typing import TYPE_CHECKING
 
 from calib.kinds import describe
 
@@ -12,6 +13,10 @@ from offline.iso_report import iso_lines
 from offline.numbers import legend, below_floor_sentence, same_floor, value_pm
 from offline.sections import DETERMINED, HELD, NEGLIGIBLE, SECTIONS, UNDETERMINED, WEAK, beside_the_thesis, bound_text, \
     needs_action, section_bounds, section_estimates, section_problems, section_verdict, shown, shows, verdict_of
+
+if TYPE_CHECKING:
+    from rich.console import Console
+    from rich.table import Table
 
 #: a section with at most this many estimates lists them all; a larger one shows its counts and weakest few
 LIST_UP_TO = 6
@@ -160,6 +165,9 @@ MEANING_COLUMNS = 140
 def estimates_table(res: dict, width: int = MEANING_COLUMNS) -> Table:
     """Every estimate in one table (``--verbose``): its name, value ± 1σ, unit, truth, verdict and, on a terminal
     ``width`` wide enough, its meaning."""
+    # rich costs 0.05-0.08 s to import: only the verbose table and a terminal's styles need it
+    from rich.table import Table
+
     meaning = width >= MEANING_COLUMNS
     t = Table(title=f"estimates from {res['session']['title']}")
     t.add_column("estimate", overflow="fold")
@@ -193,9 +201,43 @@ def estimate_rows(res: dict) -> list[tuple[str, str, str, str, str, str]]:
 
 
 def print_summary(res: dict, verbose: bool = False, console: Console | None = None) -> None:
-    """The compact summary (default), after every estimate in one table (``verbose``)."""
+    """The compact summary (default), after every estimate in one table (``verbose``).  Emoji codes are text (a
+    note reading ``:ok:`` stays ``:ok:``).  Where rich would print no styles (standard output not a terminal, no
+    FORCE_COLOR or TTY_COMPATIBLE=1) the lines are printed as rich prints them unstyled (:func:`unstyled`), without
+    importing rich."""
+    if console is None and not verbose and not styled_stdout():
+        for _, text in summary_lines(res):
+            print(unstyled(text))
+        return
+    # rich costs 0.05-0.08 s to import: only a terminal's styles and the verbose table need it
+    from rich.console import Console
+
     console = console or Console(stderr=False)
     if verbose:
         console.print(estimates_table(res, console.width))
     for style, text in summary_lines(res):
-        console.print(text, style=style or None, highlight=False, markup=False, soft_wrap=True)
+        console.print(text, style=style or None, highlight=False, markup=False, soft_wrap=True, emoji=False)
+
+
+def styled_stdout(environ=None) -> bool:
+    """Whether rich would write styles to standard output: its terminal test (rich 13-15's ``Console.is_terminal``:
+    TTY_COMPATIBLE 1/0, then a non-empty FORCE_COLOR, then ``isatty``), answered without importing rich."""
+    env = os.environ if environ is None else environ
+    if env.get("TTY_COMPATIBLE", "") in ("0", "1"):
+        return env["TTY_COMPATIBLE"] == "1"
+    if env.get("FORCE_COLOR") is not None:
+        return env["FORCE_COLOR"] != ""
+    try:
+        return sys.stdout.isatty()
+    except (AttributeError, ValueError):          # no stream, or one already closed
+        return False
+
+
+#: the control characters rich's Text leaves out (bell, backspace, vertical tab, form feed, carriage return)
+_CONTROL = dict.fromkeys((7, 8, 11, 12, 13))
+
+
+def unstyled(text: str) -> str:
+    """``text`` as rich's console prints it without styles (markup, highlighting and emoji off, soft wrap): control
+    characters dropped and tabs expanded to 8 columns (a test holds the two equal)."""
+    return text.translate(_CONTROL).expandtabs(8)

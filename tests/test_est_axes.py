@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from calib.estimators import EstimationError
-from calib.estimators.axes import fit_axis, fit_circle
+from calib.estimators.axes import check_axis, fit_axis, fit_circle
 
 C0 = np.array([400.0, 2500.0, 100.0])
 N0 = np.array([0.1, 0.2, 1.0]) / np.linalg.norm([0.1, 0.2, 1.0])
@@ -73,3 +73,31 @@ def test_degenerate_sweeps_refused():
         fit_axis(_circle([0.0, 0.5, 1.0]), np.eye(9) * 1e-4)
     with pytest.raises(EstimationError, match="non-finite"):
         fit_axis(np.r_[_circle([0, 30]), [[np.nan, 0, 0]]], U)
+
+
+BAD_SWEEPS = [(_circle([0, 30]), np.eye(6) * 0.01),
+              (np.array([[0, 0, 0], [100, 0, 0], [200, 0, 0.0]]), np.eye(9) * 0.01),
+              (np.array([[0, 0, 0], [0, 0, 0], [200, 50, 0.0]]), np.eye(9) * 0.01),
+              (_circle([0.0, 0.5, 1.0]), np.eye(9) * 1e-4),
+              (np.r_[_circle([0, 30]), [[np.nan, 0, 0]]], np.eye(9) * 0.01),
+              (_circle([0, 40, 80, 120]), np.eye(9) * 0.01)]         # a covariance of the wrong size
+
+
+@pytest.mark.parametrize("P, U", BAD_SWEEPS)
+def test_check_axis_refuses_what_fit_axis_refuses(P, U):
+    """The transmission run checks its A2 positions with check_axis instead of a whole fit_axis whose errors it
+    discarded: the same refusal, word for word."""
+    with pytest.raises(EstimationError) as full:
+        fit_axis(P, U, n_mc=0, joint="j4")
+    with pytest.raises(EstimationError) as checked:
+        check_axis(P, U, joint="j4")
+    assert str(checked.value) == str(full.value)
+
+
+def test_check_axis_gives_fit_axis_circle():
+    rng = np.random.default_rng(3)
+    P = _circle(np.linspace(-60, 70, 9)) + rng.normal(0, 0.05, (9, 3))
+    U = np.eye(27) * 0.05 ** 2
+    theta = check_axis(P, U, joint="j6")
+    assert np.array_equal(theta, fit_axis(P, U, n_mc=0, joint="j6").value)
+    assert np.allclose(theta[:3], C0, atol=0.5) and np.allclose(theta[3:6], N0, atol=1e-3)

@@ -24,7 +24,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..uncertainty import EstimateSet, propagate
+from ..uncertainty import EstimateSet, propagate, require_finite
 from ._common import EstimationError, at_least, finite
 
 PROC = "axes"
@@ -203,6 +203,32 @@ def fit_axis(points_mm: np.ndarray, points_cov_mm2: np.ndarray, n_mc: int = 20_0
     Returns centre ``c_*_mm``, unit direction ``n_*`` and radius ``r_mm`` with covariances three ways; extras
     carry the fit residuals (out-of-plane and radial, mm), the sweep span and the plane's singular values.
     """
+    P, U, theta = _checked_circle(points_mm, points_cov_mm2, joint, min_span_deg)
+    N = len(P)
+    x = P.ravel()
+    cov1 = circle_first_order(P, theta, U)
+    res = propagate(lambda z: fit_circle_flat(z, N), x, U, _axis_names(joint), AXIS_UNITS, n_mc=n_mc, rng=rng,
+                    first_order_cov=cov1, value=theta)
+    res.extras["residual_mm"] = _residual(np.r_[theta[:3], 0, 0, theta[6]], P, theta[3:6], *_basis(theta[3:6]))
+    return res
+
+
+def check_axis(points_mm: np.ndarray, points_cov_mm2: np.ndarray, joint: str = "",
+               min_span_deg: float = 5.0) -> np.ndarray:
+    """:func:`fit_axis`'s refusals without its errors (the circle's Jacobian over every coordinate): the points define
+    a circle, the covariance fits them, the circle is finite -- for a caller that needs the points checked but takes
+    the axis's error through its own propagation (the transmission run's angles).  Returns ``[c, n, r]``."""
+    _, _, theta = _checked_circle(points_mm, points_cov_mm2, joint, min_span_deg)
+    require_finite(theta, _axis_names(joint))
+    return theta
+
+
+def _axis_names(joint: str) -> list[str]:
+    return [f"{joint}.{k}" if joint else k for k in AXIS_NAMES]
+
+
+def _checked_circle(points_mm, points_cov_mm2, joint: str, min_span_deg: float):
+    """The points and covariance as arrays, checked (:func:`check_sweep`, the covariance's shape), and the circle."""
     P = np.asarray(points_mm, float)
     U = np.asarray(points_cov_mm2, float)
     sig = float(np.sqrt(np.mean(np.diag(U)))) if U.size else 0.0
@@ -211,14 +237,7 @@ def fit_axis(points_mm: np.ndarray, points_cov_mm2: np.ndarray, n_mc: int = 20_0
     if U.shape != (3 * N, 3 * N):
         raise EstimationError(PROC, f"circle fit{(' of ' + joint) if joint else ''}",
                               f"point covariance must be {3 * N}x{3 * N}, got {U.shape}")
-    x = P.ravel()
-    theta = fit_circle(P)
-    cov1 = circle_first_order(P, theta, U)
-    names = [f"{joint}.{k}" if joint else k for k in AXIS_NAMES]
-    res = propagate(lambda z: fit_circle_flat(z, N), x, U, names, AXIS_UNITS, n_mc=n_mc, rng=rng,
-                    first_order_cov=cov1, value=theta)
-    res.extras["residual_mm"] = _residual(np.r_[theta[:3], 0, 0, theta[6]], P, theta[3:6], *_basis(theta[3:6]))
-    return res
+    return P, U, fit_circle(P)
 
 
 def _basis(n):

@@ -19,7 +19,7 @@ import numpy as np
 
 from ..uncertainty import EstimateSet, propagate
 from ._common import EstimationError, at_least, finite
-from .axes import fit_axis
+from .axes import check_axis
 from .transmission import angles_about_fitted_axis, joint_angle_first_order
 
 PROC = "encoder resolution"
@@ -105,7 +105,7 @@ def encoder_resolution_fitted_axis(counts, A1_mm, A2_mm, points_cov_mm2, design_
         raise EstimationError(PROC, STEP, f"the targets' covariance must be {6 * N}x{6 * N}")
     at_least(PROC, STEP, "steps with A1 and A2", N, 3)
     iA2 = (np.arange(N)[:, None] * 6 + np.arange(3, 6)).ravel()
-    n = fit_axis(A2, U[np.ix_(iA2, iA2)], n_mc=0, joint=joint).value[3:6]      # its checks: points on a circle
+    n = check_axis(A2, U[np.ix_(iA2, iA2)], joint=joint)[3:6]         # the points lie on a circle: its axis
     z = np.concatenate([A1, A2], -1).ravel()
     y = angles_about_fitted_axis(z, N)
     G = np.zeros((N, 6 * N))

@@ -213,13 +213,15 @@ def _model(p, theta, H):
     return (_basis(theta, p[..., 0], H) @ p[..., 1:, None])[..., 0]
 
 
-def _model_jac(p, theta, H):
-    w = p[..., 0][..., None]
-    X = _basis(theta, p[..., 0], H)
+def _model_jac(p, theta, H, X=None):
+    """d model / d [w, c, a1, b1, ...] (..., n, 2 + 2H).  ``X``: :func:`_basis` at ``p`` when the caller has it
+    already (the fit's cost evaluated it): its sine and cosine columns are the very values the derivative in w needs,
+    so no angle is evaluated twice."""
+    X = _basis(theta, p[..., 0], H) if X is None else X
     dw = np.zeros(X.shape[:-1])
     for k in range(1, H + 1):
         a, b = p[..., 2 * k][..., None], p[..., 2 * k + 1][..., None]
-        dw = dw + k * theta * (a * np.cos(k * w * theta) - b * np.sin(k * w * theta))
+        dw = dw + k * theta * (a * X[..., 2 * k] - b * X[..., 2 * k - 1])
     return np.concatenate([dw[..., None], X], -1)
 
 
@@ -240,21 +242,25 @@ def _gn(p0, theta, y, H, W, iterations: int = 12):
     lam = np.full(p.shape[:-1], 1e-9)
 
     def cost(q):
-        r = (y - _model(q, theta, H)) @ W.T
-        return np.sum(r * r, -1), r
+        # the basis at q is kept: the next step's Jacobian at an accepted q is built from it (one sine and cosine
+        # per angle and step, not three; :func:`_model`'s very products, so the fit is the same to the last bit)
+        X = _basis(theta, q[..., 0], H)
+        r = (y - (X @ q[..., 1:, None])[..., 0]) @ W.T
+        return np.sum(r * r, -1), r, X
 
-    c, r = cost(p)
+    c, r, X = cost(p)
     eye = np.eye(p.shape[-1])
     for _ in range(iterations):
-        J = W @ _model_jac(p, theta, H)
+        J = W @ _model_jac(p, theta, H, X)
         A = np.swapaxes(J, -1, -2) @ J
         dp = _solve(A + lam[..., None, None] * np.diagonal(A, axis1=-2, axis2=-1)[..., None, :] * eye,
                     (np.swapaxes(J, -1, -2) @ r[..., None])[..., 0])
-        cn, rn = cost(p + dp)
+        cn, rn, Xn = cost(p + dp)
         better = np.isfinite(cn) & (cn <= c * (1 + 1e-12))
         p = np.where(better[..., None], p + dp, p)
         r = np.where(better[..., None], rn, r)
         c = np.where(better, cn, c)
+        X = np.where(better[..., None, None], Xn, X)
         lam = np.clip(np.where(better, lam * 0.1, lam * 10.0), 1e-12, 1e6)
         if np.all(np.abs(dp) < 1e-13 * (1 + np.abs(p))):
             break

@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 
 from calib.angles import wrap_angle
-from calib.estimators.axes import fit_axis
+from calib.estimators.axes import check_axis
 from calib.estimators.transmission import joint_angles, joint_angles_fitted_axis
 from calib.robot import Robot
 from calib.units import DEG
@@ -74,7 +74,7 @@ def angles_about_own_axis(steps: list[dict], points: Located, joint: int):
     U = points.covariance([t for p in pairs for t in p])
     A1, A2 = (np.array([p[k].point_mm for p in pairs]) for k in (0, 1))
     iA2 = (np.arange(len(ok))[:, None] * 6 + np.arange(3, 6)).ravel()
-    fit_axis(A2, U[np.ix_(iA2, iA2)], n_mc=0, joint=f"j{joint}")       # its checks: the points lie on a circle
+    check_axis(A2, U[np.ix_(iA2, iA2)], joint=f"j{joint}")            # the points lie on a circle
     out, cov = np.full(len(steps), np.nan), np.full((len(steps), len(steps)), np.nan)
     out[ok], cov[np.ix_(ok, ok)], _ = joint_angles_fitted_axis(A1, A2, U)
     return out, np.sqrt(np.diag(cov)), cov

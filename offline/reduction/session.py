@@ -65,20 +65,35 @@ def _load(conn, path: str, procedures: tuple[str, ...] | None = None) -> Session
                   (s["session_id"],))
     if procedures is not None:
         steps = [st for st in steps if st["procedure"] in procedures]
+    scope = (s["session_id"], procedures)
+    readings = _by_step(conn, "reading", "station, target, face, repeat, hz_rad, v_rad", "reading_id", *scope)
+    inputs = _by_step(conn, "operator_input", "name, value", "input_id", *scope)
+    chunks = _by_step(conn, "encoder_chunk", "counts", "chunk_id", *scope)
     for st in steps:
-        a = st["attempts"]
+        i = st["step_id"]
         st["spec"] = json_column(st["spec_json"], f"{path}: step {st['key']!r}: spec_json")
-        st["readings"] = _rows(conn, "SELECT station, target, face, repeat, hz_rad, v_rad FROM reading "
-                                     "WHERE step_id=? AND attempt=? ORDER BY reading_id", (st["step_id"], a))
-        st["inputs"] = {r["name"]: r["value"] for r in _rows(
-            conn, "SELECT name, value FROM operator_input WHERE step_id=? AND attempt=? ORDER BY input_id",
-            (st["step_id"], a))}
-        ch = _rows(conn, "SELECT counts FROM encoder_chunk WHERE step_id=? AND attempt=? ORDER BY chunk_id",
-                   (st["step_id"], a))
-        st["counts"] = _counts(ch, f"{path}: step {st['key']!r}: encoder counts")
+        st["readings"] = readings.get(i, [])
+        st["inputs"] = {r["name"]: r["value"] for r in inputs.get(i, [])}
+        st["counts"] = _counts(chunks.get(i, []), f"{path}: step {st['key']!r}: encoder counts")
     devices = _rows(conn, "SELECT role, driver, url, identity_json FROM device")
     return SessionData(path, s, json_column(s["plan_json"], f"{path}: session plan_json"),
                        BenchSetup.of(setup_from_text(s["setup_json"], f"{path}: session setup_json")), steps, devices)
+
+
+def _by_step(conn, table: str, columns: str, order: str, session_id: int,
+             procedures: tuple[str, ...] | None) -> dict[int, list[dict]]:
+    """The rows of ``table`` recorded in the accepted (last) attempt of each accepted step (of ``procedures`` only,
+    when given), ``columns`` only, grouped by step in ``order``: one query per table, not one per step (a demo
+    session's 285 steps took 855 queries, a third of the load)."""
+    only = "" if procedures is None else f" AND s.procedure IN ({', '.join('?' * len(procedures))})"
+    cur = conn.execute(f"SELECT t.step_id, {columns} FROM {table} t JOIN step s ON s.step_id = t.step_id "
+                       f"AND t.attempt = s.attempts WHERE s.session_id=? AND s.status='accepted'{only} "
+                       f"ORDER BY t.{order}", (session_id, *(procedures or ())))
+    cols = [d[0] for d in cur.description][1:]
+    out: dict[int, list[dict]] = {}
+    for step_id, *values in cur.fetchall():
+        out.setdefault(step_id, []).append(dict(zip(cols, values)))
+    return out
 
 
 def _counts(chunks: list[dict], where: str) -> np.ndarray | None:
