@@ -165,9 +165,9 @@ def _heldout_scores(data: DiagnosisData, cur: CVResult, lin: _Linear, ok,
     starts = np.cumsum([0] + [len(cols) for _, cols in ok])[:-1]
     chi2, sse = np.zeros(len(ok)), np.zeros(len(ok))
     Jw, Jmm, big = lin.Jw, lin.Jmm, lin.big
-    for f in cur.folds:
+    for i, f in enumerate(cur.folds):
         tr, te = _rows(f.train), _rows(f.test)
-        r3 = data.points_mm - cur.model.points(data.q_rad, data.ctx, f.theta)
+        r3 = data.points_mm - cur.points_mm(data, i)
         r_mm = r3.ravel()
         r_w = _white_rows(W, r3[:, :, None])[:, 0]
         bidx = [big.index[n] for n in f.free if n in big.index]
@@ -252,8 +252,7 @@ def _nested_tests(data: DiagnosisData, cur: CVResult, lin: _Linear, ok) -> _Test
     """Step 4: each candidate fitted to the whole residual with the current model's columns projected out (all at
     once, :func:`_block_normal_equations`), its nested F-test (Bonferroni over the candidates) and delta BIC."""
     m = 3 * data.n
-    r_all = _white_rows(data.whitening, (data.points_mm - cur.model.points(
-        data.q_rad, data.ctx, cur.all_fit.theta[: cur.model.P]))[:, :, None])[:, 0]
+    r_all = _white_rows(data.whitening, (data.points_mm - cur.points_mm(data))[:, :, None])[:, 0]
     r0 = project(lin.Qa, r_all[:, None])[:, 0]
     rss0 = float(r0 @ r0)
     M = len(ok)
