@@ -98,21 +98,20 @@ class _Linear:
     """Step 1: the shared linearisation of one round."""
     big: MeasurementModel
     Jw: np.ndarray                  # (3N, P_big) whitened
-    Jmm: np.ndarray                 # (3N, P_big) in mm
     base_idx: list[int]             # the current model's free columns
     Qa: np.ndarray                  # orthonormal basis of them (all poses)
     cols: list[list[int]]           # per remaining candidate, its columns
     _blocks: dict = field(default_factory=dict, repr=False)
 
-    def block(self, cols: list[int], mm: bool = False) -> tuple[np.ndarray, np.ndarray | None]:
+    def block(self, cols: list[int]) -> tuple[np.ndarray, np.ndarray]:
         """Columns ``cols`` of the whitened Jacobian (3N, len) and their product with the current model's basis
-        ``Qa^T C`` (``mm``: the columns in mm, no product).  Gathered once per round and shared: the guard, the nested
-        tests and the held-out scores each took their own copy of every candidate's columns (about 2000 columns of
-        3000 rows on the elastic tree) and the first two the same product."""
-        key = (mm, tuple(cols))
+        ``Qa^T C``.  Gathered once per round and shared: the guard, the nested tests and the held-out scores each
+        took their own copy of every candidate's columns (about 2000 columns of 3000 rows on the elastic tree) and
+        the first two the same product."""
+        key = tuple(cols)
         if key not in self._blocks:
-            C = np.take(self.Jmm if mm else self.Jw, cols, axis=1)
-            self._blocks[key] = (C, None if mm else self.Qa.T @ C)
+            C = np.take(self.Jw, cols, axis=1)
+            self._blocks[key] = (C, self.Qa.T @ C)
         return self._blocks[key]
 
 
@@ -129,7 +128,7 @@ def _linearise(data: DiagnosisData, cur: CVResult, remaining: list[Candidate]) -
         cols.append([s.start + names.index(p) for p in c.free])
     base_idx = [big.index[n] for n in cur.all_fit.free if n in big.index]
     Qa, _ = np.linalg.qr(Jw[:, base_idx])
-    return _Linear(big, Jw, ev.jacobian.reshape(3 * data.n, -1), base_idx, Qa, cols)
+    return _Linear(big, Jw, base_idx, Qa, cols)
 
 
 def _guard(lin: _Linear, remaining: list[Candidate], note: Callable[[str], None]) -> list[tuple[Candidate, list[int]]]:
@@ -176,13 +175,15 @@ def _heldout_scores(data: DiagnosisData, cur: CVResult, lin: _Linear, ok,
     allcols = [k for _, cols in ok for k in cols]
     starts = np.cumsum([0] + [len(cols) for _, cols in ok])[:-1]
     chi2, sse = np.zeros(len(ok)), np.zeros(len(ok))
-    Jw, Jmm, big = lin.Jw, lin.Jmm, lin.big
+    Jw, big = lin.Jw, lin.big
     # the candidates' columns gathered once (shared with the nested tests): a fold copies its rows of them
-    Cw, Cmm = lin.block(allcols)[0], lin.block(allcols, mm=True)[0]
+    Cw = lin.block(allcols)[0]
+    # the predictions in mm are the whitened ones unwhitened pose by pose (a second pass over every candidate's
+    # columns in mm cost a fifth of the scores)
+    unwhite = np.linalg.inv(W)
     for i, f in enumerate(cur.folds):
         tr, te = _rows(f.train), _rows(f.test)
         r3 = data.points_mm - cur.points_mm(data, i)
-        r_mm = r3.ravel()
         r_w = _white_rows(W, r3[:, :, None])[:, 0]
         bidx = [big.index[n] for n in f.free if n in big.index]
         Q, R = np.linalg.qr(Jw[np.ix_(tr, bidx)])
@@ -190,18 +191,19 @@ def _heldout_scores(data: DiagnosisData, cur: CVResult, lin: _Linear, ok,
         QtC, Qtr = Q.T @ Ctr, Q.T @ r_w[tr]
         rp = r_w[tr] - Q @ Qtr
         dc = _block_normal_equations(Ctr, QtC, Ctr.T @ rp, starts)        # (C P)^T P r = C^T P r
-        # base update db = g0 - G dc; held-out prediction = h0 + H dc (whitened and in mm)
+        # base update db = g0 - G dc; held-out prediction = h0 + H dc (whitened, then in mm pose by pose)
         G = np.linalg.solve(R, QtC)
         g0 = np.linalg.solve(R, Qtr)
-        for J, C, r, out in ((Jw, Cw, r_w, chi2), (Jmm, Cmm, r_mm, sse)):
-            Jb = J[np.ix_(te, bidx)]
-            H = Jb @ G
-            H -= C[te]
-            H *= dc
-            pred = (r[te] - Jb @ g0)[:, None] + np.add.reduceat(H, starts, axis=1)
-            out += np.einsum("ij,ij->j", pred, pred)
-            if rows_mm is not None and out is sse:
-                rows_mm.reshape(3 * data.n, -1)[te] = pred
+        Jb = Jw[np.ix_(te, bidx)]
+        H = Jb @ G
+        H -= Cw[te]
+        H *= dc
+        pred = (r_w[te] - Jb @ g0)[:, None] + np.add.reduceat(H, starts, axis=1)
+        chi2 += np.einsum("ij,ij->j", pred, pred)
+        pred = np.matmul(unwhite[f.test], pred.reshape(len(f.test), 3, -1)).reshape(len(te), -1)
+        sse += np.einsum("ij,ij->j", pred, pred)
+        if rows_mm is not None:
+            rows_mm.reshape(3 * data.n, -1)[te] = pred
     # a candidate absorbed on some fold's fit rows (NaN coefficients) improves nothing there: never ranked a winner
     return np.where(np.isfinite(chi2), chi2, np.inf), np.where(np.isfinite(sse), sse, np.inf)
 
