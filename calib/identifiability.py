@@ -168,8 +168,15 @@ def analyse(J: np.ndarray, names: list[str],
         if len(s_k) == len(keep) and r_k[-1] > HOLD_RTOL:
             out.kept_condition = float(1.0 / r_k[-1])
             break
-        k = _to_hold(r_k, Vt_k, [names[i] for i in keep], prefer_fix)
+        null = _exact_null(r_k, Vt_k, len(keep))
+        k = _to_hold(r_k, Vt_k, [names[i] for i in keep], prefer_fix, null)
         fixed.append(keep.pop(k))
+        # the exactly undeterminable directions left once column k is held: those of the null space with no k
+        # component -- no decomposition per held parameter while they last (a 19-joint tree's fit holds 14)
+        while null is not None and len(null) > 1 and keep:
+            null = _drop_coordinate(null, k)
+            k = _to_hold(None, None, [names[i] for i in keep], prefer_fix, null)
+            fixed.append(keep.pop(k))
         if keep:
             s_k, Vt_k = _svd(R[:, keep])
     out.fixed = [names[i] for i in fixed]
@@ -204,7 +211,8 @@ def analyse(J: np.ndarray, names: list[str],
     return out
 
 
-def _to_hold(ratio: np.ndarray, Vt: np.ndarray, names: list[str], prefer_fix: Callable[[str], int] | None) -> int:
+def _to_hold(ratio: np.ndarray | None, Vt: np.ndarray | None, names: list[str],
+             prefer_fix: Callable[[str], int] | None, null: np.ndarray | None = None) -> int:
     """Which column to hold for the smallest direction(s) (``ratio``, ``Vt``: the kept columns' decomposition).
 
     A practically undeterminable direction is the last right vector; its parameters with a coefficient above 0.2 of
@@ -213,16 +221,47 @@ def _to_hold(ratio: np.ndarray, Vt: np.ndarray, names: list[str], prefer_fix: Ca
     what LAPACK happens to return: the null space is taken as a whole, a parameter's weight being the length of its
     projection on it.  Then the lowest ``prefer_fix`` rank, the largest weight (equal within 1e-6 counts as equal),
     and the first in the order of ``names`` -- so the choice does not depend on rounding or on the decomposition's
-    implementation.
+    implementation.  ``null``: the null space's rows when the caller has them (:func:`_drop_coordinate`).
     """
-    rank = int(np.sum(ratio > RANK_RTOL))
-    null = Vt[rank:] if rank < len(names) else Vt[-1:]
+    if null is None:
+        rank = int(np.sum(ratio > RANK_RTOL))
+        null = Vt[rank:] if rank < len(names) else Vt[-1:]
     weight = np.linalg.norm(null, axis=0)
     cand = [k for k in range(len(names)) if weight[k] > 0.2 * weight.max()]
     pref = {k: prefer_fix(names[k]) if prefer_fix else 0 for k in cand}
     cand = [k for k in cand if pref[k] == min(pref.values())]
     top = max(weight[k] for k in cand)
     return min(k for k in cand if weight[k] >= top * (1.0 - 1e-6))
+
+
+#: the smallest kept singular value ratio for which the exact null space is followed without a decomposition per held
+#: parameter (:func:`_exact_null`): far enough above RANK_RTOL that holding a column cannot push a determined
+#: direction under it (a held column of weight w >= 0.2 of the largest leaves the rest >= ~0.01 of their size)
+_SEPARATED = 1e4 * RANK_RTOL
+
+
+def _exact_null(ratio: np.ndarray, Vt: np.ndarray, p: int) -> np.ndarray | None:
+    """The exact null space's rows of ``Vt`` (orthonormal, ``(d, p)``) when there are several exactly undeterminable
+    directions and every other direction is well above them (:data:`_SEPARATED`), else None.
+
+    Why: holding a parameter w of such a null space N leaves exactly the directions of N without a w component (the
+    columns left are those of the same matrix), so the next parameter to hold can be read from that subspace instead
+    of a new decomposition; the choice (:func:`_to_hold`) reads only the subspace, whatever its basis."""
+    rank = int(np.sum(ratio > RANK_RTOL))
+    if p - rank < 2 or len(ratio) < p or rank == 0 or ratio[rank - 1] <= _SEPARATED:
+        return None
+    return Vt[rank:]
+
+
+def _drop_coordinate(null: np.ndarray, k: int) -> np.ndarray:
+    """An orthonormal basis (rows) of the vectors of the row space of ``null`` (orthonormal rows, ``(d, p)``) whose
+    coordinate ``k`` is zero, without that coordinate: ``(d - 1, p - 1)``."""
+    c = null[:, k]
+    # a Householder reflection taking c to |c| e_1: the other rows of H null have no k component
+    v = c.copy()
+    v[0] += np.copysign(np.linalg.norm(c), c[0] if c[0] != 0 else 1.0)
+    H = np.eye(len(c)) - 2.0 * np.outer(v, v) / (v @ v)
+    return np.delete((H @ null)[1:], k, axis=1)
 
 
 def small_factor(A: np.ndarray) -> np.ndarray:

@@ -37,3 +37,25 @@ def test_targets_of_one_pose_are_held_out_together():
     assert len(folds) == 5
     for _, te in folds:
         assert {d.pose_id[i] for i in te}.isdisjoint({d.pose_id[i] for i in np.setdiff1d(np.arange(40), te)})
+
+
+def test_kept_fold_points_are_the_models_points_on_every_row():
+    # the selection and the ladder start every round from each fold's points on all rows, kept from the fits' own
+    # evaluations instead of a pass per round: they must be what a pass of the model gives, row for row
+    from calib.diagnose.gap import cv_fit, geometric_free
+    from calib.model import MeasurementModel
+    from sim.validate import Case, make_case_data
+
+    data, _ = make_case_data(Case("transmission_error", 4, None, 3.0, seed=1, n_poses=40))
+    model = MeasurementModel(data.robot)
+    cv = cv_fit(model, data, geometric_free(model, "full"), data_folds(data))
+    for i, f in enumerate(cv.folds):
+        kept, fresh = cv.points_mm(data, i), model.points(data.q_rad, data.ctx, f.theta)
+        assert np.array_equal(kept[f.train], fresh[f.train])          # the fit's own last evaluation
+        # the test rows are the fold's prediction, evaluated on those rows alone: the same to rounding
+        assert np.allclose(kept[f.test], fresh[f.test], rtol=0, atol=1e-9)
+        assert np.array_equal(data.points_mm[f.test] - kept[f.test], cv.residual_mm[f.test])
+    assert np.array_equal(cv.points_mm(data), model.points(data.q_rad, data.ctx, cv.all_fit.theta[: model.P]))
+    # other rows than those fitted are evaluated, not taken from the fits
+    other = data.subset(np.arange(10))
+    assert np.array_equal(cv.points_mm(other, 0), model.points(other.q_rad, other.ctx, cv.folds[0].theta))

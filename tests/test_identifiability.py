@@ -105,3 +105,45 @@ def test_fewer_rows_than_parameters():
     s_k = np.linalg.svd(scaled(J)[:, kept], compute_uv=False)
     assert len(kept) <= 8 and s_k[-1] / s[0] > HOLD_RTOL
     assert out.kept_condition == pytest.approx(s_k[0] / s_k[-1], rel=1e-8)
+
+
+def many_nulls_matrix(m: int = 400, seed: int = 0) -> tuple[np.ndarray, list[str]]:
+    """Eight random columns over six decades, then seven exact combinations of them (pairs, a triple, a chain through
+    another combination): seven exactly undeterminable directions at once, as a tree's geometry has (14 there)."""
+    rng = np.random.default_rng(seed)
+    B = rng.normal(size=(m, 8)) * 10.0 ** rng.uniform(-3, 3, 8)
+    extra = [3.0 * B[:, 0], B[:, 1] - 2.0 * B[:, 2], -B[:, 3], B[:, 4] + B[:, 5] + B[:, 6], 0.5 * B[:, 7],
+             B[:, 0] + 4.0 * B[:, 7], 1e3 * B[:, 2]]
+    J = np.column_stack([B] + extra)
+    order = rng.permutation(J.shape[1])
+    return J[:, order], [f"q{i}" for i in order]
+
+
+def _held_one_by_one(J: np.ndarray, names: list[str]) -> list[str]:
+    """The hold rule with a fresh full SVD of the plain column-scaled matrix after every held parameter (no small
+    factor, no null space carried over): the largest weight on the exact null space, ties to the first name."""
+    Js = scaled(J)
+    keep, held = list(range(J.shape[1])), []
+    while True:
+        _, s, Vt = np.linalg.svd(Js[:, keep], full_matrices=False)
+        ratio = s / s[0]
+        rank = int(np.sum(ratio > RANK_RTOL))
+        if rank == len(keep) and ratio[-1] > HOLD_RTOL:
+            return held
+        null = Vt[rank:] if rank < len(keep) else Vt[-1:]
+        w = np.linalg.norm(null, axis=0)
+        top = max(w[k] for k in range(len(keep)) if w[k] > 0.2 * w.max())
+        k = min(k for k in range(len(keep)) if w[k] > 0.2 * w.max() and w[k] >= top * (1.0 - 1e-6))
+        held.append(names[keep.pop(k)])
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2, 3])
+def test_several_exact_nulls_held_as_one_decomposition_per_parameter_holds(seed):
+    # analyse follows the exact null space from held parameter to held parameter instead of decomposing again: the
+    # held set must be the one a decomposition after every held parameter gives
+    J, names = many_nulls_matrix(seed=seed)
+    out = analyse(J, names)
+    assert out.fixed == _held_one_by_one(J, names)
+    assert len(out.fixed) == 7
+    s_k = np.linalg.svd(scaled(J)[:, [names.index(n) for n in out.kept]], compute_uv=False)
+    assert s_k[-1] / s_k[0] > HOLD_RTOL

@@ -20,7 +20,7 @@ exactly: the parameters carry estimation noise too; :func:`heldout_floor_mm` giv
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -91,6 +91,9 @@ class FoldFit:
     test: np.ndarray
     theta: np.ndarray          # the model's parameter vector fitted on ``train``
     free: list[str]            # what the fit estimated (after the identifiability guard)
+    #: (N, 3) the model's points at ``theta`` for every row: the fit rows from the fit's own last evaluation, the test
+    #: rows as predicted (see :meth:`CVResult.points_mm`)
+    points_mm: np.ndarray | None = field(default=None, repr=False, compare=False)
 
 
 @dataclass
@@ -100,10 +103,31 @@ class CVResult:
     residual_mm: np.ndarray    # (N, 3) measured - predicted, each pose by the fold that did not see it
     chi2: float                # whitened held-out sum of squares
     all_fit: Identification    # the same model fitted on every pose (parameters, Jacobian point)
+    #: the rows fitted (what :meth:`points_mm` checks it is asked about)
+    data: DiagnosisData | None = field(default=None, repr=False, compare=False)
 
     @property
     def rms_mm(self) -> float:
         return rms_mm(self.residual_mm)
+
+    def points_mm(self, data: DiagnosisData, fold: int | None = None) -> np.ndarray:
+        """(N, 3) the model's points for every row of ``data`` at fold ``fold``'s fit (None: the all-row fit).
+
+        Why kept: every round of the selection starts from each fold's residual on all rows, and the ladder's
+        linearised steps from the same; the fits evaluated exactly these points last (a row's point does not depend
+        on the other rows), so a pass of the model over every row per fold and round is saved.  Evaluated when
+        ``data`` are not the rows fitted."""
+        m = self.model
+        if fold is None:
+            th = self.all_fit.theta
+            prob = self.all_fit.problem
+            if data is self.data and prob is not None and prob.obs.n == data.n:
+                return prob.last_points(th)
+            return m.points(data.q_rad, data.ctx, th[: m.P])
+        f = self.folds[fold]
+        if data is self.data and f.points_mm is not None:
+            return f.points_mm
+        return m.points(data.q_rad, data.ctx, f.theta)
 
     @property
     def max_mm(self) -> float:
@@ -149,11 +173,14 @@ def cv_fit(model: MeasurementModel, data: DiagnosisData, free: list[str], folds,
         idn = identify(model, obs, free=free, theta0=None if theta0 is None else theta0[i], outliers="off",
                        start=start, loss=loss, report=False)       # a fold's fit only predicts its test rows
         th = idn.theta[: model.P]
-        res[te] = data.points_mm[te] - model.points(data.q_rad[te], data.ctx.subset(te), th)
-        fits.append(FoldFit(tr, te, th, list(idn.free)))
+        pts = np.empty_like(data.points_mm)
+        pts[tr] = idn.problem.last_points(idn.theta)                # the fit's own last evaluation: no pass
+        pts[te] = model.points(data.q_rad[te], data.ctx.subset(te), th)
+        res[te] = data.points_mm[te] - pts[te]
+        fits.append(FoldFit(tr, te, th, list(idn.free), pts))
     all_fit = identify(model, data.observations(), free=free, theta0=theta0_all, outliers="off", start=start,
                        loss=loss, report=report)
-    return CVResult(model, fits, res, whitened_chi2(data, res), all_fit)
+    return CVResult(model, fits, res, whitened_chi2(data, res), all_fit, data)
 
 
 def heldout_floor_mm(cv: CVResult, data: DiagnosisData) -> float:

@@ -142,6 +142,9 @@ class _Scorer:
     test: DiagnosisData | None
     folds: list
     loss: str
+    #: per fit (keyed by its identity), its model's whitened Jacobian of the free columns at the all-row fit: the
+    #: leave-one-group-out steps linearise the same final fit once per group
+    _jw: dict = field(default_factory=dict, repr=False)
 
     def of_cv(self, name: str, added: str, cv: CVResult, selection_p=None, accepted=True) -> Scored:
         """A fit the diagnosis made (exact): its k-fold residuals, or its all-row fit scored on the test rows."""
@@ -175,11 +178,10 @@ class _Scorer:
         free = [n for n in cur.all_fit.free if n in m.index]
         idx = [m.index[n] for n in free]
         keep = np.array([n not in hold for n in free])
-        ev = m.evaluate(data.q_rad, data.ctx, cur.all_fit.theta[: m.P], jacobian=True)
-        Jw = np.einsum("nij,njp->nip", data.whitening, ev.jacobian[:, :, idx])
+        Jw = self._whitened_jacobian(cur, idx)
 
-        def lin(theta):
-            r = np.einsum("nij,nj->ni", data.whitening, data.points_mm - m.points(data.q_rad, data.ctx, theta))
+        def lin(theta, fold=None):
+            r = np.einsum("nij,nj->ni", data.whitening, data.points_mm - cur.points_mm(data, fold))
             return LinearFit(Jw, r, np.zeros((0, len(idx))), np.zeros(0), theta[idx], m.nominal[idx],
                              np.ones(len(idx), bool), True, data.whitening)
 
@@ -189,8 +191,8 @@ class _Scorer:
         rw = whole.r - np.einsum("nkp,p->nk", whole.J, d)
         if self.test is None:
             res = np.full_like(data.points_mm, np.nan)
-            for f in cur.folds:
-                lf = lin(f.theta)
+            for i, f in enumerate(cur.folds):
+                lf = lin(f.theta, i)
                 df, _ = lf.fit(f.train, keep)
                 res[f.test] = lf.predict_mm(f.test, df)
         else:
@@ -199,6 +201,18 @@ class _Scorer:
             res = self._test_res(m, th)
         return Scored(name, added, m, [n for n, k in zip(free, keep) if k], res, float(np.sum(rw ** 2)),
                       3 * data.n, "linearised", accepted=accepted)
+
+
+    def _whitened_jacobian(self, cur: CVResult, idx: list[int]) -> np.ndarray:
+        """(N, 3, len(idx)) the whitened Jacobian of ``cur``'s model at its all-row fit, columns ``idx`` (computed
+        once per fit and columns)."""
+        fit, jw = self._jw.get(id(cur), (None, None))
+        if fit is not cur or jw[0] != idx:
+            m, data = cur.model, self.data
+            ev = m.evaluate(data.q_rad, data.ctx, cur.all_fit.theta[: m.P], jacobian=True)
+            jw = (list(idx), np.einsum("nij,njp->nip", data.whitening, ev.jacobian[:, :, idx]))
+            self._jw[id(cur)] = (cur, jw)
+        return jw[1]
 
 
 def _start(model: MeasurementModel, free: list[str], theta: np.ndarray) -> np.ndarray:
