@@ -258,6 +258,13 @@ class Twin:
             cols += list(s.observe(pts, f))
         return np.stack(cols, -1)
 
+    def exact_one(self, point_mm: np.ndarray, station: Station, face: int) -> list[float]:
+        """:meth:`exact_readings` of one point (3,) from one station, as floats [Hz, V]: the station's own
+        observation of the point (an emulated theodolite keeps these per target and face, then draws
+        :meth:`noisy_one` for each reading), without stacking one-element arrays."""
+        hz, v = station.observe(np.asarray(point_mm, float)[None], face)
+        return [float(hz[0]), float(v[0])]
+
     def noisy(self, exact: np.ndarray, stations: list[Station] | None = None,
               rng: np.random.Generator | None = None):
         """Readings and gross-error mask from :meth:`exact_readings` (not modified): the noise and gross errors of

@@ -167,6 +167,15 @@ def test_one_reading_is_the_array_codes_reading(angles, rate):
     assert mine.bit_generator.state == ref.bit_generator.state
 
 
+def test_one_points_exact_readings_are_the_arrays():
+    tw = Twin()
+    pts = tw.true_points(tw.random_poses(50))[0]
+    for p in pts:
+        for st in tw.stations:
+            for face in (1, 2):
+                assert tw.exact_one(p, st, face) == tw.exact_readings(p[None], [st], [face])[0].tolist()
+
+
 def test_gross_errors_are_injected_at_the_stated_rate():
     sc = parse_scenario(DEFAULT.replace("gross_rate = 0.0", "gross_rate = 0.1"))
     tw = Twin(sc)
