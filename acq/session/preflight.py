@@ -329,15 +329,16 @@ def _blocking_links(pf: Preflight, geo: StepGeometry, stations_mm: np.ndarray, p
 
 def _link_samples(pf: Preflight, fp) -> tuple[np.ndarray, np.ndarray, list]:
     """The links of a one-pose chain pass (frame origin to frame origin, zero-length ones left out), the points
-    sampled along them (K, n, 3) and the links' ends as plain floats [(b0, b1), ...]; kept per pass: every station
-    and target of a step, and the step's second check with refitted stations, test the same links."""
+    sampled along them (K, n, 3) and the links as plain floats [(b0, b1, middle, half length), ...]; kept per pass:
+    every station and target of a step, and the step's second check with refitted stations, test the same links."""
     got = pf._links.get(id(fp))
     if got is not None and got[0] is fp:
         return got[1:]
     org = fp.frame_t[0]
     links = np.flatnonzero(np.linalg.norm(org[1:] - org[:-1], axis=1) >= 1e-6) + 1
     pts = _link_points(org[links - 1], org[links])
-    segments = list(zip(org[links - 1].tolist(), org[links].tolist()))
+    segments = [(b0, b1, [(x + y) / 2 for x, y in zip(b0, b1)], math.dist(b0, b1) / 2)
+                for b0, b1 in zip(org[links - 1].tolist(), org[links].tolist())]
     if len(pf._links) < 10_000:
         pf._links[id(fp)] = (fp, links, pts, segments)
     return links, pts, segments
@@ -354,7 +355,19 @@ def _clear_of(a0: list, a1: list, segments: list, r: float) -> bool:
     lie on the links), so a True here means the sampled test finds no link either.  Plain floats: a dozen segment
     pairs per sight line, where numpy's per-call cost is most of the sampled test."""
     lim = r + _CLEAR_MARGIN_MM
-    return all(_segment_distance(a0, a1, b0, b1) > lim for b0, b1 in segments)
+    u = [a1[0] - a0[0], a1[1] - a0[1], a1[2] - a0[2]]
+    uu = u[0] * u[0] + u[1] * u[1] + u[2] * u[2]
+    for b0, b1, m, half in segments:
+        # first the link's enclosing sphere: every point of the link is within ``half`` of its middle, so the
+        # middle's distance from the sight line less ``half`` is a lower bound (a third of the exact test's work)
+        w = [m[0] - a0[0], m[1] - a0[1], m[2] - a0[2]]
+        t = min(max((w[0] * u[0] + w[1] * u[1] + w[2] * u[2]) / uu, 0.0), 1.0) if uu > 0.0 else 0.0
+        dx, dy, dz = w[0] - t * u[0], w[1] - t * u[1], w[2] - t * u[2]
+        if math.sqrt(dx * dx + dy * dy + dz * dz) - half > lim:
+            continue
+        if _segment_distance(a0, a1, b0, b1) <= lim:
+            return False
+    return True
 
 
 def _segment_distance(p1: list, q1: list, p2: list, q2: list) -> float:
