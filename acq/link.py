@@ -147,11 +147,17 @@ class SerialLink:
             self._buf += data
 
     def drain(self, quiet_s: float = 0.0) -> bytes:
-        """Discard buffered and pending input (after a timeout, before a resync); returns what was thrown away."""
+        """Discard buffered and pending input (after a timeout, before a resync); returns what was thrown away.
+
+        ``quiet_s``: how long the line must stay quiet -- bytes still on the cable.  A port that says it is
+        ``synchronous`` (an in-process emulator answering in the writer's thread: no cable, nothing in flight)
+        has everything it will send already waiting, so it is drained without the wait."""
         dropped = bytes(self._buf)
         self._buf.clear()
         if self._port is None:
             return dropped
+        if getattr(self._port, "synchronous", False):
+            quiet_s = 0.0
         try:
             end = time.monotonic() + quiet_s
             while True:

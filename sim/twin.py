@@ -29,6 +29,8 @@ from calib.theodolite import Station, thesis_stations
 from calib.tomlspec import Checker, Field
 from calib.units import ARCSEC, DEG
 
+TWO_PI = 2 * np.pi
+
 # -- scenario file specs -----------------------------------------------------------------------------------------
 TOP = {
     "twin": Field("table", default={}), "geometry": Field("table", default={}), "base": Field("table", default={}),
@@ -256,6 +258,13 @@ class Twin:
             cols += list(s.observe(pts, f))
         return np.stack(cols, -1)
 
+    def exact_one(self, point_mm: np.ndarray, station: Station, face: int) -> list[float]:
+        """:meth:`exact_readings` of one point (3,) from one station, as floats [Hz, V]: the station's own
+        observation of the point (an emulated theodolite keeps these per target and face, then draws
+        :meth:`noisy_one` for each reading), without stacking one-element arrays."""
+        hz, v = station.observe(np.asarray(point_mm, float)[None], face)
+        return [float(hz[0]), float(v[0])]
+
     def noisy(self, exact: np.ndarray, stations: list[Station] | None = None,
               rng: np.random.Generator | None = None):
         """Readings and gross-error mask from :meth:`exact_readings` (not modified): the noise and gross errors of
@@ -263,7 +272,10 @@ class Twin:
         stations = self.stations if stations is None else stations
         rng = self.rng if rng is None else rng
         exact = np.asarray(exact, float)
-        if self.scenario.angle_noise:       # (few calls: an emulated theodolite asks for one reading at a time)
+        if exact.shape[0] == 1:             # an emulated theodolite asks for one reading at a time
+            out, gross = self.noisy_one(exact[0].tolist(), stations, rng)
+            return np.array([out]), np.array([gross])
+        if self.scenario.angle_noise:
             sig = np.array([v for s in stations for v in (s.sigma_hz_rad, s.sigma_v_rad)])
             out = exact + rng.normal(size=exact.shape) * sig
         else:
@@ -272,6 +284,24 @@ class Twin:
         if gross.any():
             out = out + gross * rng.choice([-1.0, 1.0], out.shape) * self.scenario.gross_rad
         out[:, 0::2] = np.mod(out[:, 0::2], 2 * np.pi)        # Hz wrapped
+        return out, gross
+
+    def noisy_one(self, exact: list[float], stations: list[Station], rng: np.random.Generator) -> tuple[list, list]:
+        """:meth:`noisy` of one point's readings (a list: Hz, V per station) in plain floats: the same draws from
+        ``rng`` in the same order (``normal`` of shape (1, 2k) is ``standard_normal`` of 2k, then ``random``), the
+        same operations on the same floats (``%`` is numpy's ``mod`` for floats), so the very readings of the array
+        code -- without its dozen numpy calls per reading, the emulated theodolites' main cost."""
+        k = len(exact)
+        if self.scenario.angle_noise:
+            sig = [v for s in stations for v in (s.sigma_hz_rad, s.sigma_v_rad)]
+            out = [x + z * g for x, z, g in zip(exact, rng.standard_normal(k).tolist(), sig)]
+        else:
+            out = list(exact)
+        gross = [u < self.scenario.gross_rate for u in rng.random(k).tolist()]
+        if any(gross):                      # rare: the array code's own expression
+            out = (np.array([out]) + np.array([gross]) * rng.choice([-1.0, 1.0], (1, k))
+                   * self.scenario.gross_rad)[0].tolist()
+        out[0::2] = [x % TWO_PI for x in out[0::2]]        # Hz wrapped
         return out, gross
 
     def sight(self, points_mm: np.ndarray, faces: list[int] | None = None):

@@ -52,6 +52,22 @@ def test_counts_joint_round_trip(q):
     assert np.allclose(conv.joint_rad(counts), q, atol=1e-9)
 
 
+def test_the_kept_conversion_follows_counts_and_offsets():
+    """The converter keeps its last conversion (a window of one pose repeats its counts): the same counts give the
+    same joints in a new array each time, other counts or offsets changed in place their own joints."""
+    conv, fresh = JointConverter(ROBOT), JointConverter(ROBOT)
+    a, b = (tuple(int(c) for c in np.rint(ROBOT.counts_from_joint(np.full(6, x)))) for x in (0.3, -0.4))
+    first = conv.joint_rad(a)
+    again = conv.joint_rad(a)
+    assert np.array_equal(first, again) and first is not again
+    first[:] = 0.0                                       # the caller's array: nothing kept changes
+    assert np.array_equal(conv.joint_rad(a), fresh.joint_rad(a))
+    assert np.array_equal(conv.joint_rad(b), fresh.joint_rad(b)) and not np.allclose(conv.joint_rad(b), again)
+    conv.offsets_counts[:] = 1000.0
+    fresh.offsets_counts[:] = 1000.0
+    assert np.array_equal(conv.joint_rad(b), fresh.joint_rad(b))
+
+
 def test_unwrapper_crosses_int32_and_u16():
     u = Unwrapper(32, signed=True)
     xs = [2 ** 31 - 3, 2 ** 31 - 1, wrap_i32(2 ** 31 + 2), wrap_i32(2 ** 31 + 10)]

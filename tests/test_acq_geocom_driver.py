@@ -243,3 +243,23 @@ def test_latency_within_timeout_is_fine(rig):
     r = drv.angles()
     assert time.monotonic() - t0 >= 0.05      # the latency was applied (a lower bound: no load can break it)
     assert drv.retries == 0 and drv.stale_replies == 0 and abs(r.hz_rad - dev.world.true_sight("A", 1)[0]) < 1e-12
+
+
+def test_drain_waits_for_a_quiet_line_only_where_bytes_can_be_in_flight(monkeypatch):
+    """An emulator answering in the writer's thread has nothing on the cable: the handshake's drain does not sleep
+    for a quiet line.  Behind a faulty cable (latency: bytes in flight) the same drain waits as on a real port."""
+    import acq.link
+    naps = []
+    monkeypatch.setattr(acq.link.time, "sleep", lambda s: naps.append(s))
+    for wrap, sleeps in ((lambda d: d, False), (FaultyDevice, True)):
+        name = f"gc-{uuid.uuid4().hex[:8]}"
+        url = registry.publish(name, wrap(GeoComDevice(quiet_world(), "A")))
+        try:
+            naps.clear()
+            drv = GeoComTheodolite.open(url, name="theodolite A")        # the handshake drains 0.02 s
+            assert drv.link._port.synchronous is not sleeps
+            assert bool(naps) is sleeps
+            assert drv.angles().face == 1                                  # and the link works as before
+            drv.close()
+        finally:
+            registry.withdraw(name)

@@ -44,3 +44,21 @@ def test_a_prediction_is_the_callers_to_keep():
     name = next(iter(first))
     first[name][0][:] = 0.0                              # a caller changing its copy changes no later prediction
     assert np.any(p(s)[name][0] != 0.0)
+
+
+def test_an_unprimed_pose_is_kept_by_pose():
+    """A step predicted without priming (ISO 9283's commands, computed when reached, repeat in every cycle) is kept:
+    asked again it gives the same, and a step at another pose gets its own prediction, not the kept one."""
+    from dataclasses import replace
+    twin, setup, steps = _plan_steps()
+    s = next(s for s in steps if s.procedure == "poses")
+    moved = replace(s, pose_deg=tuple(v + 7.0 for v in s.pose_deg))
+    p = predictor(twin.robot, setup)
+    for step in (s, moved, s, moved):
+        got, fresh = p(step), predictor(twin.robot, setup)(step)
+        assert got.keys() == fresh.keys() and got
+        for k in got:
+            assert np.array_equal(got[k][0], fresh[k][0]) and got[k][1] == fresh[k][1]
+        name = next(iter(got))
+        got[name][0][:] = 0.0                            # the caller's copy: the kept point stays as computed
+    assert np.linalg.norm(p(s)[name][0] - p(moved)[name][0]) > 10.0

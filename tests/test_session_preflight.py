@@ -298,3 +298,67 @@ def test_a_step_checked_again_sees_the_stations_moved(twin, setup):
     again = pf.check_step(step)
     assert [f.check for f in again] == ["joint limit", "sight"]
     assert "closer than its focus distance" in again[1].detail
+
+
+def test_segment_distance_against_a_dense_grid():
+    """The exact segment-to-segment distance that screens the line of sight: never above the closest pair of a
+    dense grid of points on both segments, and within the grid's spacing of it (parallel, crossing, skew and
+    point-like segments)."""
+    from acq.session.preflight import _segment_distance
+    rng = np.random.default_rng(7)
+    cases = [([0, 0, 0], [1, 0, 0], [0, 1, 0], [1, 1, 0]),           # parallel, 1 apart
+             ([0, 0, 0], [1, 0, 0], [0.5, -1, 0.2], [0.5, 1, 0.2]),   # crossing 0.2 above
+             ([0, 0, 0], [0, 0, 0], [1, 1, 1], [2, 2, 2]),             # a point and a segment
+             ([3, 3, 3], [3, 3, 3], [0, 0, 0], [0, 0, 0])]             # two points
+    cases += [tuple(rng.normal(size=(4, 3)) * 100) for _ in range(30)]
+    s = np.linspace(0.0, 1.0, 401)
+    for p1, q1, p2, q2 in cases:
+        p1, q1, p2, q2 = (np.asarray(v, float) for v in (p1, q1, p2, q2))
+        a, b = p1 + s[:, None] * (q1 - p1), p2 + s[:, None] * (q2 - p2)
+        grid = np.sqrt(((a[:, None] - b[None]) ** 2).sum(-1)).min()
+        exact = _segment_distance(p1.tolist(), q1.tolist(), p2.tolist(), q2.tolist())
+        step = (np.linalg.norm(q1 - p1) + np.linalg.norm(q2 - p2)) / 400
+        assert exact <= grid + 1e-9
+        assert grid - exact <= step + 1e-9
+
+
+def test_screened_sight_checks_equal_the_unscreened_ones(twin, setup, monkeypatch):
+    """The plain-float screens of the line of sight and of the intersection angle only skip work: over points
+    around the arm (some hidden behind its links, some at the angle limits) the findings are those of the checks
+    computed in full."""
+    import acq.session.preflight as pre
+    pf = _pf(twin, setup, link_radius_mm=80.0, intersection_deg=[60.0, 100.0])
+    geo = pf.geometry(Step("x", "poses", "", "", pose_deg=READY_DEG))
+    org = geo.fp.frame_t[0]
+    a = pf.stations["A"].position
+    rng = np.random.default_rng(3)
+    points = []
+    for k in range(1, len(org)):                       # behind each link as seen from A, near and far off the line
+        mid = 0.5 * (org[k - 1] + org[k])
+        for off in (0.0, 60.0, 79.0, 81.0, 150.0):
+            side = rng.normal(size=3)
+            side -= (side @ (mid - a)) * (mid - a) / np.linalg.norm(mid - a) ** 2
+            points.append(mid + 600.0 * (mid - a) / np.linalg.norm(mid - a) + off * side / np.linalg.norm(side))
+    points += list(np.array([setup["stations"]["L_mm"] / 2, 2500.0, 300.0]) + rng.normal(size=(40, 3)) * 1500.0)
+    steps = [_point_step(f"p{i}", p, READY_DEG) for i, p in enumerate(points)]
+    screened = [f.line() for s in steps for f in pf.check_step(s)]
+    assert any("hides it" in ln for ln in screened) and any("sight lines meet at" in ln for ln in screened)
+    monkeypatch.setattr(pre, "_clear_of", lambda *a: False)
+    monkeypatch.setattr(pre, "_angle_deg", lambda *a: float("nan"))
+    full = [f.line() for s in steps for f in _pf(twin, setup, link_radius_mm=80.0,
+                                                 intersection_deg=[60.0, 100.0]).check_step(s)]
+    assert screened == full
+
+
+def test_the_arm_alone_is_kept_per_pose(twin, setup):
+    """The arm's own torques (subtracted from the loaded ones) are kept per pose: one pre-flight checking steps at
+    two poses gives each the torques a fresh one gives (a kept value that ignored the pose would leave the arm's
+    weight in the second: newtons-metres on joints 2 and 3)."""
+    pf = None
+    for pose in ((0.0, -90.0, 0.0, 0.0, 0.0, 0.0), (0.0, -45.0, 30.0, 0.0, 0.0, 0.0)):
+        step, s = _load_step(setup, 4, pose)
+        pf = pf or Preflight(twin.robot, s)
+        fresh = Preflight(twin.robot, s)
+        q = np.asarray(step.pose_deg) * DEG
+        kept = load_torques_nm(pf, pf.geometry(step).fp, q, step.setup["loads"])
+        assert np.array_equal(kept, load_torques_nm(fresh, fresh.geometry(step).fp, q, step.setup["loads"]))

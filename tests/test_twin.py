@@ -145,6 +145,37 @@ def test_observe_draws_the_station_noise_from_the_given_stream():
     np.testing.assert_array_equal(Twin().sight(p[:5])[0], Twin().observe(p[:5])[0])
 
 
+@pytest.mark.parametrize("angles, rate", [(True, 0.0), (True, 0.3), (False, 0.3)])
+def test_one_reading_is_the_array_codes_reading(angles, rate):
+    """An emulated theodolite's one reading at a time (the plain-float path) is bit for bit what the array
+    expression below -- the noise, gross errors and Hz wrap of Twin.noisy for many points -- gives with the same
+    generator, draw for draw (the generators end in the same state)."""
+    text = DEFAULT.replace("gross_rate = 0.0", f"gross_rate = {rate}")
+    tw = Twin(parse_scenario(text if angles else text.replace("angles = true", "angles = false")))
+    st = [tw.stations[0], tw.stations[1]]
+    exact = tw.exact_readings(tw.true_points(tw.random_poses(200))[0], st, [1, 2])
+    mine, ref = np.random.default_rng(11), np.random.default_rng(11)
+    for row in exact:
+        got, gross = tw.noisy(row[None], st, rng=mine)
+        sig = np.array([v for s in st for v in (s.sigma_hz_rad, s.sigma_v_rad)])
+        want = row[None] + ref.normal(size=(1, 4)) * sig if angles else row[None].copy()
+        g = ref.random((1, 4)) < rate
+        if g.any():
+            want = want + g * ref.choice([-1.0, 1.0], (1, 4)) * tw.scenario.gross_rad
+        want[:, 0::2] = np.mod(want[:, 0::2], 2 * np.pi)
+        assert got.tobytes() == want.tobytes() and np.array_equal(gross, g)
+    assert mine.bit_generator.state == ref.bit_generator.state
+
+
+def test_one_points_exact_readings_are_the_arrays():
+    tw = Twin()
+    pts = tw.true_points(tw.random_poses(50))[0]
+    for p in pts:
+        for st in tw.stations:
+            for face in (1, 2):
+                assert tw.exact_one(p, st, face) == tw.exact_readings(p[None], [st], [face])[0].tolist()
+
+
 def test_gross_errors_are_injected_at_the_stated_rate():
     sc = parse_scenario(DEFAULT.replace("gross_rate = 0.0", "gross_rate = 0.1"))
     tw = Twin(sc)

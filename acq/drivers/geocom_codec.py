@@ -262,6 +262,8 @@ _REPLY = re.compile(r"%R1P,(\d{1,5}),(\d{1,5})(?:,(\d{1,5}))?:(\d{1,5})(?:,(.*))
 
 def split_fields(text: str) -> tuple[str, ...]:
     """Split on commas outside double-quoted strings (a string may contain a comma)."""
+    if '"' not in text:                     # no string (every angle reply): the commas all separate
+        return tuple(text.split(","))
     out, cur, quoted, esc = [], [], False, False
     for ch in text:
         if esc:

@@ -39,9 +39,15 @@ class JointConverter:
         self.robot = robot
         self.matrix = robot.joint_from_counts(np.eye(robot.n))          # row i: joints for one count on motor i
         self.offsets_counts = np.zeros(robot.n) if offsets_counts is None else np.asarray(offsets_counts, float)
+        self._last: tuple = (None, None)        # (counts, matrix and offsets bytes), the joints they gave
 
     def joint_rad(self, counts) -> np.ndarray:
-        return (np.asarray(counts, float) - self.offsets_counts) @ self.matrix
+        """The joints of one sample's counts (a new array).  The last conversion is kept: a robot holding still sends
+        the same counts in every sample of an encoder window (kept by the counts, the matrix and the offsets)."""
+        key = (tuple(counts), self.matrix.tobytes(), self.offsets_counts.tobytes())
+        if key != self._last[0]:
+            self._last = (key, (np.asarray(counts, float) - self.offsets_counts) @ self.matrix)
+        return self._last[1].copy()
 
 
 class Unwrapper:

@@ -109,6 +109,13 @@ class Preflight:
         self._chains: dict[tuple, object] = {}     # pose -> one-pose chain pass (nominal model: stations do not matter)
         self._links: dict[int, tuple] = {}         # id(chain pass) -> (links, sample points) for the line of sight
         self._fixed: dict[int, tuple] = {}         # id(step) -> (step, geometry, findings of the station-free checks)
+        self._unloaded: dict[int, tuple] = {}      # id(chain pass) -> (pass, joint torques without hung masses)
+        # each joint's limits in its edge unit (deg or mm), as plain floats: the same numbers as
+        # ``limits_rad / scale`` (one IEEE division), without numpy per scalar at every step
+        self._joint_bounds = [(float(lo), float(hi), pr)
+                              for (lo, hi), pr in ((robot.limits_rad[j] / (1.0 if robot.prismatic[j] else DEG),
+                                                    bool(robot.prismatic[j])) for j in range(robot.n))]
+        self.reach_mm = arm_reach_mm(robot)
 
     # -- geometry ------------------------------------------------------------------------------------------------
     def geometry(self, step: Step) -> StepGeometry:
@@ -200,13 +207,10 @@ def _joint_limits(pf: Preflight, geo: StepGeometry) -> list[Finding]:
     r = pf.robot
     margin = pf.limits["joint_margin_deg"]
     out = []
-    for j in range(min(len(q), r.n)):
-        scale = 1.0 if r.prismatic[j] else DEG
-        lo, hi = r.limits_rad[j] / scale
-        m = 0.0 if r.prismatic[j] else margin
+    for j, (lo, hi, prismatic) in enumerate(pf._joint_bounds[:min(len(q), r.n)]):
+        m, unit = (0.0, "mm") if prismatic else (margin, "deg")
         for bound, beyond in ((lo + m, q[j] < lo + m), (hi - m, q[j] > hi - m)):
             if beyond:
-                unit = "mm" if r.prismatic[j] else "deg"
                 out.append(Finding("joint limit", geo.step.key, float(q[j]), float(bound), unit,
                                    f"{joint_label(r, j + 1)} at {q[j]:.1f} {unit}, limit {bound:.1f} {unit} "
                                    f"({lo if bound == lo + m else hi:.1f} with a {m:g} {unit} margin)"))
@@ -232,7 +236,7 @@ def _reach(pf: Preflight, geo: StepGeometry) -> list[Finding]:
     base = geo.fp.frame_t[0, 0]
     for t, p in _on_robot(geo):
         j = pf.robot.n if t.link is None else t.link
-        reach = pf.limits["reach_margin"] * (arm_reach_mm(pf.robot) + float(np.linalg.norm(t.tool_mm)))
+        reach = pf.limits["reach_margin"] * (pf.reach_mm + float(np.linalg.norm(t.tool_mm)))
         d = float(np.linalg.norm(p - base))
         if d > reach:
             out.append(Finding("reach", geo.step.key, d, reach, "mm", f"target {t.name} (link {j}) {d:.0f} mm "
@@ -313,7 +317,9 @@ def _blocking_links(pf: Preflight, geo: StepGeometry, stations_mm: np.ndarray, p
     d = p - stations_mm                                                        # (S, 3)
     L = np.linalg.norm(d, axis=1) if lengths_mm is None else np.asarray(lengths_mm, float)
     end = stations_mm + d * np.maximum(0.0, 1.0 - 2.0 * float(r) / L)[:, None]
-    links, pts = _link_samples(pf, geo.fp)
+    links, pts, segments = _link_samples(pf, geo.fp)
+    if all(_clear_of(a, b, segments, float(r)) for a, b in zip(stations_mm.tolist(), end.tolist())):
+        return [None] * len(stations_mm)
     out = []
     for dist in _distances_to(stations_mm, end, pts):
         hit = np.flatnonzero(dist < r)
@@ -321,19 +327,79 @@ def _blocking_links(pf: Preflight, geo: StepGeometry, stations_mm: np.ndarray, p
     return out
 
 
-def _link_samples(pf: Preflight, fp) -> tuple[np.ndarray, np.ndarray]:
-    """The links of a one-pose chain pass (frame origin to frame origin, zero-length ones left out) and the points
-    sampled along them (K, n, 3); kept per pass: every station and target of a step, and the step's second check
-    with refitted stations, test the same links."""
+def _link_samples(pf: Preflight, fp) -> tuple[np.ndarray, np.ndarray, list]:
+    """The links of a one-pose chain pass (frame origin to frame origin, zero-length ones left out), the points
+    sampled along them (K, n, 3) and the links as plain floats [(b0, b1, middle, half length), ...]; kept per pass:
+    every station and target of a step, and the step's second check with refitted stations, test the same links."""
     got = pf._links.get(id(fp))
     if got is not None and got[0] is fp:
-        return got[1], got[2]
+        return got[1:]
     org = fp.frame_t[0]
     links = np.flatnonzero(np.linalg.norm(org[1:] - org[:-1], axis=1) >= 1e-6) + 1
     pts = _link_points(org[links - 1], org[links])
+    segments = [(b0, b1, [(x + y) / 2 for x, y in zip(b0, b1)], math.dist(b0, b1) / 2)
+                for b0, b1 in zip(org[links - 1].tolist(), org[links].tolist())]
     if len(pf._links) < 10_000:
-        pf._links[id(fp)] = (fp, links, pts)
-    return links, pts
+        pf._links[id(fp)] = (fp, links, pts, segments)
+    return links, pts, segments
+
+
+#: a link is certainly clear of a sight line when the segments' exact distance exceeds the radius by this much (mm):
+#: far above the rounding of either computation, far below anything a technician could place
+_CLEAR_MARGIN_MM = 1e-6
+
+
+def _clear_of(a0: list, a1: list, segments: list, r: float) -> bool:
+    """True when no link segment comes within ``r`` (+ :data:`_CLEAR_MARGIN_MM`) of the segment a0-a1: the exact
+    segment-to-segment distance, a lower bound of the sampled distances :func:`_distances_to` measures (its samples
+    lie on the links), so a True here means the sampled test finds no link either.  Plain floats: a dozen segment
+    pairs per sight line, where numpy's per-call cost is most of the sampled test."""
+    lim = r + _CLEAR_MARGIN_MM
+    u = [a1[0] - a0[0], a1[1] - a0[1], a1[2] - a0[2]]
+    uu = u[0] * u[0] + u[1] * u[1] + u[2] * u[2]
+    for b0, b1, m, half in segments:
+        # first the link's enclosing sphere: every point of the link is within ``half`` of its middle, so the
+        # middle's distance from the sight line less ``half`` is a lower bound (a third of the exact test's work)
+        w = [m[0] - a0[0], m[1] - a0[1], m[2] - a0[2]]
+        t = min(max((w[0] * u[0] + w[1] * u[1] + w[2] * u[2]) / uu, 0.0), 1.0) if uu > 0.0 else 0.0
+        dx, dy, dz = w[0] - t * u[0], w[1] - t * u[1], w[2] - t * u[2]
+        if math.sqrt(dx * dx + dy * dy + dz * dz) - half > lim:
+            continue
+        if _segment_distance(a0, a1, b0, b1) <= lim:
+            return False
+    return True
+
+
+def _segment_distance(p1: list, q1: list, p2: list, q2: list) -> float:
+    """Shortest distance between the segments p1-q1 and p2-q2 (3-D points as lists): the closest points' parameters
+    clamped to both segments (Ericson, Real-Time Collision Detection, 5.1.9)."""
+    d1 = [q1[0] - p1[0], q1[1] - p1[1], q1[2] - p1[2]]
+    d2 = [q2[0] - p2[0], q2[1] - p2[1], q2[2] - p2[2]]
+    w = [p1[0] - p2[0], p1[1] - p2[1], p1[2] - p2[2]]
+    a = d1[0] * d1[0] + d1[1] * d1[1] + d1[2] * d1[2]
+    e = d2[0] * d2[0] + d2[1] * d2[1] + d2[2] * d2[2]
+    f = d2[0] * w[0] + d2[1] * w[1] + d2[2] * w[2]
+    if a <= 1e-12 and e <= 1e-12:
+        s = t = 0.0
+    elif a <= 1e-12:
+        s, t = 0.0, min(max(f / e, 0.0), 1.0)
+    else:
+        c = d1[0] * w[0] + d1[1] * w[1] + d1[2] * w[2]
+        if e <= 1e-12:
+            s, t = min(max(-c / a, 0.0), 1.0), 0.0
+        else:
+            b = d1[0] * d2[0] + d1[1] * d2[1] + d1[2] * d2[2]
+            den = a * e - b * b
+            s = min(max((b * f - c * e) / den, 0.0), 1.0) if den > 0.0 else 0.0
+            t = (b * s + f) / e
+            if t < 0.0:
+                s, t = min(max(-c / a, 0.0), 1.0), 0.0
+            elif t > 1.0:
+                s, t = min(max((b - c) / a, 0.0), 1.0), 1.0
+    dx = w[0] + d1[0] * s - d2[0] * t
+    dy = w[1] + d1[1] * s - d2[1] * t
+    dz = w[2] + d1[2] * s - d2[2] * t
+    return math.sqrt(dx * dx + dy * dy + dz * dz)
 
 
 @preflight_check("intersection", uses_stations=True)
@@ -343,7 +409,10 @@ def _intersection(pf: Preflight, geo: StepGeometry) -> list[Finding]:
     if len(sts) < 2:
         return []
     out = []
+    c0, c1 = (np.asarray(st.position, float).tolist() for st in sts[:2])
     for name, p in geo.points.items():
+        if lo + _CLEAR_ANGLE_DEG < _angle_deg(p.tolist(), c0, c1) < hi - _CLEAR_ANGLE_DEG:
+            continue                # certainly inside the limits (the numpy figure below is for the message)
         u, v = p - sts[0].position, p - sts[1].position
         ang = float(np.degrees(np.arccos(np.clip(u @ v / (np.linalg.norm(u) * np.linalg.norm(v)), -1, 1))))
         if not lo <= ang <= hi:
@@ -351,6 +420,21 @@ def _intersection(pf: Preflight, geo: StepGeometry) -> list[Finding]:
             out.append(Finding("intersection", geo.step.key, ang, bound, "deg",
                                f"sight lines meet at {ang:.1f} deg on {name}, limits {lo:g}-{hi:g} deg"))
     return out
+
+
+#: an intersection angle this far inside its limits (deg) passes whatever the rounding of its computation
+_CLEAR_ANGLE_DEG = 1e-6
+
+
+def _angle_deg(p: list, c0: list, c1: list) -> float:
+    """The angle (deg) at ``p`` between the sight lines from ``c0`` and ``c1``, in plain floats (the check's
+    screen: a figure near a limit is computed again the check's own way)."""
+    u = [p[0] - c0[0], p[1] - c0[1], p[2] - c0[2]]
+    v = [p[0] - c1[0], p[1] - c1[1], p[2] - c1[2]]
+    nn = math.sqrt(u[0] * u[0] + u[1] * u[1] + u[2] * u[2]) * math.sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2])
+    if not nn > 0.0:
+        return math.nan
+    return math.degrees(math.acos(min(max((u[0] * v[0] + u[1] * v[1] + u[2] * v[2]) / nn, -1.0), 1.0)))
 
 
 def _axis_distance(fp, joint: int, p: np.ndarray) -> float:
@@ -392,7 +476,18 @@ def load_torques_nm(pf: Preflight, fp, q_rad: np.ndarray, loads: list[dict]) -> 
     links, _, F = load_points(pf, fp, loads)
     ctx = m.context(1, point_force_link=links, point_force_mm=np.array([[ld["point_mm"] for ld in loads]], float),
                     point_force_n=F[None])
-    return m.loads(fp, ctx).joint_torque_nm[0] - m.loads(fp, m.context(1)).joint_torque_nm[0]
+    return m.loads(fp, ctx).joint_torque_nm[0] - _unloaded_torques_nm(pf, fp)
+
+
+def _unloaded_torques_nm(pf: Preflight, fp) -> np.ndarray:
+    """The joint torques of the arm alone at a one-pose chain pass (the model's loads without hung masses), kept
+    per pass: a loading series hangs several masses at one pose, and every step is checked twice."""
+    got = pf._unloaded.get(id(fp))
+    if got is None or got[0] is not fp:
+        got = (fp, pf.model.loads(fp, pf.model.context(1)).joint_torque_nm[0])
+        if len(pf._unloaded) < 10_000:
+            pf._unloaded[id(fp)] = got
+    return got[1]
 
 
 @preflight_check("load torque")

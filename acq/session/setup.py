@@ -219,12 +219,17 @@ def predictor(robot, setup: BenchSetup | dict, tolerances: dict | None = None):
                     known[(pose, tool, link)] = (p, float(sig))
 
     def predict(step: Step) -> dict:
+        """The step's targets (copies: the kept points stay as computed); a pose not primed -- a command computed
+        when the step is reached, repeated in every cycle of ISO 9283's compensated run -- is kept like a primed
+        one, by pose, tool and link."""
         out = {}
         for name, key in _wanted(step):
             got = known.get(key)
             if got is None:
                 p, sig = _evaluate([key[0]], key[1], key[2])[0]
                 got = (p, float(sig))
+                if len(known) < 100_000:
+                    known[key] = got
             out[name] = (got[0].copy(), got[1])
         return out
 

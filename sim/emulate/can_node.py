@@ -100,18 +100,25 @@ class CanTapNode:
 
 class SenderVirtualBus(VirtualBus):
     """python-can's ``virtual`` bus for a sender that never touches a message after sending it (the emulated tap
-    builds a fresh one per frame): each receiver gets a new :class:`can.Message` made from the sent one's fields,
-    where python-can's own ``send`` runs ``copy.deepcopy`` (5-8x slower: the payload's bytearray goes through
-    ``copyreg``; a third of the demo's encoder emulation).  Same channel semantics otherwise (timestamps, own
-    messages, a full queue)."""
+    builds a fresh one per frame): a lone receiver (the tap reader) gets the sent message itself, stamped with the
+    fields python-can gives a copy (timestamp, channel, is_rx); several receivers each get a new
+    :class:`can.Message` made from the sent one's fields.  python-can's own ``send`` runs ``copy.deepcopy`` for
+    each (5-8x slower: the payload's bytearray goes through ``copyreg``; a third of the demo's encoder emulation).
+    Same channel semantics otherwise (timestamps, own messages, a full queue)."""
 
     def send(self, msg: can.Message, timeout: float | None = None) -> None:
         self._check_if_open()
         timestamp = msg.timestamp if self.preserve_timestamps else time.time()
+        receivers = [q for q in self.channel if q is not self.queue or self.receive_own_messages]
+        if len(receivers) == 1:         # the one receiver takes the sent message itself, stamped as a copy would be
+            msg.timestamp, msg.channel, msg.is_rx = timestamp, self.channel_id, receivers[0] is not self.queue
+            try:
+                receivers[0].put(msg, block=True, timeout=timeout)
+            except queue.Full:
+                raise can.CanOperationError("Could not send message to one or more recipients") from None
+            return
         all_sent = True
-        for bus_queue in self.channel:
-            if bus_queue is self.queue and not self.receive_own_messages:
-                continue
+        for bus_queue in receivers:
             copy = can.Message(timestamp=timestamp, arbitration_id=msg.arbitration_id,
                                is_extended_id=msg.is_extended_id, is_remote_frame=msg.is_remote_frame,
                                is_error_frame=msg.is_error_frame, channel=self.channel_id, dlc=msg.dlc,

@@ -82,5 +82,12 @@ class DeviceBase:
     # -- streams ---------------------------------------------------------------------------------------------------
     tick_period_s: float | None = None
 
+    @property
+    def synchronous(self) -> bool:
+        """True when everything the device will say in answer to its input is in its output buffer as soon as
+        :meth:`feed` returns (it answers in the caller's thread and streams nothing on its own): a port onto it has
+        no bytes in flight to wait for.  A wrapper that delays output (a faulty cable) does not say so."""
+        return self.tick_period_s is None
+
     def tick(self, now: float | None = None) -> None:
         pass

@@ -34,7 +34,7 @@ from calib.effects import PoseContext
 from calib.errors import RobocalError
 from calib.loads import HungMass, point_force_context
 from calib.profile import profile_of
-from sim.twin import Twin
+from sim.twin import TWO_PI, Twin
 
 @dataclass(frozen=True)
 class Target:
@@ -73,7 +73,7 @@ class TwinWorld:
         self._cache: np.ndarray | None = None
         self._ahead: dict[Target, np.ndarray] = {}  # targets evaluated together at the present state (prefetch)
         self._faults: dict[str, list] = {}          # station -> [hz_rad, v_rad, readings left]
-        self._exact: dict[tuple, np.ndarray] = {}   # (station, face, target point) -> readings before noise
+        self._exact: dict[tuple, list] = {}         # (station, face, target point) -> readings before noise
         # what the twin's model is evaluated with at the present state: the encoder's readings, the pose context
         # (loaded or not); forgotten with the targets' cache when the joints move or the loads change
         self._at: dict = {}
@@ -219,15 +219,14 @@ class TwinWorld:
             if exact is None:           # the target's readings without noise: once per target, station and face
                 if len(self._exact) >= 64:
                     self._exact.clear()
-                exact = self._exact[key] = self.twin.exact_readings(p[None], [st], [face])
-            out, _ = self.twin.noisy(exact, [st], rng=self._rng)
-            hz, v = float(out[0, 0]), float(out[0, 1])
+                exact = self._exact[key] = self.twin.exact_one(p, st, face)
+            (hz, v), _ = self.twin.noisy_one(exact, [st], self._rng)
             f = self._faults.get(station_name)
             if f is not None and f[2] > 0:
                 # a pointing error: face II reads the zenith angle as 360 deg - V, so it flips the sign there
                 hz, v = hz + f[0], v + (f[1] if face == 1 else -f[1])
                 f[2] -= 1
-        return float(np.mod(hz, 2 * np.pi)), float(v)
+        return hz % TWO_PI, v                   # numpy's mod of floats is Python's %: the same float
 
     def inject_sighting_error(self, station_name: str, hz_rad: float = 0.0, v_rad: float = 0.0,
                               readings: int = 1) -> None:

@@ -55,6 +55,12 @@ class Serial(SerialBase):
         if out:
             self._rx += out
 
+    @property
+    def synchronous(self) -> bool:
+        """Nothing is ever in flight on this port when its device answers at once (:attr:`sim.emulate.device.
+        DeviceBase.synchronous`): :meth:`acq.link.SerialLink.drain` need not wait for a quiet line."""
+        return bool(getattr(self._device, "synchronous", False))
+
     # -- SerialBase API ---------------------------------------------------------------------------------------------
     @property
     def in_waiting(self) -> int:
