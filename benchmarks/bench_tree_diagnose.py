@@ -27,6 +27,7 @@ import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
+from benchmarks.bench_demo import child_env  # noqa: E402
 from benchmarks.bench_tree import PAIRS, POINTS, interleaved, report, write_tree  # noqa: E402
 from tests.fakes import tree_robot as tr  # noqa: E402
 
@@ -75,7 +76,8 @@ def _joint_names(description: Path) -> list[str]:
 
 
 def _findings(cmd: list[str]) -> str:
-    env = {**os.environ, "PYTHONPATH": str(ROOT)}
+    """The findings of the timed diagnosis (its run also fills the bytecode cache the timed runs use)."""
+    env = child_env()
     doc = json.loads(subprocess.run(cmd, capture_output=True, text=True, env=env, cwd=ROOT).stdout)
     found = ", ".join(f["label"] for f in doc["findings"]) or "none"
     return (f"findings: {found}; held-out RMS {doc['baseline_rms_mm']:.3f} -> {doc['final_rms_mm']:.4f} mm "

@@ -474,6 +474,10 @@ class MeasurementModel:
                 J[:, :, :ng] = e.geometry_chain(J[:, :, :ng], self.length_idx, ctx, v)
             if e.stage == "load":
                 continue
+            if e.stage == "joint" and e.own_joint_only:
+                k = e.joint - 1         # the same numbers as the product over every joint, whose other terms are 0
+                J[:, :, s] = through["joint"][:, :, k, None] * grads[i][:, k, None, :]
+                continue
             J[:, :, s] = grads[i] if e.stage == "point" else np.matmul(through[e.stage], grads[i])
         if st.load_pass is not None and any(e.adds_bodies for e in self.effects):
             self._body_columns(J, ev, Jvar, gain, gains)

@@ -312,3 +312,26 @@ def test_a_new_effect_is_one_class_registered_once(puma):
         assert m.evaluate(q, theta=theta).theta_rad[0, 1] == pytest.approx(0.01)
     finally:
         EFFECTS.pop("zero_offset_drift", None)
+
+
+def test_an_effect_flagged_own_joint_only_changes_its_own_joint_alone(puma, rng):
+    """``own_joint_only`` lets the Jacobian take the joint's column times the derivative's row instead of a product
+    over every joint: every kind that claims it changes no other joint (values off zero, random poses, loads and
+    directions); the finite-difference test above checks the columns that shortcut writes."""
+    from calib.effects import EFFECTS, make_effect
+    flagged = [k for k, cls in EFFECTS.items() if cls.stage == "joint" and cls.own_joint_only]
+    assert {"transmission_error", "joint_compliance", "backlash", "cross_coupling"} <= set(flagged)
+    n = 25
+    q = poses(rng, n)
+    for kind in flagged:
+        opts = {"order": 0.9, "harmonics": 2, "source": 5} if kind in ("transmission_error", "cross_coupling") else {}
+        e = make_effect(kind, 3, **{k: v for k, v in opts.items() if k in EFFECTS[kind].options})
+        e.values = rng.uniform(0.5, 1.5, len(e.values)) * 1e-4
+        m = MeasurementModel(puma, [e])
+        ctx = m.context(n, direction=rng.choice([-1.0, 1.0], (n, 6)),
+                        load_direction=rng.choice([-1.0, 1.0], (n, 6)), tool_force_n=rng.normal(0, 20, (n, 3)))
+        loads = m.evaluate(q, ctx, m.nominal).loads
+        delta, grad = e.joint_delta(q, ctx, loads, e.values)
+        others = [j for j in range(6) if j != 2]
+        assert np.any(grad[:, 2] != 0), kind
+        assert not np.any(delta[:, others]) and not np.any(grad[:, others]), kind

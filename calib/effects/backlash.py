@@ -12,6 +12,7 @@ from .base import Effect, register_effect
 @register_effect
 class Backlash(Effect):
     kind = "backlash"
+    own_joint_only = True
     driven_by = "direction"
     param_names = ("width_rad",)
     scenario_fields = {"joint": Field("int", required=True, min=1),

@@ -26,6 +26,7 @@ from .base import Effect, register_effect
 @register_effect
 class GravityBacklash(Effect):
     kind = "backlash_gravity"
+    own_joint_only = True
     driven_by = "load"
     needs_loads = True
     param_names = ("width_rad",)

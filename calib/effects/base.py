@@ -120,6 +120,10 @@ class Effect:
     #: sees (:meth:`bodies`); it moves no point itself
     adds_bodies: ClassVar[bool] = False
     has_joint: ClassVar[bool] = True           # acts on one joint (``joint`` required in tables, JSON and text)
+    #: joint stage: the change and its derivative sit in the column of ``joint`` alone (the Jacobian then takes
+    #: that joint's column times the derivative's row, not a product over every joint: a 19-joint tree's 1184
+    #: candidates are written that way each round)
+    own_joint_only: ClassVar[bool] = False
     #: structural settings beyond the joint, name -> type (int or float), in the order of the ``--effect`` text
     options: ClassVar[dict[str, type]] = {}
     #: how many of ``options`` the ``--effect`` text must give (the rest have defaults in :meth:`zero`)

@@ -11,6 +11,7 @@ from .base import Effect, JointNumber, register_effect
 @register_effect
 class CrossCoupling(Effect):
     kind = "cross_coupling"
+    own_joint_only = True
     driven_by = "source_angle"
     param_names = ("sigma",)
     options = {"source": JointNumber}

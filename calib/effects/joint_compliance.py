@@ -17,6 +17,7 @@ from .base import Effect, register_effect
 @register_effect
 class JointCompliance(Effect):
     kind = "joint_compliance"
+    own_joint_only = True
     driven_by = "load"
     needs_loads = True
     torque_driven = True

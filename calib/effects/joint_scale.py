@@ -11,6 +11,7 @@ from .base import Effect, register_effect
 @register_effect
 class JointScale(Effect):
     kind = "joint_scale"
+    own_joint_only = True
     driven_by = "joint_angle"
     param_names = ("scale",)
     scenario_fields = {"joint": Field("int", required=True, min=1),

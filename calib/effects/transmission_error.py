@@ -15,6 +15,7 @@ from .base import Effect, register_effect
 @register_effect
 class TransmissionError(Effect):
     kind = "transmission_error"
+    own_joint_only = True
     driven_by = "joint_angle"
     options = {"order": float, "harmonics": int}
     text_required = 1
