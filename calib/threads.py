@@ -90,12 +90,17 @@ def _capped(n: int, threadpool_limits) -> Iterator[None]:
         yield
 
 
-@contextmanager
-def blas_environment(n: int) -> Iterator[None]:
+def blas_environment(n: int) -> AbstractContextManager:
     """This process's BLAS variables set to ``n`` for the duration, restored after (read by a BLAS library loaded
     meanwhile, and by child processes started meanwhile)."""
-    saved = {k: os.environ.get(k) for k in BLAS_ENV_VARS}
-    os.environ.update({k: str(n) for k in BLAS_ENV_VARS})
+    return variables({k: str(n) for k in BLAS_ENV_VARS})
+
+
+@contextmanager
+def variables(values: dict[str, str]) -> Iterator[None]:
+    """Environment variables set for the duration, restored after (child processes started meanwhile read them)."""
+    saved = {k: os.environ.get(k) for k in values}
+    os.environ.update(values)
     try:
         yield
     finally:
@@ -104,3 +109,31 @@ def blas_environment(n: int) -> Iterator[None]:
                 os.environ.pop(k, None)
             else:
                 os.environ[k] = v
+
+
+#: how many independent fits (a cross-validation's folds and its whole-set fit) run at once, in threads
+FITS_ENV = "ROBOCAL_PARALLEL_FITS"
+#: at most this many by default: the fits' Python share holds the interpreter's lock, so more threads than this only
+#: wait (measured on 2 cores only)
+MAX_PARALLEL_FITS = 4
+
+
+def parallel_fits(environ: MutableMapping[str, str] | None = None) -> int:
+    """Threads for independent fits: :data:`FITS_ENV` when set (1: one after the other), else the cores this process
+    may use, at most :data:`MAX_PARALLEL_FITS`.  Why threads: each fit's model passes and factorisations are numpy
+    and BLAS calls that release the interpreter's lock on a tree's thousands of rows (the elastic 19-joint tree's
+    diagnosis 28-31 s -> 25 s wall on 2 cores, its JSON identical: every fit is the same computation, only when it
+    runs changes); one BLAS thread each, as :func:`limit` sets.  Validation workers set it to 1 (their processes
+    already fill the cores)."""
+    env = os.environ if environ is None else environ
+    raw = env.get(FITS_ENV)
+    if raw:
+        try:
+            return parse_threads(raw, FITS_ENV)
+        except ValueError:
+            return 1
+    try:
+        cores = len(os.sched_getaffinity(0))
+    except AttributeError:                      # not on Linux
+        cores = os.cpu_count() or 1
+    return max(1, min(cores, MAX_PARALLEL_FITS))

@@ -59,3 +59,34 @@ def test_kept_fold_points_are_the_models_points_on_every_row():
     # other rows than those fitted are evaluated, not taken from the fits
     other = data.subset(np.arange(10))
     assert np.array_equal(cv.points_mm(other, 0), model.points(other.q_rad, other.ctx, cv.folds[0].theta))
+
+
+def test_folds_fitted_in_parallel_are_the_folds_fitted_one_after_the_other(monkeypatch):
+    """The k fold fits and the whole-set fit run in threads (calib.threads.parallel_fits): each is the same
+    computation, so every number must be bit for bit the serial one -- a fit that shared state with another (a
+    cached evaluation, the model's caches) would show here.  ROBOCAL_PARALLEL_FITS=1 is the serial reference."""
+    from calib import threads
+    from calib.diagnose.gap import cv_fit, geometric_free
+    from calib.model import MeasurementModel
+    from sim.validate import Case, make_case_data
+
+    data, _ = make_case_data(Case("joint_compliance", 2, None, 3.0, seed=2, n_poses=60))
+    model = MeasurementModel(data.robot)
+    free = geometric_free(model, "full")
+    runs = {}
+    for n in ("1", "3"):
+        monkeypatch.setenv(threads.FITS_ENV, n)
+        assert threads.parallel_fits() == int(n)
+        runs[n] = cv_fit(model, data, free, data_folds(data))
+    a, b = runs["1"], runs["3"]
+    assert np.array_equal(a.residual_mm, b.residual_mm) and a.chi2 == b.chi2
+    assert np.array_equal(a.all_fit.theta, b.all_fit.theta) and np.array_equal(a.all_fit.sigma, b.all_fit.sigma)
+    for fa, fb in zip(a.folds, b.folds):
+        assert np.array_equal(fa.theta, fb.theta) and fa.free == fb.free and np.array_equal(fa.test, fb.test)
+
+
+def test_parallel_fits_follow_the_variable_and_the_cores(monkeypatch):
+    from calib import threads
+    assert threads.parallel_fits({threads.FITS_ENV: "2"}) == 2
+    assert threads.parallel_fits({threads.FITS_ENV: "zero"}) == 1            # nonsense: one at a time
+    assert 1 <= threads.parallel_fits({}) <= threads.MAX_PARALLEL_FITS

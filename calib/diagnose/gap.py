@@ -20,6 +20,7 @@ exactly: the parameters carry estimation noise too; :func:`heldout_floor_mm` giv
 """
 from __future__ import annotations
 
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -28,6 +29,7 @@ from calib.effects.target_offset import TargetOffset
 from calib.errors import RobocalError
 from calib.identify import Identification, default_free, identify
 from calib.model import MeasurementModel
+from calib.threads import parallel_fits
 
 from .data import DiagnosisData
 
@@ -167,8 +169,9 @@ def cv_fit(model: MeasurementModel, data: DiagnosisData, free: list[str], folds,
     """
     check_folds(folds, len(free), data.source)
     res = np.full_like(data.points_mm, np.nan)
-    fits = []
-    for i, (tr, te) in enumerate(folds):
+
+    def fold(i):
+        tr, te = folds[i]
         obs = data.observations(tr)
         idn = identify(model, obs, free=free, theta0=None if theta0 is None else theta0[i], outliers="off",
                        start=start, loss=loss, report=False)       # a fold's fit only predicts its test rows
@@ -176,10 +179,23 @@ def cv_fit(model: MeasurementModel, data: DiagnosisData, free: list[str], folds,
         pts = np.empty_like(data.points_mm)
         pts[tr] = idn.problem.last_points(idn.theta)                # the fit's own last evaluation: no pass
         pts[te] = model.points(data.q_rad[te], data.ctx.subset(te), th)
-        res[te] = data.points_mm[te] - pts[te]
-        fits.append(FoldFit(tr, te, th, list(idn.free), pts))
-    all_fit = identify(model, data.observations(), free=free, theta0=theta0_all, outliers="off", start=start,
-                       loss=loss, report=report)
+        return FoldFit(tr, te, th, list(idn.free), pts)
+
+    def whole():
+        return identify(model, data.observations(), free=free, theta0=theta0_all, outliers="off", start=start,
+                        loss=loss, report=report)
+
+    workers = min(parallel_fits(), len(folds) + 1)
+    if workers > 1:             # independent fits: the same numbers in any order (calib.threads.parallel_fits)
+        with ThreadPoolExecutor(workers) as pool:
+            whole_fit = pool.submit(whole)
+            fits = list(pool.map(fold, range(len(folds))))
+            all_fit = whole_fit.result()
+    else:
+        fits = [fold(i) for i in range(len(folds))]
+        all_fit = whole()
+    for f in fits:
+        res[f.test] = data.points_mm[f.test] - f.points_mm[f.test]
     return CVResult(model, fits, res, whitened_chi2(data, res), all_fit, data)
 
 

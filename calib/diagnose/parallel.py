@@ -9,7 +9,7 @@ import os
 from concurrent.futures import ProcessPoolExecutor
 from typing import Callable, Sequence, TypeVar
 
-from calib.threads import blas_environment
+from calib.threads import FITS_ENV, blas_environment, variables
 
 C = TypeVar("C")
 R = TypeVar("R")
@@ -31,7 +31,9 @@ def map_cases(fn: Callable[[C], R], cases: Sequence[C], workers: int | None = No
             done(fn(c))
         return results
     # the variables stay set while the pool runs: it spawns its workers at the first submit, not when it is built
-    with blas_environment(1), ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("spawn")) as ex:
+    # ... and one fit at a time inside each worker: the workers fill the cores already
+    with blas_environment(1), variables({FITS_ENV: "1"}), \
+            ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("spawn")) as ex:
         for r in ex.map(fn, cases, chunksize=1):
             done(r)
     return results
