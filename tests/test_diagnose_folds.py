@@ -66,10 +66,12 @@ def test_folds_fitted_in_parallel_are_the_folds_fitted_one_after_the_other(monke
     computation, so every number must be bit for bit the serial one -- a fit that shared state with another (a
     cached evaluation, the model's caches) would show here.  ROBOCAL_PARALLEL_FITS=1 is the serial reference."""
     from calib import threads
+    from calib.diagnose import gap
     from calib.diagnose.gap import cv_fit, geometric_free
     from calib.model import MeasurementModel
     from sim.validate import Case, make_case_data
 
+    monkeypatch.setattr(gap, "PARALLEL_MIN_SIZE", 0)         # a small case, in threads all the same
     data, _ = make_case_data(Case("joint_compliance", 2, None, 3.0, seed=2, n_poses=60))
     model = MeasurementModel(data.robot)
     free = geometric_free(model, "full")
