@@ -11,13 +11,18 @@ from __future__ import annotations
 from offline.reduction.run import reduce_session
 from offline.reduction.session import SessionData, load_session
 
-__all__ = ["reprocess", "load_session", "SessionData"]
+__all__ = ["reprocess", "scored", "load_session", "SessionData"]
 
 
 def reprocess(path: str, n_mc: int = 0, progress=None) -> dict:
     """Rerun every stage of the session at ``path``; returns the results document."""
     data = load_session(path)
-    res = reduce_session(data, n_mc=n_mc, progress=progress)
+    return scored(reduce_session(data, n_mc=n_mc, progress=progress), data)
+
+
+def scored(res: dict, data: SessionData) -> dict:
+    """A reduction's results document as the commands show it: for a session recorded from emulated instruments,
+    its truths scored against the twin; without the reduction's ``trace``."""
     if data.metadata.get("emulated"):
         from sim.emulate.truth import score         # the twin and its scenario: only for an emulated session
         score(res, data)

@@ -132,8 +132,12 @@ def parallel_fits(environ: MutableMapping[str, str] | None = None) -> int:
             return parse_threads(raw, FITS_ENV)
         except ValueError:
             return 1
+    return max(1, min(usable_cores(), MAX_PARALLEL_FITS))
+
+
+def usable_cores() -> int:
+    """The cores this process may run on (its affinity where the system says it, else the machine's count)."""
     try:
-        cores = len(os.sched_getaffinity(0))
+        return len(os.sched_getaffinity(0))
     except AttributeError:                      # not on Linux
-        cores = os.cpu_count() or 1
-    return max(1, min(cores, MAX_PARALLEL_FITS))
+        return os.cpu_count() or 1

@@ -14,6 +14,7 @@ from calib.errors import RobocalError
 from calib.fileio import atomic_write_text
 from acq.argtypes import add_robot_argument, output_dir, output_file, seed_int, te_joints
 from app.interrupt import HungUp, command_line, exit_status, hangups_interrupt, kept_text, report_text, say
+from app.live_reduction import CompletedProcedures, ReductionWorker, WorkerFailed
 
 NAME = "demo"
 HELP = "record an emulated calibration session of every procedure, then reprocess it"
@@ -43,10 +44,7 @@ def add_arguments(p):
 
 
 def run(args) -> int:
-    from acq.progress import progress_display
     from app.demo import build_demo
-    from acq.session.headless import ProgressPrinter
-    from app.reprocess import reprocess
 
     if args.db is None:
         # the main job must run again on the same machine: never touch an earlier demo, take the next free name
@@ -82,50 +80,16 @@ def run(args) -> int:
     if args.resume and args.robot:
         raise RobocalError(f"demo: --robot cannot change a resumed session's robot ({db} keeps the one it was "
                            f"recorded with): resume without --robot")
-    demo = build_demo(db, seed=args.seed, resume=args.resume, setup=base, te_joints=args.te_joints,
-                      robot=args.robot)
-    resume = _resume_command(args, db)
-    # the modules, the plan and the devices live as long as the process: out of the collector's sight, the
-    # recording's collections scan only what it allocates (one full collection of start-up objects less)
-    gc.freeze()
-    say(f"recording the session into {db} (Ctrl-C stops it; every step saved is kept)")
-    pp = ProgressPrinter()
-    res = None
-    every = demo.runner.steps
+    worker = ReductionWorker.start()            # its imports overlap the session's building
     try:
-        with hangups_interrupt():
-            with progress_display("recording session", after_s=0.5) as update:
-                pp.update = lambda done, total, key: update(key, done / max(total, 1))
-                demo.runner.subscribe(pp)
-                # the steps commanded by the calibrated model wait for the model this session's reduction gives
-                demo.runner.steps = [s for s in every if not s.setup.get("command")]
-                state = demo.runner.run()
-            if state == "finished" and len(demo.runner.steps) < len(every):
-                res, state = _compensated_run(demo, every, str(db))
-    except KeyboardInterrupt as exc:             # Ctrl-C or a closed terminal: say what was kept, and where
-        saved, total = len(demo.store.done_keys()), len(every)
-        say(f"{'the terminal closed' if isinstance(exc, HungUp) else 'interrupted'}: "
-            f"{kept_text(saved, total, str(db), resume)}")
-        return exit_status(exc)
+        demo = build_demo(db, seed=args.seed, resume=args.resume, setup=base, te_joints=args.te_joints,
+                          robot=args.robot)
+        res = _record(demo, db, _resume_command(args, db), worker, t0)
     finally:
-        demo.close()
-    t_rec = time.perf_counter() - t0
-    clock = demo.runner.rig.clock
-    simulated = f", {clock.now():.1f} s of instrument time simulated" if clock.simulated else ""
-    print(f"session {db}: {state}, {pp.saved}/{pp.total} steps saved in {t_rec:.1f} s "
-          f"({pp.failed_checks} failed checks, repeated or noted{simulated})", file=sys.stderr)
-    if state == "refused":
-        for line in pp.preflight_lines:
-            print(f"pre-flight: {line}", file=sys.stderr)
-        raise RobocalError(f"session {db}: the pre-flight failed for {len(pp.preflight_lines)} step(s) (listed "
-                           f"above); nothing was recorded")
-    if state != "finished":                      # paused, aborted, or failed on a device
-        why = f" ({pp.error})" if pp.error else ""
-        say(f"the session ended {state}{why}: {kept_text(pp.saved, pp.total, str(db), resume)}")
-        return 1
-    if res is None:
-        with progress_display("reprocessing", after_s=0.5) as update:
-            res = reprocess(str(db), progress=update)
+        if worker is not None:
+            worker.close()
+    if isinstance(res, int):                    # the session did not finish: what was kept is said
+        return res
     _summary(res, args.verbose, args.tolerance_mm)
     if args.report:
         from offline.report import write_report
@@ -139,27 +103,122 @@ def run(args) -> int:
     return 0
 
 
-def _compensated_run(demo, every: list, db: str) -> tuple[dict, str]:
-    """ISO 9283 with compensation on, as a calibrated controller runs it: the session reprocessed (its pose set
-    identifies the model), the remaining steps commanded by that model (:class:`offline.iso_commands.
-    CompensatedCommands`), then the ISO 9283 figures reduced again with them -- the calibration itself is not
-    repeated.  Returns the results and the runner's final state."""
+def _record(demo, db: Path, resume: str, worker: ReductionWorker | None, t0: float) -> dict | int:
+    """Record the session, then reduce it: its results, or the exit status when it did not finish (what was kept
+    and how to resume are said).  With a ``worker`` the session is reduced while it records, procedure by procedure
+    (:mod:`app.live_reduction`); without one, or when it fails, after it, in this process."""
     from acq.progress import progress_display
-    from offline.iso_commands import iso_after_compensated_run
-    from app.reprocess import reprocess
-    with progress_display("reprocessing", after_s=0.5) as update:
-        res = reprocess(db, progress=update)
-    if res.get("robot") is None:                # no model: the problems say why
+    from acq.session.headless import ProgressPrinter
+    # the modules, the plan and the devices live as long as the process: out of the collector's sight, the
+    # recording's collections scan only what it allocates (one full collection of start-up objects less)
+    gc.freeze()
+    say(f"recording the session into {db} (Ctrl-C stops it; every step saved is kept)")
+    pp = ProgressPrinter()
+    res = None
+    every = demo.runner.steps
+    live = _Live(worker, demo, str(db))
+    try:
+        with hangups_interrupt():
+            with progress_display("recording session", after_s=0.5) as update:
+                pp.update = lambda done, total, key: update(key, done / max(total, 1))
+                demo.runner.subscribe(pp)
+                # the steps commanded by the calibrated model wait for the model this session's reduction gives
+                demo.runner.steps = [s for s in every if not s.setup.get("command")]
+                state = demo.runner.run()
+            if state == "finished" and len(demo.runner.steps) < len(every):
+                res, state = _compensated_run(demo, every, live)
+    except KeyboardInterrupt as exc:             # Ctrl-C or a closed terminal: say what was kept, and where
+        saved, total = len(demo.store.done_keys()), len(every)
+        say(f"{'the terminal closed' if isinstance(exc, HungUp) else 'interrupted'}: "
+            f"{kept_text(saved, total, str(db), resume)}")
+        return exit_status(exc)
+    finally:
+        demo.close()
+    clock = demo.runner.rig.clock
+    simulated = f", {clock.now():.1f} s of instrument time simulated" if clock.simulated else ""
+    print(f"session {db}: {state}, {pp.saved}/{pp.total} steps saved in {time.perf_counter() - t0:.1f} s "
+          f"({pp.failed_checks} failed checks, repeated or noted{simulated})", file=sys.stderr)
+    if state == "refused":
+        for line in pp.preflight_lines:
+            print(f"pre-flight: {line}", file=sys.stderr)
+        raise RobocalError(f"session {db}: the pre-flight failed for {len(pp.preflight_lines)} step(s) (listed "
+                           f"above); nothing was recorded")
+    if state != "finished":                      # paused, aborted, or failed on a device
+        why = f" ({pp.error})" if pp.error else ""
+        say(f"the session ended {state}{why}: {kept_text(pp.saved, pp.total, str(db), resume)}")
+        return 1
+    return res if res is not None else live.results()
+
+
+class _Live:
+    """The session's reduction: by the worker while the session records, else (no worker, or it failed) by this
+    process when asked."""
+
+    def __init__(self, worker: ReductionWorker | None, demo, db: str):
+        self.worker, self.db = worker, db
+        self._before: dict | None = None        # without a worker: the reduction made before the compensated run
+        if worker is not None:
+            tracker = CompletedProcedures(demo.runner.steps, demo.store.done_keys())
+
+            def saw(ev) -> None:
+                if ev.kind in ("step_saved", "step_skipped_done") and self.worker is not None:
+                    self._guard(lambda: self.worker.complete(tracker.saved(ev.data["key"])))
+
+            self._guard(lambda: worker.open(db, tracker))
+            demo.runner.subscribe(saw)
+
+    def model(self) -> dict | None:
+        """The pose set's calibrated model document (None: the pose set gave none)."""
+        if self.worker is not None:
+            got = self._guard(lambda: self.worker.output("identified"))
+            if got is not None:
+                return got[0]
+        self._before = self._reprocess()
+        return self._before.get("robot")
+
+    def results(self) -> dict:
+        """The results document of the session as recorded."""
+        if self.worker is not None:
+            got = self._guard(self.worker.finish)
+            if got is not None:
+                return got
+        if self._before is not None:            # reduced before the compensated run: only ISO 9283's figures change
+            from offline.iso_commands import iso_after_compensated_run
+            iso_after_compensated_run(self._before, self.db)
+            return self._before
+        return self._reprocess()
+
+    def _reprocess(self) -> dict:
+        from acq.progress import progress_display
+        from app.reprocess import reprocess
+        with progress_display("reprocessing", after_s=0.5) as update:
+            return reprocess(self.db, progress=update)
+
+    def _guard(self, call):
+        """``call()``; a failing worker is said in one line and left: this process reduces instead."""
+        try:
+            return call()
+        except WorkerFailed as exc:
+            say(f"{exc}; the session is reduced in this process instead")
+            self.worker.close()
+            self.worker = None
+            return None
+
+
+def _compensated_run(demo, every: list, live: _Live) -> tuple[dict | None, str]:
+    """ISO 9283 with compensation on, as a calibrated controller runs it: the model the session's pose set
+    identifies (:class:`_Live`), the remaining steps commanded by that model (:class:`offline.iso_commands.
+    CompensatedCommands`); the results are then the whole session's reduction -- the calibration itself is not
+    repeated.  Returns the results when already made (no model: no compensated run) and the runner's final state."""
+    doc = live.model()
+    if doc is None:                             # no model: the problems say why
         say("ISO 9283: the compensated run was not recorded: the session's pose set gave no calibrated model")
-        return res, "finished"
+        return live.results(), "finished"
     from calib.compensate import MODEL_SCHEMA
     from calib.jsonfile import vouch
-    demo.runner.command.use(vouch(res["robot"], MODEL_SCHEMA))      # the model this process's reduction made
+    demo.runner.command.use(vouch(doc, MODEL_SCHEMA))      # the model this session's reduction made
     demo.runner.steps = every
-    state = demo.runner.run()
-    if state == "finished":
-        iso_after_compensated_run(res, db)
-    return res, state
+    return None, demo.runner.run()
 
 
 def _resume_command(args, db: Path) -> str:

@@ -22,23 +22,29 @@ from offline.reduction.session import SessionData
 
 
 class Located:
-    """Targets of every step intersected with the stations of the session (one batch, on the first call), with
-    covariances that carry the stations' fit uncertainty."""
+    """Targets of every step intersected with the stations of the session, with covariances that carry the stations'
+    fit uncertainty: one batch on the first call, and one more for the steps read since (a reduction running while
+    the session records reads it again as procedures complete).  A step's targets depend on its own readings and
+    the stations only, so the batches give each step what one batch over the whole session gives."""
 
     def __init__(self, steps: list[dict], station_fit: StationFit):
         self.steps = steps
         self.station_fit = station_fit
-        self._by_step: dict[int, dict[str, TargetPoint]] | None = None
+        self._by_step: dict[int, dict[str, TargetPoint]] = {}      # by the step's ``step_id``
+        self._seen: set[int] = set()
 
     def __call__(self, step: dict) -> dict[str, TargetPoint]:
         """Target name -> :class:`~calib.estimators.points.TargetPoint` of one step (empty: nothing located)."""
-        if self._by_step is None:
-            rows = [{**r, "target": f"{i}/{r['target']}"} for i, s in enumerate(self.steps) for r in s["readings"]]
-            self._by_step = {}
-            for key, tp in locate_targets(rows, self.station_fit).items():
-                i, tg = key.split("/", 1)
-                self._by_step.setdefault(id(self.steps[int(i)]), {})[tg] = tp
-        return self._by_step.get(id(step), {})
+        if step["step_id"] not in self._seen:
+            self._locate([s for s in self.steps if s["step_id"] not in self._seen])
+        return self._by_step.get(step["step_id"], {})
+
+    def _locate(self, steps: list[dict]) -> None:
+        rows = [{**r, "target": f"{i}/{r['target']}"} for i, s in enumerate(steps) for r in s["readings"]]
+        for key, tp in (locate_targets(rows, self.station_fit) if rows else {}).items():
+            i, tg = key.split("/", 1)
+            self._by_step.setdefault(steps[int(i)]["step_id"], {})[tg] = tp
+        self._seen.update(s["step_id"] for s in steps)
 
     def covariance(self, points: list[TargetPoint]) -> np.ndarray:
         """Joint covariance of located targets (the stations' common term included)."""
@@ -73,6 +79,13 @@ class Reduction:
         if self._located is None:
             self._located = Located(self.data.steps, self.outputs["stations"])
         return self._located
+
+    def read_again(self, data: SessionData) -> None:
+        """The session as it stands now (more steps recorded since ``data`` was read): the reduction so far keeps its
+        outputs, estimates and located targets; the new steps' targets are located when first asked for."""
+        self.data = data
+        if self._located is not None:
+            self._located.steps = data.steps
 
     def said(self, text: str) -> None:
         """A problem a stage met on part of its data (the rest of it still counts)."""

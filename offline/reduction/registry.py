@@ -33,7 +33,9 @@ class Stage:
 
     ``run(ctx, steps)``: the stage's computation on the accepted steps of its ``procedures`` (in the order
     recorded); it adds estimates and figures to ``ctx`` and returns its output (None: nothing).  ``needs``: outputs
-    of other stages it reads (``ctx.outputs[name]``); ``gives``: the name its output is kept under.  ``label``: the
+    of other stages it reads (``ctx.outputs[name]``); ``reads``: procedures whose steps it reads besides its own
+    (``ctx.steps_of``; a reduction running while the session records waits for them too); ``gives``: the name its
+    output is kept under.  ``label``: the
     stage in the operator's problem lines (default ``name``).  ``fallback(ctx)``: the output when the stage gives
     none or fails (the ruler's: the set-up's stations).  ``progress``: the share of the whole reduction done after
     it (for a progress bar)."""
@@ -42,6 +44,7 @@ class Stage:
     run: Callable[["Reduction", list[dict]], Any]
     procedures: tuple[str, ...] = ()
     needs: tuple[str, ...] = ()
+    reads: tuple[str, ...] = ()
     gives: str | None = None
     applies: Callable[["RobotProfile"], bool] = always
     label: str = ""

@@ -76,9 +76,7 @@ def reduce_for(data: SessionData, output: str) -> Reduction:
     """Only the stages an output needs (``identified``: the model of the pose set, without its held-out accuracy),
     on a session as loaded: what the calibration core gives a running session (ISO 9283's compensated commands).
     The output is ``ctx.outputs.get(output)``; why it is missing is in ``ctx.problems``."""
-    robot = setup_robot(data.setup)
-    migrate_steps(data, robot)
-    ctx = Reduction(data, robot, profile_of(robot), data.setup, 0, held_out=False)
+    ctx = start_reduction(data, held_out=False)
     stages = all_stages()
     by_output = {s.gives: s for s in stages if s.gives}
     wanted, todo = set(), [output]
@@ -93,29 +91,40 @@ def reduce_for(data: SessionData, output: str) -> Reduction:
     return ctx
 
 
+def start_reduction(data: SessionData, n_mc: int = 0, held_out: bool = True) -> Reduction:
+    """The state a reduction of ``data`` starts from: its robot (from the set-up), every step in the step
+    vocabulary, nothing reduced yet."""
+    robot = setup_robot(data.setup)
+    migrate_steps(data, robot)
+    return Reduction(data, robot, profile_of(robot), data.setup, n_mc, held_out=held_out)
+
+
 def reduce_session(session: str | SessionData, n_mc: int = 0, progress=None) -> dict:
     """Reduce every stage of a session (its path, or as loaded); returns the results document (see the module
     docstring)."""
     t0 = time.perf_counter()
     data = load_session(session) if isinstance(session, str) else session
-    path = data.path
-    robot = setup_robot(data.setup)
-    migrate_steps(data, robot)
-    ctx = Reduction(data, robot, profile_of(robot), data.setup, n_mc)
+    ctx = start_reduction(data, n_mc)
     for stage in all_stages():
         run_stage(ctx, stage)
         if progress and stage.progress is not None:
             progress(stage.name, stage.progress)
     if progress:
         progress("done", 1.0)
+    return results_document(ctx, time.perf_counter() - t0)
+
+
+def results_document(ctx: Reduction, elapsed_s: float) -> dict:
+    """The results document of a reduction whose every stage has run (see the module docstring)."""
+    data, robot, n_mc = ctx.data, ctx.robot, ctx.n_mc
     by_proc = data.by_procedure()
     return {
-        "session": {"guid": data.session["guid"], "title": data.session["title"], "path": path,
+        "session": {"guid": data.session["guid"], "title": data.session["title"], "path": data.path,
                     "exit_status": data.session["exit_status"], "steps_accepted": len(data.steps),
                     "procedures": {name: len(sts) for name, sts in by_proc.items()}},
         "provenance": {**provenance(data.setup.robot or None, None), "code_version": code_version(),
                        "reprocessed_unix_s": time.time(), "input_session": data.session["guid"], "n_mc": n_mc,
-                       "elapsed_s": time.perf_counter() - t0},
+                       "elapsed_s": elapsed_s},
         "estimates": ctx.est.items,
         "bounds": ctx.est.bounds,
         "accuracy": {k: v for k, v in ctx.figs.get("accuracy", {}).items() if not k.endswith(("_err_mm", "_index"))}

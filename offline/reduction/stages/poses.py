@@ -88,4 +88,4 @@ def reduce_poses(ctx: Reduction, steps: list[dict]) -> dict | None:
 
 
 STAGE = Stage("poses", reduce_poses, procedures=("poses",), needs=("stations", "transmission", "compliance"),
-              gives="identified", progress=0.8)
+              reads=("coupling",), gives="identified", progress=0.8)

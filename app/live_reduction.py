@@ -1,0 +1,198 @@
+"""The session's reduction in a second process while the session records: each stage runs as soon as its procedures
+are complete (:class:`offline.reduction.live.LiveReduction`), so the results are ready when the last step is saved.
+
+Why a process and not a thread: the reduction and the recording are both Python, and one interpreter runs Python on
+one core at a time; a second process has its own, and on a machine with two cores or more the reduction then costs
+the recording nothing (the demo's 0.7 s of reprocessing left its critical path).  The worker is started before the
+session is built, so its imports overlap the recorder's; it reads the session database read-only, as committed
+(the recorder writes it in WAL mode: a reader never blocks it), and never writes.
+
+The protocol: pickled tuples over the worker's standard input and output, the recorder sending ``("open", path,
+planned procedures, complete procedures, its command line)``, ``("complete", procedures)`` as procedures finish, then asking ``("output", name)`` (the
+pose set's model, for ISO 9283's compensated run) and ``("finish",)`` (the results document, scored against the
+twin for an emulated session, as :func:`app.reprocess.reprocess` gives it).  A reply is ``("ok", value, warnings)``
+or ``("error", text)``.  Anything going wrong with the worker -- it could not start, died, or failed -- is a
+:class:`WorkerFailed`: the recorder says so in one line and reduces the session itself, as before; nothing recorded
+depends on the worker.
+
+``ROBOCAL_LIVE_REDUCTION=0`` turns it off (the reduction then runs in the recording process after the session, as
+it does on a machine with one core).
+"""
+from __future__ import annotations
+
+import os
+import pickle
+import signal
+import subprocess
+import sys
+import warnings
+from collections.abc import Iterable
+
+from calib.threads import usable_cores
+
+#: the variable that turns the worker off ("0")
+LIVE_ENV = "ROBOCAL_LIVE_REDUCTION"
+
+
+class WorkerFailed(Exception):
+    """The reduction worker could not give what was asked (its reason in words)."""
+
+
+class CompletedProcedures:
+    """Which procedures have every planned step saved, from the runner's events (``step_saved``,
+    ``step_skipped_done``): a skipped step is saved too (as skipped), so its procedure still completes."""
+
+    def __init__(self, steps, saved_keys: Iterable[str] = ()):
+        self.procedure_of = {s.key: s.procedure for s in steps}
+        self.planned = list(dict.fromkeys(s.procedure for s in steps))
+        saved = set(saved_keys)
+        self.left: dict[str, set[str]] = {}
+        for s in steps:
+            if s.key not in saved:
+                self.left.setdefault(s.procedure, set()).add(s.key)
+
+    @property
+    def complete(self) -> list[str]:
+        return [p for p in self.planned if p not in self.left]
+
+    def saved(self, key: str) -> list[str]:
+        """Step ``key`` is saved: the procedures it completes (none, or its own)."""
+        proc = self.procedure_of.get(key)
+        keys = self.left.get(proc)
+        if keys is None or key not in keys:
+            return []
+        keys.discard(key)
+        if keys:
+            return []
+        del self.left[proc]
+        return [proc]
+
+
+class ReductionWorker:
+    """The recorder's handle on the worker process (see the module docstring)."""
+
+    def __init__(self, proc: subprocess.Popen):
+        self.proc = proc
+
+    @classmethod
+    def start(cls) -> "ReductionWorker | None":
+        """A worker importing the reduction while the session is built; None where it would not help (one core,
+        or :data:`LIVE_ENV` set to 0) or could not start."""
+        if os.environ.get(LIVE_ENV, "").strip() == "0" or usable_cores() < 2:
+            return None
+        try:
+            return cls.spawn()
+        except OSError:
+            return None
+
+    @classmethod
+    def spawn(cls) -> "ReductionWorker":
+        """The worker process, started now (this interpreter running :func:`main`)."""
+        return cls(subprocess.Popen([sys.executable, "-m", "app.live_reduction"], stdin=subprocess.PIPE,
+                                    stdout=subprocess.PIPE))
+
+    def open(self, path: str, tracker: CompletedProcedures) -> None:
+        self._send("open", path, tracker.planned, tracker.complete, sys.argv)
+
+    def complete(self, procedures: list[str]) -> None:
+        if procedures:
+            self._send("complete", procedures)
+
+    def output(self, name: str):
+        """The output ``name`` of the reduction so far and the problems said: (value or None, problems)."""
+        return self._ask("output", name)
+
+    def finish(self) -> dict:
+        """The results document of the whole session (its stages not yet run run now)."""
+        return self._ask("finish")
+
+    def close(self) -> None:
+        """Stop the worker (it is done, or the session was interrupted)."""
+        if self.proc.poll() is None:
+            self.proc.kill()
+        self.proc.wait()
+        for f in (self.proc.stdin, self.proc.stdout):
+            try:
+                f.close()
+            except OSError:
+                pass
+
+    def _send(self, *msg) -> None:
+        try:
+            pickle.dump(msg, self.proc.stdin, protocol=pickle.HIGHEST_PROTOCOL)
+            self.proc.stdin.flush()
+        except (OSError, ValueError) as exc:
+            raise WorkerFailed(f"the reduction worker stopped ({exc})") from None
+
+    def _ask(self, *msg):
+        self._send(*msg)
+        try:
+            reply = pickle.load(self.proc.stdout)
+        except (EOFError, OSError, pickle.UnpicklingError) as exc:
+            raise WorkerFailed(f"the reduction worker stopped (exit status {self.proc.poll()}, {exc or 'no reply'})") \
+                from None
+        if reply[0] != "ok":
+            raise WorkerFailed(reply[1])
+        for category, text in reply[2]:         # the worker's warnings, shown as this process's own
+            warnings.warn(text, category, stacklevel=2)
+        return reply[1]
+
+
+def serve(inp, out) -> None:
+    """The worker's loop: messages from ``inp``, replies to ``out`` (binary streams), until the end of the input or
+    ``finish``."""
+    from offline.reduction.live import LiveReduction
+    live: LiveReduction | None = None
+    failure: str | None = None              # a failure while no reply was due: the next reply says it
+    caught: list = []
+    while True:
+        try:
+            msg = pickle.load(inp)
+        except EOFError:
+            return
+        kind, args = msg[0], msg[1:]
+        reply = None
+        with warnings.catch_warnings(record=True) as seen:
+            try:
+                if failure is not None:
+                    raise WorkerFailed(failure)
+                if kind == "open":
+                    path, planned, complete, sys.argv[:] = args    # the provenance's command is the recorder's
+                    live = LiveReduction(path, planned=planned)
+                    live.complete(complete)
+                elif kind == "complete":
+                    live.complete(args[0])
+                elif kind == "output":
+                    reply = live.output(args[0])
+                elif kind == "finish":
+                    reply = _scored(live.finish(), live.ctx.data)
+                else:
+                    raise WorkerFailed(f"unknown message {kind!r}")
+            except Exception as exc:            # noqa: BLE001 -- said to the recorder, which reduces itself
+                failure = failure or f"the reduction worker failed: {type(exc).__name__}: {exc}"
+        caught += [(w.category, str(w.message)) for w in seen]
+        if kind in ("output", "finish"):
+            answer = ("error", failure) if failure is not None else ("ok", reply, caught)
+            pickle.dump(answer, out, protocol=pickle.HIGHEST_PROTOCOL)
+            out.flush()
+            caught = []
+        if kind == "finish":
+            return
+
+
+def _scored(res: dict, data) -> dict:
+    from app.reprocess import scored
+    return scored(res, data)
+
+
+def main() -> None:
+    """The worker process: its standard output carries the protocol only (anything printed goes to its standard
+    error), Ctrl-C is the recorder's to handle (the recorder stops the worker)."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    out = os.fdopen(os.dup(sys.stdout.fileno()), "wb")
+    os.dup2(sys.stderr.fileno(), sys.stdout.fileno())
+    serve(sys.stdin.buffer, out)
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,98 @@
+"""The reduction of a session while it is being recorded: each stage runs as soon as every procedure it reads is
+complete, so the results are ready when the last step is saved instead of a reduction's time later.
+
+Why it gives the offline result exactly: a stage reads only the accepted steps of its own procedures and the outputs
+of the stages before it (:mod:`offline.reduction.registry`), and the stages still run one after another in the
+registry's dependency order -- a stage whose procedures are not complete yet holds back the ones after it.  Each
+time stages become ready the steps of the procedures completed since are read from the database as committed, and
+at the end the whole session is read once more (its row, and the steps of anything not read yet) and the results
+document is made from it, as :func:`offline.reduction.run.reduce_session` makes it.  ``tests/test_live_reduction.py`` checks the
+document against the offline reduction of the same database, number for number.
+
+"Complete" is the recorder's word: it knows its plan (which steps each procedure has) and says which procedures
+have every step saved (:meth:`LiveReduction.complete`); a stage with no procedure (a computation on earlier outputs)
+runs when its turn comes.
+"""
+from __future__ import annotations
+
+import time
+from dataclasses import replace
+from collections.abc import Callable, Iterable
+
+from offline.reduction.context import Reduction
+from offline.reduction.registry import Stage
+from offline.reduction.run import migrate_steps, results_document, run_stage, start_reduction
+from offline.reduction.session import SessionData, load_session
+from offline.reduction.stages import all_stages
+
+
+class LiveReduction:
+    """The stages of the session at ``path`` run as its procedures complete (see the module docstring)."""
+
+    def __init__(self, path: str, planned: Iterable[str] | None = None, n_mc: int = 0,
+                 read: Callable[[str, tuple[str, ...] | None], SessionData] = load_session):
+        self.path = path
+        self.read = read                        # how the session is read (a test reads it as it stood earlier)
+        self.n_mc = n_mc
+        self.stages: list[Stage] = all_stages()
+        # the procedures with every planned step saved; one the plan does not have has none to wait for
+        self.done: set[str] = set() if planned is None else \
+            {p for s in self.stages for p in (*s.procedures, *s.reads)} - set(planned)
+        self.next = 0                           # the index of the first stage not run yet
+        self.read_procedures: set[str] = set()  # the procedures whose steps are read
+        self.ctx: Reduction | None = None
+        self.elapsed_s = 0.0                    # the time spent reducing (not waiting for steps)
+
+    def complete(self, procedures: Iterable[str]) -> list[str]:
+        """These procedures have every planned step saved: run the stages that are now ready, in order.  Returns the
+        names of the stages run."""
+        self.done |= set(procedures)
+        ready = []
+        while self.next + len(ready) < len(self.stages) and self._ready(self.stages[self.next + len(ready)]):
+            ready.append(self.stages[self.next + len(ready)])
+        if ready:
+            self._run(ready)
+        return [s.name for s in ready]
+
+    def output(self, name: str) -> tuple[object | None, list[str]]:
+        """The output ``name`` (``identified``: the pose set's model) if its stage has run, and the problems said
+        so far; (None, problems) when the stage ran and gave nothing.  A KeyError when it has not run yet."""
+        if self.ctx is None or not any(s.gives == name for s in self.stages[:self.next]):
+            raise KeyError(f"{name}: its stage has not run yet (procedures still recording)")
+        return self.ctx.outputs.get(name), list(self.ctx.problems)
+
+    def finish(self) -> dict:
+        """Every remaining stage on the session as recorded in the end; the results document (with its ``trace``),
+        as the offline reduction gives it."""
+        self._run(self.stages[self.next:], whole=True)
+        return results_document(self.ctx, self.elapsed_s)
+
+    def _ready(self, stage: Stage) -> bool:
+        return set(stage.procedures) | set(stage.reads) <= self.done
+
+    def _run(self, stages: list[Stage], whole: bool = False) -> None:
+        t0 = time.perf_counter()
+        self._read(whole)
+        for stage in stages:
+            run_stage(self.ctx, stage)
+            self.next += 1
+        self.elapsed_s += time.perf_counter() - t0
+
+    def _read(self, whole: bool = False) -> None:
+        """The steps of the procedures completed since the last read (``whole``: the session as it stands, its row
+        and every step, in the order recorded); the reduction so far keeps its outputs, estimates and located
+        targets, and the steps read before keep their dicts (already in the step vocabulary)."""
+        new = sorted(self.done - self.read_procedures)
+        if not whole and not new:
+            return
+        data = self.read(self.path, None if whole else tuple(new))
+        self.read_procedures |= self.done
+        if self.ctx is None:
+            self.ctx = start_reduction(data, self.n_mc)
+            return
+        known = {st["step_id"]: st for st in self.ctx.data.steps}
+        fresh = [st for st in data.steps if st["step_id"] not in known]
+        migrate_steps(replace(data, steps=fresh), self.ctx.robot)
+        steps = [known.get(st["step_id"], st) for st in data.steps] if whole else \
+            sorted(self.ctx.data.steps + fresh, key=lambda st: st["seq"])
+        self.ctx.read_again(replace(data, steps=steps))
