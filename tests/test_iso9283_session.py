@@ -25,8 +25,8 @@ ROOT = Path(__file__).resolve().parents[1]
 POSES = ["P1", "P2", "P3", "P4", "P5"]
 
 
-def _cli(*args, cwd):
-    env = dict(os.environ, PYTHONPATH=str(ROOT))
+def _cli(*args, cwd, **env_vars):
+    env = dict(os.environ, PYTHONPATH=str(ROOT), **env_vars)
     return subprocess.run([sys.executable, "-m", "app.cli", *args], cwd=cwd, env=env, capture_output=True,
                           text=True, timeout=600)
 
@@ -38,6 +38,30 @@ def demo(tmp_path_factory):
     r = _cli("demo", "--db", str(d / "demo.db"), "--json", str(d / "out.json"), cwd=d)
     assert r.returncode == 0, r.stderr
     return d / "demo.db", json.loads((d / "out.json").read_text()), r.stdout
+
+
+def _without_run_details(res: dict) -> dict:
+    """A results document without what differs between two runs of the same session (time, command, file, id)."""
+    prov = {k: v for k, v in res["provenance"].items()
+            if k not in ("elapsed_s", "reprocessed_unix_s", "command_line", "input_session")}
+    session = {k: v for k, v in res["session"].items() if k not in ("path", "guid")}
+    return {**res, "provenance": prov, "session": session}
+
+
+def test_reduced_while_recording_or_after_it_the_results_are_the_same(demo, tmp_path):
+    """The demo reduces its session in a second process while it records (app.live_reduction); reduced in the
+    recording process after it (ROBOCAL_LIVE_REDUCTION=0, as on one core) the results are the same, and both are
+    what ``robocal reprocess`` makes of the database."""
+    db, live, _ = demo
+    r = _cli("demo", "--db", str(tmp_path / "after.db"), "--json", str(tmp_path / "after.json"), cwd=tmp_path,
+             ROBOCAL_LIVE_REDUCTION="0")
+    assert r.returncode == 0, r.stderr
+    after = json.loads((tmp_path / "after.json").read_text())
+    r = _cli("reprocess", str(db), "--json", str(tmp_path / "again.json"), cwd=tmp_path)
+    assert r.returncode == 0, r.stderr
+    again = json.loads((tmp_path / "again.json").read_text())
+    assert _without_run_details(live) == _without_run_details(after) == _without_run_details(again)
+    assert live["iso9283"]["compensated"]                      # the compensated run was recorded in both
 
 
 def test_json_shape(demo):
