@@ -142,6 +142,8 @@ def serve(inp, out) -> None:
     """The worker's loop: messages from ``inp``, replies to ``out`` (binary streams), until the end of the input or
     ``finish``."""
     from offline.reduction.live import LiveReduction
+    import numpy.ma, numpy.random  # noqa: F401,E401 -- stages reach them through numpy's lazy attributes: loaded
+    # here, while the recorder builds its session, not when the pose set's model is awaited
     live: LiveReduction | None = None
     failure: str | None = None              # a failure while no reply was due: the next reply says it
     caught: list = []

@@ -52,9 +52,10 @@ def session(tmp_path_factory) -> str:
 
 def _as_it_stood(path: str, n: int):
     """The session's reader as the database stood after its first ``n`` accepted steps."""
-    def read(p, procedures=None):
+    def read(p, procedures=None, skip=()):
         data = load_session(p)
-        data.steps = [s for s in data.steps[:n] if procedures is None or s["procedure"] in procedures]
+        data.steps = [s for s in data.steps[:n] if (procedures is None or s["procedure"] in procedures)
+                      and s["procedure"] not in skip]
         return data
     return read
 

@@ -5,8 +5,8 @@ Why it gives the offline result exactly: a stage reads only the accepted steps o
 of the stages before it (:mod:`offline.reduction.registry`), and the stages still run one after another in the
 registry's dependency order -- a stage whose procedures are not complete yet holds back the ones after it.  Each
 time stages become ready the steps of the procedures completed since are read from the database as committed, and
-at the end the whole session is read once more (its row, and the steps of anything not read yet) and the results
-document is made from it, as :func:`offline.reduction.run.reduce_session` makes it.  ``tests/test_live_reduction.py`` checks the
+at the end the session's row and the steps of every procedure not read yet, and the results document is made from
+the whole, as :func:`offline.reduction.run.reduce_session` makes it.  ``tests/test_live_reduction.py`` checks the
 document against the offline reduction of the same database, number for number.
 
 "Complete" is the recorder's word: it knows its plan (which steps each procedure has) and says which procedures
@@ -30,7 +30,7 @@ class LiveReduction:
     """The stages of the session at ``path`` run as its procedures complete (see the module docstring)."""
 
     def __init__(self, path: str, planned: Iterable[str] | None = None, n_mc: int = 0,
-                 read: Callable[[str, tuple[str, ...] | None], SessionData] = load_session):
+                 read: Callable[[str, tuple[str, ...] | None, tuple[str, ...]], SessionData] = load_session):
         self.path = path
         self.read = read                        # how the session is read (a test reads it as it stood earlier)
         self.n_mc = n_mc
@@ -79,20 +79,18 @@ class LiveReduction:
         self.elapsed_s += time.perf_counter() - t0
 
     def _read(self, whole: bool = False) -> None:
-        """The steps of the procedures completed since the last read (``whole``: the session as it stands, its row
-        and every step, in the order recorded); the reduction so far keeps its outputs, estimates and located
-        targets, and the steps read before keep their dicts (already in the step vocabulary)."""
-        new = sorted(self.done - self.read_procedures)
+        """The steps of the procedures completed since the last read (``whole``: the session row and the steps of
+        every procedure not read yet, whatever the plan said); the reduction so far keeps its outputs, estimates,
+        located targets and the steps it read (already in the step vocabulary), in the order recorded."""
+        new = tuple(sorted(self.done - self.read_procedures))
         if not whole and not new:
             return
-        data = self.read(self.path, None if whole else tuple(new))
+        read = tuple(sorted(self.read_procedures))
+        data = self.read(self.path, None, read) if whole else self.read(self.path, new, ())
         self.read_procedures |= self.done
         if self.ctx is None:
             self.ctx = start_reduction(data, self.n_mc)
             return
-        known = {st["step_id"]: st for st in self.ctx.data.steps}
-        fresh = [st for st in data.steps if st["step_id"] not in known]
-        migrate_steps(replace(data, steps=fresh), self.ctx.robot)
-        steps = [known.get(st["step_id"], st) for st in data.steps] if whole else \
-            sorted(self.ctx.data.steps + fresh, key=lambda st: st["seq"])
+        migrate_steps(data, self.ctx.robot)
+        steps = sorted(self.ctx.data.steps + data.steps, key=lambda st: st["seq"])
         self.ctx.read_again(replace(data, steps=steps))

@@ -43,19 +43,19 @@ def _rows(conn, sql, args=()):
     return [dict(zip(cols, r)) for r in cur.fetchall()]
 
 
-def load_session(path: str, procedures: tuple[str, ...] | None = None) -> SessionData:
-    """Every accepted step (of ``procedures`` only, when given) with the readings of its accepted (last) attempt;
-    opened read-only."""
+def load_session(path: str, procedures: tuple[str, ...] | None = None, skip: tuple[str, ...] = ()) -> SessionData:
+    """Every accepted step (of ``procedures`` only, when given; none of ``skip``) with the readings of its accepted
+    (last) attempt; opened read-only."""
     conn = connect_readonly(path)
     try:
-        return _load(conn, path, procedures)
+        return _load(conn, path, procedures, skip)
     except sqlite3.DatabaseError as exc:
         raise StoreError(f"{path}: damaged database ({exc})") from None
     finally:
         conn.close()
 
 
-def _load(conn, path: str, procedures: tuple[str, ...] | None = None) -> SessionData:
+def _load(conn, path: str, procedures: tuple[str, ...] | None = None, skip: tuple[str, ...] = ()) -> SessionData:
     """The rows of :func:`load_session`, each JSON column and array blob checked as it is read."""
     sess = _rows(conn, "SELECT * FROM session ORDER BY session_id LIMIT 1")
     if not sess:
@@ -63,9 +63,9 @@ def _load(conn, path: str, procedures: tuple[str, ...] | None = None) -> Session
     s = sess[0]
     steps = _rows(conn, "SELECT * FROM step WHERE session_id=? AND status='accepted' ORDER BY seq",
                   (s["session_id"],))
-    if procedures is not None:
-        steps = [st for st in steps if st["procedure"] in procedures]
-    scope = (s["session_id"], procedures)
+    steps = [st for st in steps if (procedures is None or st["procedure"] in procedures)
+             and st["procedure"] not in skip]
+    scope = (s["session_id"], procedures, skip)
     readings = _by_step(conn, "reading", "station, target, face, repeat, hz_rad, v_rad", "reading_id", *scope)
     inputs = _by_step(conn, "operator_input", "name, value", "input_id", *scope)
     chunks = _by_step(conn, "encoder_chunk", "counts", "chunk_id", *scope)
@@ -80,15 +80,17 @@ def _load(conn, path: str, procedures: tuple[str, ...] | None = None) -> Session
                        BenchSetup.of(setup_from_text(s["setup_json"], f"{path}: session setup_json")), steps, devices)
 
 
-def _by_step(conn, table: str, columns: str, order: str, session_id: int,
-             procedures: tuple[str, ...] | None) -> dict[int, list[dict]]:
+def _by_step(conn, table: str, columns: str, order: str, session_id: int, procedures: tuple[str, ...] | None,
+             skip: tuple[str, ...]) -> dict[int, list[dict]]:
     """The rows of ``table`` recorded in the accepted (last) attempt of each accepted step (of ``procedures`` only,
-    when given), ``columns`` only, grouped by step in ``order``: one query per table, not one per step (a demo
-    session's 285 steps took 855 queries, a third of the load)."""
+    when given; none of ``skip``), ``columns`` only, grouped by step in ``order``: one query per table, not one per
+    step (a demo session's 285 steps took 855 queries, a third of the load)."""
     only = "" if procedures is None else f" AND s.procedure IN ({', '.join('?' * len(procedures))})"
+    if skip:
+        only += f" AND s.procedure NOT IN ({', '.join('?' * len(skip))})"
     cur = conn.execute(f"SELECT t.step_id, {columns} FROM {table} t JOIN step s ON s.step_id = t.step_id "
                        f"AND t.attempt = s.attempts WHERE s.session_id=? AND s.status='accepted'{only} "
-                       f"ORDER BY t.{order}", (session_id, *(procedures or ())))
+                       f"ORDER BY t.{order}", (session_id, *(procedures or ()), *skip))
     cols = [d[0] for d in cur.description][1:]
     out: dict[int, list[dict]] = {}
     for step_id, *values in cur.fetchall():
