@@ -7,11 +7,13 @@ the recording nothing (the demo's 0.7 s of reprocessing left its critical path).
 session is built, so its imports overlap the recorder's; it reads the session database read-only, as committed
 (the recorder writes it in WAL mode: a reader never blocks it), and never writes.
 
-The protocol: pickled tuples over the worker's standard input and output, the recorder sending ``("open", path,
-planned procedures, complete procedures, its command line)``, ``("complete", procedures)`` as procedures finish, then asking ``("output", name)`` (the
-pose set's model, for ISO 9283's compensated run) and ``("finish",)`` (the results document, scored against the
-twin for an emulated session, as :func:`app.reprocess.reprocess` gives it).  A reply is ``("ok", value, warnings)``
-or ``("error", text)``.  Anything going wrong with the worker -- it could not start, died, or failed -- is a
+The protocol: pickled tuples over the worker's standard input and output.  The recorder sends ``("open", path,
+planned procedures, complete procedures, its command line, wanted outputs)``, ``("complete", procedures)`` as
+procedures finish, ``("awaiting", name)`` when it needs a wanted output, and ``("finish",)``; the worker sends ``("output", name, (value, problems), warnings)`` for each
+wanted output as soon as its stage has run (the pose set's model, for ISO 9283's compensated run: the stages after
+it do not delay it), ``("results", None, document, warnings)`` after ``finish`` (the results document, scored
+against the twin for an emulated session, as :func:`app.reprocess.reprocess` gives it), or ``("error", None, text,
+[])`` when it fails, and then ends.  Anything going wrong with the worker -- it could not start, died, or failed -- is a
 :class:`WorkerFailed`: the recorder says so in one line and reduces the session itself, as before; nothing recorded
 depends on the worker.
 
@@ -91,20 +93,26 @@ class ReductionWorker:
         return cls(subprocess.Popen([sys.executable, "-m", "app.live_reduction"], stdin=subprocess.PIPE,
                                     stdout=subprocess.PIPE))
 
-    def open(self, path: str, tracker: CompletedProcedures) -> None:
-        self._send("open", path, tracker.planned, tracker.complete, sys.argv)
+    def open(self, path: str, tracker: CompletedProcedures, wanted: tuple[str, ...] = ()) -> None:
+        """Reduce the session at ``path`` as ``tracker`` says its procedures complete; each output in ``wanted`` is
+        sent as soon as its stage has run (read it with :meth:`output`)."""
+        self._send("open", path, tracker.planned, tracker.complete, sys.argv, wanted)
 
     def complete(self, procedures: list[str]) -> None:
         if procedures:
             self._send("complete", procedures)
 
     def output(self, name: str):
-        """The output ``name`` of the reduction so far and the problems said: (value or None, problems)."""
-        return self._ask("output", name)
+        """The output ``name`` (one of ``wanted``) and the problems said until it was made: (value or None,
+        problems).  Waits for its stage; a stage that cannot run yet (a procedure it reads is not complete) is a
+        :class:`WorkerFailed`, not a wait for ever."""
+        self._send("awaiting", name)
+        return self._receive(("output", name))
 
     def finish(self) -> dict:
         """The results document of the whole session (its stages not yet run run now)."""
-        return self._ask("finish")
+        self._send("finish")
+        return self._receive(("results", None))
 
     def close(self) -> None:
         """Stop the worker (it is done, or the session was interrupted)."""
@@ -124,62 +132,67 @@ class ReductionWorker:
         except (OSError, ValueError) as exc:
             raise WorkerFailed(f"the reduction worker stopped ({exc})") from None
 
-    def _ask(self, *msg):
-        self._send(*msg)
-        try:
-            reply = pickle.load(self.proc.stdout)
-        except (EOFError, OSError, pickle.UnpicklingError) as exc:
-            raise WorkerFailed(f"the reduction worker stopped (exit status {self.proc.poll()}, {exc or 'no reply'})") \
-                from None
-        if reply[0] != "ok":
-            raise WorkerFailed(reply[1])
-        for category, text in reply[2]:         # the worker's warnings, shown as this process's own
-            warnings.warn(text, category, stacklevel=2)
-        return reply[1]
+    def _receive(self, which: tuple[str, str | None]):
+        """The value of the message ``which`` (kind, name), reading past the ones sent before it (an output sent
+        that nobody waits for any more)."""
+        while True:
+            try:
+                kind, name, value, said = pickle.load(self.proc.stdout)
+            except (EOFError, OSError, ValueError, pickle.UnpicklingError) as exc:
+                raise WorkerFailed(f"the reduction worker stopped (exit status {self.proc.poll()}, "
+                                   f"{exc or 'no reply'})") from None
+            if kind == "error":
+                raise WorkerFailed(value)
+            for category, text in said:         # the worker's warnings, shown as this process's own
+                warnings.warn(text, category, stacklevel=3)
+            if (kind, name) == which:
+                return value
 
 
 def serve(inp, out) -> None:
-    """The worker's loop: messages from ``inp``, replies to ``out`` (binary streams), until the end of the input or
-    ``finish``."""
+    """The worker's loop: messages from ``inp``, messages to ``out`` (binary streams), until the end of the input or
+    ``finish``.  A failure is sent as an ``error`` message and ends the worker."""
     from offline.reduction.live import LiveReduction
     import numpy.ma, numpy.random  # noqa: F401,E401 -- stages reach them through numpy's lazy attributes: loaded
     # here, while the recorder builds its session, not when the pose set's model is awaited
     live: LiveReduction | None = None
-    failure: str | None = None              # a failure while no reply was due: the next reply says it
-    caught: list = []
+    wanted: tuple[str, ...] = ()
+
+    def send(kind: str, name: str | None, value, said: list) -> None:
+        pickle.dump((kind, name, value, said), out, protocol=pickle.HIGHEST_PROTOCOL)
+        out.flush()
+
+    def sent(name: str, value, problems: list[str]) -> None:
+        if name in wanted:
+            send("output", name, (value, problems), [(w.category, str(w.message)) for w in seen])
+            seen.clear()
+
     while True:
         try:
             msg = pickle.load(inp)
         except EOFError:
             return
         kind, args = msg[0], msg[1:]
-        reply = None
         with warnings.catch_warnings(record=True) as seen:
             try:
-                if failure is not None:
-                    raise WorkerFailed(failure)
                 if kind == "open":
-                    path, planned, complete, sys.argv[:] = args    # the provenance's command is the recorder's
-                    live = LiveReduction(path, planned=planned)
+                    # the provenance's command is the recorder's
+                    path, planned, complete, sys.argv[:], wanted = args
+                    live = LiveReduction(path, planned=planned, on_output=sent)
                     live.complete(complete)
                 elif kind == "complete":
                     live.complete(args[0])
-                elif kind == "output":
-                    reply = live.output(args[0])
+                elif kind == "awaiting":            # sent already, or waiting for steps nobody will record now
+                    live.output(args[0])
                 elif kind == "finish":
-                    reply = _scored(live.finish(), live.ctx.data)
+                    res = _scored(live.finish(), live.ctx.data)
+                    send("results", None, res, [(w.category, str(w.message)) for w in seen])
+                    return
                 else:
                     raise WorkerFailed(f"unknown message {kind!r}")
             except Exception as exc:            # noqa: BLE001 -- said to the recorder, which reduces itself
-                failure = failure or f"the reduction worker failed: {type(exc).__name__}: {exc}"
-        caught += [(w.category, str(w.message)) for w in seen]
-        if kind in ("output", "finish"):
-            answer = ("error", failure) if failure is not None else ("ok", reply, caught)
-            pickle.dump(answer, out, protocol=pickle.HIGHEST_PROTOCOL)
-            out.flush()
-            caught = []
-        if kind == "finish":
-            return
+                send("error", None, f"the reduction worker failed: {type(exc).__name__}: {exc}", [])
+                return
 
 
 def _scored(res: dict, data) -> dict:

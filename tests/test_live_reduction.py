@@ -126,7 +126,7 @@ def test_the_worker_process_gives_what_reprocess_gives(session):
     worker = ReductionWorker.spawn()
     try:
         steps = [Step(key=s["key"], procedure=s["procedure"], title="", instruction="") for s in load_session(session).steps]
-        worker.open(session, CompletedProcedures(steps, saved_keys=[s.key for s in steps]))
+        worker.open(session, CompletedProcedures(steps, saved_keys=[s.key for s in steps]), wanted=("identified",))
         model, problems = worker.output("identified")
         got = worker.finish()
     finally:
@@ -140,6 +140,31 @@ def _untrue(model: dict) -> dict:
     """A model document without the twin's truths (an emulated session's results are scored after the reduction)."""
     scored = ("truth", "truth_raw", "note")
     return {**model, "parameters": [{k: v for k, v in p.items() if k not in scored} for p in model["parameters"]]}
+
+
+def test_an_output_sent_that_nobody_reads_is_passed_over(session):
+    worker = ReductionWorker.spawn()
+    try:
+        steps = [Step(key=s["key"], procedure=s["procedure"], title="", instruction="")
+                 for s in load_session(session).steps]
+        worker.open(session, CompletedProcedures(steps, saved_keys=[s.key for s in steps]), wanted=("identified",))
+        got = worker.finish()                           # no compensated run: the model sent is not read
+    finally:
+        worker.close()
+    assert got["session"]["steps_accepted"] == len(steps) and got["robot"] is not None
+
+
+def test_an_output_that_cannot_be_made_yet_is_a_failure_not_a_wait(session):
+    worker = ReductionWorker.spawn()
+    try:
+        steps = [Step(key=s["key"], procedure=s["procedure"], title="", instruction="")
+                 for s in load_session(session).steps]
+        not_coupling = [s.key for s in steps if s.procedure != "coupling"]   # the pose set reads the coupling steps
+        worker.open(session, CompletedProcedures(steps, saved_keys=not_coupling), wanted=("identified",))
+        with pytest.raises(WorkerFailed, match="identified"):
+            worker.output("identified")
+    finally:
+        worker.close()
 
 
 def test_a_failing_worker_says_why_in_words(tmp_path):

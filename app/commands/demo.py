@@ -164,7 +164,7 @@ class _Live:
                 if ev.kind in ("step_saved", "step_skipped_done") and self.worker is not None:
                     self._guard(lambda: self.worker.complete(tracker.saved(ev.data["key"])))
 
-            self._guard(lambda: worker.open(db, tracker))
+            self._guard(lambda: worker.open(db, tracker, wanted=("identified",)))
             demo.runner.subscribe(saw)
 
     def model(self) -> dict | None:

@@ -30,8 +30,12 @@ class LiveReduction:
     """The stages of the session at ``path`` run as its procedures complete (see the module docstring)."""
 
     def __init__(self, path: str, planned: Iterable[str] | None = None, n_mc: int = 0,
-                 read: Callable[[str, tuple[str, ...] | None, tuple[str, ...]], SessionData] = load_session):
+                 read: Callable[[str, tuple[str, ...] | None, tuple[str, ...]], SessionData] = load_session,
+                 on_output: Callable[[str, object, list[str]], None] | None = None):
         self.path = path
+        # called with (name, value, problems so far) as soon as the stage giving an output has run: whoever waits
+        # for one output (the pose set's model) has it before the stages after it run
+        self.on_output = on_output
         self.read = read                        # how the session is read (a test reads it as it stood earlier)
         self.n_mc = n_mc
         self.stages: list[Stage] = all_stages()
@@ -76,6 +80,8 @@ class LiveReduction:
         for stage in stages:
             run_stage(self.ctx, stage)
             self.next += 1
+            if stage.gives and self.on_output is not None:
+                self.on_output(stage.gives, self.ctx.outputs.get(stage.gives), list(self.ctx.problems))
         self.elapsed_s += time.perf_counter() - t0
 
     def _read(self, whole: bool = False) -> None:
