@@ -20,8 +20,6 @@ from calib.effects import PoseContext
 from calib.errors import RobocalError
 
 from acq.session.steps import Step
-from offline.reduction.run import reduce_for
-from offline.reduction.session import load_session
 
 #: the compensated command must put the calibrated model's target this close to the cube point (mm)
 COMMAND_TOL_MM = 0.01
@@ -63,6 +61,8 @@ class CompensatedCommands:
         """The model the calibration core identifies from the session's pose set as recorded so far."""
         if self.store is None:
             raise RobocalError("iso9283: no calibrated model: the session has no store to identify one from")
+        from offline.reduction.run import reduce_for        # the reduction, only in a process that reduces
+        from offline.reduction.session import load_session
         ctx = reduce_for(load_session(str(self.store.path)), "identified")
         doc = ctx.outputs.get("identified")
         if doc is None:
@@ -98,6 +98,8 @@ def iso_after_compensated_run(res: dict, db: str) -> None:
     """``res`` (a reduction's results, before the compensated run was recorded) with the ISO 9283 figures of both runs
     and the step counts as the database now holds them: the ruler's stations and the ISO 9283 stage reduced again
     (:func:`offline.reduction.run.reduce_for`), nothing else -- the other stages' steps did not change."""
+    from offline.reduction.run import reduce_for            # the reduction, only in a process that reduces
+    from offline.reduction.session import load_session
     data = load_session(db, ("ruler", "iso9283"))
     ctx = reduce_for(data, "iso9283")
     res["iso9283"] = ctx.outputs.get("iso9283")
