@@ -29,6 +29,7 @@ import subprocess
 import sys
 import warnings
 from collections.abc import Iterable
+from pathlib import Path
 
 from calib.threads import usable_cores
 
@@ -89,9 +90,12 @@ class ReductionWorker:
 
     @classmethod
     def spawn(cls) -> "ReductionWorker":
-        """The worker process, started now (this interpreter running :func:`main`)."""
+        """The worker process, started now: this interpreter running :func:`main` of this very code (its folder first
+        on the worker's path, whatever the environment would import)."""
+        root = str(Path(__file__).resolve().parents[1])
+        env = dict(os.environ, PYTHONPATH=os.pathsep.join(filter(None, [root, os.environ.get("PYTHONPATH")])))
         return cls(subprocess.Popen([sys.executable, "-m", "app.live_reduction"], stdin=subprocess.PIPE,
-                                    stdout=subprocess.PIPE))
+                                    stdout=subprocess.PIPE, env=env))
 
     def open(self, path: str, tracker: CompletedProcedures, wanted: tuple[str, ...] = ()) -> None:
         """Reduce the session at ``path`` as ``tracker`` says its procedures complete; each output in ``wanted`` is
