@@ -62,7 +62,10 @@ def _as_it_stood(path: str, n: int):
 
 def test_stages_run_as_procedures_complete_and_give_the_offline_results(session):
     order = [s["procedure"] for s in load_session(session).steps]
-    live = LiveReduction(session, planned=list(dict.fromkeys(order)))
+    handed: list[tuple] = []
+    live = LiveReduction(session, planned=list(dict.fromkeys(order)),
+                         on_output=lambda name, value, problems: handed.append(
+                             (name, value, "accuracy" in live.ctx.figs)))
     ran_before_the_end: list[str] = []
     for i, proc in enumerate(order):
         if proc not in order[i + 1:]:                   # its last step: the procedure is complete
@@ -75,6 +78,11 @@ def test_stages_run_as_procedures_complete_and_give_the_offline_results(session)
     want = reduce_session(session)
     assert _equal(got, want) == []
     assert model == want["robot"]
+    names = [h[0] for h in handed]
+    assert sorted(names) == sorted({"stations", "axes", "compliance", "transmission", "identified", "iso9283"})
+    assert len(names) == len(set(names))               # each output handed on once
+    identified = next(h for h in handed if h[0] == "identified")
+    assert identified[1] == want["robot"] and not identified[2]    # the model before the held-out accuracy
 
 
 def test_an_output_not_reduced_yet_is_a_key_error(session):

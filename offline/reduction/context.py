@@ -7,6 +7,7 @@ themselves (the joint readings of the pose set, the torques a stiffness was fitt
 """
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -68,6 +69,9 @@ class Reduction:
     trace: dict = field(default_factory=dict)
     outputs: dict = field(default_factory=dict)
     _located: Located | None = None
+    # told (name, value, problems so far) when a stage has an output ready before it ends: whoever waits for it (a
+    # reduction while the session records: the pose set's model for ISO 9283's compensated run) has it now
+    on_output: Callable[[str, object, list[str]], None] | None = None
 
     def steps_of(self, procedures: tuple[str, ...]) -> list[dict]:
         """The accepted steps of these procedures, in the order recorded."""
@@ -86,6 +90,11 @@ class Reduction:
         self.data = data
         if self._located is not None:
             self._located.steps = data.steps
+
+    def gave(self, name: str, value) -> None:
+        """Stage output ``name`` is ready before the rest of its stage (see ``on_output``)."""
+        if self.on_output is not None:
+            self.on_output(name, value, list(self.problems))
 
     def said(self, text: str) -> None:
         """A problem a stage met on part of its data (the rest of it still counts)."""

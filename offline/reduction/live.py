@@ -45,6 +45,7 @@ class LiveReduction:
         self.next = 0                           # the index of the first stage not run yet
         self.read_procedures: set[str] = set()  # the procedures whose steps are read
         self.ctx: Reduction | None = None
+        self.sent: set[str] = set()             # the outputs handed to on_output already
         self.elapsed_s = 0.0                    # the time spent reducing (not waiting for steps)
 
     def complete(self, procedures: Iterable[str]) -> list[str]:
@@ -71,6 +72,11 @@ class LiveReduction:
         self._run(self.stages[self.next:], whole=True)
         return results_document(self.ctx, self.elapsed_s)
 
+    def _gave(self, name: str, value, problems: list[str]) -> None:
+        if self.on_output is not None and name not in self.sent:
+            self.sent.add(name)
+            self.on_output(name, value, problems)
+
     def _ready(self, stage: Stage) -> bool:
         return set(stage.procedures) | set(stage.reads) <= self.done
 
@@ -80,8 +86,8 @@ class LiveReduction:
         for stage in stages:
             run_stage(self.ctx, stage)
             self.next += 1
-            if stage.gives and self.on_output is not None:
-                self.on_output(stage.gives, self.ctx.outputs.get(stage.gives), list(self.ctx.problems))
+            if stage.gives:
+                self._gave(stage.gives, self.ctx.outputs.get(stage.gives), list(self.ctx.problems))
         self.elapsed_s += time.perf_counter() - t0
 
     def _read(self, whole: bool = False) -> None:
@@ -96,6 +102,7 @@ class LiveReduction:
         self.read_procedures |= self.done
         if self.ctx is None:
             self.ctx = start_reduction(data, self.n_mc)
+            self.ctx.on_output = self._gave     # a stage's output ready before the stage ends is handed on then
             return
         migrate_steps(data, self.ctx.robot)
         steps = sorted(self.ctx.data.steps + data.steps, key=lambda st: st["seq"])

@@ -82,9 +82,11 @@ def reduce_poses(ctx: Reduction, steps: list[dict]) -> dict | None:
                          "rms_mm": float(ident.residual_rms), "held": [n for n in wanted if n not in ident.free],
                          "points_mm": P.tolist(), "running_errors": list(specs)}
     ctx.trace["poses"] = {"q_rad": q}
+    doc = model_document(model, ident)
+    ctx.gave("identified", doc)             # the model is ready: the held-out accuracy below does not change it
     if ctx.held_out:
         accuracy(ctx, model, obs, ident.free, theta0, priors, ident.theta)
-    return model_document(model, ident)
+    return doc
 
 
 STAGE = Stage("poses", reduce_poses, procedures=("poses",), needs=("stations", "transmission", "compliance"),
