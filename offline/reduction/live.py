@@ -21,7 +21,7 @@ from collections.abc import Callable, Iterable
 
 from offline.reduction.context import Reduction
 from offline.reduction.registry import Stage
-from offline.reduction.run import migrate_steps, results_document, run_stage, start_reduction
+from offline.reduction.run import code_provenance, migrate_steps, results_document, run_stage, start_reduction
 from offline.reduction.session import SessionData, load_session
 from offline.reduction.stages import all_stages
 
@@ -46,6 +46,7 @@ class LiveReduction:
         self.read_procedures: set[str] = set()  # the procedures whose steps are read
         self.ctx: Reduction | None = None
         self.sent: set[str] = set()             # the outputs handed to on_output already
+        self.code: dict | None = None           # the results' code provenance
         self.elapsed_s = 0.0                    # the time spent reducing (not waiting for steps)
 
     def complete(self, procedures: Iterable[str]) -> list[str]:
@@ -70,7 +71,7 @@ class LiveReduction:
         """Every remaining stage on the session as recorded in the end; the results document (with its ``trace``),
         as the offline reduction gives it."""
         self._run(self.stages[self.next:], whole=True)
-        return results_document(self.ctx, self.elapsed_s)
+        return results_document(self.ctx, self.elapsed_s, self.code)
 
     def _gave(self, name: str, value, problems: list[str]) -> None:
         if self.on_output is not None and name not in self.sent:
@@ -103,6 +104,7 @@ class LiveReduction:
         if self.ctx is None:
             self.ctx = start_reduction(data, self.n_mc)
             self.ctx.on_output = self._gave     # a stage's output ready before the stage ends is handed on then
+            self.code = code_provenance(data)   # asked now, not when the last step is saved
             return
         migrate_steps(data, self.ctx.robot)
         steps = sorted(self.ctx.data.steps + data.steps, key=lambda st: st["seq"])

@@ -114,17 +114,23 @@ def reduce_session(session: str | SessionData, n_mc: int = 0, progress=None) -> 
     return results_document(ctx, time.perf_counter() - t0)
 
 
-def results_document(ctx: Reduction, elapsed_s: float) -> dict:
-    """The results document of a reduction whose every stage has run (see the module docstring)."""
+def code_provenance(data: SessionData) -> dict:
+    """The results' provenance that does not depend on the reduction: the code, the robot description, the command
+    (git and the package metadata asked: a reduction while the session records asks them early)."""
+    return {**provenance(data.setup.robot or None, None), "code_version": code_version()}
+
+
+def results_document(ctx: Reduction, elapsed_s: float, code: dict | None = None) -> dict:
+    """The results document of a reduction whose every stage has run (see the module docstring); ``code``: its
+    :func:`code_provenance`, when asked already."""
     data, robot, n_mc = ctx.data, ctx.robot, ctx.n_mc
     by_proc = data.by_procedure()
     return {
         "session": {"guid": data.session["guid"], "title": data.session["title"], "path": data.path,
                     "exit_status": data.session["exit_status"], "steps_accepted": len(data.steps),
                     "procedures": {name: len(sts) for name, sts in by_proc.items()}},
-        "provenance": {**provenance(data.setup.robot or None, None), "code_version": code_version(),
-                       "reprocessed_unix_s": time.time(), "input_session": data.session["guid"], "n_mc": n_mc,
-                       "elapsed_s": elapsed_s},
+        "provenance": {**(code or code_provenance(data)), "reprocessed_unix_s": time.time(),
+                       "input_session": data.session["guid"], "n_mc": n_mc, "elapsed_s": elapsed_s},
         "estimates": ctx.est.items,
         "bounds": ctx.est.bounds,
         "accuracy": {k: v for k, v in ctx.figs.get("accuracy", {}).items() if not k.endswith(("_err_mm", "_index"))}
