@@ -28,7 +28,8 @@ import signal
 import subprocess
 import sys
 import warnings
-from collections.abc import Iterable
+from collections.abc import Callable, Iterable
+from typing import ContextManager
 from pathlib import Path
 
 from calib.threads import usable_cores
@@ -69,6 +70,76 @@ class CompletedProcedures:
             return []
         del self.left[proc]
         return [proc]
+
+
+class SessionReduction:
+    """A recording session's reduction, for any front end (the demo, the TUI): by a worker process while the runner
+    records (``worker``, see the module docstring), else -- no worker, or it failed -- by this process when asked.
+    ``tell``: how a failing worker is said to the operator (one line); ``progress``: a context manager giving a
+    progress callback for a reduction in this process (None: none shown)."""
+
+    def __init__(self, runner, db: str, worker: ReductionWorker | None, tell: Callable[[str], None] | None = None,
+                 progress: Callable[[], ContextManager] | None = None):
+        self.worker, self.db = worker, db
+        self.tell = tell or _say
+        self.progress = progress
+        self._before: dict | None = None        # without a worker: the reduction made before the compensated run
+        if worker is not None:
+            tracker = CompletedProcedures(runner.steps, runner.store.done_keys())
+
+            def saw(ev) -> None:
+                if ev.kind in ("step_saved", "step_skipped_done") and self.worker is not None:
+                    self._guard(lambda: self.worker.complete(tracker.saved(ev.data["key"])))
+
+            self._guard(lambda: worker.open(db, tracker, wanted=("identified",)))
+            runner.subscribe(saw)
+
+    def model(self) -> dict | None:
+        """The pose set's calibrated model document (None: the pose set gave none)."""
+        if self.worker is not None:
+            got = self._guard(lambda: self.worker.output("identified"))
+            if got is not None:
+                return got[0]
+        self._before = self._reprocess()
+        return self._before.get("robot")
+
+    def results(self) -> dict:
+        """The results document of the session as recorded."""
+        if self.worker is not None:
+            got = self._guard(self.worker.finish)
+            if got is not None:
+                return got
+        if self._before is not None:            # reduced before the compensated run: only ISO 9283's figures change
+            from offline.iso_commands import iso_after_compensated_run
+            iso_after_compensated_run(self._before, self.db)
+            return self._before
+        return self._reprocess()
+
+    def close(self) -> None:
+        if self.worker is not None:
+            self.worker.close()
+
+    def _reprocess(self) -> dict:
+        from app.reprocess import reprocess
+        if self.progress is None:
+            return reprocess(self.db)
+        with self.progress() as update:
+            return reprocess(self.db, progress=update)
+
+    def _guard(self, call):
+        """``call()``; a failing worker is said in one line and left: this process reduces instead."""
+        try:
+            return call()
+        except WorkerFailed as exc:
+            self.tell(f"{exc}; the session is reduced in this process instead")
+            self.worker.close()
+            self.worker = None
+            return None
+
+
+def _say(text: str) -> None:
+    from app.interrupt import say
+    say(text)
 
 
 class ReductionWorker:

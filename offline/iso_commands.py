@@ -11,6 +11,7 @@ points are the targets in both runs, so the two runs differ only by the model th
 """
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import replace
 
 import numpy as np
@@ -31,9 +32,13 @@ class CompensatedCommands:
     ``store``: the session's store (the pose set is read from it when the first compensated step is reached);
     ``model_path``: a calibrated model JSON to use instead.  The model and each pose's command are computed once."""
 
-    def __init__(self, store=None, model_path: str | None = None):
+    def __init__(self, store=None, model_path: str | None = None,
+                 identified: Callable[[], dict | None] | None = None):
         self.store = store
         self.model_path = model_path
+        # the pose set's model document from the reduction running beside the session (app.live_reduction.
+        # SessionReduction.model; None: the pose set gave none); without it, identified here from the store
+        self.identified = identified
         self._model: IdentifiedModel | None = None
         self._commands: dict[tuple, tuple[tuple, tuple]] = {}
 
@@ -59,6 +64,12 @@ class CompensatedCommands:
 
     def _identified(self) -> IdentifiedModel:
         """The model the calibration core identifies from the session's pose set as recorded so far."""
+        if self.identified is not None:
+            doc = self.identified()
+            if doc is None:
+                raise RobocalError("iso9283: no calibrated model to compensate with: the session's pose set gives none "
+                                   "(the results' problems say why)")
+            return model_from_document(doc, "the session's pose set")
         if self.store is None:
             raise RobocalError("iso9283: no calibrated model: the session has no store to identify one from")
         from offline.reduction.run import reduce_for        # the reduction, only in a process that reduces

@@ -186,3 +186,23 @@ def test_a_failing_worker_says_why_in_words(tmp_path):
         worker.close()
     with pytest.raises(WorkerFailed, match="stopped"):
         worker.finish()                                 # a closed worker: said, not a hang
+
+
+def test_a_session_run_in_one_go_commands_iso_9283_with_the_model_reduced_beside_it(tmp_path):
+    """The TUI's wiring (app.commands.session): one run of every step, the compensated commands from the model the
+    worker identified, the results from the worker -- the offline reduction's, number for number."""
+    from app.commands.session import _reduced_beside
+    from app.demo import build_demo
+    db = str(tmp_path / "s.db")
+    d = build_demo(db, seed=1)
+    reduction = _reduced_beside(d.runner, db, ReductionWorker.spawn())
+    try:
+        assert d.runner.command.identified == reduction.model
+        assert d.runner.run() == "finished"
+        got = reduction.results()
+        assert reduction.worker is not None                 # the worker made them: it never failed
+    finally:
+        d.close()
+        reduction.close()
+    assert got["iso9283"]["compensated"]
+    assert _equal(got, reprocess(db)) == []

@@ -14,7 +14,7 @@ from calib.errors import RobocalError
 from calib.fileio import atomic_write_text
 from acq.argtypes import add_robot_argument, output_dir, output_file, seed_int, te_joints
 from app.interrupt import HungUp, command_line, exit_status, hangups_interrupt, kept_text, report_text, say
-from app.live_reduction import CompletedProcedures, ReductionWorker, WorkerFailed
+from app.live_reduction import ReductionWorker, SessionReduction
 
 NAME = "demo"
 HELP = "record an emulated calibration session of every procedure, then reprocess it"
@@ -116,7 +116,7 @@ def _record(demo, db: Path, resume: str, worker: ReductionWorker | None, t0: flo
     pp = ProgressPrinter()
     res = None
     every = demo.runner.steps
-    live = _Live(worker, demo, str(db))
+    live = SessionReduction(demo.runner, str(db), worker, progress=_reprocessing)
     try:
         with hangups_interrupt():
             with progress_display("recording session", after_s=0.5) as update:
@@ -150,64 +150,14 @@ def _record(demo, db: Path, resume: str, worker: ReductionWorker | None, t0: flo
     return res if res is not None else live.results()
 
 
-class _Live:
-    """The session's reduction: by the worker while the session records, else (no worker, or it failed) by this
-    process when asked."""
-
-    def __init__(self, worker: ReductionWorker | None, demo, db: str):
-        self.worker, self.db = worker, db
-        self._before: dict | None = None        # without a worker: the reduction made before the compensated run
-        if worker is not None:
-            tracker = CompletedProcedures(demo.runner.steps, demo.store.done_keys())
-
-            def saw(ev) -> None:
-                if ev.kind in ("step_saved", "step_skipped_done") and self.worker is not None:
-                    self._guard(lambda: self.worker.complete(tracker.saved(ev.data["key"])))
-
-            self._guard(lambda: worker.open(db, tracker, wanted=("identified",)))
-            demo.runner.subscribe(saw)
-
-    def model(self) -> dict | None:
-        """The pose set's calibrated model document (None: the pose set gave none)."""
-        if self.worker is not None:
-            got = self._guard(lambda: self.worker.output("identified"))
-            if got is not None:
-                return got[0]
-        self._before = self._reprocess()
-        return self._before.get("robot")
-
-    def results(self) -> dict:
-        """The results document of the session as recorded."""
-        if self.worker is not None:
-            got = self._guard(self.worker.finish)
-            if got is not None:
-                return got
-        if self._before is not None:            # reduced before the compensated run: only ISO 9283's figures change
-            from offline.iso_commands import iso_after_compensated_run
-            iso_after_compensated_run(self._before, self.db)
-            return self._before
-        return self._reprocess()
-
-    def _reprocess(self) -> dict:
-        from acq.progress import progress_display
-        from app.reprocess import reprocess
-        with progress_display("reprocessing", after_s=0.5) as update:
-            return reprocess(self.db, progress=update)
-
-    def _guard(self, call):
-        """``call()``; a failing worker is said in one line and left: this process reduces instead."""
-        try:
-            return call()
-        except WorkerFailed as exc:
-            say(f"{exc}; the session is reduced in this process instead")
-            self.worker.close()
-            self.worker = None
-            return None
+def _reprocessing():
+    from acq.progress import progress_display
+    return progress_display("reprocessing", after_s=0.5)
 
 
-def _compensated_run(demo, every: list, live: _Live) -> tuple[dict | None, str]:
+def _compensated_run(demo, every: list, live: SessionReduction) -> tuple[dict | None, str]:
     """ISO 9283 with compensation on, as a calibrated controller runs it: the model the session's pose set
-    identifies (:class:`_Live`), the remaining steps commanded by that model (:class:`offline.iso_commands.
+    identifies (:class:`app.live_reduction.SessionReduction`), the remaining steps commanded by that model (:class:`offline.iso_commands.
     CompensatedCommands`); the results are then the whole session's reduction -- the calibration itself is not
     repeated.  Returns the results when already made (no model: no compensated run) and the runner's final state."""
     doc = live.model()

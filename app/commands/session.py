@@ -20,6 +20,7 @@ from calib.errors import RobocalError
 from calib.fileio import atomic_write_text
 from acq.argtypes import add_robot_argument, output_file, seed_int, te_joints
 from app.interrupt import EXIT_HUNG_UP, EXIT_INTERRUPTED, command_line, report_text, say
+from app.live_reduction import ReductionWorker, SessionReduction
 
 NAME = "session"
 HELP = "guide the operator through a calibration session (Textual TUI)"
@@ -73,12 +74,34 @@ def emulated_builder(db: str, seed: int, only: list[str] | tuple = (), te_joints
 
     def build(operator):
         resume = Path(db).exists() and Path(db).stat().st_size > 0
-        rig = build_demo(db, seed=seed, resume=resume, operator=operator, steps_filter=keep, te_joints=te_joints,
-                         clock=RealClock(), robot=None if resume else robot)
-        return SessionHandle(rig.runner, rig.close, f"emulated {rig.twin.robot.name} — {db}", db,
-                             identities=rig.runner.rig.identities())
+        worker = ReductionWorker.start()            # its imports overlap the session's building
+        try:
+            rig = build_demo(db, seed=seed, resume=resume, operator=operator, steps_filter=keep,
+                             te_joints=te_joints, clock=RealClock(), robot=None if resume else robot)
+        except BaseException:
+            if worker is not None:
+                worker.close()
+            raise
+        reduction = _reduced_beside(rig.runner, db, worker)
+
+        def close():
+            rig.close()
+            reduction.close()
+
+        return SessionHandle(rig.runner, close, f"emulated {rig.twin.robot.name} — {db}", db,
+                             identities=rig.runner.rig.identities(), reduction=reduction)
 
     return build
+
+
+def _reduced_beside(runner, db: str, worker):
+    """The session's reduction beside the runner (:class:`app.live_reduction.SessionReduction`): its results when
+    the session ends, and the pose set's model for ISO 9283's compensated commands; a failing worker is said in the
+    session's log."""
+    reduction = SessionReduction(runner, db, worker, tell=lambda text: runner.emit("log", text=text))
+    if runner.command is not None and getattr(runner.command, "identified", False) is None:
+        runner.command.identified = reduction.model
+    return reduction
 
 
 def parse_theodolite(text: str) -> tuple[str, str, str]:
@@ -194,6 +217,7 @@ def real_builder(db: str, theodolites: list[str], tap: str | None, setup_path: s
     def build(operator):
         drivers = {}
         tap_dev = None
+        worker = ReductionWorker.start()            # its imports overlap the devices' opening
         try:
             for st, kind, url in specs:
                 drivers[st] = open_theodolite(kind, url, name=f"theodolite {st}")
@@ -202,6 +226,8 @@ def real_builder(db: str, theodolites: list[str], tap: str | None, setup_path: s
         except Exception:
             for d in drivers.values():
                 d.close()
+            if worker is not None:
+                worker.close()
             raise
         rig = Rig(drivers, tap_dev)
         rig.start()
@@ -224,11 +250,14 @@ def real_builder(db: str, theodolites: list[str], tap: str | None, setup_path: s
                         preflight=Preflight(robot, bench),
                         command=CompensatedCommands(store, (plan_d.get("iso9283") or {}).get("model") or None))
 
+        reduction = _reduced_beside(runner, db, worker)
+
         def close():
             rig.close()
             store.close()
+            reduction.close()
 
-        return SessionHandle(runner, close, f"{db}", db, identities=identities)
+        return SessionHandle(runner, close, f"{db}", db, identities=identities, reduction=reduction)
 
     return build
 

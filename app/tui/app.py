@@ -77,6 +77,7 @@ class SessionHandle:
     title: str
     db_path: str = ""
     identities: list = None        # (role, driver, url, identity) read once by the builder, before the runner starts
+    reduction: object = None       # app.live_reduction.SessionReduction: the results (None: reprocessed at the end)
 
 
 Builder = Callable[[TuiOperator], SessionHandle]
@@ -438,7 +439,8 @@ class RobocalApp(App):
             msg = f"[b green]Session {status}.[/] Data: {where}\n{report_text(where)}"
             if status == "success" and where and self.final_results:
                 msg += "\nComputing the results…"
-                threading.Thread(target=self._final_results, args=(where,), daemon=True).start()
+                reduction = self.handle.reduction if self.handle else None
+                threading.Thread(target=self._final_results, args=(where, reduction), daemon=True).start()
         self.query_one("#step", Static).update(msg + "\n\nPress q to quit.")
         self.query_one("#prompt", Static).update("")
         self._refresh_keys()
@@ -449,13 +451,14 @@ class RobocalApp(App):
         resume = self.resume_command or "the same robocal session command, same --db"
         return kept_text(self.progress.steps_done, self.progress.steps_total, where, resume)
 
-    def _final_results(self, db: str) -> None:
-        """Reprocess the finished session (read-only) and write its report, off the UI thread."""
+    def _final_results(self, db: str, reduction=None) -> None:
+        """The finished session's results -- from the reduction that ran beside it, else reprocessed (read-only) --
+        and its report, off the UI thread."""
         try:
             from offline.report import write_report
             from app.reprocess import reprocess
 
-            res = reprocess(db)
+            res = reduction.results() if reduction is not None else reprocess(db)
             out = str(Path(db).with_suffix("")) + "_report"
             write_report(res, out)
         except Exception as exc:                            # noqa: BLE001 - results are a convenience here
