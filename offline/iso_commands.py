@@ -72,7 +72,8 @@ class CompensatedCommands:
             return model_from_document(doc, "the session's pose set")
         if self.store is None:
             raise RobocalError("iso9283: no calibrated model: the session has no store to identify one from")
-        from offline.reduction.run import reduce_for        # the reduction, only in a process that reduces
+        # the reduction (20 ms of imports) only in a process that reduces: the demo's recorder hands it to a worker
+        from offline.reduction.run import reduce_for
         from offline.reduction.session import load_session
         ctx = reduce_for(load_session(str(self.store.path)), "identified")
         doc = ctx.outputs.get("identified")
@@ -109,7 +110,8 @@ def iso_after_compensated_run(res: dict, db: str) -> None:
     """``res`` (a reduction's results, before the compensated run was recorded) with the ISO 9283 figures of both runs
     and the step counts as the database now holds them: the ruler's stations and the ISO 9283 stage reduced again
     (:func:`offline.reduction.run.reduce_for`), nothing else -- the other stages' steps did not change."""
-    from offline.reduction.run import reduce_for            # the reduction, only in a process that reduces
+    # the reduction (20 ms of imports) only in a process that reduces: the demo's recorder hands it to a worker
+    from offline.reduction.run import reduce_for
     from offline.reduction.session import load_session
     data = load_session(db, ("ruler", "iso9283"))
     ctx = reduce_for(data, "iso9283")
