@@ -44,6 +44,23 @@ def test_emulator_packing_agrees_with_dbc(seq, t, counts, flags):
     assert got == [(0, counts[0:2]), (2, counts[2:4]), (4, counts[4:6])]
 
 
+
+def test_kept_decodings_equal_cantools_every_time():
+    """The codec keeps each distinct data frame's decoding (a pose repeats its frames): every answer, repeated, new
+    or after the memo filled and started again, equals cantools' decoding of that frame by a fresh codec."""
+    from acq.encoders import can_codec
+    rng = np.random.default_rng(7)
+    kept, fresh = TapCanCodec(), TapCanCodec()
+    pool = [(fid, rng.integers(0, 256, 8, dtype=np.uint8).tobytes()) for fid in (0x100, 0x101, 0x102) for _ in range(40)]
+    frames = [pool[i] for i in rng.integers(0, len(pool), 3000)]
+    frames += [(0x101, int(i).to_bytes(8, "little", signed=True)) for i in range(can_codec.MEMO_FRAMES + 50)]
+    frames += frames[:500] + [(fid, bytes(8)) for fid in (0x100, 0x101, 0x102, 0x100)]      # same bytes, other ids
+    for fid, data in frames:
+        assert kept.decode_data(fid, data) == fresh._decode_data(fid, data)
+    assert 0 < len(kept._memo) <= can_codec.MEMO_FRAMES
+    with pytest.raises(KeyError):
+        kept.decode_data(0x7FF, bytes(8))
+
 @settings(max_examples=50)
 @given(st.lists(st.floats(-2.5, 2.5), min_size=6, max_size=6))
 def test_counts_joint_round_trip(q):
