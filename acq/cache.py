@@ -14,6 +14,7 @@ from __future__ import annotations
 import functools
 import hashlib
 import io
+import json
 import os
 import warnings
 from pathlib import Path
@@ -55,11 +56,9 @@ def cached_array(kind: str, inputs: bytes, compute: Callable[[], np.ndarray],
     """``compute()``'s array, from the cache when this ``kind`` was computed for the same ``inputs`` (bytes that
     name them exactly) and the same source; computed and stored otherwise.  ``shape``: what a stored entry must be
     (a finite float array of it), else it is computed again -- a damaged or tampered file is never used."""
-    folder = cache_dir()
-    if folder is None:
+    path = _entry(kind, inputs, "npy")
+    if path is None:
         return compute()
-    key = hashlib.sha256(b"\0".join([kind.encode(), code_fingerprint().encode(), inputs])).hexdigest()
-    path = folder / f"{kind}-{key[:32]}.npy"
     try:
         kept = np.load(path, allow_pickle=False)
         if shape is None or (kept.shape == tuple(shape) and kept.dtype.kind == "f" and np.all(np.isfinite(kept))):
@@ -67,14 +66,46 @@ def cached_array(kind: str, inputs: bytes, compute: Callable[[], np.ndarray],
     except (OSError, ValueError, EOFError):     # absent, or not a whole .npy (then computed and written again)
         pass
     value = np.asarray(compute())
-    try:
-        folder.mkdir(parents=True, exist_ok=True)
-        buf = io.BytesIO()
-        np.save(buf, value, allow_pickle=False)
-        atomic_write_bytes(path, buf.getvalue())
-    except Exception as exc:    # a read-only or full disk: the value is still right, only not kept -- and said once
-        _warn_unwritable(folder, exc)
+    buf = io.BytesIO()
+    np.save(buf, value, allow_pickle=False)
+    _store(path, buf.getvalue())
     return value
+
+
+def cached_json(kind: str, inputs: bytes, compute: Callable[[], dict]) -> dict:
+    """``compute()``'s JSON document (a dict), from the cache as :func:`cached_array` keeps an array.  The answer
+    is the document read back from its JSON text on a miss too, so the first run and the next ones hand their
+    caller the very same value (a tuple computed is a list either way).  A stored entry that is not a JSON object
+    is computed again."""
+    path = _entry(kind, inputs, "json")
+    if path is not None:
+        try:
+            kept = json.loads(path.read_bytes())
+            if isinstance(kept, dict):
+                return kept
+        except (OSError, ValueError):             # absent, or not whole JSON
+            pass
+    text = json.dumps(compute()).encode()
+    if path is not None:
+        _store(path, text)
+    return json.loads(text)
+
+
+def _entry(kind: str, inputs: bytes, suffix: str) -> Path | None:
+    """Where the cache keeps ``kind`` for ``inputs`` and this source (None: the cache is off)."""
+    folder = cache_dir()
+    if folder is None:
+        return None
+    key = hashlib.sha256(b"\0".join([kind.encode(), code_fingerprint().encode(), inputs])).hexdigest()
+    return folder / f"{kind}-{key[:32]}.{suffix}"
+
+
+def _store(path: Path, data: bytes) -> None:
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        atomic_write_bytes(path, data)
+    except Exception as exc:    # a read-only or full disk: the value is still right, only not kept -- and said once
+        _warn_unwritable(path.parent, exc)
 
 
 _WARNED: set[Path] = set()

@@ -24,7 +24,7 @@ from pathlib import Path
 
 import numpy as np
 
-from acq.cache import cached_array
+from acq.cache import cached_array, cached_json
 from acq.clock import Clock, SimClock
 from sim.emulate.scenario import STATIONS, scenario_text
 from acq.errors import DeviceTimeout
@@ -82,21 +82,30 @@ def demo_setup(twin: Twin, base: dict | None = None) -> dict:
 def demo_plan(twin: Twin, seed: int, n_poses: int = DEMO_POSES, quick: bool = True, te_joints=None,
               setup: BenchSetup | dict | None = None) -> dict:
     """Which procedures with which parameters: :func:`acq.session.plans.session_plan` with the :data:`DEMO
-    <acq.session.plans.DEMO>` preset and a pose set chosen now (so a resume replays the same poses)."""
+    <acq.session.plans.DEMO>` preset and a pose set chosen now (so a resume replays the same poses).  A pure function
+    of the robot, the set-up, the twin's base, the seed, the count and the transmission-error joints: kept in the
+    on-disk cache (:mod:`acq.cache`) as the JSON document it is stored as (the runs narrowed to the cell's sight and
+    the ISO 9283 cube, 0.1 s of CPU a run)."""
     setup = setup_of(session_setup(demo_setup(twin), twin.robot) if setup is None else setup)
-    q = demo_poses(twin, seed, n_poses, quick, setup)
-    return session_plan(twin.robot, setup, DEMO, te_joints, np.round(q, 3), seed)
+    joints = None if te_joints is None else [int(j) for j in te_joints]
+    return cached_json("demo-plan", _choice_inputs(twin, seed, n_poses, quick, setup) + pickle.dumps(joints),
+                       lambda: session_plan(twin.robot, setup, DEMO, te_joints,
+                                            np.round(demo_poses(twin, seed, n_poses, quick, setup), 3), seed))
 
 
 def demo_poses(twin: Twin, seed: int, n_poses: int, quick: bool, setup: BenchSetup) -> np.ndarray:
     """The demo's pose set (joint readings, degrees or mm), chosen by :func:`calib.plan.select_poses` among
     candidates the pre-flight passes.  A pure function of the robot, the set-up, the twin's base, the seed and the
     count: kept in the on-disk cache (:mod:`acq.cache`; 0.3-0.4 s of CPU saved per run)."""
+    return cached_array("demo-poses", _choice_inputs(twin, seed, n_poses, quick, setup),
+                        lambda: _choose_poses(twin, seed, n_poses, quick, setup), shape=(n_poses, twin.robot.n))
+
+
+def _choice_inputs(twin: Twin, seed: int, n_poses: int, quick: bool, setup: BenchSetup) -> bytes:
+    """The inputs of the demo's choices, as the bytes that key them in the cache."""
     tp = twin.true_parameters()
-    inputs = pickle.dumps((twin.robot, json.dumps(dict(setup.doc), sort_keys=True, default=str),
-                           [tp[f"base.{k}_mm"] for k in "xyz"], int(seed), int(n_poses), bool(quick)))
-    return cached_array("demo-poses", inputs, lambda: _choose_poses(twin, seed, n_poses, quick, setup),
-                        shape=(n_poses, twin.robot.n))
+    return pickle.dumps((twin.robot, json.dumps(dict(setup.doc), sort_keys=True, default=str),
+                         [tp[f"base.{k}_mm"] for k in "xyz"], int(seed), int(n_poses), bool(quick)))
 
 
 def _choose_poses(twin: Twin, seed: int, n_poses: int, quick: bool, setup: BenchSetup) -> np.ndarray:
