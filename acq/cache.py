@@ -15,7 +15,6 @@ import functools
 import hashlib
 import io
 import json
-import os
 import warnings
 from pathlib import Path
 from typing import Callable
@@ -24,20 +23,13 @@ import numpy as np
 
 from calib.fileio import atomic_write_bytes
 
+from .cache_folder import cache_dir
+
 _ROOT = Path(__file__).resolve().parents[1]
 #: the source folders whose code the cached computations run (a change of any file there is a miss): every package,
 #: so that moving code between them can never leave a stale answer (the layout move put the demo's pose choice in
 #: app/ and its twin in sim/, outside the folders first listed here)
 _SOURCES = ("acq", "app", "calib", "offline", "sim")
-
-
-def cache_dir() -> Path | None:
-    """The cache folder, or None when turned off (``ROBOCAL_CACHE_DIR=off`` or empty)."""
-    env = os.environ.get("ROBOCAL_CACHE_DIR")
-    if env is not None:
-        return None if env.strip().lower() in ("", "off", "0", "no") else Path(env)
-    base = os.environ.get("XDG_CACHE_HOME") or str(Path.home() / ".cache")
-    return Path(base) / "robocal"
 
 
 @functools.cache
