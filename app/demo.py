@@ -165,6 +165,9 @@ def robot_twin(robot_path, seed: int) -> tuple[Twin, str, dict]:
 
 @dataclass
 class DemoRig:
+    """The demo's wired session: the runner, the emulated world and twin, the store, and the names published in
+    the emulator registry (withdrawn at :meth:`close`)."""
+
     runner: Runner
     world: object
     twin: Twin

@@ -5,7 +5,6 @@ and the decoder cannot drift from it.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
 from functools import lru_cache
 from importlib import resources
 
@@ -20,12 +19,6 @@ DATA_IDS = {0x100: 0, 0x101: 2, 0x102: 4}          # frame id -> first joint (0-
 def load_dbc():
     text = (resources.files("acq.encoders") / DBC_NAME).read_text(encoding="ascii")
     return cantools.database.load_string(text, database_format="dbc")
-
-
-@dataclass(frozen=True)
-class DecodedFrame:
-    kind: str                     # "status" | "data"
-    values: dict
 
 
 #: distinct data frames a codec keeps decoded (a robot holding still repeats its three data frames in every sample of
