@@ -208,7 +208,6 @@ def build_demo(db: str | Path, seed: int = 0, resume: bool = False, script: dict
 
     db = str(db)
     clock = SimClock() if clock is None else clock
-    own = False
     if resume:
         store = SessionStore.open(db, durable=not clock.simulated)
         meta = store.session_row()
@@ -233,8 +232,9 @@ def build_demo(db: str | Path, seed: int = 0, resume: bool = False, script: dict
             twin = Twin(load_scenario(scenario or None), seed=seed)
         own = setup is None         # the bench robocal made itself (a user's --setup was checked as it was read)
         setup = session_setup(demo_setup(twin, setup), twin.robot, own=own)
+        typed = setup_of(setup)
         # the plan robocal chose (a plan given by the caller is checked as the steps are made)
-        plan_d = plan or vouch(demo_plan(twin, seed, te_joints=te_joints, setup=setup), PLAN_SCHEMA)
+        plan_d = plan or vouch(demo_plan(twin, seed, te_joints=te_joints, setup=typed), PLAN_SCHEMA)
         title = DEMO_TITLE if profile_of(twin.robot).thesis else \
             f"robocal demo: emulated {twin.robot.name} (twin) and two GeoCOM theodolites"
         kind = "generated" if text else ("file" if scenario else "default")
@@ -243,8 +243,8 @@ def build_demo(db: str | Path, seed: int = 0, resume: bool = False, script: dict
                                               "scenario_path": str(Path(scenario).resolve()) if scenario else None,
                                               "seed": seed},
                                     durable=not clock.simulated)       # a simulated session can be recorded again
-    # a resumed session's set-up may use the old keys
-    setup = setup_of(session_setup(setup, twin.robot, own=not resume and own))
+    # a resumed session's set-up may use the old keys (a new one's were mapped above: mapping is idempotent)
+    setup = setup_of(session_setup(setup, twin.robot)) if resume else typed
     world = TwinWorld(twin, seed=seed * 1000 + seed_offset,       # the gauges read with the set-up's noise
                       gauge_sigma_mm=(setup.link and setup.link.gauge_sigma_mm) or GAUGE_SIGMA_MM)
     tag = uuid.uuid4().hex[:8]
