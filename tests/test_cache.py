@@ -148,3 +148,58 @@ def test_a_json_entry_that_is_not_an_object_is_computed_again(tmp_path, monkeypa
         entry.write_bytes(damaged)
         assert cache.cached_json("j", b"a", compute)["n"] == len(made)
     assert len(made) == 4 and cache.cached_json("j", b"a", compute)["n"] == 4
+
+
+@pytest.fixture
+def tree(tmp_path, monkeypatch):
+    """A source tree of its own for code_fingerprint, and the cache in another folder."""
+    root, folder = tmp_path / "src", tmp_path / "cache"
+    (root / "pkg" / "sub").mkdir(parents=True)
+    (root / "pkg" / "a.py").write_text("A = 1\n")
+    (root / "pkg" / "sub" / "b.py").write_text("B = 2\n")
+    monkeypatch.setattr(cache, "_ROOT", root)
+    monkeypatch.setattr(cache, "_SOURCES", ("pkg",))
+    monkeypatch.setenv("ROBOCAL_CACHE_DIR", str(folder))
+
+    def fingerprint(off: bool = False) -> str:
+        cache.code_fingerprint.cache_clear()
+        if off:
+            monkeypatch.setenv("ROBOCAL_CACHE_DIR", "off")
+        try:
+            return cache.code_fingerprint()
+        finally:
+            monkeypatch.setenv("ROBOCAL_CACHE_DIR", str(folder))
+            cache.code_fingerprint.cache_clear()
+    return root, folder, fingerprint
+
+
+def test_the_kept_fingerprint_is_the_one_read_from_the_sources(tree):
+    root, folder, fingerprint = tree
+    read = fingerprint(off=True)
+    assert fingerprint() == read and len(list(folder.glob("code-fingerprint-*.txt"))) == 1
+    assert fingerprint() == read                                      # kept
+    (kept,) = folder.glob("code-fingerprint-*.txt")
+    kept.write_text("damaged")
+    assert fingerprint() == read and kept.read_text() == read          # read again, kept again
+
+
+def test_an_edit_an_added_or_a_removed_file_is_another_fingerprint(tree):
+    """An edit of the same size is another fingerprint (its time stamp moved); putting the old content back with its
+    old time stamp gives the old one; a file added or removed is another."""
+    import os
+    root, folder, fingerprint = tree
+    a = root / "pkg" / "a.py"
+    first, st = fingerprint(), a.stat()
+    a.write_text("A = 3\n")
+    os.utime(a, ns=(st.st_atime_ns, st.st_mtime_ns + 1000))
+    edited = fingerprint()
+    assert edited != first and edited == fingerprint(off=True)
+    a.write_text("A = 1\n")
+    os.utime(a, ns=(st.st_atime_ns, st.st_mtime_ns))
+    assert fingerprint() == first
+    (root / "pkg" / "c.py").write_text("")
+    added = fingerprint()
+    assert added not in (first, edited) and added == fingerprint(off=True)
+    (root / "pkg" / "c.py").unlink()
+    (root / "pkg" / "sub" / "b.py").unlink()
+    assert fingerprint() not in (first, edited, added)
