@@ -93,6 +93,28 @@ def test_unwrapper_crosses_int32_and_u16():
     assert [s(x) for x in (65534, 65535, 0, 1)] == [65534, 65535, 65536, 65537]
 
 
+
+@settings(max_examples=60)
+@given(steps=st.lists(st.tuples(st.integers(0, 3), st.lists(st.one_of(st.just(0), st.integers(-2 ** 30, 2 ** 30)),
+                                                             min_size=6, max_size=6)), min_size=1, max_size=40),
+       start=st.lists(i32, min_size=6, max_size=6))
+def test_unwrapped_counts_follow_the_true_counts_held_or_moving(steps, start):
+    """Samples of a robot that holds still (the same counts repeated, taken without unwrapping again) and moves
+    (across the int32 wrap too): every sample's unwrapped counts are the first wire counts plus the true motion."""
+    asm = SampleAssembler()
+    true, first, got, want = list(start), None, [], []
+    seq = 0
+    for held, move in steps:
+        true = [t + m for t, m in zip(true, move)]
+        first = first or list(true)
+        for _ in range(1 + held):
+            s = asm.whole(seq, seq * 2000, [wrap_i32(t) for t in true])
+            seq += 1
+            assert s.counts_wire == tuple(wrap_i32(t) for t in true)
+            got.append(s.counts)
+            want.append(tuple(wrap_i32(t0) + t - t0 for t0, t in zip(first, true)))
+    assert got == want
+
 def _frames(seq, counts=(1, 2, 3, 4, 5, 6)):
     return can_frames(RawSample(seq, 1000 * seq, counts))
 

@@ -24,6 +24,7 @@ class SampleAssembler:
         self._seq = Unwrapper(16, signed=False)
         self._tus = Unwrapper(32, signed=False)
         self._cnt = [Unwrapper(32, signed=True) for _ in range(N_JOINTS)]
+        self._last_counts: tuple = (None, None)     # (counts as sent, unwrapped) of the last sample
         self._last_seq: int | None = None
         self._open: list | None = None
 
@@ -71,9 +72,14 @@ class SampleAssembler:
         self._last_seq = u
 
     def _make(self, seq, t_us, counts, flags, pot) -> EncoderSample:
-        unwrapped = tuple([w(c) for w, c in zip(self._cnt, counts)])
+        wire = tuple(counts)
+        if wire == self._last_counts[0]:        # a robot holding still: unwrapping the same counts changes nothing
+            unwrapped = self._last_counts[1]
+        else:
+            unwrapped = tuple([w(c) for w, c in zip(self._cnt, wire)])
+            self._last_counts = (wire, unwrapped)
         self.stats.samples += 1
         joint = self.converter.joint_rad(unwrapped) if self.converter is not None else None
-        return EncoderSample(seq=self._last_seq, t_device_us=self._tus(t_us), counts_wire=tuple(counts),
+        return EncoderSample(seq=self._last_seq, t_device_us=self._tus(t_us), counts_wire=wire,
                              counts=unwrapped, t_mono=self.clock(), t_wall=time.time(), flags=flags,
                              pot_valid=pot, joint_rad=joint)
