@@ -31,8 +31,9 @@ from pathlib import Path
 from acq.cache_folder import cache_dir
 from calib.fileio import atomic_write_bytes
 
-#: the most methods the table keeps; a larger one is written back with this run's methods only (code changed often)
-MAX_METHODS = 4000
+#: the most methods the table keeps (the demo uses about 450; reading 2,000 takes about 10 ms); a larger one is written
+#: back with this run's methods only (code that changed often)
+MAX_METHODS = 2000
 
 
 class CodeTable:

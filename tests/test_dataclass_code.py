@@ -161,3 +161,19 @@ def test_robocals_own_dataclasses_from_a_kept_table_are_the_ones_compiled(tmp_pa
     assert len(plain) > 20 and first["classes"] == plain and second["classes"] == plain
     assert first["new"] > 50 and second["new"] == 0
     assert len(list(tmp_path.glob("dataclass-code-*.marshal"))) == 1
+
+
+def test_a_table_grown_too_large_keeps_this_runs_methods(table, monkeypatch):
+    make_classes()
+    table.write()
+    monkeypatch.setattr(dataclass_code, "MAX_METHODS", 5)
+    later = dataclass_code.CodeTable(table.path)
+    monkeypatch.setattr(dataclasses, "exec", later.exec, raising=False)
+
+    @dataclasses.dataclass
+    class Other:
+        one_field: int
+    later.write()
+    reread = dataclass_code.CodeTable(table.path)
+    reread.code("x = 1")
+    assert set(reread.codes) == later.used | {"x = 1"} and len(later.used) == 3
