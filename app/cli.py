@@ -283,6 +283,9 @@ def _run(argv: list[str], debug: bool) -> int:
             parser.print_help()
             return EXIT_OK
         _apply_chain_cut(args)
+        # dataclasses (and this table) only once a command runs: --help makes none
+        from app import dataclass_code
+        dataclass_code.install()            # the command's modules make their dataclasses from compiled code kept
         return int(args._run(args) or 0)
     except RobocalError as exc:
         print(f"robocal: error: {exc}", file=sys.stderr)

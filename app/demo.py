@@ -24,7 +24,7 @@ from pathlib import Path
 
 import numpy as np
 
-from acq.cache import cached_array
+from acq.cache import cached_array, cached_json
 from acq.clock import Clock, SimClock
 from sim.emulate.scenario import STATIONS, scenario_text
 from acq.errors import DeviceTimeout
@@ -82,21 +82,30 @@ def demo_setup(twin: Twin, base: dict | None = None) -> dict:
 def demo_plan(twin: Twin, seed: int, n_poses: int = DEMO_POSES, quick: bool = True, te_joints=None,
               setup: BenchSetup | dict | None = None) -> dict:
     """Which procedures with which parameters: :func:`acq.session.plans.session_plan` with the :data:`DEMO
-    <acq.session.plans.DEMO>` preset and a pose set chosen now (so a resume replays the same poses)."""
+    <acq.session.plans.DEMO>` preset and a pose set chosen now (so a resume replays the same poses).  A pure function
+    of the robot, the set-up, the twin's base, the seed, the count and the transmission-error joints: kept in the
+    on-disk cache (:mod:`acq.cache`) as the JSON document it is stored as (the runs narrowed to the cell's sight and
+    the ISO 9283 cube, 0.1 s of CPU a run)."""
     setup = setup_of(session_setup(demo_setup(twin), twin.robot) if setup is None else setup)
-    q = demo_poses(twin, seed, n_poses, quick, setup)
-    return session_plan(twin.robot, setup, DEMO, te_joints, np.round(q, 3), seed)
+    joints = None if te_joints is None else [int(j) for j in te_joints]
+    return cached_json("demo-plan", _choice_inputs(twin, seed, n_poses, quick, setup) + pickle.dumps(joints),
+                       lambda: session_plan(twin.robot, setup, DEMO, te_joints,
+                                            np.round(demo_poses(twin, seed, n_poses, quick, setup), 3), seed))
 
 
 def demo_poses(twin: Twin, seed: int, n_poses: int, quick: bool, setup: BenchSetup) -> np.ndarray:
     """The demo's pose set (joint readings, degrees or mm), chosen by :func:`calib.plan.select_poses` among
     candidates the pre-flight passes.  A pure function of the robot, the set-up, the twin's base, the seed and the
     count: kept in the on-disk cache (:mod:`acq.cache`; 0.3-0.4 s of CPU saved per run)."""
+    return cached_array("demo-poses", _choice_inputs(twin, seed, n_poses, quick, setup),
+                        lambda: _choose_poses(twin, seed, n_poses, quick, setup), shape=(n_poses, twin.robot.n))
+
+
+def _choice_inputs(twin: Twin, seed: int, n_poses: int, quick: bool, setup: BenchSetup) -> bytes:
+    """The inputs of the demo's choices, as the bytes that key them in the cache."""
     tp = twin.true_parameters()
-    inputs = pickle.dumps((twin.robot, json.dumps(dict(setup.doc), sort_keys=True, default=str),
-                           [tp[f"base.{k}_mm"] for k in "xyz"], int(seed), int(n_poses), bool(quick)))
-    return cached_array("demo-poses", inputs, lambda: _choose_poses(twin, seed, n_poses, quick, setup),
-                        shape=(n_poses, twin.robot.n))
+    return pickle.dumps((twin.robot, json.dumps(dict(setup.doc), sort_keys=True, default=str),
+                         [tp[f"base.{k}_mm"] for k in "xyz"], int(seed), int(n_poses), bool(quick)))
 
 
 def _choose_poses(twin: Twin, seed: int, n_poses: int, quick: bool, setup: BenchSetup) -> np.ndarray:
@@ -156,6 +165,9 @@ def robot_twin(robot_path, seed: int) -> tuple[Twin, str, dict]:
 
 @dataclass
 class DemoRig:
+    """The demo's wired session: the runner, the emulated world and twin, the store, and the names published in
+    the emulator registry (withdrawn at :meth:`close`)."""
+
     runner: Runner
     world: object
     twin: Twin
@@ -196,7 +208,6 @@ def build_demo(db: str | Path, seed: int = 0, resume: bool = False, script: dict
 
     db = str(db)
     clock = SimClock() if clock is None else clock
-    own = False
     if resume:
         store = SessionStore.open(db, durable=not clock.simulated)
         meta = store.session_row()
@@ -221,8 +232,9 @@ def build_demo(db: str | Path, seed: int = 0, resume: bool = False, script: dict
             twin = Twin(load_scenario(scenario or None), seed=seed)
         own = setup is None         # the bench robocal made itself (a user's --setup was checked as it was read)
         setup = session_setup(demo_setup(twin, setup), twin.robot, own=own)
+        typed = setup_of(setup)
         # the plan robocal chose (a plan given by the caller is checked as the steps are made)
-        plan_d = plan or vouch(demo_plan(twin, seed, te_joints=te_joints, setup=setup), PLAN_SCHEMA)
+        plan_d = plan or vouch(demo_plan(twin, seed, te_joints=te_joints, setup=typed), PLAN_SCHEMA)
         title = DEMO_TITLE if profile_of(twin.robot).thesis else \
             f"robocal demo: emulated {twin.robot.name} (twin) and two GeoCOM theodolites"
         kind = "generated" if text else ("file" if scenario else "default")
@@ -231,8 +243,8 @@ def build_demo(db: str | Path, seed: int = 0, resume: bool = False, script: dict
                                               "scenario_path": str(Path(scenario).resolve()) if scenario else None,
                                               "seed": seed},
                                     durable=not clock.simulated)       # a simulated session can be recorded again
-    # a resumed session's set-up may use the old keys
-    setup = setup_of(session_setup(setup, twin.robot, own=not resume and own))
+    # a resumed session's set-up may use the old keys (a new one's were mapped above: mapping is idempotent)
+    setup = setup_of(session_setup(setup, twin.robot)) if resume else typed
     world = TwinWorld(twin, seed=seed * 1000 + seed_offset,       # the gauges read with the set-up's noise
                       gauge_sigma_mm=(setup.link and setup.link.gauge_sigma_mm) or GAUGE_SIGMA_MM)
     tag = uuid.uuid4().hex[:8]

@@ -44,6 +44,23 @@ def test_emulator_packing_agrees_with_dbc(seq, t, counts, flags):
     assert got == [(0, counts[0:2]), (2, counts[2:4]), (4, counts[4:6])]
 
 
+
+def test_kept_decodings_equal_cantools_every_time():
+    """The codec keeps each distinct data frame's decoding (a pose repeats its frames): every answer, repeated, new
+    or after the memo filled and started again, equals cantools' decoding of that frame by a fresh codec."""
+    from acq.encoders import can_codec
+    rng = np.random.default_rng(7)
+    kept, fresh = TapCanCodec(), TapCanCodec()
+    pool = [(fid, rng.integers(0, 256, 8, dtype=np.uint8).tobytes()) for fid in (0x100, 0x101, 0x102) for _ in range(40)]
+    frames = [pool[i] for i in rng.integers(0, len(pool), 3000)]
+    frames += [(0x101, int(i).to_bytes(8, "little", signed=True)) for i in range(can_codec.MEMO_FRAMES + 50)]
+    frames += frames[:500] + [(fid, bytes(8)) for fid in (0x100, 0x101, 0x102, 0x100)]      # same bytes, other ids
+    for fid, data in frames:
+        assert kept.decode_data(fid, data) == fresh._decode_data(fid, data)
+    assert 0 < len(kept._memo) <= can_codec.MEMO_FRAMES
+    with pytest.raises(KeyError):
+        kept.decode_data(0x7FF, bytes(8))
+
 @settings(max_examples=50)
 @given(st.lists(st.floats(-2.5, 2.5), min_size=6, max_size=6))
 def test_counts_joint_round_trip(q):
@@ -75,6 +92,28 @@ def test_unwrapper_crosses_int32_and_u16():
     s = Unwrapper(16, signed=False)
     assert [s(x) for x in (65534, 65535, 0, 1)] == [65534, 65535, 65536, 65537]
 
+
+
+@settings(max_examples=60)
+@given(steps=st.lists(st.tuples(st.integers(0, 3), st.lists(st.one_of(st.just(0), st.integers(-2 ** 30, 2 ** 30)),
+                                                             min_size=6, max_size=6)), min_size=1, max_size=40),
+       start=st.lists(i32, min_size=6, max_size=6))
+def test_unwrapped_counts_follow_the_true_counts_held_or_moving(steps, start):
+    """Samples of a robot that holds still (the same counts repeated, taken without unwrapping again) and moves
+    (across the int32 wrap too): every sample's unwrapped counts are the first wire counts plus the true motion."""
+    asm = SampleAssembler()
+    true, first, got, want = list(start), None, [], []
+    seq = 0
+    for held, move in steps:
+        true = [t + m for t, m in zip(true, move)]
+        first = first or list(true)
+        for _ in range(1 + held):
+            s = asm.whole(seq, seq * 2000, [wrap_i32(t) for t in true])
+            seq += 1
+            assert s.counts_wire == tuple(wrap_i32(t) for t in true)
+            got.append(s.counts)
+            want.append(tuple(wrap_i32(t0) + t - t0 for t0, t in zip(first, true)))
+    assert got == want
 
 def _frames(seq, counts=(1, 2, 3, 4, 5, 6)):
     return can_frames(RawSample(seq, 1000 * seq, counts))

@@ -24,8 +24,9 @@ class SampleAssembler:
         self._seq = Unwrapper(16, signed=False)
         self._tus = Unwrapper(32, signed=False)
         self._cnt = [Unwrapper(32, signed=True) for _ in range(N_JOINTS)]
+        self._last_counts: tuple = (None, None)     # (counts as sent, unwrapped) of the last sample
         self._last_seq: int | None = None
-        self._open: dict | None = None
+        self._open: list | None = None
 
     def reset(self) -> None:
         """After a reconnect: do not count the outage as a sequence gap (it is reported as a reconnect)."""
@@ -38,20 +39,24 @@ class SampleAssembler:
         if self._open is not None:
             self.stats.incomplete_samples += 1
         self._check_seq(seq)
-        self._open = {"seq": seq, "t_us": t_us, "flags": flags, "pot": pot_valid, "counts": [None] * N_JOINTS}
+        # [seq, t_us, flags, pot, counts by joint, joints still missing]
+        self._open = [seq, t_us, flags, pot_valid, [None] * N_JOINTS, N_JOINTS]
 
     def data(self, first_joint: int, counts: Sequence[int]) -> EncoderSample | None:
         """A JointEnc frame: counts for joints first_joint, first_joint+1 (0-based); returns a completed sample."""
         o = self._open
-        if o is None or o["counts"][first_joint] is not None:
+        if o is None or o[4][first_joint] is not None:
             self.stats.orphan_frames += 1
             return None
+        got = o[4]
         for k, c in enumerate(counts):
-            o["counts"][first_joint + k] = int(c)
-        if any(c is None for c in o["counts"]):
+            if got[first_joint + k] is None:
+                o[5] -= 1
+            got[first_joint + k] = int(c)
+        if o[5]:
             return None
         self._open = None
-        return self._make(o["seq"], o["t_us"], o["counts"], o["flags"], o["pot"])
+        return self._make(o[0], o[1], got, o[2], o[3])
 
     def whole(self, seq: int, t_us: int, counts: Sequence[int], flags: int = 0, pot_valid: int = 0) -> EncoderSample:
         """A frame carrying a complete sample (serial tap)."""
@@ -67,9 +72,14 @@ class SampleAssembler:
         self._last_seq = u
 
     def _make(self, seq, t_us, counts, flags, pot) -> EncoderSample:
-        unwrapped = tuple(w(c) for w, c in zip(self._cnt, counts))
+        wire = tuple(counts)
+        if wire == self._last_counts[0]:        # a robot holding still: unwrapping the same counts changes nothing
+            unwrapped = self._last_counts[1]
+        else:
+            unwrapped = tuple([w(c) for w, c in zip(self._cnt, wire)])
+            self._last_counts = (wire, unwrapped)
         self.stats.samples += 1
         joint = self.converter.joint_rad(unwrapped) if self.converter is not None else None
-        return EncoderSample(seq=self._last_seq, t_device_us=self._tus(t_us), counts_wire=tuple(counts),
+        return EncoderSample(seq=self._last_seq, t_device_us=self._tus(t_us), counts_wire=wire,
                              counts=unwrapped, t_mono=self.clock(), t_wall=time.time(), flags=flags,
                              pot_valid=pot, joint_rad=joint)

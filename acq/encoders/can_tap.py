@@ -33,6 +33,7 @@ class CanTap(TapReader):
         super().__init__(name, converter, queue_size, reconnect_delay_s)
         self._factory = bus_factory
         self.codec = TapCanCodec()
+        self._tap_ids = self.codec.frame_ids
         self._bus: can.BusABC | None = None
 
     def check(self) -> None:
@@ -79,7 +80,8 @@ class CanTap(TapReader):
         sent a window's frames before anyone waits for them, so the reader thread only added two thread hand-offs
         per encoder window -- under other processes' load each one a scheduler slice, most of a demo's wall time."""
         n = 0
-        while self._bus is not None and self._receive(0.0):
+        receive = self._receive
+        while self._bus is not None and receive(0.0):
             n += 1
         return n
 
@@ -116,20 +118,22 @@ class CanTap(TapReader):
             st.error_frames += 1
             return
         fid = msg.arbitration_id
-        if msg.is_extended_id or msg.is_remote_frame or not self.codec.is_tap_frame(fid):
+        if fid not in self._tap_ids or msg.is_extended_id or msg.is_remote_frame:
             return
         st.frames += 1
-        if msg.dlc != 8 or len(msg.data) != 8:
+        data = msg.data
+        if msg.dlc != 8 or len(data) != 8:
             st.bad_frames += 1
             return
-        data = bytes(msg.data)
+        data = bytes(data)
         if st.last_error:
             st.last_error = ""
         try:
             if fid == STATUS_ID:
                 self.assembler.status(*self.codec.decode_status(data))
                 return
-            sample = self.assembler.data(*self.codec.decode_data(fid, data))
+            first, counts = self.codec.decode_data(fid, data)
+            sample = self.assembler.data(first, counts)
         except (ValueError, KeyError) as exc:
             st.bad_frames += 1
             st.last_error = _why(exc)

@@ -62,6 +62,8 @@ def _cobs_fault(data: bytes) -> str:
 
 @dataclass(frozen=True)
 class TapFrame:
+    """One serial tap frame's payload: format version, sample counter, tap clock (us) and the six counts."""
+
     version: int
     seq: int
     t_us: int

@@ -22,16 +22,23 @@ def _obj(properties: dict) -> dict:
 
 @dataclass(frozen=True)
 class RulerPlan:
+    """The ruler: each placement's marks sighted ``repeats`` times."""
+
     repeats: int = 1
 
 
 @dataclass(frozen=True)
 class InstrumentCheckPlan:
+    """Both instruments on the far target, both faces, ``repeats`` times (collimation and index error)."""
+
     repeats: int = 2
 
 
 @dataclass(frozen=True)
 class SweepPlan:
+    """Each joint's sweep: ``points`` positions over ``span_deg``, ``repeats`` times, on ``joints`` (empty: the
+    profile's)."""
+
     points: int = 4
     span_deg: float = 60.0
     repeats: int = 1
@@ -41,12 +48,17 @@ class SweepPlan:
 
 @dataclass(frozen=True)
 class PosesPlan:
+    """The pose set (Chapter 6): the joint readings ``q_deg`` of each pose, ``repeats`` times."""
+
     q_deg: tuple[tuple[float, ...], ...] = ()
     repeats: int = 1
 
 
 @dataclass(frozen=True)
 class TransmissionPlan:
+    """The transmission error: ``points`` offsets over each joint's ``range_deg`` about the reference pose,
+    ``repeats`` times."""
+
     joints: tuple[int, ...] = ()
     points: int = 9
     repeats: int = 1
@@ -55,12 +67,17 @@ class TransmissionPlan:
 
 @dataclass(frozen=True)
 class CompliancePlan:
+    """The joint compliance: each loaded joint's load series, ``repeats`` times."""
+
     joints: tuple[int, ...] = ()     # default: the joints the set-up loads
     repeats: int = 1
 
 
 @dataclass(frozen=True)
 class CouplingPlan:
+    """The coupling of each pair (j, k) of ``pairs``: k alone, then j and k together, through ``angle_deg``,
+    ``repeats`` times."""
+
     pairs: tuple[tuple[int, int], ...] = ()
     angle_deg: float = 10.0
     repeats: int = 1
@@ -68,6 +85,9 @@ class CouplingPlan:
 
 @dataclass(frozen=True)
 class ResolutionPlan:
+    """The encoder resolution: each of ``joints`` stepped one way through ``span_deg`` in ``points`` steps, A1 and
+    A2 sighted, ``repeats`` times."""
+
     joints: tuple[int, ...] = ()
     points: int = 7
     span_deg: float = 150.0

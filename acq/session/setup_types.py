@@ -89,6 +89,8 @@ class Placement:
 
 @dataclass(frozen=True)
 class Ruler:
+    """The ruler: its marks' distances from mark C along it (mm) and where it is placed."""
+
     marks_mm: tuple[float, ...]
     placements: tuple[Placement, ...]
 
@@ -119,6 +121,8 @@ class PointP:
 
 @dataclass(frozen=True)
 class ExtendedTool:
+    """The extended tool's two targets A1 and A2 in the flange frame (mm)."""
+
     A1_mm: Vec3
     A2_mm: Vec3
 

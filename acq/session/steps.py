@@ -41,6 +41,9 @@ class TargetSpec:
 
 @dataclass(frozen=True)
 class Step:
+    """One step of a procedure: where the robot stands, what the instruments sight and how often, what the
+    operator enters, and the physical state (loads, gauges) the bench is put in."""
+
     key: str                                   # unique and stable within a session (resume matches on it)
     procedure: str
     title: str
