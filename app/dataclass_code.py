@@ -75,10 +75,14 @@ class CodeTable:
         return table
 
     def write(self) -> None:
-        """The table back to its file when a method was new (this run's methods only when it grew too large)."""
+        """The table back to its file when a method was new, with what another process wrote there meanwhile (the
+        demo's recorder and its reduction worker make different classes); this run's methods only when it grew too
+        large."""
         if self.path is None or not self.new or self.codes is None:
             return
-        keep = self.codes if len(self.codes) <= MAX_METHODS else {k: self.codes[k] for k in self.used}
+        keep = {**self._read(), **self.codes}
+        if len(keep) > MAX_METHODS:
+            keep = {k: self.codes[k] for k in self.used}
         try:
             self.path.parent.mkdir(parents=True, exist_ok=True)
             atomic_write_bytes(self.path, marshal.dumps(keep))

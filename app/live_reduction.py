@@ -279,6 +279,8 @@ def main() -> None:
     """The worker process: its standard output carries the protocol only (anything printed goes to its standard
     error), Ctrl-C is the recorder's to handle (the recorder stops the worker)."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+    from app import dataclass_code
+    dataclass_code.install()                    # the reduction's dataclasses from the compiled code kept, as robocal's
     out = os.fdopen(os.dup(sys.stdout.fileno()), "wb")
     os.dup2(sys.stderr.fileno(), sys.stdout.fileno())
     serve(sys.stdin.buffer, out)

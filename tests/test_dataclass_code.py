@@ -177,3 +177,17 @@ def test_a_table_grown_too_large_keeps_this_runs_methods(table, monkeypatch):
     reread = dataclass_code.CodeTable(table.path)
     reread.code("x = 1")
     assert set(reread.codes) == later.used | {"x = 1"} and len(later.used) == 3
+
+
+def test_two_processes_writing_the_table_keep_each_others_methods(tmp_path):
+    """The demo's recorder and its reduction worker share one table and make different classes: each write keeps
+    what the other wrote meanwhile (else every run would compile again what the other process dropped)."""
+    path = tmp_path / "table.marshal"
+    recorder, worker = dataclass_code.CodeTable(path), dataclass_code.CodeTable(path)
+    recorder.code("a = 1")
+    worker.code("b = 2")                        # both read the (empty) table before either wrote
+    recorder.write()
+    worker.write()
+    reread = dataclass_code.CodeTable(path)
+    reread.code("a = 1")
+    assert set(reread.codes) == {"a = 1", "b = 2"} and reread.new == 0

@@ -44,6 +44,16 @@ def add_arguments(p):
 
 
 def run(args) -> int:
+    # no collection while the session is built: what it builds lives as long as the process and is frozen out of
+    # the collector's sight before the recording (about 116 collections, 30-70 ms, scanned it as it grew)
+    gc.disable()
+    try:
+        return _run(args)
+    finally:
+        gc.enable()
+
+
+def _run(args) -> int:
     from app.demo import build_demo
 
     if args.db is None:
@@ -112,6 +122,7 @@ def _record(demo, db: Path, resume: str, worker: ReductionWorker | None, t0: flo
     # the modules, the plan and the devices live as long as the process: out of the collector's sight, the
     # recording's collections scan only what it allocates (one full collection of start-up objects less)
     gc.freeze()
+    gc.enable()
     say(f"recording the session into {db} (Ctrl-C stops it; every step saved is kept)")
     pp = ProgressPrinter()
     res = None
