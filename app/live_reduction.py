@@ -18,7 +18,7 @@ against the twin for an emulated session, as :func:`app.reprocess.reprocess` giv
 depends on the worker.
 
 The worker is started only when a core is free for it (:func:`spare_core`: two cores or more, and the load
-average leaves half of one): on a busy machine a second process would only take the recorder's time.
+average leaves a quarter of one): on a busy machine a second process would only take the recorder's time.
 ``ROBOCAL_LIVE_REDUCTION=0`` turns it off (the reduction then runs in the recording process after the session, as
 it does on a machine with one core), ``ROBOCAL_LIVE_REDUCTION=1`` starts it whatever the load.
 """
@@ -39,9 +39,10 @@ from calib.threads import usable_cores
 #: the variable that turns the worker off ("0") or on whatever the machine's load ("1")
 LIVE_ENV = "ROBOCAL_LIVE_REDUCTION"
 #: the worker is started when the cores this process may use less the load average (1 minute) leave at least this
-#: much of a core: on a busy machine a second process only takes the recorder's time (measured on 2 cores with two
-#: other processes running: the demo 0.5-0.7 s slower with the worker than reducing after the session)
-SPARE_CORE = 0.5
+#: much of a core (demos run back to back keep it near 1.4 on 2 cores themselves): on a busy machine a second
+#: process only takes the recorder's time (on 2 cores with two other processes running, the demo was 0.5-0.7 s
+#: slower with the worker than reducing after the session)
+SPARE_CORE = 0.25
 
 
 class WorkerFailed(Exception):

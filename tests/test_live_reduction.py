@@ -209,7 +209,7 @@ def test_a_session_run_in_one_go_commands_iso_9283_with_the_model_reduced_beside
 
 
 @pytest.mark.parametrize("cores, load, setting, started", [
-    (2, 0.3, "", True), (2, 1.4, "", True), (2, 1.6, "", False), (1, 0.0, "", False), (8, 6.0, "", True),
+    (2, 0.3, "", True), (2, 1.6, "", True), (2, 1.9, "", False), (1, 0.0, "", False), (8, 6.0, "", True),
     (2, 3.0, "1", True), (4, 0.0, "0", False)])
 def test_the_worker_starts_only_where_a_core_is_free_for_it(monkeypatch, cores, load, setting, started):
     import app.live_reduction as live
