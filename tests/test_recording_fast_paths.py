@@ -33,3 +33,17 @@ def test_forward_fixed_terms_equal_the_per_pose_path(puma, rng):
                 assert _bits(a.point) == _bits(b.point)
                 assert _bits(a._R) == _bits(b._R) and _bits(a._t) == _bits(b._t)
             assert _bits(kin.element_jacobian(fast)) == _bits(kin.element_jacobian(general))
+
+
+def test_sample_std_of_few_values_is_numpys(rng):
+    """The repeat-spread check's standard deviation of 2..7 values (a step's repeats) in plain floats is numpy's
+    ``std(ddof=1)`` to the last bit: readings near 0, near 2 pi, wrapped differences and values a few ulps apart."""
+    from acq.session.checks import sample_std
+    from calib.angles import wrap_angle, wrap_float
+    for n in range(2, 12):
+        for trial in range(300):
+            scale = (1e-5, 1.0, 6.0, 1e-12)[trial % 4]
+            x = rng.normal(rng.uniform(-7, 7), scale, n)
+            assert sample_std(x.tolist()) == float(np.std(x, ddof=1))
+            d = [wrap_float(v - x[0]) for v in x.tolist()]
+            assert sample_std(d) == float(np.std(wrap_angle(x - x[0]), ddof=1))
