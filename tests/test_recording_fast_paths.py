@@ -47,3 +47,40 @@ def test_sample_std_of_few_values_is_numpys(rng):
             assert sample_std(x.tolist()) == float(np.std(x, ddof=1))
             d = [wrap_float(v - x[0]) for v in x.tolist()]
             assert sample_std(d) == float(np.std(wrap_angle(x - x[0]), ddof=1))
+
+
+def test_kept_load_structure_gives_the_fresh_arrays(rng, monkeypatch):
+    """The twin's model (compliances, transmission errors, coupling) evaluated one pose at a time with hung masses,
+    which joint carries which body kept between calls, gives the floats of the same evaluation with that structure
+    worked out afresh: points, true angles, torques, tip forces and the Jacobian, bit for bit."""
+    from calib.effects import PoseContext
+    from calib.model import MeasurementModel
+    from sim.twin import Twin, load_scenario
+
+    twin = Twin(load_scenario(None), seed=0)
+    m = twin.model
+    n = m.robot.n
+
+    def run():
+        out = []
+        for k in range(8):
+            q = rng.uniform(-1.5, 1.5, (1, n))
+            ctx = PoseContext(1, n, direction=np.sign(rng.normal(size=(1, n))),
+                              point_force_link=np.array([3, 6])[: k % 3],
+                              point_force_mm=rng.normal(0, 100, (1, k % 3, 3)),
+                              point_force_n=rng.normal(0, 20, (1, k % 3, 3)))
+            tool = rng.normal(0, 80, 3)
+            ev = m.evaluate(q, ctx, twin.theta, jacobian=True, tool_mm=tool)
+            out += [ev.point_mm, ev.theta_rad, ev.loads.joint_torque_nm, ev.loads.tip_force_n, ev.jacobian]
+        return out
+
+    state = rng.bit_generator.state
+    kept = run()                                         # the structures worked out, then kept
+    rng.bit_generator.state = state
+    again = run()                                        # every one from the cache
+    rng.bit_generator.state = state
+    monkeypatch.setattr(MeasurementModel, "_structure", lambda self, fp, link: None)
+    fresh = run()
+    assert len(m._structures) > 0
+    for a, b, c in zip(kept, again, fresh):
+        assert _bits(a) == _bits(c) and _bits(b) == _bits(c)
