@@ -287,13 +287,13 @@ class Kinematics:
     def _fixed_terms(self, p: np.ndarray) -> tuple:
         """What :meth:`forward` derives from one parameter vector alone (the links' parameters pose-last, the cosines
         and sines of their twists, the base's rotation), kept for the last few vectors: a session evaluates one model
-        at one pose at a time, where these were a fifth of a pass.  The same operations on the same numbers as
-        before, so the same floats; the arrays are read-only, shared by the passes that read them (``d``, ``base``)."""
+        at one pose at a time, where these were about a tenth of a pass.  The same operations on the same numbers as
+        before, so the same floats; the arrays are copies, read-only, shared by the passes that read them."""
         key = p[:self._tool_cols[0]].tobytes() if self._tool_cols[0] == len(p) - 3 else p.tobytes()
         got = self._fixed.get(key)
         if got is None:
             lk = p[self._link_cols].T[:, :, None]
-            base = p[:len(BASE_PARAMS)].T
+            base = p[:len(BASE_PARAMS)].copy()         # not a view: the caller may step its vector in place
             got = (lk, lk[2], np.cos(lk[3]), np.sin(lk[3]), np.cos(lk[4]), np.sin(lk[4]), base,
                    rot_zyx(base[3], base[4], base[5])[..., None])
             for v in got:

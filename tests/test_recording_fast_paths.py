@@ -107,3 +107,15 @@ def test_station_rotation_of_repeated_angles_is_elementwise(rng, monkeypatch):
     monkeypatch.setattr(th, "SAME_ANGLE_FROM", 10 ** 9)             # every angle through the elementwise ufuncs
     for a, b in zip(fast, run()):
         assert _bits(a) == _bits(b)
+
+
+def test_forward_fixed_terms_follow_a_vector_stepped_in_place(puma, rng):
+    """An optimiser steps its parameter vector in place: the kept terms are the new vector's, not the old one's."""
+    kin = Kinematics(puma)
+    p = kin.nominal.copy()
+    first = p.copy()
+    q = rng.uniform(-np.pi, np.pi, (1, kin.n))
+    kin.forward(q, p)
+    p[:6] += 1e-3                                   # the base moved, in the same array
+    for v in (p, first):                            # the moved vector, then the first one again
+        assert _bits(kin.forward(q, v).point) == _bits(Kinematics(puma).forward(q, v.copy()).point)
