@@ -289,19 +289,14 @@ class Kinematics:
         and sines of their twists, the base's rotation), kept for the last few vectors: a session evaluates one model
         at one pose at a time, where these were about a tenth of a pass.  The same operations on the same numbers as
         before, so the same floats; the arrays are copies, read-only, shared by the passes that read them."""
-        key = p[:self._tool_cols[0]].tobytes() if self._tool_cols[0] == len(p) - 3 else p.tobytes()
-        got = self._fixed.get(key)
-        if got is None:
+        def make() -> tuple:
             lk = p[self._link_cols].T[:, :, None]
             base = p[:len(BASE_PARAMS)].copy()         # not a view: the caller may step its vector in place
-            got = (lk, lk[2], np.cos(lk[3]), np.sin(lk[3]), np.cos(lk[4]), np.sin(lk[4]), base,
-                   rot_zyx(base[3], base[4], base[5])[..., None])
-            for v in got:
-                v.flags.writeable = False
-            if len(self._fixed) >= 8:
-                self._fixed.clear()
-            self._fixed[key] = got
-        return got
+            return (lk, lk[2], np.cos(lk[3]), np.sin(lk[3]), np.cos(lk[4]), np.sin(lk[4]), base,
+                    rot_zyx(base[3], base[4], base[5])[..., None])
+
+        key = p[:self._tool_cols[0]].tobytes() if self._tool_cols[0] == len(p) - 3 else p.tobytes()
+        return kept_arrays(self._fixed, key, make, 8)
 
     def points(self, q_rad: np.ndarray, params: np.ndarray | None = None) -> np.ndarray:
         """Tool points (N, 3) in the measurement frame."""
@@ -375,6 +370,20 @@ class Kinematics:
         fp = self.forward(q_rad, params)
         J = self.element_jacobian(fp)
         return fp.point, J, J[:, :, self.joint_elements]
+
+
+def kept_arrays(cache: dict, key, make, limit: int) -> tuple:
+    """``cache[key]``, made by ``make()`` (a tuple of arrays, then read-only) when missing; the cache is emptied when
+    it holds ``limit`` entries.  For what a pass derives from its inputs alone and a session asks again and again."""
+    got = cache.get(key)
+    if got is None:
+        got = make()
+        for a in got:
+            a.flags.writeable = False
+        if len(cache) >= limit:
+            cache.clear()
+        cache[key] = got
+    return got
 
 
 #: below this many poses a link step is one batched ``matmul`` (fewer numpy calls); above, rows of multiply-adds

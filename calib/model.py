@@ -29,7 +29,7 @@ import numpy as np
 
 from .effects import Effect, Loads, PoseContext
 from .effects.base import ElementMotions
-from .kinematics import ChainPass, Kinematics
+from .kinematics import ChainPass, Kinematics, kept_arrays
 from .robot import Robot
 from .theodolite import Station
 
@@ -232,17 +232,11 @@ class MeasurementModel:
         tool = fp.point_frame if fp.point_link is None else fp.point_link
         if np.ndim(tool):
             return None
-        key = (link.tobytes(), int(tool))
-        kept = self._structures.get(key)
-        if kept is None:
+        def make() -> tuple:
             frames = self._body_frames(fp, link)
-            kept = (frames, self._moved[:, frames].transpose(1, 0, 2).astype(float), self._beyond_of(frames, link))
-            for a in kept:
-                a.flags.writeable = False
-            if len(self._structures) >= 64:
-                self._structures.clear()
-            self._structures[key] = kept
-        return kept
+            return frames, self._moved[:, frames].transpose(1, 0, 2).astype(float), self._beyond_of(frames, link)
+
+        return kept_arrays(self._structures, (link.tobytes(), int(tool)), make, 64)
 
     def loads(self, fp: ChainPass, ctx: PoseContext, derivative: bool = False, values: list | None = None) -> Loads:
         """Torque about every joint axis (N m) and the force carried at the end of every link (N), per pose.
