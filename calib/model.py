@@ -219,6 +219,7 @@ class MeasurementModel:
         return self._beyond_of(self._body_frames(fp, link), link)
 
     def _beyond_of(self, frames: np.ndarray, link: np.ndarray) -> np.ndarray:
+        """:meth:`_beyond` from the bodies' frames (:meth:`_body_frames`)."""
         n = self.robot.n
         below = self._ancestors[frames][:, :, 1:]                                     # (Nc, B, n)
         own = frames[:, :, None] == np.arange(1, n + 1)[None, None, :]
@@ -232,6 +233,7 @@ class MeasurementModel:
         tool = fp.point_frame if fp.point_link is None else fp.point_link
         if np.ndim(tool):
             return None
+
         def make() -> tuple:
             frames = self._body_frames(fp, link)
             return frames, self._moved[:, frames].transpose(1, 0, 2).astype(float), self._beyond_of(frames, link)
