@@ -207,6 +207,7 @@ class Kinematics:
         self.ancestors = robot.frame_ancestors()                                   # (n+1, n+1)
         self.tool_frame = robot.point_frame()
         self._nontool = np.flatnonzero(self.link_of <= n)
+        self._fixed: dict[bytes, tuple] = {}     # parameter vector (tool point aside) -> forward's fixed terms
 
     @property
     def P(self) -> int:
@@ -240,11 +241,17 @@ class Kinematics:
         if p.ndim == 2 and len(p) == 1 and N > 1:
             p = p[0]
         # link parameters link-major and pose-last: (5, n, 1) for one parameter vector, (5, n, N) for one per pose
-        lk = p[..., self._link_cols].T if p.ndim == 2 else p[self._link_cols].T[:, :, None]
+        if p.ndim == 2:
+            lk = p[..., self._link_cols].T
+            a, ca, sa, cb, sb = lk[2], np.cos(lk[3]), np.sin(lk[3]), np.cos(lk[4]), np.sin(lk[4])
+            base = p[..., :len(BASE_PARAMS)].T                                         # (6, N)
+            R0 = rot_zyx(base[3], base[4], base[5])
+            R0 = R0.transpose(1, 2, 0)
+        else:
+            lk, a, ca, sa, cb, sb, base, R0 = self._fixed_terms(p)
         qT = q.T
         theta = lk[0] + qT * self._revolute[:, None]
         d = lk[1] + qT * self._prismatic[:, None] if self._prismatic.any() else lk[1]
-        a, ca, sa, cb, sb = lk[2], np.cos(lk[3]), np.sin(lk[3]), np.cos(lk[4]), np.sin(lk[4])
         ct, st = np.cos(theta), np.sin(theta)                                          # (n, N)
         # link rotation Rz(theta) Rx(alpha) Ry(beta) and offset Rz(theta) (a, 0, d), for every link and pose
         A = np.empty((n, 3, 3, N))
@@ -264,9 +271,7 @@ class Kinematics:
         off[:, 2] = d
         R = np.empty((n + 1, 3, 3, N))
         t = np.empty((n + 1, 3, N))
-        base = p[..., :len(BASE_PARAMS)].T                                             # (6,) or (6, N)
-        R0 = rot_zyx(base[3], base[4], base[5])
-        R[0] = R0.transpose(1, 2, 0) if R0.ndim == 3 else R0[..., None]
+        R[0] = R0
         t[0] = base[:3] if base.ndim == 2 else base[:3, None]
         pf = self.parent_frame
         for j in range(n):
@@ -278,6 +283,20 @@ class Kinematics:
         point = (tn + Rn[:, 0] * tool[0] + Rn[:, 1] * tool[1] + Rn[:, 2] * tool[2]).T.copy()
         local = {"ct": ct, "st": st, "d": d, "base": base, "tool": tool}
         return ChainPass(point, R, t, local, gravity_m_s2=self._gravity, parent_frame=pf, point_frame=frame)
+
+    def _fixed_terms(self, p: np.ndarray) -> tuple:
+        """What :meth:`forward` derives from one parameter vector alone (the links' parameters pose-last, the cosines
+        and sines of their twists, the base's rotation), kept for the last few vectors: a session evaluates one model
+        at one pose at a time, where these were about a tenth of a pass.  The same operations on the same numbers as
+        before, so the same floats; the arrays are copies, read-only, shared by the passes that read them."""
+        def make() -> tuple:
+            lk = p[self._link_cols].T[:, :, None]
+            base = p[:len(BASE_PARAMS)].copy()         # not a view: the caller may step its vector in place
+            return (lk, lk[2], np.cos(lk[3]), np.sin(lk[3]), np.cos(lk[4]), np.sin(lk[4]), base,
+                    rot_zyx(base[3], base[4], base[5])[..., None])
+
+        key = p[:self._tool_cols[0]].tobytes() if self._tool_cols[0] == len(p) - 3 else p.tobytes()
+        return kept_arrays(self._fixed, key, make, 8)
 
     def points(self, q_rad: np.ndarray, params: np.ndarray | None = None) -> np.ndarray:
         """Tool points (N, 3) in the measurement frame."""
@@ -351,6 +370,20 @@ class Kinematics:
         fp = self.forward(q_rad, params)
         J = self.element_jacobian(fp)
         return fp.point, J, J[:, :, self.joint_elements]
+
+
+def kept_arrays(cache: dict, key, make, limit: int) -> tuple:
+    """``cache[key]``, made by ``make()`` (a tuple of arrays, then read-only) when missing; the cache is emptied when
+    it holds ``limit`` entries.  For what a pass derives from its inputs alone and a session asks again and again."""
+    got = cache.get(key)
+    if got is None:
+        got = make()
+        for a in got:
+            a.flags.writeable = False
+        if len(cache) >= limit:
+            cache.clear()
+        cache[key] = got
+    return got
 
 
 #: below this many poses a link step is one batched ``matmul`` (fewer numpy calls); above, rows of multiply-adds

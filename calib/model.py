@@ -29,7 +29,7 @@ import numpy as np
 
 from .effects import Effect, Loads, PoseContext
 from .effects.base import ElementMotions
-from .kinematics import ChainPass, Kinematics
+from .kinematics import ChainPass, Kinematics, kept_arrays
 from .robot import Robot
 from .theodolite import Station
 
@@ -108,6 +108,7 @@ class MeasurementModel:
         self._pivot_mm = self._moment_pivots()
         frames = [robot.point_frame(k) for k in robot.tool_points_mm]
         self._target_frames = np.array(frames, int) if len(set(frames)) > 1 else None
+        self._structures: dict[tuple, tuple] = {}      # which joint carries which body (see _structure)
 
     @property
     def P(self) -> int:
@@ -203,8 +204,41 @@ class MeasurementModel:
 
     def _carried(self, fp: ChainPass, link: np.ndarray) -> np.ndarray:
         """(Nc, n, B) 1.0 where joint j carries body b: the body is fixed in a frame the joint's variable moves."""
+        kept = self._structure(fp, link)
+        if kept is not None:
+            return kept[1]
         frames = self._body_frames(fp, link)
         return self._moved[:, frames].transpose(1, 0, 2).astype(float)
+
+    def _beyond(self, fp: ChainPass, link: np.ndarray) -> np.ndarray:
+        """(Nc, n, B) 1.0 where body b lies beyond link j's end: in the subtree of frame j+1, and not on that frame
+        itself unless it is the tool body (a chain: frame > j + 1, the tool always)."""
+        kept = self._structure(fp, link)
+        if kept is not None:
+            return kept[2]
+        return self._beyond_of(self._body_frames(fp, link), link)
+
+    def _beyond_of(self, frames: np.ndarray, link: np.ndarray) -> np.ndarray:
+        """:meth:`_beyond` from the bodies' frames (:meth:`_body_frames`)."""
+        n = self.robot.n
+        below = self._ancestors[frames][:, :, 1:]                                     # (Nc, B, n)
+        own = frames[:, :, None] == np.arange(1, n + 1)[None, None, :]
+        return (below & (~own | (link > n)[None, :, None])).transpose(0, 2, 1).astype(float)
+
+    def _structure(self, fp: ChainPass, link: np.ndarray) -> tuple | None:
+        """(frames, carried, beyond) of bodies fixed in frames ``link`` with the tool point in one frame for every
+        pose: which joint carries which body depends on the chain and the frames alone, not on the pose, so a model
+        evaluated one pose at a time (a session's twin) works it out once.  The same arrays as made afresh (the
+        same expressions), kept read-only.  None when the tool point's frame varies per pose (a tree's rows)."""
+        tool = fp.point_frame if fp.point_link is None else fp.point_link
+        if np.ndim(tool):
+            return None
+
+        def make() -> tuple:
+            frames = self._body_frames(fp, link)
+            return frames, self._moved[:, frames].transpose(1, 0, 2).astype(float), self._beyond_of(frames, link)
+
+        return kept_arrays(self._structures, (link.tobytes(), int(tool)), make, 64)
 
     def loads(self, fp: ChainPass, ctx: PoseContext, derivative: bool = False, values: list | None = None) -> Loads:
         """Torque about every joint axis (N m) and the force carried at the end of every link (N), per pose.
@@ -220,13 +254,7 @@ class MeasurementModel:
         parts = self._torque_parts(fp, ctx, values)
         pos, F, link, _, z, o, M, _ = parts
         tau = np.einsum("njc,njc->nj", M, z) + ctx.joint_torque_nm
-        frames = self._body_frames(fp, link)                                          # (Nc, B)
-        # body b lies beyond link j's end: in the subtree of frame j+1, and not on that frame itself unless it is
-        # the tool body (a chain: frame > j + 1, the tool always)
-        below = self._ancestors[frames][:, :, 1:]                                     # (Nc, B, n)
-        own = frames[:, :, None] == np.arange(1, n + 1)[None, None, :]
-        beyond = (below & (~own | (link > n)[None, :, None])).transpose(0, 2, 1).astype(float)
-        tip = np.matmul(beyond, F)                                                    # force beyond link j's end
+        tip = np.matmul(self._beyond(fp, link), F)                                    # force beyond link j's end
         # 1 kg hung at the tool point (body n), about every joint that carries it: an unknown end-effector mass
         per_kg = np.einsum("njc,njc->nj", _cross(pos[:, n:n + 1] - o, fp.gravity()[:, None, :]), z) * parts[3][..., n]
         ctx_pts = slice(n + 1, n + 1 + len(ctx.point_force_link))                     # the context's point forces

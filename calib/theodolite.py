@@ -35,12 +35,28 @@ TWO_PI = 2 * np.pi
 
 
 
+#: from this many angles on, an array of one repeated value (a batch of sightings from levelled stations: the ruler
+#: fit's Jacobian evaluates 180,000 per demo) has its cosine and sine taken once
+SAME_ANGLE_FROM = 64
+
+
+def _cos_sin(a: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``(cos a, sin a)``; a large array holding one value throughout (the same bits: -0.0 is not 0.0) gets them from
+    its first element, broadcast -- the same ufunc on the same float, so the same floats (read-only views)."""
+    if a.size >= SAME_ANGLE_FROM:
+        flat = np.ascontiguousarray(a).reshape(-1)
+        first = flat[:1]
+        if (flat.view(np.int64) == first.view(np.int64)).all():
+            return np.broadcast_to(np.cos(first), a.shape), np.broadcast_to(np.sin(first), a.shape)
+    return np.cos(a), np.sin(a)
+
+
 def station_rotation(yaw_rad, tilt_x_rad=0.0, tilt_y_rad=0.0) -> np.ndarray:
     """World <- instrument rotation ``Ry(tilt_y) Rx(tilt_x) Rz(yaw)``, batched over the angles' shapes -> (..., 3, 3).
 
     The one yaw convention: ``yaw`` is the world direction (counter-clockwise from +X) of the circle's zero."""
     yaw, tx, ty = np.broadcast_arrays(*(np.asarray(a, float) for a in (yaw_rad, tilt_x_rad, tilt_y_rad)))
-    cz, sz, cx, sx, cy, sy = np.cos(yaw), np.sin(yaw), np.cos(tx), np.sin(tx), np.cos(ty), np.sin(ty)
+    (cz, sz), (cx, sx), (cy, sy) = _cos_sin(yaw), _cos_sin(tx), _cos_sin(ty)
     # the product Ry Rx Rz written out, filled into one array (a stack of nine stacks cost more than the maths)
     R = np.empty(yaw.shape + (3, 3))
     sysx, cysx = sy * sx, cy * sx

@@ -31,6 +31,7 @@ _REFUSED = {13, 1293, 3101}
 #: plausibility envelopes of physical values: beyond them a reply is garbled, whatever its grammar says
 MAX_DISTANCE_M = 1.0e5
 TEMPERATURE_RANGE_C = (-80.0, 120.0)
+_TAU_HI = math.tau + 1e-9
 
 
 @dataclass(frozen=True)
@@ -141,10 +142,11 @@ class GeoComTheodolite(SerialInstrument):
                 raise DeviceTimeout(self.name, cmd, f"no reply with transaction id {trid} within {timeout:g} s")
             line = self.link.read_until(gc.TERM, remaining, cmd)
             t_mono, t_wall = time.monotonic(), time.time()
-            if not line.strip(b"\r\n"):
+            line = line.strip(b"\r\n")
+            if not line:
                 continue
             try:
-                rep = gc.decode_reply(line.strip(b"\r\n"), self.checksum)
+                rep = gc.decode_reply(line, self.checksum)
             except gc.CodecError as exc:
                 raise ProtocolError(self.name, cmd, f"garbled reply: {exc}") from None
             if rep.trid != trid:
@@ -241,9 +243,10 @@ class GeoComTheodolite(SerialInstrument):
                              incline_cross_rad=xinc, incline_length_rad=linc, t_device_ms=t_ms)
 
     def _reading(self, r: Result, rpc: int, hz: float, v: float, **extra) -> AngleReading:
-        for what, val in (("Hz", hz), ("V", v)):
-            if not -1e-9 <= val <= math.tau + 1e-9:        # a reply rounded up to exactly 2 pi is still valid
-                raise self._implausible(rpc, f"{what} = {val!r} rad is outside [0, 2 pi]")
+        if not (-1e-9 <= hz <= _TAU_HI and -1e-9 <= v <= _TAU_HI):    # one test for the usual reading
+            for what, val in (("Hz", hz), ("V", v)):
+                if not -1e-9 <= val <= _TAU_HI:             # a reply rounded up to exactly 2 pi is still valid
+                    raise self._implausible(rpc, f"{what} = {val!r} rad is outside [0, 2 pi]")
         dist = extra.get("slope_distance_m")
         if dist is not None and not 0 < dist <= MAX_DISTANCE_M:
             raise self._implausible(rpc, f"slope distance {dist!r} m is outside (0, {MAX_DISTANCE_M:g}] m")

@@ -313,4 +313,4 @@ def decode_values(rpc_spec: RpcSpec, fields: Sequence[str]) -> tuple:
     """Typed values of a reply; the count must match the RPC's reply exactly."""
     if len(fields) != len(rpc_spec.reply):
         raise CodecError(f"{rpc_spec.name} reply has {len(fields)} values, expected {len(rpc_spec.reply)}")
-    return tuple(PARSERS[t](f) for t, f in zip(rpc_spec.reply, fields))
+    return tuple([PARSERS[t](f) for t, f in zip(rpc_spec.reply, fields)])

@@ -19,13 +19,14 @@ Two checks depend on how well the session knows its geometry, so their limits fo
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
 
 from calib.angles import wrap_angle, wrap_float
 from calib.errors import RobocalError
-from calib.theodolite import Station, face_mean, intersect  # noqa: F401 (face_mean: re-exported)
+from calib.theodolite import PLAIN_MEAN_BELOW, Station, face_mean, intersect  # noqa: F401 (face_mean: re-exported)
 from calib.units import ARCSEC, DEG
 
 DEFAULT_LIMITS = {
@@ -65,6 +66,18 @@ def _mean(xs: list[float]) -> float:
     return float(np.mean(xs)) if len(xs) > 2 else sum(xs[1:], xs[0]) / len(xs)
 
 
+def sample_std(xs: list[float]) -> float:
+    """``np.std(xs, ddof=1)`` as a float; fewer than :data:`calib.theodolite.PLAIN_MEAN_BELOW` values (a step's
+    repeats) in plain floats, numpy's operations in numpy's order -- the mean, the squared deviations, their sum over
+    n - 1, the root -- so the same float (a test holds them equal) without numpy's per-call cost."""
+    n = len(xs)
+    if n >= PLAIN_MEAN_BELOW or n < 2:
+        return float(np.std(np.asarray(xs, float), ddof=1))
+    m = sum(xs[1:], xs[0]) / n
+    sq = [(x - m) * (x - m) for x in xs]
+    return math.sqrt(sum(sq[1:], sq[0]) / (n - 1))
+
+
 def face_agreement(readings: list[dict], limit_arcsec: float) -> list[Check]:
     out = []
     for (st, tg) in sorted({(r["station"], r["target"]) for r in readings}):
@@ -91,8 +104,8 @@ def repeat_spread(readings: list[dict], limit_arcsec: float) -> list[Check]:
         rs = [r for r in readings if (r["station"], r["target"], r["face"]) == key]
         if len(rs) < 2:
             continue
-        hz = np.array([r["hz_rad"] for r in rs])
-        s = max(float(np.std(wrap_angle(hz - hz[0]), ddof=1)), float(np.std([r["v_rad"] for r in rs], ddof=1))) / ARCSEC
+        h0 = rs[0]["hz_rad"]
+        s = max(sample_std([wrap_float(r["hz_rad"] - h0) for r in rs]), sample_std([r["v_rad"] for r in rs])) / ARCSEC
         ok = s <= limit_arcsec
         out.append(Check(f"repeat spread {key[0]} {key[1]} face {key[2]}", ok, s, limit_arcsec, "arcsec",
                          "repeats agree" if ok else "repeat sightings scatter: the target or instrument moved; "

@@ -37,6 +37,7 @@ class DeviceBase:
         self.clock = clock
         self._out = bytearray()
         self._cv = threading.Condition()
+        self._waiting = 0                       # threads in wait_output: only they need a notify
         self._inbuf = bytearray()
         self.lock = threading.RLock()           # feed/tick from different threads (pty host, URL port)
 
@@ -44,9 +45,12 @@ class DeviceBase:
     def emit(self, data: bytes) -> None:
         with self._cv:
             self._out += data
-            self._cv.notify_all()
+            if self._waiting:
+                self._cv.notify_all()
 
     def read_output(self) -> bytes:
+        if not self._out:               # nothing to take (a reader polls far more often than a device answers)
+            return b""
         with self._cv:
             out = bytes(self._out)
             self._out.clear()
@@ -55,7 +59,11 @@ class DeviceBase:
     def wait_output(self, timeout_s: float) -> bool:
         with self._cv:
             if not self._out:
-                self._cv.wait(timeout_s)
+                self._waiting += 1
+                try:
+                    self._cv.wait(timeout_s)
+                finally:
+                    self._waiting -= 1
             return bool(self._out)
 
     # -- input ---------------------------------------------------------------------------------------------------------

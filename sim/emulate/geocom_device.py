@@ -154,7 +154,7 @@ class GeoComDevice(DeviceBase):
 
     @staticmethod
     def _n(fields: list[str], n: int) -> None:
-        if len(fields) != n or any(f == "" for f in fields):
+        if len(fields) != n or "" in fields:
             raise _BadParam(fields)
 
     # -- what the telescope reads ----------------------------------------------------------------------------------

@@ -68,6 +68,11 @@ class Serial(SerialBase):
         return len(self._rx)
 
     def read(self, size: int = 1) -> bytes:
+        if len(self._rx) >= size:       # what was asked is here already (``in_waiting`` pulled it): no wait, no pull
+            self._check()
+            data = bytes(self._rx[:size])
+            del self._rx[:size]
+            return data
         self._pull()
         timeout = self._timeout
         deadline = None if timeout is None else time.monotonic() + timeout
