@@ -7,15 +7,15 @@ the recording nothing (the demo's 0.7 s of reprocessing left its critical path).
 session is built, so its imports overlap the recorder's; it reads the session database read-only, as committed
 (the recorder writes it in WAL mode: a reader never blocks it), and never writes.
 
-The protocol: pickled tuples over the worker's standard input and output.  The recorder sends ``("open", path,
+The protocol: pickled tuples over the worker's standard input and output. The recorder sends ``("open", path,
 planned procedures, complete procedures, its command line, wanted outputs)``, ``("complete", procedures)`` as
-procedures finish, ``("awaiting", name)`` when it needs a wanted output, and ``("finish",)``; the worker sends ``("output", name, (value, problems), warnings)`` for each
-wanted output as soon as its stage has run (the pose set's model, for ISO 9283's compensated run: the stages after
-it do not delay it), ``("results", None, document, warnings)`` after ``finish`` (the results document, scored
-against the twin for an emulated session, as :func:`app.reprocess.reprocess` gives it), or ``("error", None, text,
-[])`` when it fails, and then ends.  Anything going wrong with the worker -- it could not start, died, or failed -- is a
-:class:`WorkerFailed`: the recorder says so in one line and reduces the session itself, as before; nothing recorded
-depends on the worker.
+procedures finish, ``("awaiting", name)`` when it needs a wanted output, and ``("finish",)``; the worker sends
+``("output", name, (value, problems), warnings)`` for each wanted output as soon as its stage has run (the pose
+set's model, for ISO 9283's compensated run: the stages after it do not delay it), ``("results", None, document,
+warnings)`` after ``finish`` (the results document, scored against the twin for an emulated session, as
+:func:`app.reprocess.reprocess` gives it), or ``("error", None, text, [])`` when it fails, and then ends. Anything
+going wrong with the worker -- it could not start, died, or failed -- is a :class:`WorkerFailed`: the recorder says
+so in one line and reduces the session itself, as before; nothing recorded depends on the worker.
 
 The worker is started only when a core is free for it (:func:`spare_core`: two cores or more, and the load
 average leaves a quarter of one): on a busy machine a second process would only take the recorder's time.
@@ -34,6 +34,7 @@ from collections.abc import Callable, Iterable
 from typing import ContextManager
 from pathlib import Path
 
+from calib.errors import RobocalError
 from calib.threads import usable_cores
 
 #: the variable that turns the worker off ("0") or on whatever the machine's load ("1")
@@ -243,9 +244,10 @@ def spare_core() -> bool:
     return cores >= 2 and cores - load >= SPARE_CORE
 
 
-def serve(inp, out) -> None:
+def serve(inp, out, opened: Callable[[], None] | None = None) -> None:
     """The worker's loop: messages from ``inp``, messages to ``out`` (binary streams), until the end of the input or
-    ``finish``.  A failure is sent as an ``error`` message and ends the worker."""
+    ``finish``.  A failure is sent as an ``error`` message and ends the worker.  ``opened``: called once the session
+    is opened (the worker's modules imported), while the recorder records and the worker waits."""
     from offline.reduction.live import LiveReduction
     import numpy.ma, numpy.random  # noqa: F401,E401 -- stages reach them through numpy's lazy attributes: loaded
     # here, while the recorder builds its session, not when the pose set's model is awaited
@@ -274,10 +276,13 @@ def serve(inp, out) -> None:
                     path, planned, complete, sys.argv[:], wanted = args
                     live = LiveReduction(path, planned=planned, on_output=sent)
                     live.complete(complete)
+                    if opened is not None:
+                        opened()
                 elif kind == "complete":
                     live.complete(args[0])
-                elif kind == "awaiting":            # sent already, or waiting for steps nobody will record now
-                    live.output(args[0])
+                elif kind == "awaiting":
+                    if args[0] not in live.sent:    # else sent already
+                        raise WorkerFailed(f"{args[0]}: its stage waits for steps not recorded yet")
                 elif kind == "finish":
                     res = _scored(live.finish(), live.ctx.data)
                     send("results", None, res, [(w.category, str(w.message)) for w in seen])
@@ -285,7 +290,10 @@ def serve(inp, out) -> None:
                 else:
                     raise WorkerFailed(f"unknown message {kind!r}")
             except Exception as exc:            # noqa: BLE001 -- said to the recorder, which reduces itself
-                send("error", None, f"the reduction worker failed: {type(exc).__name__}: {exc}", [])
+                # robocal's own words as they are; anything else (a bug the recorder's own reduction then meets
+                # again, with robocal's internal-error report) with its kind
+                why = str(exc) if isinstance(exc, (WorkerFailed, RobocalError)) else f"{type(exc).__name__}: {exc}"
+                send("error", None, f"the reduction worker failed: {why}", [])
                 return
 
 
@@ -299,10 +307,12 @@ def main() -> None:
     error), Ctrl-C is the recorder's to handle (the recorder stops the worker)."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     from app import dataclass_code
-    dataclass_code.install()                    # the reduction's dataclasses from the compiled code kept, as robocal's
+    table = dataclass_code.install()            # the reduction's dataclasses from the compiled code kept, as robocal's
     out = os.fdopen(os.dup(sys.stdout.fileno()), "wb")
     os.dup2(sys.stderr.fileno(), sys.stdout.fileno())
-    serve(sys.stdin.buffer, out)
+    # the methods new to the table written while the worker waits for steps, not at its exit: the recorder stops
+    # the worker as soon as it has the results
+    serve(sys.stdin.buffer, out, opened=table.write if table is not None else None)
 
 
 if __name__ == "__main__":

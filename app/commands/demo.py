@@ -167,10 +167,11 @@ def _reprocessing():
 
 
 def _compensated_run(demo, every: list, live: SessionReduction) -> tuple[dict | None, str]:
-    """ISO 9283 with compensation on, as a calibrated controller runs it: the model the session's pose set
-    identifies (:class:`app.live_reduction.SessionReduction`), the remaining steps commanded by that model (:class:`offline.iso_commands.
-    CompensatedCommands`); the results are then the whole session's reduction -- the calibration itself is not
-    repeated.  Returns the results when already made (no model: no compensated run) and the runner's final state."""
+    """ISO 9283 with compensation on, as a calibrated controller runs it: the model the session's pose set identifies
+    (:class:`app.live_reduction.SessionReduction`), the remaining steps commanded by that model
+    (:class:`offline.iso_commands.CompensatedCommands`); the results are then the whole session's reduction -- the
+    calibration itself is not repeated. Returns the results when already made (no model: no compensated run) and the
+    runner's final state."""
     doc = live.model()
     if doc is None:                             # no model: the problems say why
         say("ISO 9283: the compensated run was not recorded: the session's pose set gave no calibrated model")
