@@ -312,7 +312,10 @@ def main() -> None:
     os.dup2(sys.stderr.fileno(), sys.stdout.fileno())
     # the methods new to the table written while the worker waits for steps, not at its exit: the recorder stops
     # the worker as soon as it has the results
-    serve(sys.stdin.buffer, out, opened=table.write if table is not None else None)
+    try:
+        serve(sys.stdin.buffer, out, opened=table.write if table is not None else None)
+    except (BrokenPipeError, ConnectionError):  # the recorder is gone (killed, its terminal closed): nobody to tell
+        pass
 
 
 if __name__ == "__main__":
