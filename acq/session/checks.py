@@ -78,10 +78,25 @@ def sample_std(xs: list[float]) -> float:
     return math.sqrt(sum(sq[1:], sq[0]) / (n - 1))
 
 
+def _grouped(readings: list[dict], *fields: str) -> dict[tuple, list[dict]]:
+    """Readings by the values of ``fields``, each group in the readings' order: one pass over a step's readings
+    instead of one per group (the checks run at every step, on a dozen readings)."""
+    out: dict[tuple, list[dict]] = {}
+    for r in readings:
+        key = tuple([r[f] for f in fields])
+        got = out.get(key)
+        if got is None:
+            out[key] = [r]
+        else:
+            got.append(r)
+    return out
+
+
 def face_agreement(readings: list[dict], limit_arcsec: float) -> list[Check]:
     out = []
-    for (st, tg) in sorted({(r["station"], r["target"]) for r in readings}):
-        rs = [r for r in readings if r["station"] == st and r["target"] == tg]
+    groups = _grouped(readings, "station", "target")
+    for (st, tg) in sorted(groups):
+        rs = groups[(st, tg)]
         f1 = [r for r in rs if r["face"] == 1]
         f2 = [r for r in rs if r["face"] == 2]
         if not f1 or not f2:
@@ -100,8 +115,9 @@ def face_agreement(readings: list[dict], limit_arcsec: float) -> list[Check]:
 
 def repeat_spread(readings: list[dict], limit_arcsec: float) -> list[Check]:
     out = []
-    for key in sorted({(r["station"], r["target"], r["face"]) for r in readings}):
-        rs = [r for r in readings if (r["station"], r["target"], r["face"]) == key]
+    groups = _grouped(readings, "station", "target", "face")
+    for key in sorted(groups):
+        rs = groups[key]
         if len(rs) < 2:
             continue
         h0 = rs[0]["hz_rad"]
@@ -118,14 +134,15 @@ def intersect_targets(readings: list[dict], stations: dict[str, Station]) -> dic
     ``stations``: the set-up names them).  All targets in one intersection (it is vectorised over points)."""
     names = list(stations)[:2]
     seen: dict[str, list] = {}
+    groups = _grouped(readings, "station", "target")
     for tg in sorted({r["target"] for r in readings}):
         pair = []
         for st in names:
-            rs = [r for r in readings if r["station"] == st and r["target"] == tg]
+            rs = groups.get((st, tg))
             if not rs:
                 break
-            pair.append(face_mean(np.array([r["hz_rad"] for r in rs]), np.array([r["v_rad"] for r in rs]),
-                                  np.array([r["face"] for r in rs])))
+            # lists, not arrays: face_mean takes a few readings in plain floats (a sequence is all it needs)
+            pair.append(face_mean([r["hz_rad"] for r in rs], [r["v_rad"] for r in rs], [r["face"] for r in rs]))
         if len(pair) == 2:
             seen[tg] = pair
     if not seen:
@@ -188,12 +205,14 @@ def encoders_settled(cap, pose_deg, limits: dict) -> list[Check]:
     if cap.n < 3:
         return [Check("encoders", False, float(cap.n), 3.0, "samples",
                       "too few encoder samples: check the tap connection")]
-    ptp = float(np.max(np.ptp(cap.counts, axis=0)))
+    counts = np.asarray(cap.counts)
+    ptp = float((counts.max(0) - counts.min(0)).max())                  # np.ptp's numbers, without its wrappers
     out = [Check("encoders settled", ptp <= limits["encoder_ptp_counts"], ptp, limits["encoder_ptp_counts"], "counts",
                  "robot holding still" if ptp <= limits["encoder_ptp_counts"] else
                  "encoder counts still moving: wait for the robot to settle (brakes, servo), then repeat")]
-    if pose_deg is not None and np.all(np.isfinite(cap.joint_rad)):
-        dev = float(np.max(np.abs(np.mean(cap.joint_rad, 0) / DEG - np.asarray(pose_deg))))
+    joint_rad = np.asarray(cap.joint_rad)
+    if pose_deg is not None and np.isfinite(joint_rad).all():
+        dev = float(np.abs(joint_rad.mean(0) / DEG - np.asarray(pose_deg)).max())
         ok = dev <= limits["encoder_pose_deg"]
         out.append(Check("pose reached", ok, dev, limits["encoder_pose_deg"], "deg",
                          "encoders read the requested pose" if ok else

@@ -278,11 +278,13 @@ def _sight(pf: Preflight, geo: StepGeometry) -> list[Finding]:
     lim = pf.limits
     out = []
     names = list(pf.stations)
-    centres = np.array([st.position for st in pf.stations.values()], float).reshape(-1, 3)
+    # the stations' centres as plain floats (Station.position's numbers): numpy per scalar costs 10x more
+    centres = [[float(st.x_mm), float(st.y_mm), float(st.z_mm)] for st in pf.stations.values()]
     for name, p in geo.points.items():
         rngs = []
+        pl = p.tolist()
         for sname, c in zip(names, centres):
-            dx, dy, dz = (float(v) for v in p - c)   # scalars in plain floats: numpy per scalar costs 10x more
+            dx, dy, dz = pl[0] - c[0], pl[1] - c[1], pl[2] - c[2]
             rng = math.sqrt(dx * dx + dy * dy + dz * dz)
             rngs.append(rng)
             el = math.degrees(math.atan2(dz, math.hypot(dx, dy)))
@@ -297,7 +299,7 @@ def _sight(pf: Preflight, geo: StepGeometry) -> list[Finding]:
             elif rng > lim["max_range_mm"]:
                 out.append(Finding("sight", geo.step.key, rng, lim["max_range_mm"], "mm",
                                    f"{name} is {rng:.0f} mm from station {sname}, beyond {lim['max_range_mm']:.0f} mm"))
-        for sname, blocked in zip(names, _blocking_links(pf, geo, centres, p, rngs)):
+        for sname, blocked in zip(names, _blocking_links(pf, geo, centres, pl, rngs)):
             if blocked is not None:
                 j, dist = blocked
                 out.append(Finding("sight", geo.step.key, dist, float(pf.limits["link_radius_mm"]), "mm",
@@ -306,22 +308,35 @@ def _sight(pf: Preflight, geo: StepGeometry) -> list[Finding]:
     return out
 
 
-def _blocking_links(pf: Preflight, geo: StepGeometry, stations_mm: np.ndarray, p: np.ndarray,
-                    lengths_mm=None) -> list:
+def _blocking_links(pf: Preflight, geo: StepGeometry, stations_mm, p, lengths_mm=None) -> list:
     """Per station (S, 3): (link, distance) of the first link crossing its sight line to ``p`` (frame origin to frame
     origin, thickened by the set-up's ``link_radius_mm``), or None; the last ``2 r`` before the target are left out
-    (the target's own mount).  All stations at once; ``lengths_mm``: the lines' lengths when the caller has them."""
+    (the target's own mount).  All stations at once; ``lengths_mm``: the lines' lengths when the caller has them.
+    The sight lines' ends in plain floats for the screen (:func:`_clear_of`), numpy's operations on the same floats;
+    the sampled test, when the screen cannot clear a line, through numpy."""
     r = pf.limits.get("link_radius_mm")
     if not r or geo.fp is None:
         return [None] * len(stations_mm)
-    d = p - stations_mm                                                        # (S, 3)
-    L = np.linalg.norm(d, axis=1) if lengths_mm is None else np.asarray(lengths_mm, float)
-    end = stations_mm + d * np.maximum(0.0, 1.0 - 2.0 * float(r) / L)[:, None]
+    r = float(r)
+    stations = np.asarray(stations_mm, float).reshape(-1, 3).tolist()
+    p = np.asarray(p, float).tolist()
+    d = [[p[0] - c[0], p[1] - c[1], p[2] - c[2]] for c in stations]                      # (S, 3)
+    L = [math.sqrt(x * x + y * y + z * z) for x, y, z in d] if lengths_mm is None else \
+        [float(x) for x in lengths_mm]
+    if not all(x > 0.0 and math.isfinite(x) for x in L):          # a target at a station: numpy's inf and nan
+        Lv = np.asarray(L, float)
+        end = np.asarray(stations) + np.asarray(d) * np.maximum(0.0, 1.0 - 2.0 * r / Lv)[:, None]
+        end = end.tolist()
+    else:
+        end = []
+        for c, dd, length in zip(stations, d, L):
+            f = max(0.0, 1.0 - 2.0 * r / length)                     # np.maximum's float for a finite one
+            end.append([c[0] + dd[0] * f, c[1] + dd[1] * f, c[2] + dd[2] * f])
     links, pts, segments = _link_samples(pf, geo.fp)
-    if all(_clear_of(a, b, segments, float(r)) for a, b in zip(stations_mm.tolist(), end.tolist())):
-        return [None] * len(stations_mm)
+    if all(_clear_of(a, b, segments, r) for a, b in zip(stations, end)):
+        return [None] * len(stations)
     out = []
-    for dist in _distances_to(stations_mm, end, pts):
+    for dist in _distances_to(np.asarray(stations, float), np.asarray(end, float), pts):
         hit = np.flatnonzero(dist < r)
         out.append((int(links[hit[0]]), float(dist[hit[0]])) if hit.size else None)
     return out
@@ -409,7 +424,7 @@ def _intersection(pf: Preflight, geo: StepGeometry) -> list[Finding]:
     if len(sts) < 2:
         return []
     out = []
-    c0, c1 = (np.asarray(st.position, float).tolist() for st in sts[:2])
+    c0, c1 = ([float(st.x_mm), float(st.y_mm), float(st.z_mm)] for st in sts[:2])     # Station.position's floats
     for name, p in geo.points.items():
         if lo + _CLEAR_ANGLE_DEG < _angle_deg(p.tolist(), c0, c1) < hi - _CLEAR_ANGLE_DEG:
             continue                # certainly inside the limits (the numpy figure below is for the message)
