@@ -107,7 +107,7 @@ class Preflight:
         self.limits = {**lim, **setup.preflight, **(limits or {})}
         self.g_n_per_kg = self.model.gravity_n_per_kg(self.theta)
         self._chains: dict[tuple, object] = {}     # pose -> one-pose chain pass (nominal model: stations do not matter)
-        self._links: dict[int, tuple] = {}         # id(chain pass) -> (links, sample points) for the line of sight
+        self._links: dict[int, tuple] = {}         # id(chain pass) -> (pass, links, segments) for the line of sight
         self._fixed: dict[int, tuple] = {}         # id(step) -> (step, geometry, findings of the station-free checks)
         self._unloaded: dict[int, tuple] = {}      # id(chain pass) -> (pass, joint torques without hung masses)
         # each joint's limits in its edge unit (deg or mm), as plain floats: the same numbers as
@@ -332,31 +332,38 @@ def _blocking_links(pf: Preflight, geo: StepGeometry, stations_mm, p, lengths_mm
         for c, dd, length in zip(stations, d, L):
             f = max(0.0, 1.0 - 2.0 * r / length)                     # np.maximum's float for a finite one
             end.append([c[0] + dd[0] * f, c[1] + dd[1] * f, c[2] + dd[2] * f])
-    links, pts, segments = _link_samples(pf, geo.fp)
+    links, segments = _link_samples(pf, geo.fp)
     if all(_clear_of(a, b, segments, r) for a, b in zip(stations, end)):
         return [None] * len(stations)
     out = []
+    pts = _link_sample_points(geo.fp, links)
     for dist in _distances_to(np.asarray(stations, float), np.asarray(end, float), pts):
         hit = np.flatnonzero(dist < r)
         out.append((int(links[hit[0]]), float(dist[hit[0]])) if hit.size else None)
     return out
 
 
-def _link_samples(pf: Preflight, fp) -> tuple[np.ndarray, np.ndarray, list]:
-    """The links of a one-pose chain pass (frame origin to frame origin, zero-length ones left out), the points
-    sampled along them (K, n, 3) and the links as plain floats [(b0, b1, middle, half length), ...]; kept per pass:
-    every station and target of a step, and the step's second check with refitted stations, test the same links."""
+def _link_samples(pf: Preflight, fp) -> tuple[np.ndarray, list]:
+    """The links of a one-pose chain pass (frame origin to frame origin, zero-length ones left out) and the links as
+    plain floats [(b0, b1, middle, half length), ...]; kept per pass: every station and target of a step, and the
+    step's second check with refitted stations, test the same links."""
     got = pf._links.get(id(fp))
     if got is not None and got[0] is fp:
-        return got[1:]
+        return got[1], got[2]
     org = fp.frame_t[0]
     links = np.flatnonzero(np.linalg.norm(org[1:] - org[:-1], axis=1) >= 1e-6) + 1
-    pts = _link_points(org[links - 1], org[links])
     segments = [(b0, b1, [(x + y) / 2 for x, y in zip(b0, b1)], math.dist(b0, b1) / 2)
                 for b0, b1 in zip(org[links - 1].tolist(), org[links].tolist())]
     if len(pf._links) < 10_000:
-        pf._links[id(fp)] = (fp, links, pts, segments)
-    return links, pts, segments
+        pf._links[id(fp)] = (fp, links, segments)
+    return links, segments
+
+
+def _link_sample_points(fp, links: np.ndarray) -> np.ndarray:
+    """The points sampled along the links (K, n, 3) for the sampled line-of-sight test: only for the few sight
+    lines the exact screen (:func:`_clear_of`) cannot clear, so made when asked."""
+    org = fp.frame_t[0]
+    return _link_points(org[links - 1], org[links])
 
 
 #: a link is certainly clear of a sight line when the segments' exact distance exceeds the radius by this much (mm):
