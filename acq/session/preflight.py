@@ -491,11 +491,12 @@ def load_points(pf: Preflight, fp, loads: list[dict]) -> tuple[np.ndarray, np.nd
     return links, pts, F
 
 
-def load_torques_nm(pf: Preflight, fp, q_rad: np.ndarray, loads: list[dict]) -> np.ndarray:
+def load_torques_nm(pf: Preflight, fp, q_rad: np.ndarray, loads: list[dict], points: tuple | None = None) -> np.ndarray:
     """Torque (N m) about every joint from the hung masses alone: ``MeasurementModel.loads`` with the masses as point
-    forces (contract C2) less the same without them (the arm's own weight cancels)."""
+    forces (contract C2) less the same without them (the arm's own weight cancels).  ``points``: the masses'
+    :func:`load_points` when the caller has them."""
     m = pf.model
-    links, _, F = load_points(pf, fp, loads)
+    links, _, F = load_points(pf, fp, loads) if points is None else points
     ctx = m.context(1, point_force_link=links, point_force_mm=np.array([[ld["point_mm"] for ld in loads]], float),
                     point_force_n=F[None])
     return m.loads(fp, ctx).joint_torque_nm[0] - _unloaded_torques_nm(pf, fp)
@@ -520,8 +521,9 @@ def _load_torque(pf: Preflight, geo: StepGeometry) -> list[Finding]:
     if not loads or j is None or geo.fp is None:
         return []
     q = np.asarray(geo.step.pose_deg, float) * DEG
-    tau = load_torques_nm(pf, geo.fp, q, loads)[j - 1]
-    _, pts, F = load_points(pf, geo.fp, loads)
+    hung = load_points(pf, geo.fp, loads)
+    tau = load_torques_nm(pf, geo.fp, q, loads, hung)[j - 1]
+    _, pts, F = hung
     full = float(sum(np.linalg.norm(f) * _axis_distance(geo.fp, j, p) * 1e-3 for p, f in zip(pts, F)))
     frac = abs(tau) / full if full > 0 else 0.0
     need = pf.limits["load_lever_fraction"]
