@@ -350,10 +350,15 @@ def _link_samples(pf: Preflight, fp) -> tuple[np.ndarray, list]:
     got = pf._links.get(id(fp))
     if got is not None and got[0] is fp:
         return got[1], got[2]
-    org = fp.frame_t[0]
-    links = np.flatnonzero(np.linalg.norm(org[1:] - org[:-1], axis=1) >= 1e-6) + 1
-    segments = [(b0, b1, [(x + y) / 2 for x, y in zip(b0, b1)], math.dist(b0, b1) / 2)
-                for b0, b1 in zip(org[links - 1].tolist(), org[links].tolist())]
+    org = fp.frame_t[0].tolist()
+    kept, segments = [], []
+    for j in range(1, len(org)):
+        b0, b1 = org[j - 1], org[j]
+        dx, dy, dz = b1[0] - b0[0], b1[1] - b0[1], b1[2] - b0[2]
+        if math.sqrt(dx * dx + dy * dy + dz * dz) >= 1e-6:          # np.linalg.norm's sum of three, in order
+            kept.append(j)
+            segments.append((b0, b1, [(x + y) / 2 for x, y in zip(b0, b1)], math.dist(b0, b1) / 2))
+    links = np.array(kept, dtype=np.intp)
     if len(pf._links) < 10_000:
         pf._links[id(fp)] = (fp, links, segments)
     return links, segments
