@@ -49,6 +49,21 @@ def test_sample_std_of_few_values_is_numpys(rng):
             assert sample_std(d) == float(np.std(wrap_angle(x - x[0]), ddof=1))
 
 
+def test_vector_norm_is_numpys(rng):
+    """The session checks' distances (miss sigma, plausibility) are ``np.linalg.norm``'s floats to the last bit: 3-D
+    differences of points mm to m apart, tiny and huge, and a 2-D or integer array through numpy itself."""
+    from acq.session.checks import vector_norm
+    for trial in range(3000):
+        scale = (1e-9, 1e-3, 1.0, 2e3, 1e12)[trial % 5]
+        x = rng.normal(0.0, scale, 3 if trial % 7 else rng.integers(1, 12))
+        assert vector_norm(x) == float(np.linalg.norm(x))
+        y = x - rng.normal(0.0, scale, x.size)
+        assert vector_norm(y) == float(np.linalg.norm(y))
+    m = rng.normal(0.0, 1.0, (3, 2))
+    assert vector_norm(m) == float(np.linalg.norm(m))
+    assert vector_norm(np.array([3, 4])) == 5.0
+
+
 def test_kept_load_structure_gives_the_fresh_arrays(rng, monkeypatch):
     """The twin's model (compliances, transmission errors, coupling) evaluated one pose at a time with hung masses,
     which joint carries which body kept between calls, gives the floats of the same evaluation with that structure

@@ -78,10 +78,34 @@ def sample_std(xs: list[float]) -> float:
     return math.sqrt(sum(sq[1:], sq[0]) / (n - 1))
 
 
+def _grouped(readings: list[dict], *fields: str) -> dict[tuple, list[dict]]:
+    """Readings by the values of ``fields``, each group in the readings' order: one pass over a step's readings
+    instead of one per group (the checks run at every step, on a dozen readings)."""
+    out: dict[tuple, list[dict]] = {}
+    for r in readings:
+        key = tuple([r[f] for f in fields])
+        got = out.get(key)
+        if got is None:
+            out[key] = [r]
+        else:
+            got.append(r)
+    return out
+
+
+def vector_norm(x: np.ndarray) -> float:
+    """``float(np.linalg.norm(x))`` of a 1-D float array: numpy's own steps for a vector (the square root of its
+    dot with itself; a correctly rounded root either way) without the wrapper's checks -- a step's checks ask for
+    a few distances, where the wrapper cost more than the arithmetic (a test holds them equal)."""
+    if x.ndim != 1 or x.dtype != np.float64:
+        return float(np.linalg.norm(x))
+    return math.sqrt(x.dot(x))
+
+
 def face_agreement(readings: list[dict], limit_arcsec: float) -> list[Check]:
     out = []
-    for (st, tg) in sorted({(r["station"], r["target"]) for r in readings}):
-        rs = [r for r in readings if r["station"] == st and r["target"] == tg]
+    groups = _grouped(readings, "station", "target")
+    for (st, tg) in sorted(groups):
+        rs = groups[(st, tg)]
         f1 = [r for r in rs if r["face"] == 1]
         f2 = [r for r in rs if r["face"] == 2]
         if not f1 or not f2:
@@ -100,8 +124,9 @@ def face_agreement(readings: list[dict], limit_arcsec: float) -> list[Check]:
 
 def repeat_spread(readings: list[dict], limit_arcsec: float) -> list[Check]:
     out = []
-    for key in sorted({(r["station"], r["target"], r["face"]) for r in readings}):
-        rs = [r for r in readings if (r["station"], r["target"], r["face"]) == key]
+    groups = _grouped(readings, "station", "target", "face")
+    for key in sorted(groups):
+        rs = groups[key]
         if len(rs) < 2:
             continue
         h0 = rs[0]["hz_rad"]
@@ -118,14 +143,15 @@ def intersect_targets(readings: list[dict], stations: dict[str, Station]) -> dic
     ``stations``: the set-up names them).  All targets in one intersection (it is vectorised over points)."""
     names = list(stations)[:2]
     seen: dict[str, list] = {}
+    groups = _grouped(readings, "station", "target")
     for tg in sorted({r["target"] for r in readings}):
         pair = []
         for st in names:
-            rs = [r for r in readings if r["station"] == st and r["target"] == tg]
+            rs = groups.get((st, tg))
             if not rs:
                 break
-            pair.append(face_mean(np.array([r["hz_rad"] for r in rs]), np.array([r["v_rad"] for r in rs]),
-                                  np.array([r["face"] for r in rs])))
+            # lists, not arrays: face_mean takes a few readings in plain floats (a sequence is all it needs)
+            pair.append(face_mean([r["hz_rad"] for r in rs], [r["v_rad"] for r in rs], [r["face"] for r in rs]))
         if len(pair) == 2:
             seen[tg] = pair
     if not seen:
@@ -142,7 +168,7 @@ def miss_sigma_mm(readings: list[dict], stations: dict[str, Station], point_mm: 
     for name in list(stations)[:2]:
         st = stations[name]
         n = max(1, sum(1 for r in readings if r["station"] == name and r["target"] == target))
-        d = float(np.linalg.norm(np.asarray(point_mm) - st.position))
+        d = vector_norm(np.asarray(point_mm) - st.position)
         var += (st.sigma_v_rad * d) ** 2 / n
     return float(np.sqrt(var))
 
@@ -173,7 +199,7 @@ def miss_and_plausibility(readings: list[dict], stations: dict[str, Station], pr
         if tg in predicted:
             pr = predicted[tg]
             point, sig = (pr if isinstance(pr, tuple) else (pr, 0.0))
-            d = float(np.linalg.norm(p - np.asarray(point)))
+            d = vector_norm(p - np.asarray(point))
             lim = max(limits["plausibility_mm"], limits["plausibility_sigmas"] * float(sig))
             ok = d <= lim
             out.append(Check(f"plausible {tg}", ok, d, lim, "mm",
@@ -188,12 +214,14 @@ def encoders_settled(cap, pose_deg, limits: dict) -> list[Check]:
     if cap.n < 3:
         return [Check("encoders", False, float(cap.n), 3.0, "samples",
                       "too few encoder samples: check the tap connection")]
-    ptp = float(np.max(np.ptp(cap.counts, axis=0)))
+    counts = np.asarray(cap.counts)
+    ptp = float((counts.max(0) - counts.min(0)).max())                  # np.ptp's numbers, without its wrappers
     out = [Check("encoders settled", ptp <= limits["encoder_ptp_counts"], ptp, limits["encoder_ptp_counts"], "counts",
                  "robot holding still" if ptp <= limits["encoder_ptp_counts"] else
                  "encoder counts still moving: wait for the robot to settle (brakes, servo), then repeat")]
-    if pose_deg is not None and np.all(np.isfinite(cap.joint_rad)):
-        dev = float(np.max(np.abs(np.mean(cap.joint_rad, 0) / DEG - np.asarray(pose_deg))))
+    joint_rad = np.asarray(cap.joint_rad)
+    if pose_deg is not None and np.isfinite(joint_rad).all():
+        dev = float(np.abs(joint_rad.mean(0) / DEG - np.asarray(pose_deg)).max())
         ok = dev <= limits["encoder_pose_deg"]
         out.append(Check("pose reached", ok, dev, limits["encoder_pose_deg"], "deg",
                          "encoders read the requested pose" if ok else

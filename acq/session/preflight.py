@@ -107,7 +107,7 @@ class Preflight:
         self.limits = {**lim, **setup.preflight, **(limits or {})}
         self.g_n_per_kg = self.model.gravity_n_per_kg(self.theta)
         self._chains: dict[tuple, object] = {}     # pose -> one-pose chain pass (nominal model: stations do not matter)
-        self._links: dict[int, tuple] = {}         # id(chain pass) -> (links, sample points) for the line of sight
+        self._links: dict[int, tuple] = {}         # id(chain pass) -> (pass, links, segments) for the line of sight
         self._fixed: dict[int, tuple] = {}         # id(step) -> (step, geometry, findings of the station-free checks)
         self._unloaded: dict[int, tuple] = {}      # id(chain pass) -> (pass, joint torques without hung masses)
         # each joint's limits in its edge unit (deg or mm), as plain floats: the same numbers as
@@ -278,11 +278,13 @@ def _sight(pf: Preflight, geo: StepGeometry) -> list[Finding]:
     lim = pf.limits
     out = []
     names = list(pf.stations)
-    centres = np.array([st.position for st in pf.stations.values()], float).reshape(-1, 3)
+    # the stations' centres as plain floats (Station.position's numbers): numpy per scalar costs 10x more
+    centres = [[float(st.x_mm), float(st.y_mm), float(st.z_mm)] for st in pf.stations.values()]
     for name, p in geo.points.items():
         rngs = []
+        pl = p.tolist()
         for sname, c in zip(names, centres):
-            dx, dy, dz = (float(v) for v in p - c)   # scalars in plain floats: numpy per scalar costs 10x more
+            dx, dy, dz = pl[0] - c[0], pl[1] - c[1], pl[2] - c[2]
             rng = math.sqrt(dx * dx + dy * dy + dz * dz)
             rngs.append(rng)
             el = math.degrees(math.atan2(dz, math.hypot(dx, dy)))
@@ -297,7 +299,7 @@ def _sight(pf: Preflight, geo: StepGeometry) -> list[Finding]:
             elif rng > lim["max_range_mm"]:
                 out.append(Finding("sight", geo.step.key, rng, lim["max_range_mm"], "mm",
                                    f"{name} is {rng:.0f} mm from station {sname}, beyond {lim['max_range_mm']:.0f} mm"))
-        for sname, blocked in zip(names, _blocking_links(pf, geo, centres, p, rngs)):
+        for sname, blocked in zip(names, _blocking_links(pf, geo, centres, pl, rngs)):
             if blocked is not None:
                 j, dist = blocked
                 out.append(Finding("sight", geo.step.key, dist, float(pf.limits["link_radius_mm"]), "mm",
@@ -306,42 +308,67 @@ def _sight(pf: Preflight, geo: StepGeometry) -> list[Finding]:
     return out
 
 
-def _blocking_links(pf: Preflight, geo: StepGeometry, stations_mm: np.ndarray, p: np.ndarray,
-                    lengths_mm=None) -> list:
+def _blocking_links(pf: Preflight, geo: StepGeometry, stations_mm, p, lengths_mm=None) -> list:
     """Per station (S, 3): (link, distance) of the first link crossing its sight line to ``p`` (frame origin to frame
     origin, thickened by the set-up's ``link_radius_mm``), or None; the last ``2 r`` before the target are left out
-    (the target's own mount).  All stations at once; ``lengths_mm``: the lines' lengths when the caller has them."""
+    (the target's own mount).  All stations at once; ``lengths_mm``: the lines' lengths when the caller has them.
+    The sight lines' ends in plain floats for the screen (:func:`_clear_of`), numpy's operations on the same floats;
+    the sampled test, when the screen cannot clear a line, through numpy."""
     r = pf.limits.get("link_radius_mm")
     if not r or geo.fp is None:
         return [None] * len(stations_mm)
-    d = p - stations_mm                                                        # (S, 3)
-    L = np.linalg.norm(d, axis=1) if lengths_mm is None else np.asarray(lengths_mm, float)
-    end = stations_mm + d * np.maximum(0.0, 1.0 - 2.0 * float(r) / L)[:, None]
-    links, pts, segments = _link_samples(pf, geo.fp)
-    if all(_clear_of(a, b, segments, float(r)) for a, b in zip(stations_mm.tolist(), end.tolist())):
-        return [None] * len(stations_mm)
+    r = float(r)
+    stations = np.asarray(stations_mm, float).reshape(-1, 3).tolist()
+    p = np.asarray(p, float).tolist()
+    d = [[p[0] - c[0], p[1] - c[1], p[2] - c[2]] for c in stations]                      # (S, 3)
+    L = [math.sqrt(x * x + y * y + z * z) for x, y, z in d] if lengths_mm is None else \
+        [float(x) for x in lengths_mm]
+    if not all(x > 0.0 and math.isfinite(x) for x in L):          # a target at a station: numpy's inf and nan
+        Lv = np.asarray(L, float)
+        end = np.asarray(stations) + np.asarray(d) * np.maximum(0.0, 1.0 - 2.0 * r / Lv)[:, None]
+        end = end.tolist()
+    else:
+        end = []
+        for c, dd, length in zip(stations, d, L):
+            f = max(0.0, 1.0 - 2.0 * r / length)                     # np.maximum's float for a finite one
+            end.append([c[0] + dd[0] * f, c[1] + dd[1] * f, c[2] + dd[2] * f])
+    links, segments = _link_samples(pf, geo.fp)
+    if all(_clear_of(a, b, segments, r) for a, b in zip(stations, end)):
+        return [None] * len(stations)
     out = []
-    for dist in _distances_to(stations_mm, end, pts):
+    pts = _link_sample_points(geo.fp, links)
+    for dist in _distances_to(np.asarray(stations, float), np.asarray(end, float), pts):
         hit = np.flatnonzero(dist < r)
         out.append((int(links[hit[0]]), float(dist[hit[0]])) if hit.size else None)
     return out
 
 
-def _link_samples(pf: Preflight, fp) -> tuple[np.ndarray, np.ndarray, list]:
-    """The links of a one-pose chain pass (frame origin to frame origin, zero-length ones left out), the points
-    sampled along them (K, n, 3) and the links as plain floats [(b0, b1, middle, half length), ...]; kept per pass:
-    every station and target of a step, and the step's second check with refitted stations, test the same links."""
+def _link_samples(pf: Preflight, fp) -> tuple[np.ndarray, list]:
+    """The links of a one-pose chain pass (frame origin to frame origin, zero-length ones left out) and the links as
+    plain floats [(b0, b1, middle, half length), ...]; kept per pass: every station and target of a step, and the
+    step's second check with refitted stations, test the same links."""
     got = pf._links.get(id(fp))
     if got is not None and got[0] is fp:
-        return got[1:]
-    org = fp.frame_t[0]
-    links = np.flatnonzero(np.linalg.norm(org[1:] - org[:-1], axis=1) >= 1e-6) + 1
-    pts = _link_points(org[links - 1], org[links])
-    segments = [(b0, b1, [(x + y) / 2 for x, y in zip(b0, b1)], math.dist(b0, b1) / 2)
-                for b0, b1 in zip(org[links - 1].tolist(), org[links].tolist())]
+        return got[1], got[2]
+    org = fp.frame_t[0].tolist()
+    kept, segments = [], []
+    for j in range(1, len(org)):
+        b0, b1 = org[j - 1], org[j]
+        dx, dy, dz = b1[0] - b0[0], b1[1] - b0[1], b1[2] - b0[2]
+        if math.sqrt(dx * dx + dy * dy + dz * dz) >= 1e-6:          # np.linalg.norm's sum of three, in order
+            kept.append(j)
+            segments.append((b0, b1, [(x + y) / 2 for x, y in zip(b0, b1)], math.dist(b0, b1) / 2))
+    links = np.array(kept, dtype=np.intp)
     if len(pf._links) < 10_000:
-        pf._links[id(fp)] = (fp, links, pts, segments)
-    return links, pts, segments
+        pf._links[id(fp)] = (fp, links, segments)
+    return links, segments
+
+
+def _link_sample_points(fp, links: np.ndarray) -> np.ndarray:
+    """The points sampled along the links (K, n, 3) for the sampled line-of-sight test: only for the few sight
+    lines the exact screen (:func:`_clear_of`) cannot clear, so made when asked."""
+    org = fp.frame_t[0]
+    return _link_points(org[links - 1], org[links])
 
 
 #: a link is certainly clear of a sight line when the segments' exact distance exceeds the radius by this much (mm):
@@ -409,7 +436,7 @@ def _intersection(pf: Preflight, geo: StepGeometry) -> list[Finding]:
     if len(sts) < 2:
         return []
     out = []
-    c0, c1 = (np.asarray(st.position, float).tolist() for st in sts[:2])
+    c0, c1 = ([float(st.x_mm), float(st.y_mm), float(st.z_mm)] for st in sts[:2])     # Station.position's floats
     for name, p in geo.points.items():
         if lo + _CLEAR_ANGLE_DEG < _angle_deg(p.tolist(), c0, c1) < hi - _CLEAR_ANGLE_DEG:
             continue                # certainly inside the limits (the numpy figure below is for the message)
@@ -469,11 +496,12 @@ def load_points(pf: Preflight, fp, loads: list[dict]) -> tuple[np.ndarray, np.nd
     return links, pts, F
 
 
-def load_torques_nm(pf: Preflight, fp, q_rad: np.ndarray, loads: list[dict]) -> np.ndarray:
+def load_torques_nm(pf: Preflight, fp, q_rad: np.ndarray, loads: list[dict], points: tuple | None = None) -> np.ndarray:
     """Torque (N m) about every joint from the hung masses alone: ``MeasurementModel.loads`` with the masses as point
-    forces (contract C2) less the same without them (the arm's own weight cancels)."""
+    forces (contract C2) less the same without them (the arm's own weight cancels).  ``points``: the masses'
+    :func:`load_points` when the caller has them."""
     m = pf.model
-    links, _, F = load_points(pf, fp, loads)
+    links, _, F = load_points(pf, fp, loads) if points is None else points
     ctx = m.context(1, point_force_link=links, point_force_mm=np.array([[ld["point_mm"] for ld in loads]], float),
                     point_force_n=F[None])
     return m.loads(fp, ctx).joint_torque_nm[0] - _unloaded_torques_nm(pf, fp)
@@ -498,8 +526,9 @@ def _load_torque(pf: Preflight, geo: StepGeometry) -> list[Finding]:
     if not loads or j is None or geo.fp is None:
         return []
     q = np.asarray(geo.step.pose_deg, float) * DEG
-    tau = load_torques_nm(pf, geo.fp, q, loads)[j - 1]
-    _, pts, F = load_points(pf, geo.fp, loads)
+    hung = load_points(pf, geo.fp, loads)
+    tau = load_torques_nm(pf, geo.fp, q, loads, hung)[j - 1]
+    _, pts, F = hung
     full = float(sum(np.linalg.norm(f) * _axis_distance(geo.fp, j, p) * 1e-3 for p, f in zip(pts, F)))
     frac = abs(tau) / full if full > 0 else 0.0
     need = pf.limits["load_lever_fraction"]

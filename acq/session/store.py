@@ -473,12 +473,13 @@ class SessionStore:
         """The step and everything it produced, atomically (the runner's commit point)."""
         c = self.conn
         with atomic(c):
-            seq = self.next_seq()
+            # the next seq (:meth:`next_seq`) found by the insert itself: one statement a step less
             cur = c.execute(
                 "INSERT INTO step (session_id, seq, key, procedure, title, instruction, status, attempts, "
-                "started_unix_s, ended_unix_s, spec_json, note) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)",
-                (self.session_id, seq, rec.key, rec.procedure, rec.title, rec.instruction, rec.status, rec.attempts,
-                 rec.started_unix_s, rec.ended_unix_s, json.dumps(rec.spec), rec.note))
+                "started_unix_s, ended_unix_s, spec_json, note) VALUES (?, (SELECT coalesce(max(seq), 0) + 1 FROM "
+                "step WHERE session_id=?), ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)",
+                (self.session_id, self.session_id, rec.key, rec.procedure, rec.title, rec.instruction, rec.status,
+                 rec.attempts, rec.started_unix_s, rec.ended_unix_s, json.dumps(rec.spec), rec.note))
             sid = cur.lastrowid
             if rec.readings:
                 c.executemany(

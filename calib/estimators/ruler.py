@@ -26,6 +26,7 @@ Units: mm and radians.
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
+from functools import cached_property
 
 import numpy as np
 
@@ -238,33 +239,82 @@ class _RulerModel:
     def readings(self, p: np.ndarray, marks: np.ndarray) -> np.ndarray:
         """Predicted [Hz..., V...] (..., 2n) for parameters p (..., P) and mark distances (..., n_marks)."""
         s = self.s
-        L, g1, g2, hB = (p[..., i] for i in range(4))
+        pl = p[..., self.n_global:].reshape(p.shape[:-1] + (self.nplace, 5))
+        dist = marks[..., s.mark] if marks.ndim > 1 else marks[s.mark]
+        hz, v = self._observe([p[..., i, None] for i in range(self.n_global)], pl[..., s.placement, :], dist,
+                              s.station, s.face)
+        return np.concatenate([hz, v], -1)
+
+    def _observe(self, glob: list, pl: np.ndarray, dist: np.ndarray, station: np.ndarray, face: np.ndarray):
+        """(Hz, V) of sightings from their global parameters ``glob`` (each broadcast against the sightings),
+        placement poses ``pl (..., 5)``, mark distances, stations and faces: every reading by the same element-wise
+        operations, whichever sightings and parameter vectors are asked for together."""
+        L, g1, g2, hB = glob[:4]
         if self.instr:
-            cA, cB, kA, kB = (p[..., 4 + i] for i in range(4))
+            cA, cB, kA, kB = glob[4:8]
         else:
             cA = cB = kA = kB = np.zeros_like(L)
-        pl = p[..., self.n_global:].reshape(p.shape[:-1] + (self.nplace, 5))
-        pl = pl[..., s.placement, :]                                       # (..., n, 5)
-        dist = marks[..., s.mark] if marks.ndim > 1 else marks[s.mark]
         az, tl = pl[..., 3], pl[..., 4]
         u = np.stack([np.cos(tl) * np.cos(az), np.cos(tl) * np.sin(az), np.sin(tl)], -1)
         pt = pl[..., :3] + dist[..., None] * u
-        isB = s.station == 1
+        isB = station == 1
         # the stations' parameters per sighting (Station.PARAMS order); levelling and trunnion are the set-up's
-        par = np.broadcast_to(self.fixed[s.station], pt.shape[:-1] + (9,)).copy()
-        par[..., 0] = np.where(isB, L[..., None], 0.0)
-        par[..., 2] = np.where(isB, hB[..., None], 0.0)
-        par[..., 3] = np.where(isB, np.pi + g2[..., None], -g1[..., None])
-        par[..., 6] = np.where(isB, cB[..., None], cA[..., None])
-        par[..., 8] = np.where(isB, kB[..., None], kA[..., None])
-        hz, v = observe_params(par, pt, s.face)
-        return np.concatenate([hz, v], -1)
+        par = np.broadcast_to(self.fixed[station], pt.shape[:-1] + (9,)).copy()
+        par[..., 0] = np.where(isB, L, 0.0)
+        par[..., 2] = np.where(isB, hB, 0.0)
+        par[..., 3] = np.where(isB, np.pi + g2, -g1)
+        par[..., 6] = np.where(isB, cB, cA)
+        par[..., 8] = np.where(isB, kB, kA)
+        return observe_params(par, pt, face)
 
     def residual(self, p, marks, obs):
         marks, obs = _align(marks, p), _align(obs, p)
         pred = self.readings(p, marks)
         n = self.s.n
         return np.concatenate([wrap_angle(obs[..., :n] - pred[..., :n]), obs[..., n:] - pred[..., n:]], -1)
+
+    @cached_property
+    def _touched(self) -> tuple[np.ndarray, np.ndarray]:
+        """(parameter, sighting) pairs where the sighting's readings depend on the parameter: a station's
+        parameters touch that station's sightings, a placement's pose that placement's.  Every other reading is
+        computed from the very same floats whichever way the parameter is moved."""
+        s = self.s
+        of_station = [np.flatnonzero(s.station == k) for k in (0, 1)]
+        rows = [of_station[1], of_station[0], of_station[1], of_station[1]]        # L, gamma1, gamma2, hB
+        if self.instr:
+            rows += [of_station[0], of_station[1], of_station[0], of_station[1]]    # collimation, index: A, B
+        for k in range(self.nplace):
+            rows += [np.flatnonzero(s.placement == k)] * 5
+        cols = np.concatenate([np.full(r.size, j) for j, r in enumerate(rows)])
+        return cols, np.concatenate(rows)
+
+    def jacobian(self, p: np.ndarray, marks: np.ndarray, obs: np.ndarray) -> np.ndarray:
+        """:func:`calib.uncertainty.jacobian` of :meth:`residual` at one parameter vector ``p (P,)``, to the bit,
+        evaluating only the readings a parameter touches (:attr:`_touched`: with both faces and three placements
+        9 readings per sighting instead of 23); the others are exactly zero there too (a reading minus itself).
+        Why: the session refits the stations after each ruler step, and the dense Jacobian was most of the fit."""
+        cols, rows = self._touched
+        h = np.broadcast_to(np.asarray(self.steps, float), p.shape)
+        k = np.arange(cols.size)
+        # the perturbed vectors as jacobian() forms them: x + h e_j and x - h e_j, the other entries +- 0.0
+        xp = np.broadcast_to(p + 0.0, (cols.size, p.size)).copy()
+        xm = np.broadcast_to(p - 0.0, (cols.size, p.size)).copy()
+        xp[k, cols] = p[cols] + h[cols]
+        xm[k, cols] = p[cols] - h[cols]
+        x = np.concatenate([xp, xm])
+        r2 = np.concatenate([rows, rows])
+        s = self.s
+        pl = x[:, self.n_global:].reshape(x.shape[0], self.nplace, 5)[np.arange(x.shape[0]), s.placement[r2]]
+        hz, v = self._observe([x[:, i] for i in range(self.n_global)], pl, marks[s.mark[r2]], s.station[r2],
+                              s.face[r2])
+        n, m = s.n, cols.size
+        dhz = wrap_angle(obs[r2] - hz)
+        dv = obs[n + r2] - v
+        two_h = 2 * h[cols]
+        Jt = np.zeros((p.size, 2 * n))             # jacobian()'s (P, 2n) before its swap of the last two axes
+        Jt[cols, rows] = (dhz[:m] - dhz[m:]) / two_h
+        Jt[cols, n + rows] = (dv[:m] - dv[m:]) / two_h
+        return np.swapaxes(Jt, -1, -2)
 
 
 def _align(a: np.ndarray, p: np.ndarray) -> np.ndarray:
@@ -336,7 +386,8 @@ def ruler_lsq(sightings: RulerSightings, marks_mm, sigma_hz_rad: float, sigma_v_
     w = np.concatenate([np.full(s.n, sigma_hz_rad ** -2), np.full(s.n, sv ** -2)])
     obs = np.concatenate([s.hz_rad, s.v_rad])
     p0 = _initial_guess(model, s, marks)
-    p, J, r, A = gauss_newton(lambda q: model.residual(q, marks, obs), p0, model.steps, w)
+    p, J, r, A = gauss_newton(lambda q: model.residual(q, marks, obs), p0, model.steps, w,
+                              jac=lambda q: model.jacobian(q, marks, obs))
     try:
         Ainv = np.linalg.inv(A)
         if not np.all(np.isfinite(Ainv)) or np.linalg.cond(A) > 1e14:
@@ -372,13 +423,13 @@ def ruler_lsq(sightings: RulerSightings, marks_mm, sigma_hz_rad: float, sigma_v_
 
 
 def _jac_marks(model, p, marks, obs):
+    """Central differences of the residual in each mark's distance (step 1e-4 mm), every perturbed ruler in one
+    batched evaluation: the same floats as one evaluation per ruler (the readings are element-wise)."""
     h = 1e-4
-    cols = []
-    for i in range(marks.size):
-        d = np.zeros_like(marks)
-        d[i] = h
-        cols.append((model.residual(p, marks + d, obs) - model.residual(p, marks - d, obs)) / (2 * h))
-    return np.stack(cols, -1)
+    eye = np.eye(marks.size)
+    moved = np.concatenate([marks + h * eye, marks - h * eye])      # marks[i] +- h, the others +- 0.0
+    y = model.residual(p, moved, obs)
+    return np.ascontiguousarray(((y[:marks.size] - y[marks.size:]) / (2 * h)).T)
 
 
 # -- synthetic sightings (tests, design of experiments) -------------------------------------------------------
