@@ -23,6 +23,7 @@ and then for the Jacobian at the same parameters runs the chain once.
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -142,7 +143,7 @@ class MeasurementModel:
         a hung mass m pulls ``m * gravity_n_per_kg()`` at its point."""
         geo = (self.nominal if theta is None else np.asarray(theta, float))[: self.n_geometric]
         fp = self.kin.forward(np.zeros((1, self.robot.n)), geo)
-        return fp.gravity()[0]
+        return fp.gravity()[0].copy()
 
     def _bodies(self, fp: ChainPass, ctx: PoseContext, values: list | None = None):
         """Every force acting on the chain, with the frame it is fixed in: the links' weights at their centres of
@@ -614,11 +615,24 @@ def torque_term_size(gain: np.ndarray, loads: Loads) -> float:
 
 def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """``a x b`` over the last axis (broadcast), component by component into one array (np.cross and np.stack copy
-    and transpose: several times slower on the small arrays of one-pose evaluations)."""
+    and transpose: several times slower on the small arrays of one-pose evaluations).
+
+    Up to :data:`SMALL_CROSS` vectors the three components are computed together, from each operand written twice
+    along its last axis (``(a1, a2, a0) * (b2, b0, b1) - (a2, a0, a1) * (b1, b2, b0)``): five numpy calls instead of
+    twenty-odd, where the calls' overhead is the cost (a session's twin evaluates one pose at a time).  Every
+    component is the same product and difference of the same floats either way (tests/test_model_small_paths.py)."""
+    shape = np.broadcast_shapes(a.shape, b.shape)
+    if math.prod(shape[:-1]) <= SMALL_CROSS:
+        a2, b2 = np.concatenate((a, a), -1), np.concatenate((b, b), -1)
+        return a2[..., 1:4] * b2[..., 2:5] - a2[..., 2:5] * b2[..., 1:4]
     a0, a1, a2 = a[..., 0], a[..., 1], a[..., 2]
     b0, b1, b2 = b[..., 0], b[..., 1], b[..., 2]
-    out = np.empty(np.broadcast_shapes(a.shape, b.shape))
+    out = np.empty(shape)
     np.subtract(a1 * b2, a2 * b1, out=out[..., 0])
     np.subtract(a2 * b0, a0 * b2, out=out[..., 1])
     np.subtract(a0 * b1, a1 * b0, out=out[..., 2])
     return out
+
+
+#: the most vectors :func:`_cross` computes from its operands written twice (above, per component)
+SMALL_CROSS = 256

@@ -1,0 +1,104 @@
+"""The forward model's paths for a few poses (a session's twin evaluates one pose at a time) give the floats of the
+general code, bit for bit: the chain with fewer numpy calls, the cross products of small arrays, the structural arrays
+a model keeps between evaluations.  Exact equality (bytes), not ``allclose``: the demo's recorded data must not move.
+"""
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from calib import kinematics as kmod
+from calib import model as mmod
+from calib.angles import rot_zyx
+from calib.kinematics import Kinematics, _chain_step, _frame_at
+from calib.loading import load_robot
+
+EX = Path(__file__).resolve().parents[1] / "examples"
+
+
+def _bits(a) -> bytes:
+    return np.ascontiguousarray(a, float).tobytes()
+
+
+def _reference_forward(kin: Kinematics, q: np.ndarray, p: np.ndarray):
+    """The pass as written before the few-pose path: each rotation entry on its own, one link step at a time
+    (:func:`calib.kinematics._chain_step`).  Returns the frames (R, t) and the tool point."""
+    N, n = q.shape[0], kin.n
+    lk = p[..., kin._link_cols].T if p.ndim == 2 else p[kin._link_cols].T[:, :, None]
+    a, ca, sa, cb, sb = lk[2], np.cos(lk[3]), np.sin(lk[3]), np.cos(lk[4]), np.sin(lk[4])
+    base = p[..., :6].T
+    R0 = rot_zyx(base[3], base[4], base[5])
+    R0 = R0.transpose(1, 2, 0) if p.ndim == 2 else R0[..., None]
+    qT = q.T
+    theta = lk[0] + qT * kin._revolute[:, None]
+    d = lk[1] + qT * kin._prismatic[:, None] if kin._prismatic.any() else lk[1]
+    ct, st = np.cos(theta), np.sin(theta)
+    A = np.empty((n, 3, 3, N))
+    sta, cta = st * sa, ct * sa
+    A[:, 0, 0] = cb * ct - sb * sta
+    A[:, 1, 0] = cb * st + sb * cta
+    A[:, 2, 0] = -sb * ca
+    A[:, 0, 1] = -st * ca
+    A[:, 1, 1] = ct * ca
+    A[:, 2, 1] = sa
+    A[:, 0, 2] = sb * ct + cb * sta
+    A[:, 1, 2] = sb * st - cb * cta
+    A[:, 2, 2] = cb * ca
+    off = np.empty((n, 3, N))
+    off[:, 0] = a * ct
+    off[:, 1] = a * st
+    off[:, 2] = d
+    R = np.empty((n + 1, 3, 3, N))
+    t = np.empty((n + 1, 3, N))
+    R[0] = R0
+    t[0] = base[:3] if base.ndim == 2 else base[:3, None]
+    pf = kin.parent_frame
+    for j in range(n):
+        _chain_step(R[pf[j]], t[pf[j]], A[j], off[j], R[j + 1], t[j + 1])
+    tool = p[..., kin._tool_cols].T
+    tool = tool if tool.ndim == 2 else tool[:, None]
+    Rn, tn = _frame_at(R, t, kin.tool_frame)
+    return R, t, (tn + Rn[:, 0] * tool[0] + Rn[:, 1] * tool[1] + Rn[:, 2] * tool[2]).T
+
+
+def _robots(puma, tmp_path):
+    from tests.fakes import tree_robot as tr
+    tree = tr.two_arm_torso(0)
+    (tmp_path / "tree.urdf").write_text(tr.to_urdf(tree))
+    (tmp_path / "tree.toml").write_text('urdf = "tree.urdf"\nbase_link = "base_link"\n[tool.points]\n'
+                                        'L = { link = "hand_left_link", xyz_mm = [0.0, 0.0, 30.0] }\n'
+                                        'R = { link = "hand_right_link", xyz_mm = [10.0, 0.0, 30.0] }\n')
+    tree_robot = load_robot(tmp_path / "tree.toml")
+    assert tree_robot.is_tree
+    tiago = load_robot(EX / "tiago" / "tiago_mocap.toml")       # a serial chain with a prismatic joint
+    return [puma, tiago, tree_robot]
+
+
+def test_few_pose_chain_equals_the_link_by_link_pass(puma, tmp_path, rng):
+    """Below SMALL_BATCH poses the chain (rotations a few entries at a time, the offsets in one batched product, the
+    origins by one accumulate on a serial chain) gives the bytes of the entry-by-entry, link-by-link pass: a serial
+    arm, one with a prismatic joint, a tree; one parameter vector (kept terms) and one per pose; 1 to 31 poses."""
+    for robot in _robots(puma, tmp_path):
+        kin = Kinematics(robot)
+        for N in (1, 2, 5, kmod.SMALL_BATCH - 1, kmod.SMALL_BATCH):
+            q = rng.uniform(-2.5, 2.5, (N, kin.n))
+            p = kin.nominal + rng.normal(0, 1e-2, kin.P)
+            for params in (p, np.repeat(p[None], N, 0) + rng.normal(0, 1e-3, (N, kin.P))):
+                fp = kin.forward(q, params)
+                R, t, point = _reference_forward(kin, q, params)
+                assert _bits(fp._R) == _bits(R) and _bits(fp._t) == _bits(t), (robot.name, N, params.ndim)
+                assert _bits(fp.point) == _bits(point)
+
+
+def test_small_cross_products_equal_the_componentwise_ones(rng, monkeypatch):
+    """:func:`calib.model._cross` on a few vectors (the operands written twice) gives the bytes of the
+    component-by-component products, broadcast operands, signed zeros and huge values included."""
+    shapes = [((1, 3), (1, 3)), ((1, 6, 3), (1, 1, 3)), ((2, 6, 4, 3), (2, 1, 1, 3)), ((1, 9, 3), (9, 3))]
+    for sa, sb in shapes:
+        a, b = rng.normal(size=sa), rng.normal(size=sb)
+        a.flat[0], b.flat[1] = -0.0, 1e200
+        small = mmod._cross(a, b)
+        with monkeypatch.context() as m:
+            m.setattr(mmod, "SMALL_CROSS", -1)                  # every size component by component
+            general = mmod._cross(a, b)
+        assert small.shape == general.shape and _bits(small) == _bits(general)
