@@ -241,7 +241,9 @@ class Kinematics:
         rotation and one offset per link, for all links and poses at once), then the links are chained by one batched
         3x3 product each: the cost of a plain DH product.  The elementary motions' screws are derived from these
         frames only when a Jacobian asks (:attr:`ChainPass.elem_axis`)."""
-        q = np.atleast_2d(np.asarray(q_rad, float))
+        q = np.asarray(q_rad, float)
+        if q.ndim != 2:
+            q = np.atleast_2d(q)
         if q.shape[-1] != self.n:
             raise ValueError(f"expected {self.n} joint angles per pose, got {q.shape[-1]}")
         N, n = q.shape[0], self.n
@@ -284,7 +286,12 @@ class Kinematics:
         tool = tool if tool.ndim == 2 else tool[:, None]                               # (3, N) or (3, 1)
         frame = self.tool_frame if point_frame is None else _point_frames(point_frame, N, n)
         Rn, tn = _frame_at(R, t, frame)
-        point = (tn + Rn[:, 0] * tool[0] + Rn[:, 1] * tool[1] + Rn[:, 2] * tool[2]).T.copy()
+        # t_n + R_n[:, 0] x + R_n[:, 1] y + R_n[:, 2] z, summed in that order (a reduction over the first axis adds
+        # row after row), in fewer numpy calls than term by term
+        terms = np.empty((4, 3, N))
+        terms[0] = tn
+        np.multiply(Rn, tool[None], out=terms[1:].transpose(1, 0, 2))
+        point = np.add.reduce(terms, axis=0).T.copy()
         local = {"ct": ct, "st": st, "d": d, "base": base, "tool": tool}
         return ChainPass(point, R, t, local, gravity_m_s2=self._gravity, parent_frame=pf, point_frame=frame)
 
@@ -320,8 +327,8 @@ class Kinematics:
         link = np.asarray(link, int)
         R, t = fp.frame_R[:, link], fp.frame_t[:, link]                      # (N, K, 3, 3), (N, K, 3)
         p = np.asarray(point_mm, float)
-        if p.shape != t.shape:
-            p = np.broadcast_to(p, t.shape)             # matmul would broadcast too, but checks no shapes
+        if p.shape != t.shape and p.shape != t.shape[1:]:   # matmul broadcasts (K, 3) over the poses itself
+            p = np.broadcast_to(p, t.shape)
         return t + np.matmul(R, p[..., None])[..., 0]
 
     # -- Jacobians ------------------------------------------------------------------------------------------------

@@ -102,3 +102,41 @@ def test_small_cross_products_equal_the_componentwise_ones(rng, monkeypatch):
             m.setattr(mmod, "SMALL_CROSS", -1)                  # every size component by component
             general = mmod._cross(a, b)
         assert small.shape == general.shape and _bits(small) == _bits(general)
+
+
+def _reference_compliance(e, q, ctx, loads, values):
+    """:meth:`JointCompliance.joint_delta` as written before its first-slope branch: np.where over both slopes."""
+    c1, c2, tb, h = values
+    j = e.joint - 1
+    tau = loads.joint_torque_nm[:, j]
+    a, s = np.abs(tau), np.sign(tau)
+    below = a <= tb
+    tb_f = tb if np.isfinite(tb) else 0.0
+    d = np.where(below, c1 * tau, s * (c1 * tb_f + c2 * (a - tb_f))) - 0.5 * h * ctx.load_direction[:, j]
+    delta, grad = np.zeros_like(q), np.zeros(q.shape + (4,))
+    delta[:, j] = d
+    grad[:, j, 0] = np.where(below, tau, s * tb_f)
+    grad[:, j, 1] = np.where(below, 0.0, s * (a - tb_f))
+    grad[:, j, 2] = np.where(below, 0.0, s * (c1 - c2))
+    grad[:, j, 3] = -0.5 * ctx.load_direction[:, j]
+    return delta, grad
+
+
+def test_joint_compliance_first_slope_branch_equals_both_slopes(rng):
+    """The joint compliance's branch for poses all below the breakpoint gives the bytes of the two-slope expression:
+    no breakpoint, one above every torque, one some torques pass, a NaN torque, signed zeros, dead zone."""
+    from calib.effects import Loads, PoseContext
+    from calib.effects.joint_compliance import JointCompliance
+    for N in (1, 2, 7):
+        for breakpoint in (np.inf, 1e6, 20.0):
+            e = JointCompliance(3, 2.5e4, 1.1e4, breakpoint, 0.002)
+            q = rng.normal(size=(N, 6))
+            tau = rng.normal(0, 30, (N, 6))
+            tau[0, 2] = -0.0
+            for extra in (None, np.nan):
+                if extra is not None:
+                    tau[-1, 2] = extra
+                ctx = PoseContext(N, 6, load_direction=rng.choice([-1.0, 0.0, 1.0], (N, 6)))
+                loads = Loads(joint_torque_nm=tau.copy(), tip_force_n=np.zeros((N, 6, 3)))
+                got, want = e.joint_delta(q, ctx, loads, e.values), _reference_compliance(e, q, ctx, loads, e.values)
+                assert _bits(got[0]) == _bits(want[0]) and _bits(got[1]) == _bits(want[1])
