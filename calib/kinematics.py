@@ -251,7 +251,11 @@ class Kinematics:
         if p.ndim == 2 and len(p) == 1 and N > 1:
             p = p[0]
         # link parameters link-major and pose-last: (5, n, 1) for one parameter vector, (5, n, N) for one per pose
-        if p.ndim == 2:
+        if p.ndim == 2 and N < SMALL_BATCH and self._same_but_tool(p):
+            # one chain, a tool point per pose (targets on the flange evaluated together): the kept terms of the
+            # first row, the same floats as each row's own (elementwise operations on the same numbers)
+            lk, a, ca, sa, cb, sb, base, R0, twist, row2 = self._fixed_terms(p[0])
+        elif p.ndim == 2:
             lk = p[..., self._link_cols].T
             a, ca, sa, cb, sb = lk[2], np.cos(lk[3]), np.sin(lk[3]), np.cos(lk[4]), np.sin(lk[4])
             base = p[..., :len(BASE_PARAMS)].T                                         # (6, N)
@@ -294,6 +298,11 @@ class Kinematics:
         point = np.add.reduce(terms, axis=0).T.copy()
         local = {"ct": ct, "st": st, "d": d, "base": base, "tool": tool}
         return ChainPass(point, R, t, local, gravity_m_s2=self._gravity, parent_frame=pf, point_frame=frame)
+
+    def _same_but_tool(self, p: np.ndarray) -> bool:
+        """Whether the rows of a per-pose parameter array (N, P) differ in the tool point alone."""
+        ts = self._tool_cols[0]
+        return ts == p.shape[1] - 3 and bool((p[1:, :ts] == p[0, :ts]).all())
 
     def _fixed_terms(self, p: np.ndarray) -> tuple:
         """What :meth:`forward` derives from one parameter vector alone (the links' parameters pose-last, the cosines

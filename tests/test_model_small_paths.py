@@ -77,13 +77,16 @@ def _robots(puma, tmp_path):
 def test_few_pose_chain_equals_the_link_by_link_pass(puma, tmp_path, rng):
     """Below SMALL_BATCH poses the chain (rotations a few entries at a time, the offsets in one batched product, the
     origins by one accumulate on a serial chain) gives the bytes of the entry-by-entry, link-by-link pass: a serial
-    arm, one with a prismatic joint, a tree; one parameter vector (kept terms) and one per pose; 1 to 31 poses."""
+    arm, one with a prismatic joint, a tree; one parameter vector (kept terms), one per pose, and one per pose that
+    differs in the tool point alone (the first row's kept terms); 1 to 32 poses."""
     for robot in _robots(puma, tmp_path):
         kin = Kinematics(robot)
         for N in (1, 2, 5, kmod.SMALL_BATCH - 1, kmod.SMALL_BATCH):
             q = rng.uniform(-2.5, 2.5, (N, kin.n))
             p = kin.nominal + rng.normal(0, 1e-2, kin.P)
-            for params in (p, np.repeat(p[None], N, 0) + rng.normal(0, 1e-3, (N, kin.P))):
+            tools = np.repeat(p[None], N, 0)
+            tools[:, kin._tool_cols] += rng.normal(0, 30, (N, 3))     # a tool point per pose: the kept terms
+            for params in (p, np.repeat(p[None], N, 0) + rng.normal(0, 1e-3, (N, kin.P)), tools):
                 fp = kin.forward(q, params)
                 R, t, point = _reference_forward(kin, q, params)
                 assert _bits(fp._R) == _bits(R) and _bits(fp._t) == _bits(t), (robot.name, N, params.ndim)
