@@ -431,13 +431,15 @@ def _chain_step(R, t, A, off, R_out, t_out) -> None:
 
 
 def _twist_terms(ca, sa, cb, sb) -> tuple[np.ndarray, np.ndarray]:
-    """What :func:`_link_rotations` takes from the links' twists alone: (cos beta, sin beta) (2, 1, n, .) and the
-    rotation's last row ``(-sin beta cos alpha, sin alpha, cos beta cos alpha)`` (n, 3, .), theta not in it."""
-    return np.stack([cb, sb])[:, None], np.stack([-sb * ca, sa, cb * ca], axis=1)
+    """What :func:`_link_rotations` takes from the links' twists alone: (cos beta, sin beta) and (sin beta, cos beta)
+    (2, 1, 2, n, .) and the rotation's last row ``(-sin beta cos alpha, sin alpha, cos beta cos alpha)`` (n, 3, .)."""
+    return np.stack([np.stack([cb, sb]), np.stack([sb, cb])])[:, None], np.stack([-sb * ca, sa, cb * ca], axis=1)
 
 
-#: the signs of the second products of entries (0, 0), (1, 0), (0, 2), (1, 2) in :func:`_link_rotations`
-_SIGNS = np.array([-1.0, 1.0, 1.0, -1.0])[:, None, None]
+#: the signs of the second products of entries (0, 0), (0, 2), (1, 0), (1, 2) in :func:`_link_rotations`, and of the
+#: entries (0, 1), (1, 1)
+_SIGNS = np.array([[-1.0, 1.0], [1.0, -1.0]])[:, :, None, None]
+_SIGNS_MID = np.array([-1.0, 1.0])[:, None, None]
 
 
 def _link_rotations(cs, ca, sa, twist, row2) -> np.ndarray:
@@ -445,16 +447,14 @@ def _link_rotations(cs, ca, sa, twist, row2) -> np.ndarray:
 
     The entries are those of the closed form written entry by entry (``cb ct - sb (st sa)``, ``-st ca`` ...), the
     same products and sums of the same floats (a difference is a sum with the product negated, exactly), but computed
-    a few entries at a time: about a dozen numpy calls instead of thirty, which is the cost of a pass over one pose."""
+    a block at a time: about ten numpy calls instead of thirty, which is the cost of a pass over one pose."""
     n, N = cs.shape[1:]
     A = np.empty((n, 3, 3, N))
-    P = twist * cs                                           # [[cb ct, cb st], [sb ct, sb st]]
-    Q = twist * (cs * sa)                                    # [[cb ct sa, cb st sa], [sb ct sa, sb st sa]]
-    # (0, 0) cb ct - sb st sa, (1, 0) cb st + sb ct sa, (0, 2) sb ct + cb st sa, (1, 2) sb st - cb ct sa
-    A[:, (0, 1, 0, 1), (0, 0, 2, 2)] = (P.reshape(4, n, N) + _SIGNS * Q.reshape(4, n, N)[::-1]).transpose(1, 0, 2)
-    C = cs * ca
-    A[:, 1, 1] = C[0]                                        # ct ca
-    np.negative(C[1], out=A[:, 0, 1])                        # -st ca
+    first = cs[:, None] * twist[0]                           # [[ct cb, ct sb], [st cb, st sb]]
+    second = (cs[::-1] * sa)[:, None] * twist[1]             # [[st sa sb, st sa cb], [ct sa sb, ct sa cb]]
+    # (0, 0) cb ct - sb st sa, (0, 2) sb ct + cb st sa, (1, 0) cb st + sb ct sa, (1, 2) sb st - cb ct sa
+    np.add(first, _SIGNS * second, out=A[:, :2, ::2].transpose(1, 2, 0, 3))
+    np.multiply(_SIGNS_MID, cs[::-1] * ca, out=A[:, :2, 1].transpose(1, 0, 2))   # (0, 1) -st ca, (1, 1) ct ca
     A[:, 2] = row2
     return A
 

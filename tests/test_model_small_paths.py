@@ -143,3 +143,53 @@ def test_joint_compliance_first_slope_branch_equals_both_slopes(rng):
                 loads = Loads(joint_torque_nm=tau.copy(), tip_force_n=np.zeros((N, 6, 3)))
                 got, want = e.joint_delta(q, ctx, loads, e.values), _reference_compliance(e, q, ctx, loads, e.values)
                 assert _bits(got[0]) == _bits(want[0]) and _bits(got[1]) == _bits(want[1])
+
+
+def test_one_model_evaluated_in_turn_equals_fresh_models(puma, rng):
+    """What a model keeps between evaluations (the chain's terms per parameter vector, which joint carries which body
+    per set of load frames, the frames of its own bodies, a pass's gravity) is never stale: a session's sequence of
+    one-pose evaluations -- loads hung on one link then another, none, a payload, targets on the flange and on links,
+    two targets together, a geometric parameter and an effect's value moved -- gives, call after call, the bytes a
+    fresh model gives (points, true angles, torques, Jacobian)."""
+    from calib.effects import CrossCoupling, LinkCompliance, PoseContext, thesis_effects
+    from calib.effects.mass_moment import MassMoment
+    from calib.model import MeasurementModel
+    effects = thesis_effects() + [CrossCoupling(6, 5, 1e-3), LinkCompliance(2, 2e13), MassMoment(3, 1.5, (5.0, 0, 2.0))]
+    model = MeasurementModel(puma, effects)
+    theta = model.nominal.copy()
+    q = rng.uniform(-1.5, 1.5, (1, puma.n))
+
+    def ctx(links=(), payload=0.0, N=1):
+        K = len(links)
+        return PoseContext(N, puma.n, load_direction=np.ones((N, puma.n)), payload_kg=np.full(N, payload),
+                           point_force_link=np.array(links, int), point_force_mm=rng.normal(0, 100, (N, K, 3)),
+                           point_force_n=rng.normal(0, 40, (N, K, 3)))
+
+    calls = [dict(ctx=ctx([2]), tool_mm=np.array([10.0, 0.0, 80.0])), dict(ctx=ctx([3, 5]), tool_mm=np.zeros(3)),
+             dict(ctx=ctx(), tool_mm=np.array([10.0, 0.0, 80.0])), dict(ctx=ctx(payload=2.0)),
+             dict(ctx=ctx([2]), tool_mm=np.array([300.0, 5.0, 0.0]), link=2), dict(ctx=ctx(), tool_mm=np.ones(3), link=4),
+             dict(ctx=ctx([2], N=2), tool_mm=rng.normal(0, 50, (2, 3)), q=np.repeat(q, 2, 0))]
+    for step in range(3):
+        for kw in calls:
+            qq = kw.pop("q", q)
+            got = model.evaluate(qq, theta=theta, jacobian=True, **kw)
+            want = MeasurementModel(puma, effects).evaluate(qq, theta=theta.copy(), jacobian=True, **kw)
+            for attr in ("point_mm", "theta_rad", "jacobian"):
+                assert _bits(getattr(got, attr)) == _bits(getattr(want, attr)), (step, attr, kw)
+            assert _bits(got.loads.joint_torque_nm) == _bits(want.loads.joint_torque_nm)
+            kw["q"] = qq
+        theta[model.index["j2.a_mm"]] += 0.5 if step == 0 else 0.0           # the geometry moved
+        theta[model.names.index(next(n for n in model.names if n.startswith("mass_moment")))] += 0.3 * step
+
+
+def test_a_context_copies_arrays_of_its_own_shape(rng):
+    """A pose context built from arrays of the shape it keeps holds copies equal to the broadcast ones (the twin
+    builds one every state): writing to the caller's array afterwards changes nothing."""
+    from calib.effects import PoseContext
+    d, f = rng.normal(size=(2, 6)), rng.normal(size=(2, 1, 3))
+    ctx = PoseContext(2, 6, direction=d, point_force_link=[3], point_force_n=f, payload_kg=1.5)
+    assert _bits(ctx.direction) == _bits(d) and _bits(ctx.point_force_n) == _bits(f)
+    assert _bits(ctx.payload_kg) == _bits(np.full(2, 1.5))
+    d[:] = 0.0
+    f[:] = 0.0
+    assert ctx.direction.any() and ctx.point_force_n.any()
