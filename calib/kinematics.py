@@ -501,7 +501,15 @@ def _frame_at(R: np.ndarray, t: np.ndarray, frame) -> tuple[np.ndarray, np.ndarr
 
 
 def _cross_into(out: np.ndarray, a: np.ndarray, b: np.ndarray) -> None:
-    """``out = a x b`` over axis -2 (pose-last vectors (..., 3, N), broadcast), written in place."""
+    """``out = a x b`` over axis -2 (pose-last vectors (..., 3, N), broadcast), written in place.
+
+    For a few poses (below :data:`SMALL_BATCH`) the three components at once, from each operand written twice along
+    that axis: the same products and differences of the same floats in fewer numpy calls (a session's predictor
+    asks for one pose's Jacobian at a time; tests/test_model_small_paths.py)."""
+    if out.shape[-1] < SMALL_BATCH:
+        a2, b2 = np.concatenate((a, a), -2), np.concatenate((b, b), -2)
+        np.subtract(a2[..., 1:4, :] * b2[..., 2:5, :], a2[..., 2:5, :] * b2[..., 1:4, :], out=out)
+        return
     out[..., 0, :] = a[..., 1, :] * b[..., 2, :] - a[..., 2, :] * b[..., 1, :]
     out[..., 1, :] = a[..., 2, :] * b[..., 0, :] - a[..., 0, :] * b[..., 2, :]
     out[..., 2, :] = a[..., 0, :] * b[..., 1, :] - a[..., 1, :] * b[..., 0, :]

@@ -193,3 +193,18 @@ def test_a_context_copies_arrays_of_its_own_shape(rng):
     d[:] = 0.0
     f[:] = 0.0
     assert ctx.direction.any() and ctx.point_force_n.any()
+
+
+def test_few_pose_cross_into_equals_the_componentwise_one(rng, monkeypatch):
+    """:func:`calib.kinematics._cross_into` for a few poses (operands written twice) writes the bytes of the
+    component-by-component products: broadcast operands as the element Jacobian passes them, signed zeros."""
+    cases = [((3, 1), (3, 4), (3, 4)), ((6, 3, 2), (6, 3, 2), (6, 3, 2)), ((3, 5), (6, 3, 5), (6, 3, 5))]
+    for sa, sb, so in cases:
+        a, b = rng.normal(size=sa), rng.normal(size=sb)
+        a.flat[1] = -0.0
+        small, general = np.empty(so), np.empty(so)
+        kmod._cross_into(small, a, b)
+        with monkeypatch.context() as m:
+            m.setattr(kmod, "SMALL_BATCH", 0)                 # every batch component by component
+            kmod._cross_into(general, a, b)
+        assert _bits(small) == _bits(general)
