@@ -108,11 +108,15 @@ class ChainPass:
         """(N, 3) gravity (m/s^2) in the measurement frame: the description's, given in frame 0, carried by the base.
         The one source of the gravity direction for loads and effects (a wall- or ceiling-mounted robot's
         description says where down is)."""
-        if self.gravity_m_s2 is None:
-            raise ValueError("a chain pass built without the description's gravity (Kinematics.forward sets it)")
-        g = self.gravity_m_s2
-        R0 = self._R[0]
-        return (R0[:, 0] * g[0] + R0[:, 1] * g[1] + R0[:, 2] * g[2]).T
+        got = self._cache.get("gravity")
+        if got is None:             # kept, read-only: the loads ask for it more than once per pass
+            if self.gravity_m_s2 is None:
+                raise ValueError("a chain pass built without the description's gravity (Kinematics.forward sets it)")
+            g = self.gravity_m_s2
+            R0 = self._R[0]
+            got = self._cache["gravity"] = (R0[:, 0] * g[0] + R0[:, 1] * g[1] + R0[:, 2] * g[2]).T
+            got.flags.writeable = False
+        return got
 
     @property
     def joint_axis(self) -> np.ndarray:
@@ -197,6 +201,8 @@ class Kinematics:
         self._prismatic = np.asarray(robot.prismatic, bool)
         self._revolute = (~self._prismatic).astype(float)
         self._prismatic = self._prismatic.astype(float)
+        self._revolute_col, self._prismatic_col = self._revolute[:, None], self._prismatic[:, None]
+        self._any_prismatic = bool(self._prismatic.any())
         self._gravity = np.asarray(robot.gravity_m_s2, float)
         self._rot = self.kinds >= RX
         self._trans = ~self._rot
@@ -207,6 +213,8 @@ class Kinematics:
         self.ancestors = robot.frame_ancestors()                                   # (n+1, n+1)
         self.tool_frame = robot.point_frame()
         self._nontool = np.flatnonzero(self.link_of <= n)
+        self._pf_list = self.parent_frame.tolist()
+        self._serial = bool(np.array_equal(self.parent_frame, np.arange(n)))     # link j starts from frame j - 1
         self._fixed: dict[bytes, tuple] = {}     # parameter vector (tool point aside) -> forward's fixed terms
 
     @property
@@ -233,7 +241,9 @@ class Kinematics:
         rotation and one offset per link, for all links and poses at once), then the links are chained by one batched
         3x3 product each: the cost of a plain DH product.  The elementary motions' screws are derived from these
         frames only when a Jacobian asks (:attr:`ChainPass.elem_axis`)."""
-        q = np.atleast_2d(np.asarray(q_rad, float))
+        q = np.asarray(q_rad, float)
+        if q.ndim != 2:
+            q = np.atleast_2d(q)
         if q.shape[-1] != self.n:
             raise ValueError(f"expected {self.n} joint angles per pose, got {q.shape[-1]}")
         N, n = q.shape[0], self.n
@@ -241,48 +251,58 @@ class Kinematics:
         if p.ndim == 2 and len(p) == 1 and N > 1:
             p = p[0]
         # link parameters link-major and pose-last: (5, n, 1) for one parameter vector, (5, n, N) for one per pose
-        if p.ndim == 2:
+        if p.ndim == 2 and N < SMALL_BATCH and self._same_but_tool(p):
+            # one chain, a tool point per pose (targets on the flange evaluated together): the kept terms of the
+            # first row, the same floats as each row's own (elementwise operations on the same numbers)
+            lk, a, ca, sa, cb, sb, base, R0, twist, row2 = self._fixed_terms(p[0])
+        elif p.ndim == 2:
             lk = p[..., self._link_cols].T
             a, ca, sa, cb, sb = lk[2], np.cos(lk[3]), np.sin(lk[3]), np.cos(lk[4]), np.sin(lk[4])
             base = p[..., :len(BASE_PARAMS)].T                                         # (6, N)
             R0 = rot_zyx(base[3], base[4], base[5])
             R0 = R0.transpose(1, 2, 0)
+            twist, row2 = _twist_terms(ca, sa, cb, sb)
         else:
-            lk, a, ca, sa, cb, sb, base, R0 = self._fixed_terms(p)
+            lk, a, ca, sa, cb, sb, base, R0, twist, row2 = self._fixed_terms(p)
         qT = q.T
-        theta = lk[0] + qT * self._revolute[:, None]
-        d = lk[1] + qT * self._prismatic[:, None] if self._prismatic.any() else lk[1]
-        ct, st = np.cos(theta), np.sin(theta)                                          # (n, N)
-        # link rotation Rz(theta) Rx(alpha) Ry(beta) and offset Rz(theta) (a, 0, d), for every link and pose
-        A = np.empty((n, 3, 3, N))
-        sta, cta = st * sa, ct * sa
-        A[:, 0, 0] = cb * ct - sb * sta
-        A[:, 1, 0] = cb * st + sb * cta
-        A[:, 2, 0] = -sb * ca
-        A[:, 0, 1] = -st * ca
-        A[:, 1, 1] = ct * ca
-        A[:, 2, 1] = sa
-        A[:, 0, 2] = sb * ct + cb * sta
-        A[:, 1, 2] = sb * st - cb * cta
-        A[:, 2, 2] = cb * ca
+        theta = lk[0] + qT * self._revolute_col
+        d = lk[1] + qT * self._prismatic_col if self._any_prismatic else lk[1]
+        cs = np.empty((2, n, N))                                                       # cos, sin of theta
+        np.cos(theta, out=cs[0])
+        np.sin(theta, out=cs[1])
+        A = _link_rotations(cs, ca, sa, twist, row2)
+        # link offset Rz(theta) (a, 0, d)
         off = np.empty((n, 3, N))
-        off[:, 0] = a * ct
-        off[:, 1] = a * st
+        np.multiply(a[:, None], cs.transpose(1, 0, 2), out=off[:, :2])
         off[:, 2] = d
         R = np.empty((n + 1, 3, 3, N))
         t = np.empty((n + 1, 3, N))
         R[0] = R0
         t[0] = base[:3] if base.ndim == 2 else base[:3, None]
         pf = self.parent_frame
-        for j in range(n):
-            _chain_step(R[pf[j]], t[pf[j]], A[j], off[j], R[j + 1], t[j + 1])
+        if N < SMALL_BATCH:
+            _small_chain(R, t, A, off, self._pf_list, self._serial)
+        else:
+            for j in range(n):
+                _chain_step(R[pf[j]], t[pf[j]], A[j], off[j], R[j + 1], t[j + 1])
+        ct, st = cs
         tool = p[..., self._tool_cols].T
         tool = tool if tool.ndim == 2 else tool[:, None]                               # (3, N) or (3, 1)
         frame = self.tool_frame if point_frame is None else _point_frames(point_frame, N, n)
         Rn, tn = _frame_at(R, t, frame)
-        point = (tn + Rn[:, 0] * tool[0] + Rn[:, 1] * tool[1] + Rn[:, 2] * tool[2]).T.copy()
+        # t_n + R_n[:, 0] x + R_n[:, 1] y + R_n[:, 2] z, summed in that order (a reduction over the first axis adds
+        # row after row), in fewer numpy calls than term by term
+        terms = np.empty((4, 3, N))
+        terms[0] = tn
+        np.multiply(Rn, tool[None], out=terms[1:].transpose(1, 0, 2))
+        point = np.add.reduce(terms, axis=0).T.copy()
         local = {"ct": ct, "st": st, "d": d, "base": base, "tool": tool}
         return ChainPass(point, R, t, local, gravity_m_s2=self._gravity, parent_frame=pf, point_frame=frame)
+
+    def _same_but_tool(self, p: np.ndarray) -> bool:
+        """Whether the rows of a per-pose parameter array (N, P) differ in the tool point alone."""
+        ts = self._tool_cols[0]
+        return ts == p.shape[1] - 3 and bool((p[1:, :ts] == p[0, :ts]).all())
 
     def _fixed_terms(self, p: np.ndarray) -> tuple:
         """What :meth:`forward` derives from one parameter vector alone (the links' parameters pose-last, the cosines
@@ -292,8 +312,9 @@ class Kinematics:
         def make() -> tuple:
             lk = p[self._link_cols].T[:, :, None]
             base = p[:len(BASE_PARAMS)].copy()         # not a view: the caller may step its vector in place
-            return (lk, lk[2], np.cos(lk[3]), np.sin(lk[3]), np.cos(lk[4]), np.sin(lk[4]), base,
-                    rot_zyx(base[3], base[4], base[5])[..., None])
+            ca, sa, cb, sb = np.cos(lk[3]), np.sin(lk[3]), np.cos(lk[4]), np.sin(lk[4])
+            return (lk, lk[2], ca, sa, cb, sb, base, rot_zyx(base[3], base[4], base[5])[..., None],
+                    *_twist_terms(ca, sa, cb, sb))
 
         key = p[:self._tool_cols[0]].tobytes() if self._tool_cols[0] == len(p) - 3 else p.tobytes()
         return kept_arrays(self._fixed, key, make, 8)
@@ -314,7 +335,9 @@ class Kinematics:
         measurement frame (N, K, 3): ``t_j + R_j p``.  Why here: the one place a point on a link is placed."""
         link = np.asarray(link, int)
         R, t = fp.frame_R[:, link], fp.frame_t[:, link]                      # (N, K, 3, 3), (N, K, 3)
-        p = np.broadcast_to(np.asarray(point_mm, float), t.shape)
+        p = np.asarray(point_mm, float)
+        if p.shape != t.shape and p.shape != t.shape[1:]:   # matmul broadcasts (K, 3) over the poses itself
+            p = np.broadcast_to(p, t.shape)
         return t + np.matmul(R, p[..., None])[..., 0]
 
     # -- Jacobians ------------------------------------------------------------------------------------------------
@@ -407,6 +430,53 @@ def _chain_step(R, t, A, off, R_out, t_out) -> None:
     t_out[:] = t + R[:, 0] * off[0] + R[:, 1] * off[1] + R[:, 2] * off[2]
 
 
+def _twist_terms(ca, sa, cb, sb) -> tuple[np.ndarray, np.ndarray]:
+    """What :func:`_link_rotations` takes from the links' twists alone: (cos beta, sin beta) and (sin beta, cos beta)
+    (2, 1, 2, n, .) and the rotation's last row ``(-sin beta cos alpha, sin alpha, cos beta cos alpha)`` (n, 3, .)."""
+    return np.stack([np.stack([cb, sb]), np.stack([sb, cb])])[:, None], np.stack([-sb * ca, sa, cb * ca], axis=1)
+
+
+#: the signs of the second products of entries (0, 0), (0, 2), (1, 0), (1, 2) in :func:`_link_rotations`, and of the
+#: entries (0, 1), (1, 1)
+_SIGNS = np.array([[-1.0, 1.0], [1.0, -1.0]])[:, :, None, None]
+_SIGNS_MID = np.array([-1.0, 1.0])[:, None, None]
+
+
+def _link_rotations(cs, ca, sa, twist, row2) -> np.ndarray:
+    """(n, 3, 3, N) every link's rotation ``Rz(theta) Rx(alpha) Ry(beta)`` from ``cs`` = (cos, sin) of theta (2, n, N).
+
+    The entries are those of the closed form written entry by entry (``cb ct - sb (st sa)``, ``-st ca`` ...), the
+    same products and sums of the same floats (a difference is a sum with the product negated, exactly), but computed
+    a block at a time: about ten numpy calls instead of thirty, which is the cost of a pass over one pose."""
+    n, N = cs.shape[1:]
+    A = np.empty((n, 3, 3, N))
+    first = cs[:, None] * twist[0]                           # [[ct cb, ct sb], [st cb, st sb]]
+    second = (cs[::-1] * sa)[:, None] * twist[1]             # [[st sa sb, st sa cb], [ct sa sb, ct sa cb]]
+    # (0, 0) cb ct - sb st sa, (0, 2) sb ct + cb st sa, (1, 0) cb st + sb ct sa, (1, 2) sb st - cb ct sa
+    np.add(first, _SIGNS * second, out=A[:, :2, ::2].transpose(1, 2, 0, 3))
+    np.multiply(_SIGNS_MID, cs[::-1] * ca, out=A[:, :2, 1].transpose(1, 0, 2))   # (0, 1) -st ca, (1, 1) ct ca
+    A[:, 2] = row2
+    return A
+
+
+def _small_chain(R, t, A, off, parent: list, serial: bool) -> None:
+    """Chain the links of a few poses (below :data:`SMALL_BATCH`): the products of :func:`_chain_step`'s matmul
+    branch on the same pose-first views (so the same BLAS calls on the same strides, the same floats), with fewer
+    numpy calls: the frames' rotations one matmul per link, then on a serial chain every link's offset turned into
+    the measurement frame in one batched matmul and the origins summed link after link by one accumulate (the
+    same additions in the same order)."""
+    Rv, Av = R.transpose(0, 3, 1, 2), A.transpose(0, 3, 1, 2)                    # (n+1, N, 3, 3), (n, N, 3, 3)
+    tv, offv = t.transpose(0, 2, 1), off.transpose(0, 2, 1)[..., None]          # (n+1, N, 3), (n, N, 3, 1)
+    for j, p in enumerate(parent):
+        np.matmul(Rv[p], Av[j], out=Rv[j + 1])
+    if serial:
+        tv[1:] = np.matmul(Rv[:-1], offv)[..., 0]
+        np.add.accumulate(tv, axis=0, out=tv)
+        return
+    for j, p in enumerate(parent):
+        np.add(tv[p], np.matmul(Rv[p], offv[j])[..., 0], out=tv[j + 1])
+
+
 def _point_frames(frame, N: int, n: int):
     """A point's frame as given to :meth:`Kinematics.forward`: one int for every pose, or (N,) ints."""
     if np.isscalar(frame) or np.ndim(frame) == 0:
@@ -431,7 +501,15 @@ def _frame_at(R: np.ndarray, t: np.ndarray, frame) -> tuple[np.ndarray, np.ndarr
 
 
 def _cross_into(out: np.ndarray, a: np.ndarray, b: np.ndarray) -> None:
-    """``out = a x b`` over axis -2 (pose-last vectors (..., 3, N), broadcast), written in place."""
+    """``out = a x b`` over axis -2 (pose-last vectors (..., 3, N), broadcast), written in place.
+
+    For a few poses (below :data:`SMALL_BATCH`) the three components at once, from each operand written twice along
+    that axis: the same products and differences of the same floats in fewer numpy calls (a session's predictor
+    asks for one pose's Jacobian at a time; tests/test_model_small_paths.py)."""
+    if out.shape[-1] < SMALL_BATCH:
+        a2, b2 = np.concatenate((a, a), -2), np.concatenate((b, b), -2)
+        np.subtract(a2[..., 1:4, :] * b2[..., 2:5, :], a2[..., 2:5, :] * b2[..., 1:4, :], out=out)
+        return
     out[..., 0, :] = a[..., 1, :] * b[..., 2, :] - a[..., 2, :] * b[..., 1, :]
     out[..., 1, :] = a[..., 2, :] * b[..., 0, :] - a[..., 0, :] * b[..., 2, :]
     out[..., 2, :] = a[..., 0, :] * b[..., 1, :] - a[..., 1, :] * b[..., 0, :]

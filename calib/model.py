@@ -109,6 +109,9 @@ class MeasurementModel:
         frames = [robot.point_frame(k) for k in robot.tool_points_mm]
         self._target_frames = np.array(frames, int) if len(set(frames)) > 1 else None
         self._structures: dict[tuple, tuple] = {}      # which joint carries which body (see _structure)
+        # the frames of the bodies every pose has (the links' weights, then the tool's: code n + 1), read-only
+        self._own_bodies = np.arange(1, robot.n + 2)
+        self._own_bodies.flags.writeable = False
 
     @property
     def P(self) -> int:
@@ -142,7 +145,7 @@ class MeasurementModel:
         a hung mass m pulls ``m * gravity_n_per_kg()`` at its point."""
         geo = (self.nominal if theta is None else np.asarray(theta, float))[: self.n_geometric]
         fp = self.kin.forward(np.zeros((1, self.robot.n)), geo)
-        return fp.gravity()[0]
+        return fp.gravity()[0].copy()
 
     def _bodies(self, fp: ChainPass, ctx: PoseContext, values: list | None = None):
         """Every force acting on the chain, with the frame it is fixed in: the links' weights at their centres of
@@ -153,11 +156,11 @@ class MeasurementModel:
         r = self.robot
         n = r.n
         g_world = fp.gravity()                                                        # (N, 3)
-        com = self.kin.point_on(fp, np.arange(1, n + 1), r.com_mm)                    # (N, n, 3)
+        com = self.kin.point_on(fp, self._own_bodies[:n], r.com_mm)                   # (N, n, 3)
         F_tool = ctx.payload_kg[:, None] * g_world + ctx.tool_force_n                 # (N, 3)
         pos = [com, fp.point[:, None, :]]
         F = [r.mass_kg[None, :, None] * g_world[:, None, :], F_tool[:, None, :]]
-        link = [np.arange(1, n + 1), [n + 1]]
+        link = [self._own_bodies]
         if len(ctx.point_force_link):
             pos.append(self.kin.point_on(fp, ctx.point_force_link, ctx.point_force_mm))
             F.append(ctx.point_force_n)
@@ -166,7 +169,8 @@ class MeasurementModel:
             pos.append(p_mm)
             F.append(mass[None, :, None] * g_world[:, None, :])
             link.append(frames)
-        return np.concatenate(pos, axis=1) * 1e-3, np.concatenate(F, axis=1), np.concatenate(link).astype(int)
+        link = self._own_bodies if len(link) == 1 else np.concatenate(link).astype(int)
+        return np.concatenate(pos, axis=1) * 1e-3, np.concatenate(F, axis=1), link
 
     def _effect_bodies(self, fp: ChainPass, values: list | None) -> list:
         """(positions mm, masses kg, d masses / d values, frames) of every load-stage effect, in effect order."""
@@ -231,7 +235,7 @@ class MeasurementModel:
         evaluated one pose at a time (a session's twin) works it out once.  The same arrays as made afresh (the
         same expressions), kept read-only.  None when the tool point's frame varies per pose (a tree's rows)."""
         tool = fp.point_frame if fp.point_link is None else fp.point_link
-        if np.ndim(tool):
+        if isinstance(tool, np.ndarray) and tool.ndim:
             return None
 
         def make() -> tuple:
@@ -405,18 +409,18 @@ class MeasurementModel:
             geo = self.kin.params_with_tool(tool_mm, geo)
         vals = [theta[s] for s in self.effect_slices]
         dgeo, grads = self._stage("geometry", vals, lambda e, v: e.geometry_delta(geo, self.length_idx, ctx, v))
-        geo_pose = geo if np.isscalar(dgeo) else np.broadcast_to(geo, (N, self.n_geometric)) + dgeo
+        geo_pose = geo if not isinstance(dgeo, np.ndarray) else np.broadcast_to(geo, (N, self.n_geometric)) + dgeo
         frame = self.row_frames(ctx) if link is None else None
         load_pass, loads = None, None
         if any(e.needs_loads for e in self.effects):
             load_pass = self.kin.forward(q, geo_pose, frame)
             loads = self.loads(load_pass, ctx, values=vals)
         dq, g = self._stage("joint", vals, lambda e, v: e.joint_delta(q, ctx, loads, v))
-        if self._spread is not None and not np.isscalar(dq):
+        if self._spread is not None and isinstance(dq, np.ndarray):
             dq = dq @ self._spread.T              # a joint's change turns every link that shares its variable
         th = q + dq
         grads.update(g)
-        if load_pass is not None and np.isscalar(dq) and link is None:
+        if load_pass is not None and not isinstance(dq, np.ndarray) and link is None:
             fp = load_pass              # no joint-stage effect: the loads' pass is the chain at the true angles
         else:
             fp = self.kin.forward(th, geo_pose, frame)
@@ -614,7 +618,15 @@ def torque_term_size(gain: np.ndarray, loads: Loads) -> float:
 
 def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """``a x b`` over the last axis (broadcast), component by component into one array (np.cross and np.stack copy
-    and transpose: several times slower on the small arrays of one-pose evaluations)."""
+    and transpose: several times slower on the small arrays of one-pose evaluations).
+
+    Up to :data:`SMALL_CROSS` vectors the three components are computed together, from each operand written twice
+    along its last axis (``(a1, a2, a0) * (b2, b0, b1) - (a2, a0, a1) * (b1, b2, b0)``): five numpy calls instead of
+    twenty-odd, where the calls' overhead is the cost (a session's twin evaluates one pose at a time).  Every
+    component is the same product and difference of the same floats either way (tests/test_model_small_paths.py)."""
+    if max(a.size, b.size) <= 3 * SMALL_CROSS:
+        a2, b2 = np.concatenate((a, a), -1), np.concatenate((b, b), -1)
+        return a2[..., 1:4] * b2[..., 2:5] - a2[..., 2:5] * b2[..., 1:4]
     a0, a1, a2 = a[..., 0], a[..., 1], a[..., 2]
     b0, b1, b2 = b[..., 0], b[..., 1], b[..., 2]
     out = np.empty(np.broadcast_shapes(a.shape, b.shape))
@@ -622,3 +634,7 @@ def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     np.subtract(a2 * b0, a0 * b2, out=out[..., 1])
     np.subtract(a0 * b1, a1 * b0, out=out[..., 2])
     return out
+
+
+#: the most vectors of either operand :func:`_cross` computes from them written twice (above: per component)
+SMALL_CROSS = 256

@@ -46,8 +46,11 @@ class PoseContext:
                             ("tool_force_n", (N, 3)), ("joint_torque_nm", (N, n)), ("temperature_c", (N,)),
                             ("time_s", (N,))):
             v = getattr(self, name)
-            default = 20.0 if name == "temperature_c" else 0.0
-            v = np.full(shape, default) if v is None else np.broadcast_to(np.asarray(v, float), shape).copy()
+            if v is None:
+                v = np.full(shape, 20.0 if name == "temperature_c" else 0.0)
+            else:               # a copy of the caller's array (a twin's context is made every state: no broadcast)
+                v = np.asarray(v, float)
+                v = v.copy() if v.shape == shape else np.broadcast_to(v, shape).copy()
             setattr(self, name, v)
         link = np.zeros(0, int) if self.point_force_link is None else np.asarray(self.point_force_link)
         if link.ndim != 1 or (link.size and (np.any(link != np.round(link)) or link.min() < 0 or link.max() > n)):
@@ -56,7 +59,11 @@ class PoseContext:
         K = link.size
         for name in ("point_force_mm", "point_force_n"):
             v = getattr(self, name)
-            v = np.zeros((N, K, 3)) if v is None else np.broadcast_to(np.asarray(v, float), (N, K, 3)).copy()
+            if v is None:
+                v = np.zeros((N, K, 3))
+            else:
+                v = np.asarray(v, float)
+                v = v.copy() if v.shape == (N, K, 3) else np.broadcast_to(v, (N, K, 3)).copy()
             setattr(self, name, v)
 
     def subset(self, idx) -> "PoseContext":

@@ -39,7 +39,7 @@ class CrossCoupling(Effect):
         return f"{self.kind}.j{self.source}j{self.joint}"
 
     def joint_delta(self, q, ctx, loads, values):
-        delta = np.zeros_like(q)
+        delta = np.zeros(q.shape)
         grad = np.zeros(q.shape + (1,))
         grad[:, self.joint - 1, 0] = q[:, self.source - 1]
         delta[:, self.joint - 1] = values[0] * q[:, self.source - 1]

@@ -50,18 +50,23 @@ class JointCompliance(Effect):
         j = self.joint - 1
         tau = loads.joint_torque_nm[:, j]
         a = np.abs(tau)
-        s = np.sign(tau)
         below = a <= tb
-        tb_f = tb if np.isfinite(tb) else 0.0
-        d = np.where(below, c1 * tau, s * (c1 * tb_f + c2 * (a - tb_f)))
-        ld = ctx.load_direction[:, j]
-        d = d - 0.5 * h * ld
-        delta = np.zeros_like(q)
-        delta[:, j] = d
+        delta = np.zeros(q.shape)
         grad = np.zeros(q.shape + (4,))
-        grad[:, j, 0] = np.where(below, tau, s * tb_f)
-        grad[:, j, 1] = np.where(below, 0.0, s * (a - tb_f))
-        grad[:, j, 2] = np.where(below, 0.0, s * (c1 - c2))
+        if below.all():
+            # every pose on the first slope (no breakpoint, or below it): the general branch's first choices, the
+            # same floats without the second slope's arithmetic (a one-pose evaluation pays per numpy call)
+            d = c1 * tau
+            grad[:, j, 0] = tau
+        else:
+            s = np.sign(tau)
+            tb_f = tb if np.isfinite(tb) else 0.0
+            d = np.where(below, c1 * tau, s * (c1 * tb_f + c2 * (a - tb_f)))
+            grad[:, j, 0] = np.where(below, tau, s * tb_f)
+            grad[:, j, 1] = np.where(below, 0.0, s * (a - tb_f))
+            grad[:, j, 2] = np.where(below, 0.0, s * (c1 - c2))
+        ld = ctx.load_direction[:, j]
+        delta[:, j] = d - 0.5 * h * ld
         grad[:, j, 3] = -0.5 * ld
         return delta, grad
 

@@ -53,14 +53,16 @@ class TransmissionError(Effect):
 
     def basis(self, q):
         qj = q[:, self.joint - 1]
-        cols = []
+        B = np.empty((len(qj), 2 * self.harmonics))                # (N, K)
         for h in range(1, self.harmonics + 1):
-            cols += [np.sin(h * self.order * qj), np.cos(h * self.order * qj)]
-        return np.stack(cols, -1)                                 # (N, K)
+            x = h * self.order * qj
+            B[:, 2 * h - 2] = np.sin(x)
+            B[:, 2 * h - 1] = np.cos(x)
+        return B
 
     def joint_delta(self, q, ctx, loads, values):
         B = self.basis(q)
-        delta = np.zeros_like(q)
+        delta = np.zeros(q.shape)
         delta[:, self.joint - 1] = B @ values
         grad = np.zeros(q.shape + (len(values),))
         grad[:, self.joint - 1, :] = B
