@@ -317,3 +317,20 @@ def test_the_worker_starts_only_where_a_core_is_free_for_it(monkeypatch, cores, 
     monkeypatch.setenv(live.LIVE_ENV, setting)
     monkeypatch.setattr(live.ReductionWorker, "spawn", classmethod(lambda cls: "spawned"))
     assert (live.ReductionWorker.start() == "spawned") is started
+
+
+def test_scoring_prepared_ahead_scores_as_a_fresh_twin(session):
+    """The twin, robot and truth modules made while the worker waits (sim.emulate.truth.prepare) score the results as
+    a twin built at the end does, bit for bit; they serve one scoring of the same session only."""
+    import copy
+    from sim.emulate import truth
+    data = load_session(session)
+    assert data.metadata.get("emulated")
+    res = reduce_session(data)
+    fresh = truth.score(copy.deepcopy(res), data)
+    truth.prepare(data)
+    assert len(truth._PREPARED) == 1
+    ahead = truth.score(copy.deepcopy(res), data)
+    assert not truth._PREPARED                          # taken by that scoring
+    assert _equal(ahead, fresh) == []
+    assert any(e["truth"] is not None for e in ahead["estimates"])    # scored at all (the test can fail)

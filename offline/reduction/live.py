@@ -129,7 +129,7 @@ class LiveReduction:
         located targets, the work done ahead and the steps it read (already in the step vocabulary), in the order
         recorded."""
         new = tuple(sorted(self.done - self.read_procedures))
-        if not whole and not new:
+        if not whole and not new and self.ctx is not None:
             return
         read = tuple(sorted(self.read_procedures))
         data = self.read(self.path, None, read) if whole else self.read(self.path, new, ())

@@ -109,9 +109,8 @@ def _load(conn, path: str, procedures: tuple[str, ...] | None = None, skip: tupl
 
 def _steps(conn, path: str, session_id: int, procedures: tuple[str, ...] | None, skip: tuple[str, ...]) -> list[dict]:
     """The accepted steps of :func:`load_session` (of ``procedures`` only, when given; none of ``skip``)."""
-    steps = _rows(conn, "SELECT * FROM step WHERE session_id=? AND status='accepted' ORDER BY seq", (session_id,))
-    steps = [st for st in steps if (procedures is None or st["procedure"] in procedures)
-             and st["procedure"] not in skip]
+    steps = _rows(conn, f"SELECT * FROM step WHERE session_id=? AND status='accepted'{_only('', procedures, skip)} "
+                        f"ORDER BY seq", (session_id, *(procedures or ()), *skip))
     scope = (session_id, procedures, skip)
     readings = _by_step(conn, "reading", "station, target, face, repeat, hz_rad, v_rad", "reading_id", *scope)
     inputs = _by_step(conn, "operator_input", "name, value", "input_id", *scope)
@@ -130,17 +129,24 @@ def _by_step(conn, table: str, columns: str, order: str, session_id: int, proced
     """The rows of ``table`` recorded in the accepted (last) attempt of each accepted step (of ``procedures`` only,
     when given; none of ``skip``), ``columns`` only, grouped by step in ``order``: one query per table, not one per
     step (a demo session's 285 steps took 855 queries, a third of the load)."""
-    only = "" if procedures is None else f" AND s.procedure IN ({', '.join('?' * len(procedures))})"
-    if skip:
-        only += f" AND s.procedure NOT IN ({', '.join('?' * len(skip))})"
     cur = conn.execute(f"SELECT t.step_id, {columns} FROM {table} t JOIN step s ON s.step_id = t.step_id "
-                       f"AND t.attempt = s.attempts WHERE s.session_id=? AND s.status='accepted'{only} "
+                       f"AND t.attempt = s.attempts WHERE s.session_id=? AND s.status='accepted'"
+                       f"{_only('s.', procedures, skip)} "
                        f"ORDER BY t.{order}", (session_id, *(procedures or ()), *skip))
     cols = [d[0] for d in cur.description][1:]
     out: dict[int, list[dict]] = {}
     for step_id, *values in cur.fetchall():
         out.setdefault(step_id, []).append(dict(zip(cols, values)))
     return out
+
+
+def _only(table: str, procedures: tuple[str, ...] | None, skip: tuple[str, ...]) -> str:
+    """The SQL condition on ``{table}procedure`` for :func:`load_session`'s ``procedures`` and ``skip`` (parameters
+    in that order)."""
+    only = "" if procedures is None else f" AND {table}procedure IN ({', '.join('?' * len(procedures))})"
+    if skip:
+        only += f" AND {table}procedure NOT IN ({', '.join('?' * len(skip))})"
+    return only
 
 
 def _counts(chunks: list[dict], where: str) -> np.ndarray | None:
