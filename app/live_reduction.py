@@ -267,7 +267,8 @@ def serve(inp, out, opened: Callable[[], None] | None = None) -> None:
     while True:
         # what the worker holds now (its modules, the reduction so far) lives until it ends: out of the collector's
         # sight, a collection scans only what the next stages allocate -- a full one over everything took 30-40 ms,
-        # at random, sometimes between the compliance procedure's last step and the pose set's model
+        # at random, sometimes between the compliance procedure's last step and the pose set's model (a cycle left
+        # as garbage by then is never freed: a worker lives for one session)
         gc.freeze()
         try:
             msg = pickle.load(inp)
