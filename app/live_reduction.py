@@ -24,6 +24,7 @@ it does on a machine with one core), ``ROBOCAL_LIVE_REDUCTION=1`` starts it what
 """
 from __future__ import annotations
 
+import gc
 import os
 import pickle
 import signal
@@ -264,6 +265,11 @@ def serve(inp, out, opened: Callable[[], None] | None = None) -> None:
             seen.clear()
 
     while True:
+        # what the worker holds now (its modules, the reduction so far) lives until it ends: out of the collector's
+        # sight, a collection scans only what the next stages allocate -- a full one over everything took 30-40 ms,
+        # at random, sometimes between the compliance procedure's last step and the pose set's model (a cycle left
+        # as garbage by then is never freed: a worker lives for one session)
+        gc.freeze()
         try:
             msg = pickle.load(inp)
         except EOFError:
@@ -278,6 +284,7 @@ def serve(inp, out, opened: Callable[[], None] | None = None) -> None:
                     live.complete(complete)
                     if opened is not None:
                         opened()
+                    _prepare_scoring(live.ctx.data)
                 elif kind == "complete":
                     live.complete(args[0])
                 elif kind == "awaiting":
@@ -295,6 +302,14 @@ def serve(inp, out, opened: Callable[[], None] | None = None) -> None:
                 why = str(exc) if isinstance(exc, (WorkerFailed, RobocalError)) else f"{type(exc).__name__}: {exc}"
                 send("error", None, f"the reduction worker failed: {why}", [])
                 return
+
+
+def _prepare_scoring(data) -> None:
+    """An emulated session's twin built and the truth modules imported while the worker waits for steps (what
+    :func:`_scored` needs besides the results, :func:`sim.emulate.truth.prepare`), not after the last step."""
+    if data.metadata.get("emulated"):
+        from sim.emulate.truth import prepare
+        prepare(data)
 
 
 def _scored(res: dict, data) -> dict:

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from typing import TypeVar
 
 import numpy as np
 
@@ -21,12 +22,24 @@ from acq.session.setup_types import BenchSetup
 from offline.reduction.estimates import Estimates
 from offline.reduction.session import SessionData
 
+T = TypeVar("T")
+
+
+def step_ids(steps: list[dict]) -> tuple[int, ...]:
+    """The steps by their ``step_id`` (in a :meth:`Reduction.keep` key)."""
+    return tuple(s["step_id"] for s in steps)
+
 
 class Located:
     """Targets of every step intersected with the stations of the session, with covariances that carry the stations'
-    fit uncertainty: one batch on the first call, and one more for the steps read since (a reduction running while
-    the session records reads it again as procedures complete).  A step's targets depend on its own readings and
-    the stations only, so the batches give each step what one batch over the whole session gives."""
+    fit uncertainty, located one procedure at a time: the first step asked for of a procedure locates every step of
+    it read so far in one batch.
+
+    Why by procedure: a batch's intersections share their Gauss-Newton iterations (every point steps until the
+    largest step is below 1e-10 mm) and a batch of a few sightings goes through the plain-float code, so a point's
+    last bits depend on what else its batch holds.  With one batch per procedure they depend on the procedure's own
+    steps only -- the same whether the whole session is reduced at once or while it records (each procedure read
+    once it is complete, :mod:`offline.reduction.live`), and whenever its steps are first asked for."""
 
     def __init__(self, steps: list[dict], station_fit: StationFit):
         self.steps = steps
@@ -37,7 +50,8 @@ class Located:
     def __call__(self, step: dict) -> dict[str, TargetPoint]:
         """Target name -> :class:`~calib.estimators.points.TargetPoint` of one step (empty: nothing located)."""
         if step["step_id"] not in self._seen:
-            self._locate([s for s in self.steps if s["step_id"] not in self._seen])
+            proc = step["procedure"]
+            self._locate([s for s in self.steps if s["procedure"] == proc and s["step_id"] not in self._seen])
         return self._by_step.get(step["step_id"], {})
 
     def _locate(self, steps: list[dict]) -> None:
@@ -69,6 +83,7 @@ class Reduction:
     trace: dict = field(default_factory=dict)
     outputs: dict = field(default_factory=dict)
     _located: Located | None = None
+    kept: dict = field(default_factory=dict)        # see :meth:`keep`
     # told (name, value, problems so far) when a stage has an output ready before it ends: whoever waits for it (a
     # reduction while the session records: the pose set's model for ISO 9283's compensated run) has it now
     on_output: Callable[[str, object, list[str]], None] | None = None
@@ -83,6 +98,19 @@ class Reduction:
         if self._located is None:
             self._located = Located(self.data.steps, self.outputs["stations"])
         return self._located
+
+    def keep(self, key: tuple, compute: Callable[[], T]) -> T:
+        """``compute()``, kept under ``key`` and reused by whoever asks with the same key.
+
+        Why: a reduction while the session records does part of a stage's work ahead, while the stage still waits for
+        the procedures it needs besides its own (a stage module's ``PREPARE``, :mod:`offline.reduction.live`); the
+        stage then finds it done.  The stage and ``PREPARE`` ask through the same function, and ``key`` names every
+        input the result depends on that may change (the steps by ``step_id``, the geometry's parameters, the
+        axis): the rest -- a complete procedure's steps, their located targets, the stations -- does not change once
+        read.  So a kept result is the one the stage would compute itself."""
+        if key not in self.kept:
+            self.kept[key] = compute()
+        return self.kept[key]
 
     def read_again(self, data: SessionData) -> None:
         """The session as it stands now (more steps recorded since ``data`` was read): the reduction so far keeps its

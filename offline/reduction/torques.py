@@ -13,7 +13,7 @@ from calib.units import DEG
 
 from acq.session.setup import DESCRIPTION_TOLERANCES, nominal_theta
 
-from offline.reduction.context import Reduction
+from offline.reduction.context import Reduction, step_ids
 from offline.reduction.joints import reading_q
 
 
@@ -47,6 +47,16 @@ def swept_geometry(ctx: Reduction) -> tuple[MeasurementModel, np.ndarray, np.nda
         if name in model.kin.index and not e["held"] and np.isfinite(e["error"]):
             theta[model.index[name]], sig[model.kin.index[name]] = e["value"], e["error"]
     return model, theta, sig
+
+
+def swept_loads(ctx: Reduction, steps: list[dict], swept: tuple[MeasurementModel, np.ndarray, np.ndarray],
+                errors: bool = True) -> list[StepLoads]:
+    """:func:`series_loads` with ``swept`` (:func:`swept_geometry`'s model, parameters and errors), kept by the steps
+    and the parameters (:meth:`offline.reduction.context.Reduction.keep`: a stage's ``PREPARE`` computes them while
+    the stage waits for other procedures)."""
+    model, theta, _ = swept
+    return ctx.keep(("loads", step_ids(steps), errors, theta.tobytes()),
+                    lambda: series_loads(steps, ctx, model, theta, errors))
 
 
 def step_loads(step: dict, ctx: Reduction, model: MeasurementModel, theta: np.ndarray,

@@ -35,6 +35,14 @@ def accuracy(ctx: Reduction, model, obs, free, theta0, priors, warm=None) -> Non
                             "before_err_mm": acc.before_err_mm.tolist(), "after_err_mm": acc.after_err_mm.tolist()}
 
 
+def prepare_poses(ctx: Reduction, steps: list[dict]) -> None:
+    """The poses' targets located (one batch for the procedure: :class:`offline.reduction.context.Located`) while
+    the stage waits for the running errors' stages (see :mod:`offline.reduction.live`)."""
+    sighted = [st for st in steps if st["readings"]]
+    if sighted:
+        ctx.points(sighted[0])
+
+
 def reduce_poses(ctx: Reduction, steps: list[dict]) -> dict | None:
     if not steps:
         return None
@@ -62,6 +70,11 @@ def reduce_poses(ctx: Reduction, steps: list[dict]) -> dict | None:
     # the dead zone needs loading and unloading, which a pose set has not: it stays out
     wanted = [n for n in default_free(model, effects=True) if not n.endswith("deadzone_rad")]
     ident = identify(model, obs, free=wanted, theta0=theta0, priors=priors)
+    # the model document is the model and its identification alone (the errors below, with the stations' and the
+    # run's terms, are the estimates'; the held-out accuracy does not change it): whoever waits for the model (ISO
+    # 9283's compensated run) has it now, not after their eight re-solves
+    doc = model_document(model, ident)
+    ctx.gave("identified", doc)
     te_add, te_prior = te_run_variance(robot, running, specs, obs, ident, priors, ctx.problems)
     var = ident.sigma ** 2 + station_variance(model, obs, D, ident, priors, ctx.points.station_fit,
                                               ctx.problems) + te_add
@@ -82,12 +95,11 @@ def reduce_poses(ctx: Reduction, steps: list[dict]) -> dict | None:
                          "rms_mm": float(ident.residual_rms), "held": [n for n in wanted if n not in ident.free],
                          "points_mm": P.tolist(), "running_errors": list(specs)}
     ctx.trace["poses"] = {"q_rad": q}
-    doc = model_document(model, ident)
-    ctx.gave("identified", doc)             # the model is ready: the held-out accuracy below does not change it
     if ctx.held_out:
         accuracy(ctx, model, obs, ident.free, theta0, priors, ident.theta)
     return doc
 
 
+PREPARE = prepare_poses
 STAGE = Stage("poses", reduce_poses, procedures=("poses",), needs=("stations", "transmission", "compliance"),
               reads=("coupling",), gives="identified", progress=0.8)

@@ -15,10 +15,10 @@ from calib.estimators.resolution import design_resolution_rad
 from calib.estimators.transmission import commanded_angle_errors, fit_transmission_error
 from calib.units import DEG
 
-from offline.reduction.context import Reduction
+from offline.reduction.context import Reduction, step_ids
 from offline.reduction.joints import angles_about, angles_about_own_axis, by_joint, encoder_q, reading_q, relative_error
 from offline.reduction.registry import Stage
-from offline.reduction.torques import compliance_deflection, series_loads, swept_geometry
+from offline.reduction.torques import compliance_deflection, swept_geometry, swept_loads
 
 
 def reference_quantisation(steps: list[dict], ctx: Reduction, j: int) -> np.ndarray:
@@ -47,26 +47,49 @@ def commanded(ctx: Reduction, steps, meas, cov, ok, j: int) -> None:
     ctx.figs["transmission"][j]["E_a_deg"] = [0.0] + (ea.value[:-1] / DEG).tolist()
 
 
+def run_angles(ctx: Reduction, sts: list[dict], j: int, axes: dict):
+    """A run's angles about joint j's own axis fitted over the run, else about its swept axis (``axes``): (angles,
+    sigmas, covariance), kept (:meth:`offline.reduction.context.Reduction.keep`)."""
+    own = ctx.keep(("own axis", step_ids(sts), j), lambda: angles_about_own_axis(sts, ctx.points, j))
+    if own is not None:
+        return own
+    axis = axes[j].value[3:6]
+    return ctx.keep(("about", step_ids(sts), axis.tobytes()), lambda: angles_about(sts, ctx.points, axis))
+
+
+def _swept_axes(ctx: Reduction) -> dict:
+    return ctx.outputs["axes"].axes if ctx.outputs.get("axes") is not None else {}
+
+
+def prepare_transmission(ctx: Reduction, steps: list[dict]) -> None:
+    """What the stage computes from its own steps, the stations and the sweeps alone -- the runs' angles and the
+    arm's loads along them -- done while the stage waits for the compliance stage (see
+    :mod:`offline.reduction.live`)."""
+    axes, swept = _swept_axes(ctx), swept_geometry(ctx)
+    for j, sts in sorted(by_joint(steps).items()):
+        if j in axes:
+            run_angles(ctx, sts, j, axes)
+            swept_loads(ctx, sts, swept, errors=False)
+
+
 def reduce_transmission(ctx: Reduction, steps: list[dict]) -> dict | None:
     if not steps:
         return None
-    axes = ctx.outputs["axes"].axes if ctx.outputs.get("axes") is not None else {}
+    axes = _swept_axes(ctx)
     stiffness = ctx.outputs.get("compliance") or {}
-    model, theta, _ = swept_geometry(ctx)
+    swept = swept_geometry(ctx)
     ctx.figs["transmission"] = {}
     fits, failed = {}, []
     for j, sts in sorted(by_joint(steps).items()):
         if j not in axes:
             failed.append(f"joint {j}: no swept axis to measure the angle about")
             continue
-        own = angles_about_own_axis(sts, ctx.points, j)
-        meas, sig, cov = own if own is not None else angles_about(sts, ctx.points, axes[j].value[3:6])
+        meas, sig, cov = run_angles(ctx, sts, j, axes)
         enc = np.array([reading_q(s, ctx.robot)[j - 1] for s in sts])
         err = relative_error(meas, enc)
         cov = cov + reference_quantisation(sts, ctx, j)
         if stiffness:                       # the gravity deflection of the measured joints, as the joint turns
-            bent, bcov = compliance_deflection(series_loads(sts, ctx, model, theta, errors=False),
-                                                 stiffness, j)
+            bent, bcov = compliance_deflection(swept_loads(ctx, sts, swept, errors=False), stiffness, j)
             err, cov = err - bent, cov + bcov
         ok = np.isfinite(err)
         try:
@@ -89,5 +112,6 @@ def reduce_transmission(ctx: Reduction, steps: list[dict]) -> dict | None:
     return fits
 
 
+PREPARE = prepare_transmission
 STAGE = Stage("transmission", reduce_transmission, procedures=("transmission",), needs=("axes", "compliance"),
               gives="transmission")

@@ -91,16 +91,40 @@ def session_twin(data: SessionData) -> Twin | None:
     return Twin(scenario, seed=meta.get("seed", 0))
 
 
+def _imported() -> None:
+    for m in MODULES:
+        import_module(f"{__name__}.{m}")
+
+
+#: what :func:`prepare` made, by the session's path and metadata: (twin, set-up, its robot)
+_PREPARED: dict[tuple[str, str], tuple[Twin, BenchSetup, Robot]] = {}
+
+
+def prepare(data: SessionData) -> None:
+    """What scoring an emulated session needs besides its results, made now: the truth modules imported, its twin
+    and robot built (about 30 ms).  Why: a reduction while the session records (:mod:`app.live_reduction`) makes it
+    while it waits for steps, not after the session's last one.  :func:`score` takes them once, for the same session
+    (path, metadata and set-up); a session from real instruments needs none."""
+    twin = session_twin(data)
+    if twin is not None:
+        _imported()
+        _PREPARED[(data.path, data.session.get("metadata_json") or "")] = (twin, data.setup, setup_robot(data.setup))
+
+
 def score(res: dict, data: SessionData | str) -> dict:
     """``res`` (from :func:`offline.reduction.run.reduce_session`) with the emulated truths filled in, when the session
     was recorded from emulated instruments; unchanged otherwise."""
     data = load_session(data) if isinstance(data, str) else data
-    twin = session_twin(data)
-    if twin is None:
-        return res
-    for m in MODULES:
-        import_module(f"{__name__}.{m}")
-    sc = Scoring(twin, res, data, setup_robot(data.setup))
+    made = _PREPARED.pop((data.path, data.session.get("metadata_json") or ""), None)
+    if made is not None and made[1] == data.setup:      # the twin as new: built for this one scoring, unused
+        twin, robot = made[0], made[2]
+    else:
+        twin = session_twin(data)
+        if twin is None:
+            return res
+        robot = setup_robot(data.setup)
+    _imported()
+    sc = Scoring(twin, res, data, robot)
     trace = res.get("trace") or {}
     for stage, fn in TRUTHS.items():
         fn(sc, trace.get(stage) or {})
