@@ -19,6 +19,7 @@ The pipeline:
 """
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -256,8 +257,18 @@ class _Problem:
         return self.model.points(self.obs.q_rad, self.ctx, theta[: self.model.P])
 
     def _evaluate(self, theta):
-        P = self.model.P
-        ev = self.model.evaluate(self.obs.q_rad, self.ctx, theta[:P])
+        ev = self.model.evaluate(self.obs.q_rad, self.ctx, theta[: self.model.P])
+        return self._residual(theta, ev), ev
+
+    def seed(self, theta: np.ndarray, ev, J: np.ndarray) -> None:
+        """Keep ``ev`` and ``J`` as the evaluation at ``theta`` (another problem's, with the same model, joint
+        readings, context, whitening and priors: :class:`SharedStart`); the residuals are this problem's, from the
+        model's points there, by the same arithmetic as :meth:`residuals`."""
+        theta = np.asarray(theta, float)
+        self._last = [theta.copy(), self._residual(theta, ev), ev, J]
+
+    def _residual(self, theta, ev) -> np.ndarray:
+        """Whitened residuals (and the priors') at ``theta`` from the model's evaluation ``ev`` there."""
         if not self.angles:
             r = np.einsum("nij,nj->ni", self.obs._white, self.obs.points_mm - ev.point_mm).ravel()
         else:
@@ -267,7 +278,7 @@ class _Problem:
             r = (d / self._sigmas(st)).ravel()
         if self.priors:
             r = np.concatenate([r, [(val - theta[self.names.index(n)]) / sd for n, (val, sd) in self.priors.items()]])
-        return r, ev
+        return r
 
     @staticmethod
     def _sigmas(st):
@@ -370,6 +381,61 @@ def linear_translations(model: MeasurementModel, obs: PointObservations, theta: 
     return th
 
 
+class SharedStart:
+    """The start of several fits that differ only in their measured points: pass one to each
+    :func:`identify` call (``shared=``); the first fills it, the others reuse it.
+
+    Why: a re-solve from a converged fit with the points moved (the pose set's stations' term,
+    :func:`offline.reduction.pose_errors.station_variance`) starts every time from the same parameters with the same
+    joint readings, so the model's evaluation there -- its points and Jacobian, and so the whitened residuals'
+    Jacobian, which does not depend on the measured points -- and the identifiability analysis of that Jacobian are
+    the same floats each time; only the residuals change, and they are computed from the kept evaluation by the very
+    arithmetic of a fresh one.  A fit that does not start from the same place (another model, joint readings,
+    context, whitening, priors, free set or start parameters; a linear start, which depends on the points; angle
+    observations) neither uses nor fills it: the result never depends on whether one is passed."""
+
+    def __init__(self) -> None:
+        self._kept: _Kept | None = None
+
+    def analysis(self, prob: "_Problem", theta: np.ndarray, free: list[str], explain: bool,
+                 run: Callable[[], Identifiability]) -> Identifiability:
+        """``run()`` (the analysis of the problem's Jacobian at ``theta``), or the kept analysis with the kept
+        evaluation seeded into ``prob`` (:meth:`_Problem.seed`) when the start is the same."""
+        k = self._kept
+        if k is not None and k.same(prob, theta, free, explain):
+            prob.seed(k.theta, k.ev, k.jacobian)
+            return k.analysis
+        ident = run()
+        if k is None:
+            th, _, ev, J = prob._last
+            self._kept = _Kept(prob.model, prob.obs.q_rad.copy(), prob.obs._white.copy(), prob.ctx,
+                               list(prob.priors.items()), list(free), explain, th, ev, J, ident)
+        return ident
+
+
+@dataclass
+class _Kept:
+    """A :class:`SharedStart`'s first fit: what its start depends on, its evaluation there and its analysis."""
+
+    model: MeasurementModel
+    q_rad: np.ndarray
+    white: np.ndarray
+    ctx: PoseContext | None
+    priors: list
+    free: list[str]
+    explain: bool
+    theta: np.ndarray
+    ev: object
+    jacobian: np.ndarray
+    analysis: Identifiability
+
+    def same(self, prob: "_Problem", theta: np.ndarray, free: list[str], explain: bool) -> bool:
+        return (self.model is prob.model and self.ctx is prob.ctx and self.explain == explain
+                and self.free == list(free) and self.priors == list(prob.priors.items())
+                and np.array_equal(self.theta, theta) and np.array_equal(self.q_rad, prob.obs.q_rad)
+                and np.array_equal(self.white, prob.obs._white))
+
+
 @dataclass
 class _Setup:
     """What the steps of :func:`identify` share: the problem, the free and kept sets, the start point."""
@@ -415,7 +481,7 @@ def _check_enough_poses(model: MeasurementModel, st: _Setup, priors: dict) -> No
 
 
 def _identifiability(model: MeasurementModel, st: _Setup, priors: dict, start: bool,
-                     warm: np.ndarray | None = None, explain: bool = True) -> None:
+                     warm: np.ndarray | None = None, explain: bool = True, shared: SharedStart | None = None) -> None:
     """Step 2 (and Chapter 6's linear step for the start): which free parameters the data determine.  ``warm``: the
     free parameters start there (the analysis too); a parameter the analysis holds goes back to its start value.
     ``explain``: look for the joint whose wider range would determine a held or weak direction (a Jacobian per joint
@@ -438,7 +504,10 @@ def _identifiability(model: MeasurementModel, st: _Setup, priors: dict, start: b
         return analyse(prob.residuals(theta)[1][:, free_idx], st.free, rejac if explain else None, ranges,
                        fix_preference)
 
-    ident = run()
+    if shared is not None and not start and not prob.angles:
+        ident = shared.analysis(prob, theta, st.free, explain, run)
+    else:
+        ident = run()
     if start and not prob.angles:
         # Chapter 6's linear step for the translations that stay free (held ones keep their design values), then
         # the analysis again at this better point: a null tool on the flange axis hides the wrist, for example
@@ -655,7 +724,8 @@ def identify(model: MeasurementModel, obs: PointObservations | AngleObservations
              priors: dict[str, tuple[float, float]] | None = None, start: bool = True,
              max_nfev: int = 200, outliers: str = "flag", loss: str = "linear",
              labels: dict[str, list] | None = None, error_scale: str = "inflate",
-             warm: np.ndarray | None = None, report: bool = True) -> Identification:
+             warm: np.ndarray | None = None, report: bool = True,
+             shared: SharedStart | None = None) -> Identification:
     """Identify the free parameters from the observations (see the module docstring for the pipeline).
 
     ``outliers``: ``flag`` (report, keep), ``reject`` (leave out flagged poses that do not cluster) or ``off``
@@ -668,10 +738,12 @@ def identify(model: MeasurementModel, obs: PointObservations | AngleObservations
     what a held parameter is held at, so the converged fit is the one this start would reach, sooner;
     ``report=False``: a fit whose parameters only predict (a cross-validation fold): the covariance left at zero,
     no undetermined directions, and the identifiability analysis does not look for the joint that would determine a
-    held direction (words nobody prints); the held set and the estimate are the same.
+    held direction (words nobody prints); the held set and the estimate are the same; ``shared``: a
+    :class:`SharedStart` passed to fits that differ only in their measured points (re-solves with the points moved):
+    their first evaluation and identifiability analysis are computed once -- the same result, sooner.
     """
     st, kidx, prob, theta, out_rep = _to_outliers(model, obs, free, theta0, robust, priors, start, max_nfev,
-                                                  outliers, loss, labels, warm, explain=report)
+                                                  outliers, loss, labels, warm, explain=report, shared=shared)
     theta = _solve(prob, theta, kidx, loss, max_nfev)
     cov, red, rms, n_obs, undetermined = _uncertainty(model, prob, theta, kidx, error_scale, report)
     kept = st.ident.kept
@@ -693,7 +765,8 @@ def outlier_report(model: MeasurementModel, obs: PointObservations | AngleObserv
 def _to_outliers(model: MeasurementModel, obs: PointObservations | AngleObservations, free: list[str] | None,
                  theta0: np.ndarray | None, robust: bool, priors: dict | None, start: bool, max_nfev: int,
                  outliers: str, loss: str, labels: dict | None, warm: np.ndarray | None,
-                 explain: bool = True) -> tuple[_Setup, np.ndarray, _Problem, np.ndarray, OutlierReport]:
+                 explain: bool = True, shared: SharedStart | None = None
+                 ) -> tuple[_Setup, np.ndarray, _Problem, np.ndarray, OutlierReport]:
     """identify's steps 1 to 3b: the problem, start point, identifiability, and the outlier decision; returns the
     set-up, the kept columns, the problem the final fit runs on, its start point and the outlier report."""
     check_mode(outliers, loss)
@@ -711,7 +784,7 @@ def _to_outliers(model: MeasurementModel, obs: PointObservations | AngleObservat
     if start and not prob.angles:
         prob.theta0[: model.P] = initial_base(model, obs.q_rad, obs.points_mm, obs.ctx, theta0)
     _check_enough_poses(model, st, priors)
-    _identifiability(model, st, priors, start, warm, explain)
+    _identifiability(model, st, priors, start, warm, explain, shared)
     kept = st.ident.kept
     kidx = np.array([prob.names.index(n) for n in kept], int)
     st.theta = _bodies_start(model, prob, st.theta, kidx, max_nfev)

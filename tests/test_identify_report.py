@@ -4,6 +4,9 @@
   ``identify(...).outlier_report`` on the twin's measured points with three gross errors planted;
 * ``report=False`` (a cross-validation fold's fit): the same estimate, free and held sets, reduced chi-square and
   RMS as the full identify, with a zero covariance and no explanation of the held directions;
+* ``shared=SharedStart()`` (re-solves with only the measured points moved): the very same floats as each re-solve
+  alone, with one evaluation and analysis at the start for all of them; a re-solve from elsewhere neither uses nor
+  spoils it;
 * ``DiagnosisData.observations(rows)``: the rows' whitening sliced from the whole set's equals the one computed
   from their covariances.
 """
@@ -12,7 +15,7 @@ from __future__ import annotations
 import numpy as np
 
 from calib.diagnose.data import from_arrays
-from calib.identify import PointObservations, identify, outlier_report, whitening
+from calib.identify import PointObservations, SharedStart, identify, outlier_report, whitening
 from calib.model import MeasurementModel
 
 from tests.test_identify import geometric_twin, measure_points
@@ -63,3 +66,30 @@ def test_sliced_whitening_equals_the_rows_own():
     assert np.array_equal(obs._white, whitening(cov[rows]))
     assert np.array_equal(data.subset(rows).whitening, whitening(cov[rows]))
     assert np.array_equal(obs.subset(np.arange(5))._white, whitening(cov[rows[:5]]))
+
+
+def test_resolves_sharing_their_start_are_the_same_fits(monkeypatch):
+    tw, q, p, cov, _ = _planted()
+    model = MeasurementModel(tw.robot)
+    obs = PointObservations(q, p, cov)
+    base = identify(model, obs, outliers="off")
+    rng = np.random.default_rng(1)
+    moves = [rng.normal(0, 0.02, p.shape) for _ in range(3)] + [np.outer(np.ones(len(p)), [0.05, 0.0, -0.03])]
+    starts = [base.theta] * 3 + [base.theta + 1e-4 * (np.arange(len(base.theta)) % 3 == 0)]   # the last elsewhere
+
+    def resolve(dp, theta0, shared=None, white=None):
+        moved = PointObservations(q, p + dp, cov_mm2=cov, white=white)
+        return identify(model, moved, free=list(base.free), theta0=theta0, robust=False, start=False,
+                        report=False, shared=shared)
+
+    calls = []
+    evaluate = MeasurementModel.evaluate
+    monkeypatch.setattr(MeasurementModel, "evaluate", lambda self, *a, **k: calls.append(1) or evaluate(self, *a, **k))
+    alone = [resolve(dp, th) for dp, th in zip(moves, starts)]
+    n_alone, shared = len(calls), SharedStart()
+    together = [resolve(dp, th, shared, obs._white) for dp, th in zip(moves, starts)]
+    for a, b in zip(alone, together, strict=True):
+        assert np.array_equal(a.theta, b.theta)
+        assert a.free == b.free and a.fixed == b.fixed
+        assert a.reduced_chi2 == b.reduced_chi2 and a.residual_rms == b.residual_rms
+    assert len(calls) - n_alone == n_alone - 2      # the second and third start from the first's evaluation

@@ -10,6 +10,7 @@ import pytest
 
 import offline.reduction.pose_errors as rp
 from calib.errors import RobocalError
+from calib.identify import PointObservations
 
 NAMES = ["a_mm", "transmission_error.j4.s1_rad", "transmission_error.j4.c1_rad", "held_mm"]
 FREE = NAMES[:3]
@@ -89,7 +90,7 @@ def _station_case(monkeypatch, resolve):
     ident = SimpleNamespace(theta=np.array([1.0, 0.01, 0.02, np.inf]), names=NAMES, free=FREE)
     fit = SimpleNamespace(cov=np.diag([0.1, 0.2]) ** 2)
     D = [np.array([[1.0, 1.0], [0.0, 0.0], [0.0, 0.0]])] * 4
-    obs = SimpleNamespace(q_rad=np.zeros((4, 6)), points_mm=np.zeros((4, 3)), cov_mm2=None)
+    obs = PointObservations(np.zeros((4, 6)), np.zeros((4, 3)))
     monkeypatch.setattr(rp, "identify", resolve)
     problems: list[str] = []
     return rp.station_variance(None, obs, D, ident, {}, fit, problems), problems

@@ -8,7 +8,7 @@ from __future__ import annotations
 import numpy as np
 
 from calib.errors import RobocalError
-from calib.identify import PointObservations, identify
+from calib.identify import PointObservations, SharedStart, identify
 
 from offline.reduction.pose_model import pose_model, sine_cosine
 
@@ -23,7 +23,8 @@ def station_variance(model, obs, D, ident, priors, fit, problems: list[str] | No
     height moves all of them together and does not average down over the poses; the identification's covariance
     treats the points as independent.  Each station parameter is moved by its 1-sigma, the points follow through
     their sensitivities ``D`` (N, 3, K), and the identification is re-solved from its own estimate:
-    ``G U_station G^T``.  A re-solve that fails, or a free parameter it leaves undefined, is said in ``problems``
+    ``G U_station G^T``.  The re-solves share their start (:class:`calib.identify.SharedStart`: the same parameters,
+    joint readings and covariances, only the points moved) and the points' whitening.  A re-solve that fails, or a free parameter it leaves undefined, is said in ``problems``
     (the errors then leave that part of the stations' term out): never a silent zero."""
     out = np.zeros(len(ident.theta))
     if not fit.cov.size or any(d is None for d in D):
@@ -32,12 +33,12 @@ def station_variance(model, obs, D, ident, priors, fit, problems: list[str] | No
     free[[ident.names.index(n) for n in ident.free]] = True
     said = problems if problems is not None else []
     Dk = np.array(D)                                          # (N, 3, K)
-    G = []
+    G, shared = [], SharedStart()
     for k, sd in enumerate(np.sqrt(np.diag(fit.cov))):
-        moved = PointObservations(obs.q_rad, obs.points_mm + Dk[:, :, k] * sd, cov_mm2=obs.cov_mm2)
+        moved = PointObservations(obs.q_rad, obs.points_mm + Dk[:, :, k] * sd, cov_mm2=obs.cov_mm2, white=obs._white)
         try:
             g = identify(model, moved, free=list(ident.free), theta0=ident.theta, priors=priors, robust=False,
-                         start=False, report=False)       # its estimate only: no covariance, no explanations
+                         start=False, report=False, shared=shared)     # its estimate only: no covariance or words
         except RobocalError as exc:
             said.append(f"poses: the stations' uncertainty is left out of the errors (re-solve with station "
                         f"parameter {k} moved by 1 sigma failed: {exc})")
