@@ -274,3 +274,20 @@ def test_a_compensated_ap_at_the_instrument_floor_is_said(demo):
     assert "of the order of the instrument floor" in out
     tight = {**res, "accuracy": {**res["accuracy"], "floor_mm": 0.001}}
     assert "instrument floor" not in iso_lines(tight)[0]
+
+
+def test_iso_points_with_exact_stations_are_the_fitted_stations_points(demo):
+    """The ISO 9283 stage locates its targets with the stations taken as exact (AP and RP read the points only):
+    the attained points are the very floats the ruler's fitted stations, uncertainty and all, give."""
+    from calib.estimators.points import StationFit
+    from offline.reduction.context import Located
+    db, _, _ = demo
+    ctx = reduce_for(load_session(str(db)), "iso9283")
+    steps = ctx.steps_of(("iso9283",))
+    fit = ctx.outputs["stations"]
+    assert fit.cov.size                                   # the ruler's stations carry an uncertainty
+    full, exact = Located(steps, fit), Located(steps, StationFit.exact(fit.stations))
+    got = [(full(s)["P"].point_mm, exact(s)["P"].point_mm) for s in steps if s["readings"]]
+    assert len(got) >= 20 and all(np.array_equal(a, b) for a, b in got)
+    attained = [r["attained_mm"] for r in ctx.trace["iso9283"]["rows"]]
+    assert attained == [[float(v) for v in a] for a, _ in got]
