@@ -160,7 +160,7 @@ def before_after(model, obs, free: list[str], theta0: np.ndarray | None = None, 
     calibrated model fitted on every pose, where the fit on the fit poses starts (a start point only: it converges
     to the fit poses' own minimum).  Neither fit flags gross errors: flagging reports them and changes no fit.
     Both fits only predict the test poses: ``report=False`` (no covariance, no words on held directions; the same
-    estimate, :func:`calib.identify.identify`): a tenth of their CPU time.
+    estimate, :func:`calib.identify.identify`): 1-4 ms of the demo's 25-40.
     """
     identify_fn = identify_fn or identify
     fit, test = split if split is not None else holdout(obs.n)
