@@ -112,10 +112,11 @@ class SessionReduction:
         self._before = self._reprocess()
         return self._before.get("robot")
 
-    def results(self) -> dict:
-        """The results document of the session as recorded."""
+    def results(self, while_waiting: Callable[[], None] | None = None) -> dict:
+        """The results document of the session as recorded.  ``while_waiting``: work of this process's own to do
+        while the worker makes them (the demo loads what prints them)."""
         if self.worker is not None:
-            got = self._guard(self.worker.finish)
+            got = self._guard(lambda: self.worker.finish(while_waiting))
             if got is not None:
                 return got
         if self._before is not None:            # reduced before the compensated run: only ISO 9283's figures change
@@ -194,9 +195,12 @@ class ReductionWorker:
         self._send("awaiting", name)
         return self._receive(("output", name))
 
-    def finish(self) -> dict:
-        """The results document of the whole session (its stages not yet run run now)."""
+    def finish(self, while_waiting: Callable[[], None] | None = None) -> dict:
+        """The results document of the whole session (its stages not yet run run now); ``while_waiting`` is called
+        once the worker is asked, before its answer is awaited."""
         self._send("finish")
+        if while_waiting is not None:
+            while_waiting()
         return self._receive(("results", None))
 
     def close(self) -> None:
