@@ -29,6 +29,8 @@ from calib.errors import RobocalError
 from calib.theodolite import PLAIN_MEAN_BELOW, Station, face_mean, intersect  # noqa: F401 (face_mean: re-exported)
 from calib.units import ARCSEC, DEG
 
+from .rig import mean_rows
+
 DEFAULT_LIMITS = {
     "face_agreement_arcsec": 40.0,     # |2c| and |2k| from face I / face II
     "repeat_spread_arcsec": 15.0,      # std of repeat sightings
@@ -232,7 +234,7 @@ def encoders_settled(cap, pose_deg, limits: dict) -> list[Check]:
                  "encoder counts still moving: wait for the robot to settle (brakes, servo), then repeat")]
     joint_rad = np.asarray(cap.joint_rad)
     if pose_deg is not None and np.isfinite(joint_rad).all():
-        dev = float(np.abs(joint_rad.mean(0) / DEG - np.asarray(pose_deg)).max())
+        dev = float(np.abs(mean_rows(joint_rad) / DEG - np.asarray(pose_deg)).max())
         ok = dev <= limits["encoder_pose_deg"]
         out.append(Check("pose reached", ok, dev, limits["encoder_pose_deg"], "deg",
                          "encoders read the requested pose" if ok else
