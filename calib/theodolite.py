@@ -286,13 +286,20 @@ def closest_point(c1, u1, c2, u2, names=("A", "B"), min_angle_rad: float = 1e-4)
     return 0.5 * (p1 + p2), np.linalg.norm(p1 - p2, axis=-1), angle
 
 
+#: :func:`intersect`'s default stopping rule: the largest step below this (mm), i.e. until the step is rounding.  The
+#: reduction relies on it (its points are the fit's to the last bits).
+STEP_TOL_MM = 1e-10
+
+
 def intersect(stations: list[Station], readings: list[tuple], faces: list | None = None,
-              iterations: int = 8) -> Intersection:
+              iterations: int = 8, step_tol_mm: float = STEP_TOL_MM) -> Intersection:
     """Least-squares intersection of sightings of N points from k >= 2 stations.
 
     ``readings[s] = (hz_rad (N,), v_rad (N,))`` from station s.  Starts from the closest point of the first two sight
     lines and refines by Gauss-Newton on the readings weighted by each station's angular noise, so the covariance
-    ``(J^T W J)^-1`` is the first-order covariance of the point from the reading noise.
+    ``(J^T W J)^-1`` is the first-order covariance of the point from the reading noise.  The refinement stops once
+    every point's step is below ``step_tol_mm`` (the default: rounding; a caller that only compares the point with
+    millimetre limits may stop earlier, see :data:`STEP_TOL_MM`).
     """
     if len(stations) < 2:
         raise GeometryError("an intersection needs sightings from at least two stations")
@@ -300,7 +307,7 @@ def intersect(stations: list[Station], readings: list[tuple], faces: list | None
     hz = [np.atleast_1d(np.asarray(r[0], float)) for r in readings]
     vv = [np.atleast_1d(np.asarray(r[1], float)) for r in readings]
     if len(hz[0]) * len(stations) <= SMALL_SIGHTINGS:
-        small = _intersect_few(stations, faces, hz, vv, iterations)
+        small = _intersect_few(stations, faces, hz, vv, iterations, step_tol_mm)
         if small is not None:
             return small
     dirs = [s.direction(h, v, f) for s, (h, v), f in zip(stations, zip(hz, vv), faces)]
@@ -315,12 +322,12 @@ def intersect(stations: list[Station], readings: list[tuple], faces: list | None
         g = np.einsum("nki,nk->ni", JW, res)
         step = np.linalg.solve(A, g[..., None])[..., 0]
         p = p + step
-        if np.max(np.abs(step)) < 1e-10:
+        if np.max(np.abs(step)) < step_tol_mm:
             converged = True
             break
     if converged:
-        # a step below 1e-10 mm moves neither the residuals (< 1e-13 rad) nor J: the last evaluation serves, less the
-        # step's first-order change of the residuals
+        # a step below 1e-10 mm (the default tolerance) moves neither the residuals (< 1e-13 rad) nor J: the last
+        # evaluation serves, less the step's first-order change of the residuals
         res = res - np.einsum("nki,ni->nk", J, step)
     else:
         res, J = _residuals(stations, faces, hz, vv, p)
@@ -333,7 +340,7 @@ def intersect(stations: list[Station], readings: list[tuple], faces: list | None
 SMALL_SIGHTINGS = 12
 
 
-def _intersect_few(stations, faces, hz, vv, iterations) -> Intersection | None:
+def _intersect_few(stations, faces, hz, vv, iterations, step_tol_mm=STEP_TOL_MM) -> Intersection | None:
     """:func:`intersect` for a few points, in plain floats; None leaves it to the vectorised code (readings that are
     not finite, a singular normal matrix: its errors are the ones raised).
 
@@ -341,7 +348,7 @@ def _intersect_few(stations, faces, hz, vv, iterations) -> Intersection | None:
     of :meth:`Station.direction`, :func:`closest_point` and :meth:`Station.observe` cost far more than their
     arithmetic.  The same model and derivatives, the same start (the closest point of the first two sight lines, with
     the same refusals), weights, iterations and stopping rule (every point steps until the largest step is below
-    1e-10 mm): equal to the vectorised code's to rounding (a test holds them together)."""
+    ``step_tol_mm``): equal to the vectorised code's to rounding (a test holds them together)."""
     n, k = len(hz[0]), len(stations)
     obs = [(s._plain, np.broadcast_to(np.asarray(f), (n,)).tolist(), h.tolist(), v.tolist(),
             1.0 / s.sigma_hz_rad ** 2, 1.0 / s.sigma_v_rad ** 2) for s, f, h, v in zip(stations, faces, hz, vv)]
@@ -349,7 +356,7 @@ def _intersect_few(stations, faces, hz, vv, iterations) -> Intersection | None:
         return None
     try:
         pts, miss, angle = _closest_few(obs[0], obs[1], n)
-        pts, res, A = _refine_few(obs, pts, iterations)
+        pts, res, A = _refine_few(obs, pts, iterations, step_tol_mm)
     except ZeroDivisionError:
         return None
     return Intersection(point_mm=np.array(pts), cov_mm2=np.linalg.inv(np.array(A)), miss_mm=np.array(miss),
@@ -403,7 +410,7 @@ def _closest_few(o1, o2, n: int):
     return pts, miss, [line[3] for line in lines]
 
 
-def _refine_few(obs, pts, iterations):
+def _refine_few(obs, pts, iterations, step_tol_mm=STEP_TOL_MM):
     """The Gauss-Newton loop of :func:`intersect` in plain floats from the start points ``pts``: (points, residuals,
     normal matrices J^T W J) per point."""
     n = len(pts)
@@ -412,7 +419,7 @@ def _refine_few(obs, pts, iterations):
         rows = [_normal_equations(obs, i, pts[i]) for i in range(n)]
         steps = [_solve3(A, g) for _, _, A, g in rows]
         pts = [[x + dx for x, dx in zip(pt, st)] for pt, st in zip(pts, steps)]
-        if max(abs(d) for st in steps for d in st) < 1e-10:
+        if max(abs(d) for st in steps for d in st) < step_tol_mm:
             converged = True
             break
     if converged:       # as the vectorised loop: the last residuals less the step's first-order change

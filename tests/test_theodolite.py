@@ -199,3 +199,36 @@ def test_face_mean_of_a_few_readings_is_numpys_bit_for_bit(rng):
             hz[1:] = (hz[0] + np.pi * (face[1:] != face[0]) + rng.normal(size=n - 1) * 1e-5) % (2 * np.pi)
         assert face_mean(hz, v, face) == numpy_mean(hz, v, face)
         assert face_mean(hz.tolist(), v.tolist(), face.tolist()) == numpy_mean(hz, v, face)
+
+
+@pytest.mark.parametrize("small", [12, 0])
+def test_a_looser_step_tolerance_stops_earlier_within_a_nanometre(rng, monkeypatch, small):
+    """``step_tol_mm``: the default is the rounding rule (the reduction's points bit for bit); the session checks'
+    1e-6 mm saves the iteration that only confirmed convergence and leaves each point within 1e-9 mm of the
+    converged one (the step not taken), on the plain-float path and the vectorised one alike."""
+    import calib.theodolite as theo
+    from acq.session.checks import CHECK_STEP_TOL_MM
+    monkeypatch.setattr(theo, "SMALL_SIGHTINGS", small)
+    counts = {}
+    for name in ("_normal_equations", "_residuals"):
+        real = getattr(theo, name)
+        monkeypatch.setattr(theo, name, lambda *a, _r=real, _n=name: counts.__setitem__(_n, counts.get(_n, 0) + 1)
+                            or _r(*a))
+    a, b = imperfect_stations()
+    saved = 0
+    for _ in range(30):
+        pts = random_points(rng, 2)
+        readings = [tuple(x + rng.normal(0, 5 * ARCSEC, 2) for x in s.observe(pts)) for s in (a, b)]
+        ref, same = intersect([a, b], readings), intersect([a, b], readings, step_tol_mm=1e-10)
+        assert np.array_equal(ref.point_mm, same.point_mm) and np.array_equal(ref.cov_mm2, same.cov_mm2)
+        counts.clear()
+        intersect([a, b], readings)
+        tight = dict(counts)
+        counts.clear()
+        loose = intersect([a, b], readings, step_tol_mm=CHECK_STEP_TOL_MM)
+        assert sum(counts.values()) <= sum(tight.values())
+        saved += sum(tight.values()) - sum(counts.values())
+        np.testing.assert_allclose(loose.point_mm, ref.point_mm, rtol=0, atol=1e-9)
+        np.testing.assert_allclose(loose.cov_mm2, ref.cov_mm2, rtol=1e-6)
+        np.testing.assert_array_equal(loose.miss_mm, ref.miss_mm)
+    assert saved > 0

@@ -75,7 +75,7 @@ from ..errors import DeviceError
 from . import checks as ck
 from .preflight import failing_lines
 from .procedures import procedure_info
-from .rig import Bench, ManualBench, Rig
+from .rig import Bench, ManualBench, Rig, mean_rows
 from .steps import Capture, Sight, Step
 from .store import SessionStore, StepRecord
 
@@ -410,8 +410,8 @@ class Runner:
         if self.rig.tap is None:
             return
         cap = acq.cap = self.rig.capture(self.capture_s, self.settle_s)
-        jd = np.mean(cap.joint_rad, 0) / DEG if cap.n else []
-        self.emit("encoders", key=step.key, n_samples=cap.n, joint_deg=[float(v) for v in jd])
+        jd = (mean_rows(cap.joint_rad) / DEG).tolist() if cap.n else []
+        self.emit("encoders", key=step.key, n_samples=cap.n, joint_deg=jd)
 
     def _do_sight(self, step: Step, cmd: Sight, acq: "_Acquired") -> None:
         tg = cmd.target

@@ -65,23 +65,32 @@ class Step:
         """JSON-able record of the step as generated (stored with it): :func:`dataclasses.asdict` of the step (the
         targets and inputs as lists of dicts), built by :func:`_plain` -- the same deep copy without asdict's
         per-leaf ``copy.deepcopy`` calls (a fifth of a step's commit)."""
-        d = {f.name: _plain(getattr(self, f.name)) for f in fields(self)}
+        d = {name: _plain(getattr(self, name)) for name in _field_names(type(self))}
         d["targets"] = list(d["targets"])
         d["inputs"] = list(d["inputs"])
         return d
 
 
 _ATOMIC = (str, int, float, bool, type(None))
+_ATOMIC_TYPES = frozenset(_ATOMIC)
 
 
 def _plain(v):
     """:func:`dataclasses.asdict`'s conversion of one value: dataclasses to dicts, lists, tuples and dicts rebuilt
     with their own type, str/int/float/bool/None as they are (what ``copy.deepcopy`` returns for them), anything
-    else deep-copied as asdict does."""
-    if type(v) in _ATOMIC:
+    else deep-copied as asdict does.  Plain lists, tuples and dicts (most of a step's setup) are dispatched on their
+    exact type first, without the general tests (a step is converted at every commit)."""
+    t = type(v)
+    if t in _ATOMIC_TYPES:
         return v
+    if t is list:
+        return [_plain(x) for x in v]
+    if t is tuple:
+        return tuple([_plain(x) for x in v])
+    if t is dict:
+        return {_plain(k): _plain(x) for k, x in v.items()}
     if is_dataclass(v) and not isinstance(v, type):
-        return {f.name: _plain(getattr(v, f.name)) for f in fields(v)}
+        return {name: _plain(getattr(v, name)) for name in _field_names(t)}
     if isinstance(v, tuple) and hasattr(v, "_fields"):          # a namedtuple: asdict keeps its type
         return type(v)(*[_plain(x) for x in v])
     if isinstance(v, (list, tuple)):
@@ -89,6 +98,17 @@ def _plain(v):
     if isinstance(v, dict):
         return type(v)((_plain(k), _plain(x)) for k, x in v.items())
     return copy.deepcopy(v)
+
+
+_FIELD_NAMES: dict[type, tuple[str, ...]] = {}
+
+
+def _field_names(cls: type) -> tuple[str, ...]:
+    """The names of a dataclass's fields, in order (kept per class: ``dataclasses.fields`` builds them each call)."""
+    names = _FIELD_NAMES.get(cls)
+    if names is None:
+        names = _FIELD_NAMES[cls] = tuple(f.name for f in fields(cls))
+    return names
 
 
 # -- the command vocabulary ------------------------------------------------------------------------------------------
