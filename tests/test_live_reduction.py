@@ -255,10 +255,12 @@ def test_an_output_sent_that_nobody_reads_is_passed_over(session):
         steps = [Step(key=s["key"], procedure=s["procedure"], title="", instruction="")
                  for s in load_session(session).steps]
         worker.open(session, CompletedProcedures(steps, saved_keys=[s.key for s in steps]), wanted=("identified",))
-        got = worker.finish()                           # no compensated run: the model sent is not read
+        ours = []                                       # the recorder's own work while the worker ends the results
+        got = worker.finish(while_waiting=lambda: ours.append(worker.proc.poll()))
     finally:
         worker.close()
     assert got["session"]["steps_accepted"] == len(steps) and got["robot"] is not None
+    assert ours == [None]                               # done once, the worker still at work
 
 
 def test_an_output_that_cannot_be_made_yet_is_a_failure_not_a_wait(session):
