@@ -21,6 +21,12 @@ def wrap_float(a: float) -> float:
     return math.atan2(math.sin(a), math.cos(a))
 
 
+def circular_mean(a) -> float:
+    """The mean direction of angles (rad): the angle of their mean unit vector, so readings either side of 0/2pi
+    average to about 0, not to pi (a telescope's horizontal circle wraps there)."""
+    return float(np.angle(np.mean(np.exp(1j * np.asarray(a, float)))))
+
+
 def rigid_fit(source: np.ndarray, target: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """``(R, t)`` with ``target ~ source @ R.T + t`` in the least-squares sense (N >= 3 points, (N, 3) each): the
     rotation by Kabsch's SVD of the centred points' cross-covariance, its last axis flipped when that gives a

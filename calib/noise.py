@@ -38,7 +38,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from .angles import wrap_angle
+from .angles import circular_mean, wrap_angle
 from .distributions import chi2_isf
 from .errors import GeometryError, RobocalError
 from .estimators.points import StationFit, locate_targets
@@ -282,17 +282,13 @@ def _face_differences(s: Sightings) -> dict[str, list[tuple]]:
             f1, f2 = by.get((st, 1)), by.get((st, 2))
             if not f1 or not f2:
                 continue
-            h1 = _circ_mean([r["hz_rad"] for r in f1])
-            h2 = _circ_mean([r["hz_rad"] - np.pi for r in f2])
+            h1 = circular_mean([r["hz_rad"] for r in f1])
+            h2 = circular_mean([r["hz_rad"] - np.pi for r in f2])
             v1 = float(np.mean([r["v_rad"] for r in f1]))
             v2 = float(np.mean([2 * np.pi - r["v_rad"] for r in f2]))
             w = 1.0 / (1.0 / len(f1) + 1.0 / len(f2))
             out.setdefault(st, []).append((float(wrap_angle(h1 - h2)), v1 - v2, 0.5 * (v1 + v2), w))
     return out
-
-
-def _circ_mean(a) -> float:
-    return float(np.angle(np.mean(np.exp(1j * np.asarray(a, float)))))
 
 
 def _weighted_residual(y: np.ndarray, X: np.ndarray, w: np.ndarray) -> tuple[float, int]:

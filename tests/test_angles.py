@@ -45,3 +45,12 @@ def test_wrap_float_is_wrap_angles_float():
     np.testing.assert_array_equal(got, wrap_angle(x))
     assert np.all((got > -np.pi) & (got <= np.pi))
     np.testing.assert_allclose(np.cos(got), np.cos(x), atol=1e-12)
+
+
+def test_circular_mean_averages_across_the_wrap_as_the_sum_of_unit_vectors_does():
+    import math
+    from calib.angles import circular_mean
+    a = [2 * math.pi - 0.01, 0.03, 0.01]
+    want = math.atan2(sum(math.sin(x) for x in a), sum(math.cos(x) for x in a))      # written out, not the function
+    assert abs(circular_mean(a) - want) < 1e-15 and abs(want - 0.01) < 1e-4
+    assert abs(circular_mean([math.pi / 2]) - math.pi / 2) < 1e-15

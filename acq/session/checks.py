@@ -24,7 +24,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from calib.angles import wrap_angle, wrap_float
+from calib.angles import circular_mean, wrap_angle, wrap_float
 from calib.errors import RobocalError
 from calib.theodolite import PLAIN_MEAN_BELOW, Station, face_mean, intersect  # noqa: F401 (face_mean: re-exported)
 from calib.units import ARCSEC, DEG
@@ -268,8 +268,8 @@ def instrument_errors(step, readings: list[dict], values: dict, limits: dict) ->
             out.append(Check(f"instrument {st}", False, None, lim, "arcsec", f"{st} did not read both faces on "
                              f"{tg}: change face and sight it again"))
             continue
-        hz1, v1 = _circ_mean([r["hz_rad"] for r in f1]), np.mean([r["v_rad"] for r in f1])
-        hz2, v2 = _circ_mean([r["hz_rad"] for r in f2]), np.mean([r["v_rad"] for r in f2])
+        hz1, v1 = circular_mean([r["hz_rad"] for r in f1]), np.mean([r["v_rad"] for r in f1])
+        hz2, v2 = circular_mean([r["hz_rad"] for r in f2]), np.mean([r["v_rad"] for r in f2])
         c = float(wrap_angle(hz1 - (hz2 - np.pi))) / 2 / ARCSEC
         i = float(v1 + v2 - 2 * np.pi) / 2 / ARCSEC
         worst = max(abs(c), abs(i))
@@ -278,10 +278,6 @@ def instrument_errors(step, readings: list[dict], values: dict, limits: dict) ->
                          f"collimation {c:+.1f}\", index {i:+.1f}\"" + ("" if ok else
                          f": beyond {lim:g}\" -- two-face means still cancel them, but have {st} adjusted")))
     return out
-
-
-def _circ_mean(a) -> float:
-    return float(np.angle(np.mean(np.exp(1j * np.asarray(a, float)))))
 
 
 def missing_inputs(step, values: dict) -> list[Check]:
